@@ -1,0 +1,53 @@
+"""rrls — the Robust Reinforcement Learning Suite.
+
+Robust MuJoCo tasks whose physics can be changed through ``set_params``/``get_params``, the
+paper's uncertainty sets, robust-RL wrappers, and (in later modules) evaluation and baselines.
+
+``import rrls`` is cheap: it registers the Gymnasium ids and builds no environment; the
+submodules load on first use.
+
+>>> import gymnasium as gym
+>>> env = gym.make("rrls/robust-hopper-v0")
+>>> env.set_params(torsomass=2.0)
+>>> env.get_params()["torsomass"]
+2.0
+"""
+
+from __future__ import annotations
+
+import importlib
+from typing import Any
+
+__version__ = "0.1.0"
+
+_LAZY = {
+    "envs": "rrls.envs",
+    "wrappers": "rrls.wrappers",
+    "uncertainty": "rrls.uncertainty",
+    "UncertaintySet": "rrls.uncertainty",
+    "ModifiedParamsEnv": "rrls.interface",
+    "get_uncertainty_set": "rrls.envs",
+    "generate_evaluation_set": "rrls.evaluation",
+    "evaluation": "rrls.evaluation",
+}
+
+
+def __getattr__(name: str) -> Any:
+    module = _LAZY.get(name)
+    if module is None:
+        raise AttributeError(f"module 'rrls' has no attribute {name!r}")
+    mod = importlib.import_module(module)
+    value = mod if module.endswith(name) else getattr(mod, name)
+    globals()[name] = value
+    return value
+
+
+def __dir__() -> list[str]:
+    return sorted([*globals(), *_LAZY])
+
+
+from rrls._registration import register_envs  # noqa: E402
+
+register_envs()
+
+__all__ = ["UncertaintySet", "__version__", "get_uncertainty_set", "register_envs", *_LAZY]

@@ -1,0 +1,218 @@
+"""The one generic robust environment, driven by a task's parameter table.
+
+:class:`ModifiedParamsMixin` sits in front of a Gymnasium v5 MuJoCo env class in the MRO
+(``class RobustHopper(ModifiedParamsMixin, HopperEnv)``). It adds ``set_params``/``get_params``
+for the rows of ``param_specs`` and touches nothing else, so at nominal parameters the env is
+bit-identical to ``gym.make("Hopper-v5")``.
+"""
+
+from __future__ import annotations
+
+import contextlib
+from collections.abc import Iterator
+from typing import Any, ClassVar
+
+import mujoco
+import numpy as np
+from gymnasium.utils import EzPickle
+
+from rrls.envs.tasks import TaskSpec
+from rrls.params import ParamSpec
+
+_FORCES = "xfrc_applied"
+
+
+@contextlib.contextmanager
+def mujoco_warnings_to_python() -> Iterator[None]:
+    """Route MuJoCo's warnings to Python's ``warnings`` instead of ``MUJOCO_LOG.TXT``.
+
+    MuJoCo's default handler appends every warning (e.g. the deprecated ``settotalmass`` in
+    HalfCheetah's XML) to a file in the working directory; we only swap the handler while we
+    compile a model, so a user's own handler stays in place otherwise.
+    """
+    import warnings
+
+    previous = mujoco.get_mju_user_warning()
+    mujoco.set_mju_user_warning(lambda msg: warnings.warn(f"MuJoCo: {msg}", stacklevel=2))
+    try:
+        yield
+    finally:
+        mujoco.set_mju_user_warning(previous)
+
+
+class ModifiedParamsMixin:
+    """Adds the ``ModifiedParamsEnv`` interface to a Gymnasium MuJoCo env.
+
+    Parameters are set by constructor keywords, :meth:`set_params` (partial updates) or
+    ``reset(options={...})``; :meth:`get_params` returns all of them; ``info`` at reset and at
+    every step carries the current values. ``scale_inertia=True`` scales a body's inertia with
+    its mass (default: the paper's semantics, mass only).
+    """
+
+    task: ClassVar[TaskSpec]
+    param_specs: ClassVar[tuple[ParamSpec, ...]]
+
+    # -- construction -------------------------------------------------------------------------
+    def __init__(self, *, scale_inertia: bool = False, **kwargs: Any) -> None:
+        params = {k: kwargs.pop(k) for k in list(kwargs) if k in self._names()}
+        try:
+            super().__init__(**kwargs)  # the Gymnasium v5 env
+        except TypeError as exc:
+            raise TypeError(
+                f"{exc}. {type(self).__name__} takes the physical parameters "
+                f"{', '.join(self.param_names())} and the keywords of {self.task.v5_id}"
+            ) from None
+        # EzPickle records *our* constructor arguments, so copies rebuild a robust env.
+        EzPickle.__init__(self, scale_inertia=scale_inertia, **params, **kwargs)
+        self.scale_inertia = bool(scale_inertia)
+        model = self.model
+        self._rows = {s.name: (s, s.resolve(model)) for s in self.param_specs}
+        self._mass0 = model.body_mass.copy()
+        self._inertia0 = model.body_inertia.copy()
+        self._friction0 = model.geom_friction.copy()
+        # mj_setConst uses its MjData as scratch space (it overwrites qpos): never the live one.
+        self._scratch = mujoco.MjData(model)
+        self._values: dict[str, float] = {s.name: self._read(s) for s in self.param_specs}
+        self._overrides: dict[str, float] = {}
+        self._init_params: dict[str, float] = {}
+        if params:
+            self.set_params(**params)
+        self._init_params = dict(self._overrides)
+
+    def _initialize_simulation(self):  # noqa: ANN202 - Gymnasium's signature
+        with mujoco_warnings_to_python():
+            return super()._initialize_simulation()
+
+    @classmethod
+    def _names(cls) -> dict[str, str]:
+        """Every accepted name (aliases included) -> canonical name."""
+        names = {s.name: s.name for s in cls.param_specs}
+        names.update({a: s.name for s in cls.param_specs for a in s.aliases})
+        return names
+
+    @classmethod
+    def param_names(cls) -> tuple[str, ...]:
+        """The canonical parameter names, in table order."""
+        return tuple(s.name for s in cls.param_specs)
+
+    # -- the ModifiedParamsEnv interface ------------------------------------------------------
+    def get_params(self) -> dict[str, float]:
+        """All parameters and their current values."""
+        return dict(self._values)
+
+    def set_params(self, **params: float) -> None:
+        """Set some parameters; the others keep their values.
+
+        Everything is validated before anything is written, so bad input changes nothing.
+        """
+        updates = self._validate(params)
+        mass_changed = False
+        for name, value in updates.items():
+            spec, idx = self._rows[name]
+            self._write(spec, idx, value)
+            mass_changed |= spec.field == "body_mass"
+        if mass_changed:
+            mujoco.mj_setConst(self.model, self._scratch)
+        self._values.update(updates)
+        self._overrides.update(updates)
+
+    def reset_params(self) -> None:
+        """Restore the model exactly as built (nominal, or the constructor's parameters).
+
+        Unlike ``set_params(**nominal)`` this also restores per-geom frictions (e.g. Hopper's
+        foot friction 2.0, which ``worldfriction`` overwrites).
+        """
+        model = self.model
+        model.body_mass[:] = self._mass0
+        model.body_inertia[:] = self._inertia0
+        model.geom_friction[:] = self._friction0
+        self.data.xfrc_applied[:] = 0.0
+        mujoco.mj_setConst(model, self._scratch)
+        self._values = {s.name: self._read(s) for s in self.param_specs}
+        self._overrides = {}
+        if self._init_params:
+            self.set_params(**self._init_params)
+
+    def _validate(self, params: dict[str, Any]) -> dict[str, float]:
+        names = self._names()
+        unknown = [k for k in params if k not in names]
+        if unknown:
+            raise ValueError(
+                f"unknown parameter(s) {unknown} for {type(self).__name__}; "
+                f"valid names: {', '.join(self.param_names())}"
+            )
+        updates: dict[str, float] = {}
+        for key, value in params.items():
+            if value is None:  # the original code's "leave unchanged"
+                continue
+            spec = self._rows[names[key]][0]
+            if isinstance(value, np.ndarray) and value.size == 1:
+                value = value.item()
+            problem = spec.check(value)
+            if problem:
+                raise ValueError(problem)
+            updates[spec.name] = float(value)
+        return updates
+
+    def _read(self, spec: ParamSpec) -> float:
+        idx = self._rows[spec.name][1]
+        if spec.field == "body_mass":
+            return float(self.model.body_mass[idx[0]])
+        if spec.field == "geom_friction":  # the floor's (first world geom): the paper's reference
+            floor = np.flatnonzero(self.model.geom_bodyid == 0)[0]
+            return float(self.model.geom_friction[floor, 0])
+        return float(self.data.xfrc_applied[idx[0], spec.component])
+
+    def _write(self, spec: ParamSpec, idx: np.ndarray, value: float) -> None:
+        model = self.model
+        if spec.field == "body_mass":
+            b = idx[0]
+            model.body_mass[b] = value
+            if self.scale_inertia:
+                model.body_inertia[b] = self._inertia0[b] * (value / self._mass0[b])
+        elif spec.field == "geom_friction":
+            model.geom_friction[idx, 0] = value
+        else:
+            self.data.xfrc_applied[idx[0], spec.component] = value
+
+    # -- Gymnasium hooks ----------------------------------------------------------------------
+    def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
+        """``options`` may hold parameters to set before the episode starts."""
+        if options:
+            self.set_params(**options)
+        obs, info = super().reset(seed=seed, options=options)
+        info.update(self._values)
+        return obs, info
+
+    def reset_model(self):  # noqa: ANN201 - Gymnasium's signature
+        # mj_resetData zeroes xfrc_applied: put the forces back so they act from the first step.
+        for name, (spec, idx) in self._rows.items():
+            if spec.field == _FORCES:
+                self.data.xfrc_applied[idx[0], spec.component] = self._values[name]
+        return super().reset_model()
+
+    def step(self, action):  # noqa: ANN201 - Gymnasium's signature
+        obs, reward, terminated, truncated, info = super().step(action)
+        info.update(self._values)
+        return obs, reward, terminated, truncated, info
+
+    # -- copies -------------------------------------------------------------------------------
+    def __getstate__(self) -> dict[str, Any]:
+        """Constructor args + parameters + the whole MjData (so copies continue bit-identically)."""
+        return {
+            "ezpickle": EzPickle.__getstate__(self),
+            "overrides": dict(self._overrides),
+            "data": self.data,
+            "np_random": self._np_random,
+            "np_random_seed": self._np_random_seed,
+            "spec": self.spec,
+        }
+
+    def __setstate__(self, state: dict[str, Any]) -> None:
+        EzPickle.__setstate__(self, state["ezpickle"])
+        self.set_params(**state["overrides"])
+        mujoco.mj_copyData(self.data, self.model, state["data"])
+        self._np_random = state["np_random"]
+        self._np_random_seed = state["np_random_seed"]
+        self.spec = state["spec"]
+

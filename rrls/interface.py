@@ -1,0 +1,27 @@
+"""The ``ModifiedParamsEnv`` protocol: what every rrls environment (and wrapper) offers."""
+
+from __future__ import annotations
+
+from typing import Any, Protocol, runtime_checkable
+
+import gymnasium as gym
+
+
+@runtime_checkable
+class ModifiedParamsEnv(Protocol):
+    """A Gymnasium env whose physical parameters can be read and written by name.
+
+    ``set_params`` takes any subset of the names ``get_params`` returns; unknown names raise a
+    ``ValueError`` listing the valid ones, non-finite or non-physical values are refused.
+    """
+
+    action_space: gym.Space
+    observation_space: gym.Space
+
+    def set_params(self, **params: float) -> None: ...
+
+    def get_params(self) -> dict[str, float]: ...
+
+    def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None): ...
+
+    def step(self, action: Any): ...

@@ -1,0 +1,201 @@
+"""Uncertainty sets: boxes over named physical parameters.
+
+An :class:`UncertaintySet` is what the paper calls Omega: the box over which domain randomization
+samples, the adversary acts and the evaluation mesh is laid. It is a small immutable value
+object; points are ``dict[str, float]`` (what ``set_params`` takes) or arrays ordered like
+``names`` (what samplers and optimisers want).
+
+>>> import numpy as np
+>>> from rrls.uncertainty import UncertaintySet
+>>> box = UncertaintySet.from_bounds({"worldfriction": (0.1, 3.0), "torsomass": (0.1, 3.0)})
+>>> box.dim
+2
+>>> box.mesh(3)[-1].tolist()  # the mesh reaches both bounds
+[3.0, 3.0]
+>>> point = box.sample(np.random.default_rng(0))
+>>> box.contains(point)
+True
+>>> box.normalize([0.1, 3.0]).tolist()
+[-1.0, 1.0]
+"""
+
+from __future__ import annotations
+
+import itertools
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+ArrayLike = Sequence[float] | np.ndarray
+Point = Mapping[str, float] | ArrayLike
+
+
+@dataclass(frozen=True, eq=False)
+class UncertaintySet:
+    """A box ``low <= x <= high`` over the parameters ``names``.
+
+    ``nominal`` is the unmodified environment's point (``None`` when unknown); ``label`` names
+    the set in reprs and result files (e.g. ``"hopper/3d"``).
+    """
+
+    names: tuple[str, ...]
+    low: np.ndarray
+    high: np.ndarray
+    nominal: np.ndarray | None = None
+    label: str = ""
+
+    def __post_init__(self) -> None:
+        names = tuple(self.names)
+        low = np.array(self.low, dtype=np.float64).reshape(-1)
+        high = np.array(self.high, dtype=np.float64).reshape(-1)
+        if not names:
+            raise ValueError("an uncertainty set needs at least one parameter")
+        if len(set(names)) != len(names):
+            raise ValueError(f"duplicate parameter names in {names}")
+        if low.shape != (len(names),) or high.shape != (len(names),):
+            raise ValueError(
+                f"low and high need one value per name ({len(names)}), "
+                f"got shapes {low.shape} and {high.shape}"
+            )
+        if not (np.all(np.isfinite(low)) and np.all(np.isfinite(high))):
+            raise ValueError(f"bounds must be finite, got low={low} high={high}")
+        bad = [n for n, lo, hi in zip(names, low, high) if lo > hi]
+        if bad:
+            raise ValueError(f"low > high for {bad}")
+        low.flags.writeable = False
+        high.flags.writeable = False
+        object.__setattr__(self, "names", names)
+        object.__setattr__(self, "low", low)
+        object.__setattr__(self, "high", high)
+        if self.nominal is not None:
+            nominal = np.array(self.nominal, dtype=np.float64).reshape(-1)
+            if nominal.shape != low.shape:
+                raise ValueError(f"nominal needs {len(names)} values, got {nominal.shape}")
+            nominal.flags.writeable = False
+            object.__setattr__(self, "nominal", nominal)
+
+    # -- construction -------------------------------------------------------------------------
+    @classmethod
+    def from_bounds(
+        cls,
+        bounds: Mapping[str, Sequence[float]],
+        nominal: Mapping[str, float] | None = None,
+        label: str = "",
+    ) -> UncertaintySet:
+        """From the original code's ``{name: [low, high]}`` dicts (``HopperParamsBound...value``)."""
+        if isinstance(bounds, UncertaintySet):
+            return bounds
+        names = tuple(bounds)
+        for n in names:
+            if len(bounds[n]) != 2:
+                raise ValueError(f"bounds of {n!r} must be [low, high], got {bounds[n]!r}")
+        low = [float(bounds[n][0]) for n in names]
+        high = [float(bounds[n][1]) for n in names]
+        nom = None if nominal is None else [float(nominal[n]) for n in names]
+        return cls(names, np.array(low), np.array(high), None if nom is None else np.array(nom), label)
+
+    def as_bounds(self) -> dict[str, list[float]]:
+        """The original code's ``{name: [low, high]}`` form."""
+        return {n: [float(lo), float(hi)] for n, lo, hi in zip(self.names, self.low, self.high)}
+
+    # -- conversions --------------------------------------------------------------------------
+    @property
+    def dim(self) -> int:
+        return len(self.names)
+
+    def to_array(self, point: Point) -> np.ndarray:
+        """``point`` as an array ordered like ``names`` (a dict must name every parameter)."""
+        if isinstance(point, Mapping):
+            missing = [n for n in self.names if n not in point]
+            extra = [k for k in point if k not in self.names]
+            if missing or extra:
+                raise ValueError(
+                    f"point must name exactly {list(self.names)}; missing {missing}, extra {extra}"
+                )
+            return np.array([float(point[n]) for n in self.names])
+        arr = np.asarray(point, dtype=np.float64)
+        if arr.shape[-1:] != (self.dim,):
+            raise ValueError(f"expected {self.dim} values per point, got shape {arr.shape}")
+        return arr
+
+    def to_dict(self, x: ArrayLike) -> dict[str, float]:
+        """One point as ``{name: value}``, ready for ``env.set_params(**point)``."""
+        x = self.to_array(x)
+        if x.ndim != 1:
+            raise ValueError(f"to_dict takes one point, got shape {x.shape}")
+        return {n: float(v) for n, v in zip(self.names, x)}
+
+    # -- geometry -----------------------------------------------------------------------------
+    def sample(self, rng: np.random.Generator, n: int | None = None) -> dict[str, float] | np.ndarray:
+        """Uniform draw(s) from ``rng``: a dict for ``n=None``, else an ``(n, dim)`` array."""
+        if not isinstance(rng, np.random.Generator):
+            raise TypeError(f"rng must be a numpy.random.Generator, got {type(rng).__name__}")
+        if n is None:
+            return self.to_dict(rng.uniform(self.low, self.high))
+        return rng.uniform(self.low, self.high, size=(n, self.dim))
+
+    def mesh(self, n: int, endpoint: bool = True) -> np.ndarray:
+        """The ``n ** dim`` points of a uniform grid, shape ``(n ** dim, dim)``.
+
+        ``endpoint=True`` includes both bounds (``np.linspace``, as the M2TD3 authors evaluate);
+        ``endpoint=False`` reproduces the original RRLS code (``np.arange(low, high, step)``
+        with ``step = (high - low) / n``), which never reaches the upper bound. The first
+        parameter varies slowest (``itertools.product`` order).
+        """
+        if int(n) != n or n < 1:
+            raise ValueError(f"mesh size must be a positive integer, got {n!r}")
+        n = int(n)
+        if endpoint:
+            axes = [np.linspace(lo, hi, n) for lo, hi in zip(self.low, self.high)]
+        else:
+            # exactly the original's call (float rounding can give n + 1 points on an axis)
+            axes = [
+                np.arange(lo, hi, (hi - lo) / n) if hi > lo else np.array([lo])
+                for lo, hi in zip(self.low, self.high)
+            ]
+        return np.array(list(itertools.product(*axes)), dtype=np.float64).reshape(-1, self.dim)
+
+    def normalize(self, x: Point) -> np.ndarray:
+        """Map points of the box to ``[-1, 1]`` (a degenerate axis maps to 0)."""
+        x = self.to_array(x)
+        span = self.high - self.low
+        safe = np.where(span > 0, span, 1.0)
+        return np.where(span > 0, 2.0 * (x - self.low) / safe - 1.0, 0.0)
+
+    def denormalize(self, z: ArrayLike) -> np.ndarray:
+        """Map ``[-1, 1]`` to the box (the adversary's action -> parameters)."""
+        z = np.asarray(z, dtype=np.float64)
+        if z.shape[-1:] != (self.dim,):
+            raise ValueError(f"expected {self.dim} values per point, got shape {z.shape}")
+        return self.low + (z + 1.0) * 0.5 * (self.high - self.low)
+
+    def clip(self, x: Point) -> np.ndarray:
+        return np.clip(self.to_array(x), self.low, self.high)
+
+    def contains(self, point: Point, atol: float = 0.0) -> bool | np.ndarray:
+        """Whether the point(s) lie in the box (an array of bools for a batch)."""
+        x = self.to_array(point)
+        inside = np.all((x >= self.low - atol) & (x <= self.high + atol), axis=-1)
+        return bool(inside) if np.ndim(inside) == 0 else inside
+
+    # -- misc ---------------------------------------------------------------------------------
+    def __eq__(self, other: object) -> bool:
+        if not isinstance(other, UncertaintySet):
+            return NotImplemented
+        return (
+            self.names == other.names
+            and np.array_equal(self.low, other.low)
+            and np.array_equal(self.high, other.high)
+        )
+
+    def __hash__(self) -> int:
+        return hash((self.names, self.low.tobytes(), self.high.tobytes()))
+
+    def __len__(self) -> int:
+        return self.dim
+
+    def __repr__(self) -> str:
+        rows = ", ".join(f"{n}=[{lo:g}, {hi:g}]" for n, lo, hi in zip(self.names, self.low, self.high))
+        label = f"{self.label!r}, " if self.label else ""
+        return f"UncertaintySet({label}{rows})"

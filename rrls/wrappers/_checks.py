@@ -1,0 +1,26 @@
+"""Shared validation of two-player actions."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+from gymnasium import spaces
+
+
+def split_pair(action: Any, space: spaces.Tuple) -> tuple[np.ndarray, np.ndarray]:
+    """``(agent, adversary)`` arrays from a 2-tuple action, with a clear error on bad shapes."""
+    if not isinstance(action, (tuple, list)) or len(action) != 2:
+        raise ValueError(
+            "this env takes a pair (agent_action, adversary_action); "
+            f"got {type(action).__name__} {np.shape(action) if hasattr(action, '__len__') else ''}"
+        )
+    out = []
+    for who, act, sub in zip(("agent", "adversary"), action, space.spaces):
+        arr = np.asarray(act, dtype=sub.dtype)
+        if arr.shape != sub.shape:
+            raise ValueError(f"{who} action must have shape {sub.shape}, got {arr.shape}")
+        if not np.all(np.isfinite(arr)):
+            raise ValueError(f"{who} action must be finite, got {arr}")
+        out.append(arr)
+    return out[0], out[1]

@@ -1,0 +1,62 @@
+"""Domain randomization: new physical parameters at every episode (paper §4)."""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Mapping, Sequence
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+from gymnasium.utils import seeding
+
+from rrls.uncertainty import UncertaintySet
+from rrls.wrappers.access import ParamsForwarding
+
+RandomizeFn = Callable[[UncertaintySet, np.random.Generator], Mapping[str, float]]
+
+
+class DomainRandomization(ParamsForwarding, gym.utils.RecordConstructorArgs):
+    """Draw the parameters of ``params_bound`` anew at each ``reset``.
+
+    Draws come from the env's own generator (``env.np_random``), which ``reset(seed=...)`` seeds
+    first, so a seed fixes the whole sequence of episodes: parameters and initial states.
+    ``randomize_fn(uncertainty_set, rng) -> {name: value}`` replaces the uniform draw.
+    Parameters given in ``reset(options=...)`` win over the draw. ``info["randomized_params"]``
+    holds the episode's draw.
+
+    >>> import gymnasium as gym
+    >>> from rrls.envs import RobustHopper, HopperParamsBound
+    >>> from rrls.wrappers import DomainRandomization
+    >>> env = DomainRandomization(RobustHopper(), HopperParamsBound.TWO_DIM.value)
+    >>> _, info = env.reset(seed=0)
+    >>> 0.1 <= info["torsomass"] <= 3.0
+    True
+    """
+
+    def __init__(
+        self,
+        env: gym.Env,
+        params_bound: Mapping[str, Sequence[float]] | UncertaintySet,
+        randomize_fn: RandomizeFn | None = None,
+    ) -> None:
+        gym.utils.RecordConstructorArgs.__init__(self, params_bound=params_bound)
+        super().__init__(env)
+        self.uncertainty_set = UncertaintySet.from_bounds(params_bound)
+        self.params_bound = self.uncertainty_set.as_bounds()
+        self.randomize_fn = randomize_fn
+        valid = self.env.get_wrapper_attr("get_params")()
+        unknown = [n for n in self.uncertainty_set.names if n not in valid]
+        if unknown:
+            raise ValueError(f"unknown parameter(s) {unknown}; valid names: {', '.join(valid)}")
+
+    def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
+        if seed is not None:
+            self.env.np_random, _ = seeding.np_random(seed)
+        rng = self.env.np_random
+        if self.randomize_fn is None:
+            params = self.uncertainty_set.sample(rng)
+        else:
+            params = dict(self.randomize_fn(self.uncertainty_set, rng))
+        obs, info = self.env.reset(options={**params, **(options or {})})
+        info["randomized_params"] = params
+        return obs, info
