@@ -83,7 +83,7 @@ class UncertaintySet:
         nominal: Mapping[str, float] | None = None,
         label: str = "",
     ) -> UncertaintySet:
-        """From the original code's ``{name: [low, high]}`` dicts (``HopperParamsBound...value``)."""
+        """From the original code's ``{name: [low, high]}`` dicts (``...ParamsBound.X.value``)."""
         if isinstance(bounds, UncertaintySet):
             return bounds
         names = tuple(bounds)
@@ -93,7 +93,9 @@ class UncertaintySet:
         low = [float(bounds[n][0]) for n in names]
         high = [float(bounds[n][1]) for n in names]
         nom = None if nominal is None else [float(nominal[n]) for n in names]
-        return cls(names, np.array(low), np.array(high), None if nom is None else np.array(nom), label)
+        return cls(
+            names, np.array(low), np.array(high), None if nom is None else np.array(nom), label
+        )
 
     def as_bounds(self) -> dict[str, list[float]]:
         """The original code's ``{name: [low, high]}`` form."""
@@ -127,7 +129,9 @@ class UncertaintySet:
         return {n: float(v) for n, v in zip(self.names, x)}
 
     # -- geometry -----------------------------------------------------------------------------
-    def sample(self, rng: np.random.Generator, n: int | None = None) -> dict[str, float] | np.ndarray:
+    def sample(
+        self, rng: np.random.Generator, n: int | None = None
+    ) -> dict[str, float] | np.ndarray:
         """Uniform draw(s) from ``rng``: a dict for ``n=None``, else an ``(n, dim)`` array."""
         if not isinstance(rng, np.random.Generator):
             raise TypeError(f"rng must be a numpy.random.Generator, got {type(rng).__name__}")
@@ -196,6 +200,8 @@ class UncertaintySet:
         return self.dim
 
     def __repr__(self) -> str:
-        rows = ", ".join(f"{n}=[{lo:g}, {hi:g}]" for n, lo, hi in zip(self.names, self.low, self.high))
+        rows = ", ".join(
+            f"{n}=[{lo:g}, {hi:g}]" for n, lo, hi in zip(self.names, self.low, self.high)
+        )
         label = f"{self.label!r}, " if self.label else ""
         return f"UncertaintySet({label}{rows})"

@@ -215,4 +215,3 @@ class ModifiedParamsMixin:
         self._np_random = state["np_random"]
         self._np_random_seed = state["np_random_seed"]
         self.spec = state["spec"]
-

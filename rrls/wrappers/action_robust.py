@@ -65,7 +65,8 @@ class ConcatenateActions(ParamsForwarding):
     >>> import numpy as np
     >>> from rrls.envs import RobustHopper, HopperParamsBound
     >>> from rrls.wrappers import ConcatenateActions, DynamicAdversarial
-    >>> env = ConcatenateActions(DynamicAdversarial(RobustHopper(), HopperParamsBound.TWO_DIM.value))
+    >>> game = DynamicAdversarial(RobustHopper(), HopperParamsBound.TWO_DIM.value)
+    >>> env = ConcatenateActions(game)
     >>> env.action_space.shape
     (5,)
     """
