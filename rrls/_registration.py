@@ -17,7 +17,7 @@ from typing import Any
 
 from gymnasium.envs.registration import WrapperSpec, register, registry
 
-from rrls.envs.tasks import TASKS, TaskSpec
+from rrls.tasks import TASKS, TaskSpec
 
 MAX_EPISODE_STEPS = 1000
 NR_MDP_ALPHA = 0.1

@@ -25,10 +25,12 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Literal
+from typing import TYPE_CHECKING, Literal
 
-import mujoco
 import numpy as np
+
+if TYPE_CHECKING:  # mujoco is imported lazily: `import rrls` must stay cheap
+    import mujoco
 
 Field = Literal["body_mass", "geom_friction", "xfrc_applied"]
 
@@ -83,6 +85,8 @@ class ParamSpec:
 
 def body_id(model: mujoco.MjModel, ref: str) -> int:
     """Body index of ``ref`` (a body name, or ``"<name>/child"`` for its only child)."""
+    import mujoco
+
     name, _, child = ref.partition("/")
     parent = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, name)
     if parent < 0:
@@ -99,6 +103,8 @@ def body_id(model: mujoco.MjModel, ref: str) -> int:
 
 
 def _geom_id(model: mujoco.MjModel, name: str) -> int:
+    import mujoco
+
     gid = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_GEOM, name)
     if gid < 0:
         raise KeyError(f"no geom named {name!r} in the model")

@@ -26,7 +26,7 @@ from gymnasium.envs.mujoco.inverted_pendulum_v5 import InvertedPendulumEnv
 from gymnasium.envs.mujoco.walker2d_v5 import Walker2dEnv
 
 from rrls.envs.base import ModifiedParamsMixin
-from rrls.envs.tasks import TASKS, TaskSpec, get_task
+from rrls.tasks import TASKS, TaskSpec, get_task
 from rrls.uncertainty import UncertaintySet
 
 _BASES = {

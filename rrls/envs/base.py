@@ -16,8 +16,8 @@ import mujoco
 import numpy as np
 from gymnasium.utils import EzPickle
 
-from rrls.envs.tasks import TaskSpec
 from rrls.params import ParamSpec
+from rrls.tasks import TaskSpec
 
 _FORCES = "xfrc_applied"
 

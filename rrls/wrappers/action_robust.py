@@ -30,7 +30,7 @@ class ProbabilisticActionRobust(ParamsForwarding, gym.utils.RecordConstructorArg
     >>> env = ProbabilisticActionRobust(RobustHopper(), alpha=0.1)
     >>> _ = env.reset(seed=0)
     >>> *_, info = env.step((np.ones(3), -np.ones(3)))
-    >>> info["executed_action"].round(2).tolist()
+    >>> [round(float(x), 2) for x in info["executed_action"]]
     [0.8, 0.8, 0.8]
     """
 

@@ -28,7 +28,7 @@ class DynamicAdversarial(ParamsForwarding, gym.utils.RecordConstructorArgs):
     >>> env = DynamicAdversarial(RobustHopper(), HopperParamsBound.ONE_DIM.value)
     >>> _ = env.reset(seed=0)
     >>> _, r, *_, info = env.step((np.zeros(3), np.array([1.0])))
-    >>> info["worldfriction"], info["adversarial_reward"] == -r
+    >>> info["worldfriction"], bool(info["adversarial_reward"] == -r)
     (3.0, True)
     """
 

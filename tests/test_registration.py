@@ -1,0 +1,74 @@
+"""Registered ids, cheap import, registration without `import rrls`."""
+
+from __future__ import annotations
+
+import importlib.util
+import pathlib
+import subprocess
+import sys
+
+import gymnasium as gym
+import pytest
+
+import rrls
+from rrls.envs import TASKS
+
+
+def _all_ids():
+    ids = []
+    for key, task in TASKS.items():
+        ids += [f"rrls/robust-{key}-v0", f"rrls/force-{key}-v0"]
+        ids += [f"rrls/robust-{key}-adversarial-{d}-v0" for d in task.sets if d != "rarl"]
+        ids += [f"rrls/robust-{key}-domain-randomization-{d}-v0" for d in task.sets if d != "rarl"]
+        ids += [f"rrls/robust-{key}-adversarial-forces-v0"]
+        ids += [
+            f"rrls/probabilistic-action-robust-{key}-v0",
+            f"probabilistic-action-robust-{key}-v0",
+        ]
+    return ids
+
+
+def test_every_id_is_registered_with_walker_adversarial():
+    ids = _all_ids()
+    assert "rrls/robust-walker-adversarial-3d-v0" in ids
+    assert "rrls/robust-invertedpendulum-adversarial-3d-v0" not in ids
+    missing = [i for i in ids if i not in gym.registry]
+    assert not missing
+    assert len(ids) == 6 * 11 - 2  # InvertedPendulum has no 3D set
+
+
+@pytest.mark.parametrize("env_id", _all_ids())
+def test_every_id_makes_and_steps_with_params_interface(env_id):
+    env = gym.make(env_id)
+    params = env.get_params()
+    env.set_params(**{next(iter(params)): next(iter(params.values()))})
+    env.reset(seed=0)
+    env.step(env.action_space.sample())
+    assert gym.make(env.spec).get_params().keys() == params.keys()  # spec round-trips
+    env.close()
+
+
+def test_import_rrls_builds_no_environment():
+    code = "import rrls, sys; print(sorted(m for m in sys.modules if m.startswith('rrls')))"
+    root = pathlib.Path(__file__).resolve().parents[1]
+    out = subprocess.run(
+        [sys.executable, "-c", code], capture_output=True, text=True, check=True, cwd=root
+    )
+    assert "rrls.envs'" not in out.stdout and "rrls._registration" in out.stdout
+
+
+@pytest.mark.skipif(
+    importlib.util.find_spec("_rrls_autoregister") is None,
+    reason="rrls is not installed (the start-up hook ships with the wheel)",
+)
+def test_gym_make_works_without_import_rrls():
+    code = (
+        "import gymnasium as gym, sys; env = gym.make('rrls/robust-hopper-v0'); "
+        "env.set_params(torsomass=2.0); print(env.get_params()['torsomass'])"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert out.stdout.strip() == "2.0"
+
+
+def test_version():
+    assert rrls.__version__.count(".") == 2
