@@ -1,0 +1,7 @@
+"""``python -m rrls`` is the ``rrls`` command."""
+
+import sys
+
+from rrls.cli import main
+
+sys.exit(main())

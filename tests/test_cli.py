@@ -1,0 +1,34 @@
+"""The command line: `rrls check`, `--version`, `python -m rrls`."""
+
+from __future__ import annotations
+
+import pathlib
+import subprocess
+import sys
+
+import pytest
+
+import rrls
+from rrls.cli import main
+
+ROOT = pathlib.Path(__file__).resolve().parents[1]
+
+
+def test_check_prints_a_table_for_every_point(capsys):
+    assert main(["check", "--task", "invertedpendulum", "--steps", "5"]) == 0
+    out = capsys.readouterr().out
+    # nominal + 2 (1d) + 4 (2d) + 4 (rarl) corners
+    assert "11 ok, 0 failed" in out
+    assert "invertedpendulum  2d" in out and "31,11" in out
+
+
+def test_version_and_module_entry_point():
+    out = subprocess.run(
+        [sys.executable, "-m", "rrls", "--version"], capture_output=True, text=True, cwd=ROOT
+    )
+    assert out.returncode == 0 and out.stdout.strip() == f"rrls {rrls.__version__}"
+
+
+def test_unknown_task_is_a_clear_error():
+    with pytest.raises(ValueError, match="valid tasks"):
+        main(["check", "--task", "cartpole"])
