@@ -35,7 +35,7 @@ def steps_per_second(env: gym.Env, actions: np.ndarray) -> float:
 
 
 def import_cost(rounds: int) -> tuple[float, float]:
-    """Median wall time of `import gymnasium, mujoco` with and without `import rrls` (fresh procs)."""
+    """Median time of `import gymnasium, mujoco` with and without `import rrls` (fresh procs)."""
 
     def timed(code: str) -> float:
         out = subprocess.run(
