@@ -30,6 +30,8 @@ class _RegisterAfterImport(importlib.abc.MetaPathFinder):
 
         def exec_module(module):
             real_exec(module)
+            if "rrls._registration" in sys.modules:
+                return  # gymnasium is being imported *by* rrls, which registers its ids itself
             try:
                 from rrls._registration import register_envs
 
