@@ -1,11 +1,22 @@
-"""Shared validation of two-player actions."""
+"""Shared validation for the wrappers."""
 
 from __future__ import annotations
 
 from typing import Any
 
+import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
+
+from rrls.uncertainty import UncertaintySet
+
+
+def check_names(env: gym.Env, box: UncertaintySet) -> None:
+    """Refuse a set naming parameters that ``env`` does not have, listing the valid ones."""
+    valid = env.get_wrapper_attr("get_params")()
+    unknown = [n for n in box.names if n not in valid]
+    if unknown:
+        raise ValueError(f"unknown parameter(s) {unknown}; valid names: {', '.join(valid)}")
 
 
 def split_pair(action: Any, space: spaces.Tuple) -> tuple[np.ndarray, np.ndarray]:

@@ -10,7 +10,7 @@ import numpy as np
 from gymnasium import spaces
 
 from rrls.uncertainty import UncertaintySet
-from rrls.wrappers._checks import split_pair
+from rrls.wrappers._checks import check_names, split_pair
 from rrls.wrappers.access import ParamsForwarding
 
 
@@ -39,10 +39,7 @@ class DynamicAdversarial(ParamsForwarding, gym.utils.RecordConstructorArgs):
         super().__init__(env)
         self.uncertainty_set = UncertaintySet.from_bounds(params_bound)
         self.params_bound = self.uncertainty_set.as_bounds()
-        valid = self.env.get_wrapper_attr("get_params")()
-        unknown = [n for n in self.uncertainty_set.names if n not in valid]
-        if unknown:
-            raise ValueError(f"unknown parameter(s) {unknown}; valid names: {', '.join(valid)}")
+        check_names(self.env, self.uncertainty_set)
         self.adversary_space = spaces.Box(-1.0, 1.0, (self.uncertainty_set.dim,), np.float32)
         self.action_space = spaces.Tuple((env.action_space, self.adversary_space))
         self._set_params = self.env.get_wrapper_attr("set_params")

@@ -10,6 +10,7 @@ import numpy as np
 from gymnasium.utils import seeding
 
 from rrls.uncertainty import UncertaintySet
+from rrls.wrappers._checks import check_names
 from rrls.wrappers.access import ParamsForwarding
 
 RandomizeFn = Callable[[UncertaintySet, np.random.Generator], Mapping[str, float]]
@@ -44,10 +45,7 @@ class DomainRandomization(ParamsForwarding, gym.utils.RecordConstructorArgs):
         self.uncertainty_set = UncertaintySet.from_bounds(params_bound)
         self.params_bound = self.uncertainty_set.as_bounds()
         self.randomize_fn = randomize_fn
-        valid = self.env.get_wrapper_attr("get_params")()
-        unknown = [n for n in self.uncertainty_set.names if n not in valid]
-        if unknown:
-            raise ValueError(f"unknown parameter(s) {unknown}; valid names: {', '.join(valid)}")
+        check_names(self.env, self.uncertainty_set)
 
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
         if seed is not None:
