@@ -69,7 +69,9 @@ class ParamSpec:
 
     def check(self, value: float) -> str | None:
         """Why ``value`` is not acceptable for this parameter, or None."""
-        if not isinstance(value, (int, float, np.integer, np.floating)) or isinstance(value, bool):
+        if type(value) is not float and (  # fast path: the adversary sets floats every step
+            not isinstance(value, (int, float, np.integer, np.floating)) or isinstance(value, bool)
+        ):
             return f"{self.name} must be a real number, got {value!r}"
         if not math.isfinite(value):
             return f"{self.name} must be finite, got {value!r}"

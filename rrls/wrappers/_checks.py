@@ -31,7 +31,7 @@ def split_pair(action: Any, space: spaces.Tuple) -> tuple[np.ndarray, np.ndarray
         arr = np.asarray(act, dtype=sub.dtype)
         if arr.shape != sub.shape:
             raise ValueError(f"{who} action must have shape {sub.shape}, got {arr.shape}")
-        if not np.all(np.isfinite(arr)):
+        if not np.isfinite(arr).all():
             raise ValueError(f"{who} action must be finite, got {arr}")
         out.append(arr)
     return out[0], out[1]
