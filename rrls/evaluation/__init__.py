@@ -1,4 +1,4 @@
-"""Robust evaluation: meshes over uncertainty sets (the runner comes with the evaluation issue)."""
+"""Robust evaluation: meshes over uncertainty sets and the paper's scores (runner: issue 3)."""
 
 from rrls.evaluation.mesh import (
     EvaluationSet,
@@ -7,11 +7,13 @@ from rrls.evaluation.mesh import (
     generate_evaluation_set,
     resolve_uncertainty,
 )
+from rrls.evaluation.metrics import normalized_score
 
 __all__ = [
     "EvaluationSet",
     "default_evaluation_set",
     "evaluation_points",
     "generate_evaluation_set",
+    "normalized_score",
     "resolve_uncertainty",
 ]
