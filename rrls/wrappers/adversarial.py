@@ -43,13 +43,11 @@ class DynamicAdversarial(ParamsForwarding, gym.utils.RecordConstructorArgs):
         self.adversary_space = spaces.Box(-1.0, 1.0, (self.uncertainty_set.dim,), np.float32)
         self.action_space = spaces.Tuple((env.action_space, self.adversary_space))
         self._set_params = self.env.get_wrapper_attr("set_params")
-        self._half_span = 0.5 * (self.uncertainty_set.high - self.uncertainty_set.low)
 
     def step(self, action: Any):
         agent, adversary = split_pair(action, self.action_space)
-        z = adversary.astype(np.float64).clip(-1.0, 1.0)
         box = self.uncertainty_set
-        values = box.low + (z + 1.0) * self._half_span  # == box.denormalize(z), without checks
+        values = box.denormalize(adversary.astype(np.float64).clip(-1.0, 1.0))
         self._set_params(**dict(zip(box.names, values.tolist())))
         obs, reward, terminated, truncated, info = self.env.step(agent)
         info["adversarial_reward"] = -reward
