@@ -1,5 +1,6 @@
-"""Robust evaluation: meshes over uncertainty sets and the paper's scores (runner: issue 3)."""
+"""Robust evaluation (paper §4-5): meshes, the batched rollout engine, scores, worst-case search."""
 
+from rrls.evaluation.evaluate import EvaluationResult, evaluate
 from rrls.evaluation.mesh import (
     EvaluationSet,
     default_evaluation_set,
@@ -8,12 +9,30 @@ from rrls.evaluation.mesh import (
     resolve_uncertainty,
 )
 from rrls.evaluation.metrics import normalized_score
+from rrls.evaluation.policies import (
+    BatchInvariant,
+    MLPPolicy,
+    SB3Policy,
+    TorchPolicy,
+    as_policy,
+    load_policy,
+)
+from rrls.evaluation.runner import PolicyError
 
 __all__ = [
+    "BatchInvariant",
+    "EvaluationResult",
     "EvaluationSet",
+    "MLPPolicy",
+    "PolicyError",
+    "SB3Policy",
+    "TorchPolicy",
+    "as_policy",
     "default_evaluation_set",
+    "evaluate",
     "evaluation_points",
     "generate_evaluation_set",
+    "load_policy",
     "normalized_score",
     "resolve_uncertainty",
 ]

@@ -1,0 +1,131 @@
+"""Evaluation engine throughput vs a plain loop and vs the physics bound (issue 3 target).
+
+Side by side in one run, on each task's 3D set (a 5x5x5 mesh by default) with a 256-256 MLP of
+fixed random weights, in env steps per second:
+
+(a) plain loop: ``gym.make(...)``, ``set_params``, ``reset(seed)``, ``policy(obs[None])[0]`` per
+    step, one episode at a time — with our batch-invariant ``MLPPolicy`` (what the engine's rows
+    equal) and with the same MLP called without blocks (the fastest naive loop);
+(b) ``rrls.evaluation.evaluate`` with 1 and 2 workers;
+(c) the physics bound: ``mj_step(model, data, nstep=frame_skip)`` alone, replaying (a)'s episodes
+    (same models, initial states and controls: the same physics), one process, times the cores.
+
+All four run the same episodes: every mesh point, the engine's seed for episode 0.
+
+Targets: (b, 2 workers) >= 3x (a) and >= 75 % of (c). Each measurement is repeated (``--rounds``)
+in alternation and the median is reported.
+
+    python benchmarks/evaluation.py [--tasks halfcheetah hopper] [--mesh 5] [--rounds 3]
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import statistics
+import time
+import warnings
+
+import gymnasium as gym
+import mujoco
+import numpy as np
+
+import rrls  # noqa: F401  (registers the ids)
+from rrls.evaluation import MLPPolicy, evaluate, resolve_uncertainty
+from rrls.evaluation.runner import episode_seeds
+
+
+def plain_loop(task: str, policy, points: np.ndarray, names, seeds: np.ndarray):
+    """Env steps per second of the one-episode-at-a-time loop of the issue, and its actions."""
+    env = gym.make(f"rrls/robust-{task}-v0")
+    steps, start, episodes = 0, time.perf_counter(), []
+    for p, point in enumerate(points):
+        params = dict(zip(names, point.tolist()))
+        env.set_params(**params)
+        obs, _ = env.reset(seed=int(seeds[p, 0]))
+        actions = []
+        while True:
+            action = policy(obs[None])[0]
+            actions.append(action)
+            obs, _, terminated, truncated, _ = env.step(action)
+            if terminated or truncated:
+                break
+        steps += len(actions)
+        episodes.append((params, int(seeds[p, 0]), np.array(actions)))
+    return steps / (time.perf_counter() - start), episodes
+
+
+def physics_bound(task: str, episodes) -> float:
+    """Raw ``mj_step`` env steps per second (one core), replaying the plain loop's episodes.
+
+    Same initial states, same controls, so exactly the same physics as the engine's rows.
+    """
+    from rrls.envs import env_class
+
+    env = env_class(task, "3d")()
+    model, data, nstep = env.model, env.data, env.frame_skip
+    total, elapsed = 0, 0.0
+    for params, seed, actions in episodes:
+        env.reset_params()
+        env.set_params(**params)
+        env.reset(seed=seed)
+        start = time.perf_counter()
+        for ctrl in actions:
+            data.ctrl[:] = ctrl
+            mujoco.mj_step(model, data, nstep=nstep)
+        elapsed += time.perf_counter() - start
+        total += len(actions)
+    return total / elapsed
+
+
+def engine(task: str, policy, mesh: int, episodes: int, workers: int) -> float:
+    start = time.perf_counter()
+    result = evaluate(policy, task, "3d", nb_mesh_dim=mesh, episodes=episodes, seed=0,
+                      workers=workers, progress=False)
+    return int(result.episodes["length"].sum()) / (time.perf_counter() - start)
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--tasks", nargs="+", default=["halfcheetah", "hopper"])
+    parser.add_argument("--mesh", type=int, default=5)
+    parser.add_argument("--rounds", type=int, default=3)
+    args = parser.parse_args()
+    warnings.simplefilter("ignore")
+    cores = len(os.sched_getaffinity(0))
+
+    rows = []
+    for task in args.tasks:
+        env = gym.make(f"rrls/robust-{task}-v0")
+        policy = MLPPolicy.random(env.observation_space.shape[0], env.action_space.shape[0],
+                                  hidden=(256, 256), seed=0)
+        naive = policy._forward  # the same MLP, no fixed-size blocks
+        box = resolve_uncertainty(task, "3d")
+        points = box.mesh(args.mesh)
+        seeds = episode_seeds(0, len(points), 1)  # the engine's seeds for episode 0
+        runs: dict[str, list[float]] = {k: [] for k in ("plain", "naive", "w1", "w2", "raw")}
+        for _ in range(args.rounds):
+            rate, episodes = plain_loop(task, policy, points, box.names, seeds)
+            runs["plain"].append(rate)
+            runs["naive"].append(plain_loop(task, naive, points, box.names, seeds)[0])
+            runs["w1"].append(engine(task, policy, args.mesh, 1, 1))
+            runs["w2"].append(engine(task, policy, args.mesh, 1, cores))
+            runs["raw"].append(physics_bound(task, episodes))
+        med = {k: statistics.median(v) for k, v in runs.items()}
+        bound = med["raw"] * cores
+        rows.append((task, med, bound))
+
+    print(f"\nenv steps/s, median of {args.rounds} rounds, {cores} cores, "
+          f"mesh {args.mesh}^3 x 1 episode, 256-256 MLP\n")
+    print("| task | (a) plain loop | (a') naive MLP loop | (b) engine 1 worker | "
+          f"(b) engine {cores} workers | (c) physics bound | (b{cores})/(a) | (b{cores})/(a') | "
+          f"(b{cores})/(c) |")
+    print("|---|---|---|---|---|---|---|---|---|")
+    for task, med, bound in rows:
+        print(f"| {task} | {med['plain']:,.0f} | {med['naive']:,.0f} | {med['w1']:,.0f} | "
+              f"{med['w2']:,.0f} | {bound:,.0f} | {med['w2'] / med['plain']:.2f}x | "
+              f"{med['w2'] / med['naive']:.2f}x | {med['w2'] / bound:.0%} |")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,389 @@
+"""The rollout engine: many (parameter point, seed) episodes in lockstep, on several processes.
+
+Why this shape:
+
+* **Exact.** Every episode is independent: its env is configured exactly as
+  ``env.set_params(**point); env.reset(seed=seed)`` on a freshly made env, and stepped until
+  terminated or ``max_episode_steps``. Lockstep batching changes only *when* an episode is stepped,
+  never its numbers, provided the policy gives each row the same action whatever the batch
+  (``rrls.evaluation.policies.BatchInvariant``; our own policy types are). So results do not
+  depend on the number of workers or the batch size.
+* **Fast.** The policy runs once per step on all live lanes of a worker; finished lanes take the
+  next episode of their chunk; workers are processes (one per core), each with its own envs.
+* **Nothing lost.** Episodes are grouped in fixed chunks (independent of the number of workers);
+  each finished chunk is written atomically to ``out_dir/chunks/``, and a re-run with the same
+  arguments loads them instead of running them again.
+"""
+
+from __future__ import annotations
+
+import multiprocessing as mp
+import os
+import sys
+import warnings
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from rrls.uncertainty import UncertaintySet
+
+CHUNK = 50  # episodes per chunk: the unit of resumption and of work sharing
+LANES = 64  # live episodes per worker (one policy block)
+
+
+class PolicyError(ValueError):
+    """The policy returned actions of the wrong shape or non-finite values."""
+
+
+@dataclass
+class RolloutSpec:
+    """What to roll out: ``points[p]`` × ``seeds[p, e]``, for ``task`` with env family ``kind``."""
+
+    task: str
+    kind: str  # "robust" (parameter sets) or "force" (the RARL force set)
+    names: tuple[str, ...]
+    points: np.ndarray  # (P, d)
+    seeds: np.ndarray  # (P, E) uint32
+    max_episode_steps: int = 1000
+    env_kwargs: dict[str, Any] = field(default_factory=dict)
+
+    @property
+    def n_episodes(self) -> int:
+        return self.seeds.size
+
+    def row(self, r: int) -> tuple[int, int]:
+        """(point, episode) of flat row ``r``; rows are point-major."""
+        return divmod(r, self.seeds.shape[1])
+
+    def describe(self, r: int) -> str:
+        p, e = self.row(r)
+        point = {n: float(v) for n, v in zip(self.names, self.points[p])}
+        return f"mesh point {p} {point}, episode {e} (seed {int(self.seeds[p, e])})"
+
+
+def episode_seeds(seed: int, n_points: int, episodes: int) -> np.ndarray:
+    """Seed of episode ``e`` at point ``p``: from ``SeedSequence(seed, spawn_key=(p, e))``.
+
+    Each (point, episode) gets its own stream, independent of how many points or workers there are.
+    """
+    out = np.empty((n_points, episodes), dtype=np.uint32)
+    for p in range(n_points):
+        for e in range(episodes):
+            out[p, e] = np.random.SeedSequence(seed, spawn_key=(p, e)).generate_state(1)[0]
+    return out
+
+
+# -- one worker ------------------------------------------------------------------------------------
+_WORKER: dict[str, Any] = {}
+
+
+def _envs(spec: RolloutSpec, n: int) -> list[Any]:
+    """Bare envs (no wrappers), cached per process: building is slower than resetting."""
+    from rrls.envs import FORCE_ENVS, ROBUST_ENVS
+
+    key = (spec.task, spec.kind, tuple(sorted(spec.env_kwargs.items())))
+    envs = _WORKER.setdefault(("envs", key), [])
+    cls = (FORCE_ENVS if spec.kind == "force" else ROBUST_ENVS)[spec.task]
+    while len(envs) < n:
+        envs.append(cls(**spec.env_kwargs))
+    return envs[:n]
+
+
+Finished = list[tuple[int, float, int, bool, bool]]  # (row, return, length, terminated, diverged)
+
+
+def run_rows(
+    spec: RolloutSpec,
+    policy: Callable[[np.ndarray], Any],
+    next_row: Callable[[], int],
+    on_finished: Callable[[Finished], None],
+    lanes: int = LANES,
+    fast: bool = True,
+) -> None:
+    """Roll out episodes in lockstep until ``next_row()`` returns -1.
+
+    Each lane takes the next row as soon as its episode ends, so the batch stays full until the
+    very end; ``on_finished`` receives the rows finished at each step.
+    """
+    from rrls.evaluation.kernels import make_stepper
+
+    n_lanes = max(1, lanes)
+    envs = _envs(spec, n_lanes)
+    stepper = make_stepper(envs, spec.task, fast=fast)
+    act_dim = envs[0].action_space.shape[0]
+    obs_dim = envs[0].observation_space.shape[0]
+
+    obs = np.zeros((n_lanes, obs_dim))
+    lane_row = np.full(n_lanes, -1)  # flat row index of the lane's episode, -1 = idle
+    returns = np.zeros(n_lanes)
+    lengths = np.zeros(n_lanes, dtype=np.int64)
+
+    def start(lane: int) -> None:
+        row = next_row()
+        lane_row[lane] = row
+        if row < 0:
+            return
+        p, e = spec.row(row)
+        env = envs[lane]
+        env.reset_params()
+        if spec.names:
+            env.set_params(**dict(zip(spec.names, spec.points[p].tolist())))
+        obs[lane], _ = env.reset(seed=int(spec.seeds[p, e]))
+        returns[lane] = 0.0
+        lengths[lane] = 0
+        stepper.reset(lane, obs[lane])
+
+    for lane in range(n_lanes):
+        start(lane)
+    while (lane_row >= 0).any():
+        live = np.flatnonzero(lane_row >= 0)
+        actions = np.asarray(policy(obs[live]))
+        _check_actions(actions, live, lane_row, lengths, spec, act_dim)
+        new_obs, rewards, terminated, diverged = stepper.step(live, actions)
+        obs[live] = new_obs
+        returns[live] += rewards
+        lengths[live] += 1
+        done = np.flatnonzero(terminated | diverged | (lengths[live] >= spec.max_episode_steps))
+        if len(done):
+            finished = [
+                (int(lane_row[live[j]]), float(returns[live[j]]), int(lengths[live[j]]),
+                 bool(terminated[j]), bool(diverged[j]))
+                for j in done
+            ]
+            on_finished(finished)
+            for j in done:
+                start(live[j])
+
+
+def _check_actions(
+    actions: np.ndarray,
+    live: np.ndarray,
+    lane_row: np.ndarray,
+    lengths: np.ndarray,
+    spec: RolloutSpec,
+    act_dim: int,
+) -> None:
+    if actions.shape != (len(live), act_dim):
+        r = int(lane_row[live[0]])
+        raise PolicyError(
+            f"policy returned actions of shape {actions.shape} for {len(live)} observations; "
+            f"expected ({len(live)}, {act_dim}) — at {spec.describe(r)}, step {lengths[live[0]]}"
+        )
+    bad = ~np.isfinite(actions).all(axis=1)
+    if bad.any():
+        j = int(np.flatnonzero(bad)[0])
+        r = int(lane_row[live[j]])
+        raise PolicyError(
+            f"policy returned non-finite actions {actions[j].tolist()} at {spec.describe(r)}, "
+            f"step {lengths[live[j]]}"
+        )
+
+
+def _worker_main(
+    spec: RolloutSpec,
+    policy: Callable,
+    rows: np.ndarray,
+    counter: Any,
+    results: Any,
+    lanes: int,
+    fast: bool,
+) -> None:
+    """A worker process: pull rows from the shared counter, send finished episodes back."""
+    try:
+        try:  # one BLAS thread per process: the processes already use every core
+            from threadpoolctl import threadpool_limits
+
+            threadpool_limits(1)
+        except ImportError:  # pragma: no cover - threadpoolctl is a dependency
+            pass
+        if "torch" in sys.modules:
+            sys.modules["torch"].set_num_threads(1)
+
+        def next_row() -> int:
+            with counter.get_lock():
+                i = counter.value
+                counter.value = i + 1
+            return int(rows[i]) if i < len(rows) else -1
+
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")  # MuJoCo model warnings: the parent reported them
+            run_rows(spec, policy, next_row, results.put, lanes, fast)
+        results.put(None)
+    except BaseException as err:  # noqa: BLE001 - forwarded to the parent, which re-raises
+        results.put(_Failure(err))
+
+
+class _Failure:
+    """An exception from a worker, carried to the parent (re-raised there with its message)."""
+
+    def __init__(self, err: BaseException) -> None:
+        import traceback
+
+        self.err = err if _picklable(err) else RuntimeError(f"{type(err).__name__}: {err}")
+        self.trace = "".join(traceback.format_exception(err))
+
+
+def _picklable(obj: Any) -> bool:
+    import pickle
+
+    try:
+        pickle.dumps(obj)
+    except Exception:  # noqa: BLE001
+        return False
+    return True
+
+
+# -- many chunks, many workers, resumable ---------------------------------------------------------
+def default_workers() -> int:
+    try:
+        return len(os.sched_getaffinity(0))
+    except AttributeError:  # pragma: no cover - macOS / Windows
+        return os.cpu_count() or 1
+
+
+def run(
+    spec: RolloutSpec,
+    policy: Callable[[np.ndarray], Any],
+    workers: int | None = None,
+    lanes: int = LANES,
+    chunk: int = CHUNK,
+    chunk_dir: str | Path | None = None,
+    progress: bool | None = None,
+    fast: bool = True,
+) -> dict[str, np.ndarray]:
+    """All episodes of ``spec`` as columns; finished chunks are saved to / loaded from ``chunk_dir``.
+
+    Chunks are fixed blocks of ``chunk`` consecutive rows: the unit of saving and resuming. Which
+    worker runs which episode does not matter: every row's numbers depend only on its point,
+    its seed and the policy.
+    """
+    from rrls._io import atomic_save_npz
+
+    n = spec.n_episodes
+    cols = {
+        "return": np.zeros(n),
+        "length": np.zeros(n, dtype=np.int64),
+        "terminated": np.zeros(n, dtype=bool),
+        "diverged": np.zeros(n, dtype=bool),
+    }
+    n_chunks = -(-n // chunk)
+    remaining = np.array([min(chunk, n - c * chunk) for c in range(n_chunks)])
+    if chunk_dir is not None:
+        chunk_dir = Path(chunk_dir)
+        chunk_dir.mkdir(parents=True, exist_ok=True)
+        for c in range(n_chunks):
+            path = chunk_dir / f"{c:06d}.npz"
+            if path.exists():
+                with np.load(path, allow_pickle=False) as f:
+                    for k in cols:
+                        cols[k][c * chunk : c * chunk + remaining[c]] = f[k]
+                remaining[c] = 0
+    todo = np.concatenate(
+        [np.arange(c * chunk, c * chunk + remaining[c]) for c in range(n_chunks) if remaining[c]]
+        or [np.zeros(0, dtype=np.int64)]
+    )
+    workers = default_workers() if workers is None else int(workers)
+    if workers < 1:
+        raise ValueError(f"workers must be >= 1, got {workers}")
+    workers = max(1, min(workers, len(todo)))
+    lanes = max(1, min(lanes, -(-len(todo) // workers)))
+
+    if len(todo):
+        _envs(spec, lanes)  # built once here: forked workers inherit them
+    bar = _progress_bar(n, progress)
+    bar.update(n - len(todo))
+
+    def on_finished(finished: Finished) -> None:
+        for row, ret, length, term, div in finished:
+            cols["return"][row], cols["length"][row] = ret, length
+            cols["terminated"][row], cols["diverged"][row] = term, div
+            c = row // chunk
+            remaining[c] -= 1
+            if remaining[c] == 0 and chunk_dir is not None:
+                block = slice(c * chunk, min((c + 1) * chunk, n))
+                atomic_save_npz(chunk_dir / f"{c:06d}.npz", **{k: v[block] for k, v in cols.items()})
+        bar.update(len(finished))
+
+    try:
+        if len(todo) and workers == 1:
+            it = iter(todo.tolist())
+            run_rows(spec, policy, lambda: next(it, -1), on_finished, lanes, fast)
+        elif len(todo):
+            _run_processes(spec, policy, todo, workers, lanes, fast, on_finished)
+    finally:
+        bar.close()
+    return cols
+
+
+def _run_processes(
+    spec: RolloutSpec,
+    policy: Callable,
+    todo: np.ndarray,
+    workers: int,
+    lanes: int,
+    fast: bool,
+    on_finished: Callable[[Finished], None],
+) -> None:
+    import queue as queue_mod
+
+    # fork shares the policy with the workers without pickling it (lambdas and closures work);
+    # spawn (other platforms) pickles it.
+    ctx = mp.get_context("fork" if "fork" in mp.get_all_start_methods() else "spawn")
+    counter = ctx.Value("q", 0)
+    results = ctx.Queue()
+    procs = [
+        ctx.Process(target=_worker_main, args=(spec, policy, todo, counter, results, lanes, fast),
+                    daemon=True)
+        for _ in range(workers)
+    ]
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", DeprecationWarning)  # fork with threads (3.12+)
+        for proc in procs:
+            proc.start()
+    running = workers
+    try:
+        while running:
+            try:
+                msg = results.get(timeout=1.0)
+            except queue_mod.Empty:
+                dead = [p for p in procs if not p.is_alive() and p.exitcode not in (0, None)]
+                if dead:
+                    raise RuntimeError(
+                        f"an evaluation worker died (exit code {dead[0].exitcode}); "
+                        "finished chunks are saved — re-run to resume"
+                    ) from None
+                continue
+            if msg is None:
+                running -= 1
+            elif isinstance(msg, _Failure):
+                raise msg.err
+            else:
+                on_finished(msg)
+    finally:
+        for proc in procs:
+            if proc.is_alive():
+                proc.terminate()
+        for proc in procs:
+            proc.join()
+        results.close()
+
+
+def _progress_bar(total: int, progress: bool | None) -> Any:
+    from tqdm.auto import tqdm
+
+    disable = not sys.stderr.isatty() if progress is None else not progress
+    return tqdm(total=total, unit="episode", desc="evaluating", disable=disable, smoothing=0.1)
+
+
+def spec_for(
+    task: str,
+    box: UncertaintySet | None,
+    points: np.ndarray,
+    seeds: np.ndarray,
+    kind: str = "robust",
+) -> RolloutSpec:
+    names = box.names if box is not None else ()
+    return RolloutSpec(task, kind, tuple(names), np.asarray(points, float).reshape(len(seeds), -1), seeds)
