@@ -80,8 +80,16 @@ def physics_bound(task: str, episodes) -> float:
 
 def engine(task: str, policy, mesh: int, episodes: int, workers: int) -> float:
     start = time.perf_counter()
-    result = evaluate(policy, task, "3d", nb_mesh_dim=mesh, episodes=episodes, seed=0,
-                      workers=workers, progress=False)
+    result = evaluate(
+        policy,
+        task,
+        "3d",
+        nb_mesh_dim=mesh,
+        episodes=episodes,
+        seed=0,
+        workers=workers,
+        progress=False,
+    )
     return int(result.episodes["length"].sum()) / (time.perf_counter() - start)
 
 
@@ -97,8 +105,9 @@ def main() -> None:
     rows = []
     for task in args.tasks:
         env = gym.make(f"rrls/robust-{task}-v0")
-        policy = MLPPolicy.random(env.observation_space.shape[0], env.action_space.shape[0],
-                                  hidden=(256, 256), seed=0)
+        policy = MLPPolicy.random(
+            env.observation_space.shape[0], env.action_space.shape[0], hidden=(256, 256), seed=0
+        )
         naive = policy._forward  # the same MLP, no fixed-size blocks
         box = resolve_uncertainty(task, "3d")
         points = box.mesh(args.mesh)
@@ -115,16 +124,22 @@ def main() -> None:
         bound = med["raw"] * cores
         rows.append((task, med, bound))
 
-    print(f"\nenv steps/s, median of {args.rounds} rounds, {cores} cores, "
-          f"mesh {args.mesh}^3 x 1 episode, 256-256 MLP\n")
-    print("| task | (a) plain loop | (a') naive MLP loop | (b) engine 1 worker | "
-          f"(b) engine {cores} workers | (c) physics bound | (b{cores})/(a) | (b{cores})/(a') | "
-          f"(b{cores})/(c) |")
+    print(
+        f"\nenv steps/s, median of {args.rounds} rounds, {cores} cores, "
+        f"mesh {args.mesh}^3 x 1 episode, 256-256 MLP\n"
+    )
+    print(
+        "| task | (a) plain loop | (a') naive MLP loop | (b) engine 1 worker | "
+        f"(b) engine {cores} workers | (c) physics bound | (b{cores})/(a) | (b{cores})/(a') | "
+        f"(b{cores})/(c) |"
+    )
     print("|---|---|---|---|---|---|---|---|---|")
     for task, med, bound in rows:
-        print(f"| {task} | {med['plain']:,.0f} | {med['naive']:,.0f} | {med['w1']:,.0f} | "
-              f"{med['w2']:,.0f} | {bound:,.0f} | {med['w2'] / med['plain']:.2f}x | "
-              f"{med['w2'] / med['naive']:.2f}x | {med['w2'] / bound:.0%} |")
+        print(
+            f"| {task} | {med['plain']:,.0f} | {med['naive']:,.0f} | {med['w1']:,.0f} | "
+            f"{med['w2']:,.0f} | {bound:,.0f} | {med['w2'] / med['plain']:.2f}x | "
+            f"{med['w2'] / med['naive']:.2f}x | {med['w2'] / bound:.0%} |"
+        )
 
 
 if __name__ == "__main__":

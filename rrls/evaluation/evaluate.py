@@ -1,4 +1,4 @@
-"""``evaluate``: the paper's robust evaluation (§4): a mesh, episodes per point, worst and average case.
+"""``evaluate``: the paper's robust evaluation (§4): mesh, episodes per point, worst/average case.
 
 >>> import numpy as np
 >>> from rrls.evaluation import evaluate
@@ -50,8 +50,14 @@ class EvaluationResult:
         cols = ["point", *self.param_names]
         grouped = self.episodes.groupby(cols, sort=True)["return"]
         table = grouped.agg(["mean", "std", "min", "count"]).reset_index()
-        return table.rename(columns={"mean": "mean_return", "std": "std_return",
-                                     "min": "min_return", "count": "episodes"})
+        return table.rename(
+            columns={
+                "mean": "mean_return",
+                "std": "std_return",
+                "min": "min_return",
+                "count": "episodes",
+            }
+        )
 
     @property
     def worst_case(self) -> float:
@@ -116,12 +122,22 @@ class EvaluationResult:
 
     def __repr__(self) -> str:
         label = self.uncertainty.label if self.uncertainty is not None else f"{self.task}/nominal"
-        return (f"EvaluationResult({label}: worst_case={self.worst_case:.2f}, "
-                f"average_case={self.average_case:.2f}, {len(self.episodes)} episodes)")
+        return (
+            f"EvaluationResult({label}: worst_case={self.worst_case:.2f}, "
+            f"average_case={self.average_case:.2f}, {len(self.episodes)} episodes)"
+        )
 
 
-_DERIVED = {"task", "uncertainty", "worst_case", "average_case", "worst_point", "points",
-            "episodes_total", "diverged"}
+_DERIVED = {
+    "task",
+    "uncertainty",
+    "worst_case",
+    "average_case",
+    "worst_point",
+    "points",
+    "episodes_total",
+    "diverged",
+}
 
 
 def _table_name() -> str:
@@ -138,15 +154,25 @@ def _versions() -> dict[str, str]:
 
     from rrls import __version__
 
-    return {"rrls": __version__, "gymnasium": gymnasium.__version__, "mujoco": mujoco.__version__,
-            "numpy": np.__version__, "python": platform.python_version()}
+    return {
+        "rrls": __version__,
+        "gymnasium": gymnasium.__version__,
+        "mujoco": mujoco.__version__,
+        "numpy": np.__version__,
+        "python": platform.python_version(),
+    }
 
 
 def _box_json(box: UncertaintySet | None) -> dict[str, Any] | None:
     if box is None:
         return None
-    return {"names": list(box.names), "low": box.low.tolist(), "high": box.high.tolist(),
-            "nominal": box.nominal.tolist(), "label": box.label}
+    return {
+        "names": list(box.names),
+        "low": box.low.tolist(),
+        "high": box.high.tolist(),
+        "nominal": box.nominal.tolist(),
+        "label": box.label,
+    }
 
 
 def resolve(task: str, uncertainty: str | UncertaintySet) -> tuple[str, UncertaintySet | None, str]:
@@ -198,8 +224,9 @@ def evaluate(
         raise ValueError(f"episodes and nb_mesh_dim must be >= 1, got {episodes}, {nb_mesh_dim}")
     points = box.mesh(nb_mesh_dim, endpoint=endpoint) if box is not None else np.zeros((1, 0))
     seeds = runner.episode_seeds(seed, len(points), episodes)
-    spec = runner.RolloutSpec(key, kind, tuple(box.names) if box else (), points, seeds,
-                              max_episode_steps)
+    spec = runner.RolloutSpec(
+        key, kind, tuple(box.names) if box else (), points, seeds, max_episode_steps
+    )
     policy = as_policy(policy)
     obs_dim, act_dim = _dims(spec)
     _check_policy(policy, obs_dim, act_dim)
@@ -226,8 +253,14 @@ def evaluate(
     chunk_dir = None
     if out_dir is not None:
         chunk_dir = _prepare_out_dir(Path(out_dir), config)
-    cols = runner.run(spec, policy, workers=workers, lanes=batch_size or runner.LANES,
-                      chunk_dir=chunk_dir, progress=progress)
+    cols = runner.run(
+        spec,
+        policy,
+        workers=workers,
+        lanes=batch_size or runner.LANES,
+        chunk_dir=chunk_dir,
+        progress=progress,
+    )
 
     point_idx, episode_idx = np.divmod(np.arange(spec.n_episodes), episodes)
     table: dict[str, Any] = {"point": point_idx}

@@ -7,9 +7,9 @@ same MuJoCo calls per lane and then computes observations, rewards and terminati
 at once with numpy, with the *same operations in the same order and dtypes* as Gymnasium v5's
 ``step`` — the equivalence tests compare both paths bit for bit, task by task.
 
-Both report a lane as diverged when MuJoCo reset its data during the step (its reaction to
-``mjWARN_BADQACC``/``BADQPOS``/``BADQVEL``: simulation time jumps back) or the observation or
-reward is not finite.
+Both report a lane as diverged when MuJoCo flagged the simulation as unstable during the episode
+(``mjWARN_BADQPOS``/``BADQVEL``/``BADQACC``: MuJoCo then resets the data and carries on, so the
+rest of the episode would be meaningless) or the observation or reward is not finite.
 """
 
 from __future__ import annotations
@@ -26,8 +26,18 @@ class GenericStepper:
 
     def __init__(self, envs: Sequence[Any]) -> None:
         self.envs = list(envs)
-        env = self.envs[0]
-        self._substeps = env.frame_skip * env.model.opt.timestep
+        # the stat objects stay bound to each MjData; mj_resetData zeroes them at every reset
+        bad = (
+            mujoco.mjtWarning.mjWARN_BADQPOS,
+            mujoco.mjtWarning.mjWARN_BADQVEL,
+            mujoco.mjtWarning.mjWARN_BADQACC,
+        )
+        self._warnings = [[e.data.warning[w] for w in bad] for e in self.envs]
+
+    def unstable(self, lanes: list[int]) -> np.ndarray:
+        """Lanes whose simulation MuJoCo found unstable since their last reset."""
+        stats = self._warnings
+        return np.array([any(w.number for w in stats[lane]) for lane in lanes], dtype=bool)
 
     def reset(self, lane: int, obs: np.ndarray) -> None:
         """Called after ``envs[lane].reset(...)``; ``obs`` is its first observation."""
@@ -39,17 +49,14 @@ class GenericStepper:
         obs = None
         rewards = np.empty(n)
         terminated = np.zeros(n, dtype=bool)
-        diverged = np.zeros(n, dtype=bool)
         for j, lane in enumerate(lanes):
-            env = self.envs[lane]
-            t0 = env.data.time
-            o, r, term, _, _ = env.step(actions[j])
+            o, r, term, _, _ = self.envs[lane].step(actions[j])
             if obs is None:
                 obs = np.empty((n, len(o)))
             obs[j] = o
             rewards[j] = r
             terminated[j] = term
-            diverged[j] = env.data.time < t0 + 0.5 * self._substeps
+        diverged = self.unstable(lanes.tolist())
         diverged |= ~np.isfinite(rewards) | ~np.isfinite(obs).all(axis=1)
         return obs, rewards, terminated, diverged
 
@@ -94,16 +101,14 @@ class FastStepper(GenericStepper):
         models, datas, ctrls, nstep = self.models, self.datas, self.ctrls, self.frame_skip
         mj_step = mujoco.mj_step
         idx = lanes.tolist()
-        t0 = [datas[lane].time for lane in idx]
         for j, lane in enumerate(idx):
             ctrls[lane][:] = actions[j]
             # Gymnasium also calls mj_rnePostConstraint here; it only fills cacc/cfrc_* (used by
             # none of these four tasks' observations or rewards, nor by the next mj_step).
             mj_step(models[lane], datas[lane], nstep=nstep)
-        time = np.array([datas[lane].time for lane in idx])
         qpos = np.array([self.qposs[lane] for lane in idx])
         qvel = np.array([self.qvels[lane] for lane in idx])
-        diverged = time < np.array(t0) + 0.5 * self._substeps
+        diverged = self.unstable(idx)
 
         if self.task == "invertedpendulum":
             obs = np.concatenate([qpos, qvel], axis=1)

@@ -51,7 +51,9 @@ class BatchInvariant:
         n, block = len(obs), self.block
         padded = np.zeros((max(block, -(-n // block) * block), *obs.shape[1:]), dtype=obs.dtype)
         padded[:n] = obs
-        outs = [np.asarray(self.policy(padded[i : i + block])) for i in range(0, len(padded), block)]
+        outs = [
+            np.asarray(self.policy(padded[i : i + block])) for i in range(0, len(padded), block)
+        ]
         return np.concatenate(outs)[:n]
 
     def __repr__(self) -> str:
@@ -82,9 +84,13 @@ class MLPPolicy:
             if w.ndim != 2 or b.shape != (w.shape[1],):
                 raise ValueError(f"layer {i}: weight {w.shape} and bias {b.shape} do not match")
             if i and w.shape[0] != self.weights[i - 1].shape[1]:
-                raise ValueError(f"layer {i} expects {w.shape[0]} inputs, gets {self.weights[i-1].shape[1]}")
+                raise ValueError(
+                    f"layer {i} expects {w.shape[0]} inputs, gets {self.weights[i - 1].shape[1]}"
+                )
         act_dim = self.weights[-1].shape[1]
-        self.action_scale = np.broadcast_to(np.asarray(action_scale, dtype=dtype), (act_dim,)).copy()
+        self.action_scale = np.broadcast_to(
+            np.asarray(action_scale, dtype=dtype), (act_dim,)
+        ).copy()
         self.action_bias = np.broadcast_to(np.asarray(action_bias, dtype=dtype), (act_dim,)).copy()
         self.dtype = np.dtype(dtype)
         self.metadata = dict(metadata or {})
@@ -141,8 +147,12 @@ class MLPPolicy:
         for i, (w, b) in enumerate(zip(self.weights, self.biases)):
             arrays[f"w{i}"], arrays[f"b{i}"] = w, b
         arrays["action_scale"], arrays["action_bias"] = self.action_scale, self.action_bias
-        header = {"format": "rrls-mlp", "version": 1, "layers": len(self.weights),
-                  "metadata": self.metadata}
+        header = {
+            "format": "rrls-mlp",
+            "version": 1,
+            "layers": len(self.weights),
+            "metadata": self.metadata,
+        }
         arrays["header"] = np.frombuffer(json.dumps(header).encode(), dtype=np.uint8)
         return atomic_save_npz(path, **arrays)
 
@@ -171,7 +181,7 @@ class MLPPolicy:
 
 
 class TorchPolicy:
-    """Adapter for a torch ``nn.Module`` actor: numpy in, numpy out, no autograd, batch-invariant."""
+    """Adapter for a torch ``nn.Module`` actor: numpy in and out, no autograd, batch-invariant."""
 
     def __init__(self, module: Any, device: str = "cpu", block: int = BLOCK) -> None:
         import torch
@@ -207,7 +217,7 @@ class SB3Policy:
 
 
 def as_policy(obj: Any) -> Callable[[np.ndarray], np.ndarray]:
-    """Adapt ``obj``: a path (policy file or training run), a torch module, an SB3 model, a callable."""
+    """Adapt ``obj``: a path (policy file or run), a torch module, an SB3 model, a callable."""
     if isinstance(obj, (str, Path)):
         return load_policy(obj)
     module_names = {c.__module__.split(".")[0] for c in type(obj).__mro__}
@@ -217,7 +227,9 @@ def as_policy(obj: Any) -> Callable[[np.ndarray], np.ndarray]:
         return SB3Policy(obj)
     if callable(obj):
         return obj
-    raise TypeError(f"cannot use {type(obj).__name__} as a policy: expected a callable obs -> action")
+    raise TypeError(
+        f"cannot use {type(obj).__name__} as a policy: expected a callable obs -> action"
+    )
 
 
 def load_policy(path: str | Path) -> Callable[[np.ndarray], np.ndarray]:
@@ -250,4 +262,7 @@ def is_batch_invariant(policy: Callable[[np.ndarray], Any], obs_dim: int, n: int
     """Whether rows of a batch call equal one-row calls on probe observations."""
     probe = np.random.default_rng(54321).normal(size=(n, obs_dim))
     batch = np.asarray(policy(probe))
-    return all(np.array_equal(batch[i], np.asarray(policy(probe[i : i + 1]))[0]) for i in range(n))
+    return all(
+        np.array_equal(batch[i], np.asarray(policy(probe[i : i + 1]))[0], equal_nan=True)
+        for i in range(n)
+    )

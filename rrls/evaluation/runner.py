@@ -21,7 +21,8 @@ import multiprocessing as mp
 import os
 import sys
 import warnings
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -136,21 +137,59 @@ def run_rows(
         lengths[lane] = 0
         stepper.reset(lane, obs[lane])
 
-    for lane in range(n_lanes):
-        start(lane)
+    with _quiet_mujoco():
+        for lane in range(n_lanes):
+            start(lane)
+        _loop(spec, policy, stepper, start, on_finished, obs, lane_row, returns, lengths, act_dim)
+
+
+@contextmanager
+def _quiet_mujoco() -> Iterator[None]:
+    """Keep MuJoCo's instability messages out of stderr and ``MUJOCO_LOG.TXT``.
+
+    Unstable episodes are flagged per row (``diverged``) and summarised once by ``evaluate``.
+    """
+    import mujoco
+
+    previous = mujoco.get_mju_user_warning()
+    mujoco.set_mju_user_warning(lambda msg: None)
+    try:
+        yield
+    finally:
+        mujoco.set_mju_user_warning(previous)
+
+
+def _loop(
+    spec: RolloutSpec,
+    policy: Callable[[np.ndarray], Any],
+    stepper: Any,
+    start: Callable[[int], None],
+    on_finished: Callable[[Finished], None],
+    obs: np.ndarray,
+    lane_row: np.ndarray,
+    returns: np.ndarray,
+    lengths: np.ndarray,
+    act_dim: int,
+) -> None:
     while (lane_row >= 0).any():
         live = np.flatnonzero(lane_row >= 0)
         actions = np.asarray(policy(obs[live]))
         _check_actions(actions, live, lane_row, lengths, spec, act_dim)
         new_obs, rewards, terminated, diverged = stepper.step(live, actions)
         obs[live] = new_obs
-        returns[live] += rewards
-        lengths[live] += 1
+        # a diverged step is not counted: the row keeps the return and length reached before it
+        returns[live] += np.where(diverged, 0.0, rewards)
+        lengths[live] += ~diverged
         done = np.flatnonzero(terminated | diverged | (lengths[live] >= spec.max_episode_steps))
         if len(done):
             finished = [
-                (int(lane_row[live[j]]), float(returns[live[j]]), int(lengths[live[j]]),
-                 bool(terminated[j]), bool(diverged[j]))
+                (
+                    int(lane_row[live[j]]),
+                    float(returns[live[j]]),
+                    int(lengths[live[j]]),
+                    bool(terminated[j]),
+                    bool(diverged[j]),
+                )
                 for j in done
             ]
             on_finished(finished)
@@ -254,7 +293,7 @@ def run(
     progress: bool | None = None,
     fast: bool = True,
 ) -> dict[str, np.ndarray]:
-    """All episodes of ``spec`` as columns; finished chunks are saved to / loaded from ``chunk_dir``.
+    """All episodes of ``spec`` as columns; finished chunks are saved to/loaded from ``chunk_dir``.
 
     Chunks are fixed blocks of ``chunk`` consecutive rows: the unit of saving and resuming. Which
     worker runs which episode does not matter: every row's numbers depend only on its point,
@@ -304,7 +343,9 @@ def run(
             remaining[c] -= 1
             if remaining[c] == 0 and chunk_dir is not None:
                 block = slice(c * chunk, min((c + 1) * chunk, n))
-                atomic_save_npz(chunk_dir / f"{c:06d}.npz", **{k: v[block] for k, v in cols.items()})
+                atomic_save_npz(
+                    chunk_dir / f"{c:06d}.npz", **{k: v[block] for k, v in cols.items()}
+                )
         bar.update(len(finished))
 
     try:
@@ -335,8 +376,11 @@ def _run_processes(
     counter = ctx.Value("q", 0)
     results = ctx.Queue()
     procs = [
-        ctx.Process(target=_worker_main, args=(spec, policy, todo, counter, results, lanes, fast),
-                    daemon=True)
+        ctx.Process(
+            target=_worker_main,
+            args=(spec, policy, todo, counter, results, lanes, fast),
+            daemon=True,
+        )
         for _ in range(workers)
     ]
     with warnings.catch_warnings():
@@ -386,4 +430,6 @@ def spec_for(
     kind: str = "robust",
 ) -> RolloutSpec:
     names = box.names if box is not None else ()
-    return RolloutSpec(task, kind, tuple(names), np.asarray(points, float).reshape(len(seeds), -1), seeds)
+    return RolloutSpec(
+        task, kind, tuple(names), np.asarray(points, float).reshape(len(seeds), -1), seeds
+    )
