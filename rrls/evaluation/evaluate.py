@@ -214,10 +214,8 @@ def evaluate(
     episodes per worker). With ``out_dir``, finished chunks are kept there and a re-run with the
     same arguments resumes; ``summary.json`` and the episode table are written at the end.
     """
-    import pandas as pd
-
     from rrls.evaluation import runner
-    from rrls.evaluation.policies import as_policy, is_batch_invariant, policy_fingerprint
+    from rrls.evaluation.policies import policy_fingerprint
 
     key, box, kind = resolve(task, uncertainty)
     if episodes < 1 or nb_mesh_dim < 1:
@@ -227,16 +225,7 @@ def evaluate(
     spec = runner.RolloutSpec(
         key, kind, tuple(box.names) if box else (), points, seeds, max_episode_steps
     )
-    policy = as_policy(policy)
-    obs_dim, act_dim = _dims(spec)
-    _check_policy(policy, obs_dim, act_dim)
-    if not is_batch_invariant(policy, obs_dim):
-        warnings.warn(
-            "the policy's actions depend on the batch size (BLAS kernels differ), so results may "
-            "differ in the last bits from a one-episode-at-a-time loop; wrap it in "
-            "rrls.evaluation.BatchInvariant(policy) for exact equality",
-            stacklevel=2,
-        )
+    policy, obs_dim = prepare_policy(policy, spec)
 
     config = {
         "uncertainty": _box_json(box),
@@ -253,21 +242,7 @@ def evaluate(
     chunk_dir = None
     if out_dir is not None:
         chunk_dir = _prepare_out_dir(Path(out_dir), config)
-    cols = runner.run(
-        spec,
-        policy,
-        workers=workers,
-        lanes=batch_size or runner.LANES,
-        chunk_dir=chunk_dir,
-        progress=progress,
-    )
-
-    point_idx, episode_idx = np.divmod(np.arange(spec.n_episodes), episodes)
-    table: dict[str, Any] = {"point": point_idx}
-    for i, name in enumerate(spec.names):
-        table[name] = points[point_idx, i]
-    table.update(episode=episode_idx, seed=seeds.reshape(-1).astype(np.int64), **cols)
-    frame = pd.DataFrame(table)
+    frame = rollout_table(spec, policy, workers, batch_size, chunk_dir, progress)
     config["versions"] = _versions()
     result = EvaluationResult(key, box, frame, config)
     if result.n_diverged:
@@ -279,6 +254,47 @@ def evaluate(
     if out_dir is not None:
         result.save(out_dir)
     return result
+
+
+def prepare_policy(policy: Any, spec: Any) -> tuple[Callable[[np.ndarray], Any], int]:
+    """Adapt ``policy``, check it against the task's spaces, warn if it is not batch-invariant."""
+    from rrls.evaluation.policies import as_policy, is_batch_invariant
+
+    policy = as_policy(policy)
+    obs_dim, act_dim = _dims(spec)
+    _check_policy(policy, obs_dim, act_dim)
+    if not is_batch_invariant(policy, obs_dim):
+        warnings.warn(
+            "the policy's actions depend on the batch size (BLAS kernels differ), so results may "
+            "differ in the last bits from a one-episode-at-a-time loop; wrap it in "
+            "rrls.evaluation.BatchInvariant(policy) for exact equality",
+            stacklevel=3,
+        )
+    return policy, obs_dim
+
+
+def rollout_table(
+    spec: Any,
+    policy: Callable[[np.ndarray], Any],
+    workers: int | None = None,
+    batch_size: int | None = None,
+    chunk_dir: Path | None = None,
+    progress: bool | None = False,
+) -> Any:
+    """Run ``spec`` through the engine: one DataFrame row per (point, episode)."""
+    import pandas as pd
+
+    from rrls.evaluation import runner
+
+    cols = runner.run(spec, policy, workers=workers, lanes=batch_size or runner.LANES,
+                      chunk_dir=chunk_dir, progress=progress)
+    episodes = spec.seeds.shape[1]
+    point_idx, episode_idx = np.divmod(np.arange(spec.n_episodes), episodes)
+    table: dict[str, Any] = {"point": point_idx}
+    for i, name in enumerate(spec.names):
+        table[name] = spec.points[point_idx, i]
+    table.update(episode=episode_idx, seed=spec.seeds.reshape(-1).astype(np.int64), **cols)
+    return pd.DataFrame(table)
 
 
 def _dims(spec: Any) -> tuple[int, int]:

@@ -1,0 +1,100 @@
+"""Return over the uncertainty set, drawn from an evaluation's saved table (never from a live run).
+
+1D: mean return per point (± std over episodes, episodes as dots). 2D: a heatmap of the mean.
+3D: the three 2D slices through the worst mesh point. Needs matplotlib (``pip install rrls[plot]``).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from rrls.evaluation.evaluate import EvaluationResult
+
+
+def _pyplot() -> Any:
+    try:
+        import matplotlib
+    except ImportError as err:
+        raise ImportError("plots need matplotlib: pip install 'rrls[plot]'") from err
+    matplotlib.use("Agg")  # files only: works on headless machines
+    import matplotlib.pyplot as plt
+
+    return plt
+
+
+def plot_result(result: EvaluationResult | str | Path, path: str | Path | None = None) -> Path:
+    """Draw ``result`` (or the evaluation saved in a directory) to a PNG; returns its path."""
+    if not isinstance(result, EvaluationResult):
+        out_dir = Path(result)
+        result = EvaluationResult.load(out_dir)
+        path = path or out_dir / "returns.png"
+    if path is None:
+        raise ValueError("give a path for the PNG when plotting an in-memory result")
+    plt = _pyplot()
+    names = result.param_names
+    table = result.per_point
+    title = (f"{result.task} / {result.config.get('uncertainty_name', '')}: worst case "
+             f"{result.worst_case:.1f}, average case {result.average_case:.1f}")
+    if len(names) == 0:
+        raise ValueError("a nominal-only evaluation has a single point: nothing to plot")
+    if len(names) == 1:
+        fig, ax = plt.subplots(figsize=(6, 4))
+        _line(ax, result, names[0])
+    elif len(names) == 2:
+        fig, ax = plt.subplots(figsize=(6, 5))
+        _heatmap(fig, ax, table, names[0], names[1], result.worst_point)
+    else:
+        worst = result.worst_point
+        pairs = [(a, b) for i, a in enumerate(names) for b in names[i + 1 :]]
+        fig, axes = plt.subplots(1, len(pairs), figsize=(5.5 * len(pairs), 4.8), squeeze=False)
+        for ax, (a, b) in zip(axes[0], pairs):
+            fixed = {n: worst[n] for n in names if n not in (a, b)}
+            mask = np.ones(len(table), dtype=bool)
+            for n, v in fixed.items():
+                mask &= np.isclose(table[n].to_numpy(), v)
+            _heatmap(fig, ax, table[mask], a, b, worst)
+            ax.set_title(", ".join(f"{n} = {v:.3g}" for n, v in fixed.items()), fontsize=9)
+    fig.suptitle(title, fontsize=10)
+    fig.tight_layout()
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+    return path
+
+
+def _line(ax: Any, result: EvaluationResult, name: str) -> None:
+    table = result.per_point.sort_values(name)
+    x, mean = table[name].to_numpy(), table["mean_return"].to_numpy()
+    std = np.nan_to_num(table["std_return"].to_numpy())
+    ax.fill_between(x, mean - std, mean + std, alpha=0.2, label="± std over episodes")
+    ax.plot(x, mean, marker="o", label="mean return")
+    ax.scatter(result.episodes[name], result.episodes["return"], s=6, alpha=0.4, color="gray",
+               label="episodes")
+    i = int(np.argmin(mean))
+    ax.scatter([x[i]], [mean[i]], color="red", zorder=3, label="worst case")
+    ax.set_xlabel(name)
+    ax.set_ylabel("return")
+    ax.legend(fontsize=8)
+
+
+def _heatmap(fig: Any, ax: Any, table: Any, a: str, b: str, worst: dict[str, float]) -> None:
+    grid = table.pivot_table(index=b, columns=a, values="mean_return")
+    xs, ys = grid.columns.to_numpy(), grid.index.to_numpy()
+    mesh = ax.pcolormesh(_edges(xs), _edges(ys), grid.to_numpy(), shading="flat", cmap="viridis")
+    fig.colorbar(mesh, ax=ax, label="mean return")
+    ax.scatter([worst[a]], [worst[b]], marker="x", color="red", s=60, label="worst point")
+    ax.set_xlabel(a)
+    ax.set_ylabel(b)
+    ax.legend(fontsize=8, loc="upper right")
+
+
+def _edges(centers: np.ndarray) -> np.ndarray:
+    """Cell edges around (sorted) mesh coordinates, for pcolormesh."""
+    if len(centers) == 1:
+        return np.array([centers[0] - 0.5, centers[0] + 0.5])
+    mid = (centers[1:] + centers[:-1]) / 2
+    return np.concatenate([[2 * centers[0] - mid[0]], mid, [2 * centers[-1] - mid[-1]]])
