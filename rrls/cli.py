@@ -28,19 +28,31 @@ def build_parser() -> argparse.ArgumentParser:
         "Re-running the same command with the same --out resumes an interrupted evaluation.",
     )
     ev.add_argument("policy", help="a policy file (.npz MLP) or an `rrls train` run directory")
-    ev.add_argument("--task", help="ant, halfcheetah, hopper, humanoidstandup, "
-                    "invertedpendulum or walker (default: the policy's own task, if it records one)")
+    ev.add_argument(
+        "--task",
+        help="ant, halfcheetah, hopper, humanoidstandup, "
+        "invertedpendulum or walker (default: the policy's own task, if it records one)",
+    )
     ev.add_argument("--uncertainty", default="3d", help="1d, 2d, 3d, rarl or nominal (default 3d)")
     ev.add_argument("--mesh", type=int, default=10, help="points per dimension (default 10)")
     ev.add_argument("--episodes", type=int, default=5, help="episodes per point (default 5)")
     ev.add_argument("--seed", type=int, default=0)
     ev.add_argument("--workers", type=int, default=None, help="processes (default: all cores)")
-    ev.add_argument("--batch-size", type=int, default=None,
-                    help="live episodes per worker (results do not depend on it)")
-    ev.add_argument("--no-endpoint", action="store_true",
-                    help="the original code's np.arange mesh (upper bounds excluded)")
-    ev.add_argument("--out", help="output directory (default: "
-                    "evaluations/<task>-<uncertainty>-mesh<M>-ep<E>-seed<S>)")
+    ev.add_argument(
+        "--batch-size",
+        type=int,
+        default=None,
+        help="live episodes per worker (results do not depend on it)",
+    )
+    ev.add_argument(
+        "--no-endpoint",
+        action="store_true",
+        help="the original code's np.arange mesh (upper bounds excluded)",
+    )
+    ev.add_argument(
+        "--out",
+        help="output directory (default: evaluations/<task>-<uncertainty>-mesh<M>-ep<E>-seed<S>)",
+    )
     ev.add_argument("--plot", action="store_true", help="also write DIR/returns.png")
 
     plot = sub.add_parser("plot", help="plot a saved evaluation: return over the uncertainty set")
@@ -74,18 +86,33 @@ def _evaluate(args: argparse.Namespace) -> int:
     task = args.task or getattr(policy, "metadata", {}).get("task")
     if task is None:
         raise SystemExit("rrls evaluate: --task is required (the policy does not record its task)")
-    out = Path(args.out or f"evaluations/{task}-{args.uncertainty}-mesh{args.mesh}"
-               f"-ep{args.episodes}-seed{args.seed}")
-    result = evaluate(policy, task, args.uncertainty, nb_mesh_dim=args.mesh,
-                      episodes=args.episodes, seed=args.seed, workers=args.workers,
-                      endpoint=not args.no_endpoint, out_dir=out, batch_size=args.batch_size,
-                      progress=True)
+    out = Path(
+        args.out
+        or f"evaluations/{task}-{args.uncertainty}-mesh{args.mesh}"
+        f"-ep{args.episodes}-seed{args.seed}"
+    )
+    result = evaluate(
+        policy,
+        task,
+        args.uncertainty,
+        nb_mesh_dim=args.mesh,
+        episodes=args.episodes,
+        seed=args.seed,
+        workers=args.workers,
+        endpoint=not args.no_endpoint,
+        out_dir=out,
+        batch_size=args.batch_size,
+        progress=True,
+    )
     summary = result.summary()
     worst = ", ".join(f"{k}={v:.4g}" for k, v in result.worst_point.items()) or "nominal model"
     rows = [
         ("task / set", f"{result.task} / {args.uncertainty}"),
-        ("mesh", f"{len(result.per_point)} points ({args.mesh} per dimension) "
-                 f"x {args.episodes} episodes, seed {args.seed}"),
+        (
+            "mesh",
+            f"{len(result.per_point)} points ({args.mesh} per dimension) "
+            f"x {args.episodes} episodes, seed {args.seed}",
+        ),
         ("worst case", f"{result.worst_case:,.2f}   at {worst}"),
         ("average case", f"{result.average_case:,.2f}"),
         ("diverged", f"{summary['diverged']} of {summary['episodes_total']} episodes"),

@@ -280,3 +280,195 @@ def test_bad_arguments():
         evaluate(policy, "invertedpendulum", "3d")
     with pytest.raises(ValueError, match="episodes"):
         evaluate(policy, "hopper", "1d", episodes=0)
+
+
+# -- worst-case search -------------------------------------------------------------------------
+def test_search_worst_case_trace_budget_and_consistency():
+    from rrls.evaluation import search_worst_case
+
+    policy = _policy("hopper")
+    found = search_worst_case(policy, "hopper", "2d", budget=30, episodes=2, seed=0, workers=1)
+    trace = found.trace
+    assert found.evaluations == len(trace) <= 30 and found.episode_evaluations == 2 * len(trace)
+    assert list(trace.columns) == [
+        "generation",
+        "worldfriction",
+        "torsomass",
+        "mean_return",
+        "best_so_far",
+    ]
+    assert found.value == trace["mean_return"].min() == trace["best_so_far"].iloc[-1]
+    assert found.uncertainty.contains(trace[["worldfriction", "torsomass"]].to_numpy()).all()
+    # the reported value is what the engine gives at that point with the same (common) seeds
+    point = UncertaintySet.from_bounds({k: [v, v] for k, v in found.params.items()})
+    again = evaluate(policy, "hopper", point, nb_mesh_dim=1, episodes=2, seed=0, workers=1)
+    assert again.worst_case == found.value
+    # reproducible
+    other = search_worst_case(policy, "hopper", "2d", budget=30, episodes=2, seed=0, workers=2)
+    pd.testing.assert_frame_equal(trace, other.trace)
+
+
+@pytest.mark.slow
+def test_search_beats_the_grid_with_fewer_episodes():
+    """The demonstration of the issue (also printed by benchmarks/worst_case_search.py)."""
+    from rrls.evaluation import search_worst_case
+
+    env = gym.make("rrls/robust-hopper-v0")
+    policy = MLPPolicy.random(
+        env.observation_space.shape[0], env.action_space.shape[0], hidden=(64, 64), seed=1
+    )
+    grid = evaluate(policy, "hopper", "3d", nb_mesh_dim=10, episodes=1, seed=0)
+    found = search_worst_case(policy, "hopper", "3d", budget=400, episodes=1, seed=0)
+    assert found.episode_evaluations < len(grid.episodes)
+    assert found.value < grid.worst_case
+
+
+# -- dynamic evaluation (Table 6) ----------------------------------------------------------------
+@pytest.mark.parametrize(
+    "game, uncertainty",
+    [("adversarial", "3d"), ("adversarial", "rarl"), ("nr", "3d"), ("pr", "3d")],
+)
+def test_dynamic_evaluation_equals_the_plain_two_player_loop(game, uncertainty):
+    from rrls.evaluation import evaluate_dynamic, make_dynamic_env
+
+    protagonist = _policy("hopper")
+    env = make_dynamic_env("hopper", game, uncertainty, alpha=0.3)
+    adversary = MLPPolicy.random(11, env.action_space[1].shape[0], hidden=(16,), seed=2)
+    result = evaluate_dynamic(
+        protagonist, adversary, "hopper", game, uncertainty, episodes=4, alpha=0.3, batch_size=3
+    )
+    assert len(result.episodes) == 4
+    assert result.mean == pytest.approx(result.episodes["return"].mean())
+    for row in result.episodes.itertuples(index=False):
+        obs, _ = env.reset(seed=row.seed)
+        ret, length = 0.0, 0
+        while True:
+            pair = (protagonist(obs[None])[0], adversary(obs[None])[0])
+            obs, reward, terminated, truncated, _ = env.step(pair)
+            ret, length = ret + reward, length + 1
+            if terminated or truncated:
+                break
+        assert (row[result.episodes.columns.get_loc("return")], row.length) == (ret, length)
+
+
+def test_an_adversary_lowers_the_return():
+    from rrls.evaluation import evaluate_dynamic
+
+    protagonist = _policy("hopper")
+    passive = evaluate_dynamic(
+        protagonist, lambda o: np.zeros((len(o), 2)), "hopper", "adversarial", "rarl", episodes=3
+    )
+    pushing = evaluate_dynamic(
+        protagonist, lambda o: np.ones((len(o), 2)), "hopper", "adversarial", "rarl", episodes=3
+    )
+    assert pushing.mean != passive.mean
+
+
+# -- adapters, CLI and plots --------------------------------------------------------------------
+def test_sb3_like_models_are_adapted():
+    from rrls.evaluation import SB3Policy, as_policy
+
+    inner = _policy("hopper")
+
+    class FakeSB3:
+        policy = object()
+
+        def predict(self, obs, deterministic=False):
+            assert deterministic
+            return inner(obs), None
+
+    adapted = as_policy(FakeSB3())
+    assert isinstance(adapted, SB3Policy)
+    obs = np.random.default_rng(0).normal(size=(3, 11))
+    np.testing.assert_array_equal(adapted(obs), inner(obs))
+    with pytest.raises(TypeError, match="cannot use int as a policy"):
+        as_policy(3)
+
+
+def test_torch_modules_are_adapted():
+    torch = pytest.importorskip("torch")
+    from rrls.evaluation import TorchPolicy, as_policy
+
+    torch.manual_seed(0)
+    module = torch.nn.Sequential(
+        torch.nn.Linear(11, 32), torch.nn.ReLU(), torch.nn.Linear(32, 3), torch.nn.Tanh()
+    )
+    adapted = as_policy(module)
+    assert isinstance(adapted, TorchPolicy)
+    obs = np.random.default_rng(0).normal(size=(100, 11))
+    batch = adapted(obs)
+    np.testing.assert_array_equal(batch[70], adapted(obs[70:71])[0])
+    result = evaluate(module, "hopper", "1d", nb_mesh_dim=2, episodes=1, workers=2)
+    ret, length = plain_loop(
+        "rrls/robust-hopper-v0",
+        adapted,
+        {"worldfriction": 0.1},
+        int(result.episodes["seed"][0]),
+        1000,
+    )
+    assert (result.episodes["length"][0], result.episodes["return"][0]) == (length, ret)
+
+
+def test_cli_evaluate_resume_and_plot(tmp_path, capsys):
+    from rrls.cli import main
+
+    policy = _policy("invertedpendulum")
+    policy.metadata = {"task": "invertedpendulum"}
+    path = policy.save(tmp_path / "policy.npz")
+    out = tmp_path / "eval"
+    args = [
+        "evaluate",
+        str(path),
+        "--uncertainty",
+        "2d",
+        "--mesh",
+        "3",
+        "--episodes",
+        "2",
+        "--workers",
+        "1",
+        "--out",
+        str(out),
+    ]
+    assert main(args) == 0
+    printed = capsys.readouterr().out
+    summary = json.loads((out / "summary.json").read_text())
+    assert f"{summary['worst_case']:,.2f}" in printed and "average case" in printed
+    assert (
+        summary["mesh"] == 3 and summary["episodes"] == 2 and summary["task"] == "invertedpendulum"
+    )
+    episodes = pd.read_parquet(out / "episodes.parquet")
+    assert len(episodes) == 18
+    # same command again: everything is loaded from the saved chunks, same numbers
+    assert main(args) == 0
+    assert json.loads((out / "summary.json").read_text())["worst_case"] == summary["worst_case"]
+    assert main(["plot", str(out)]) == 0
+    png = (out / "returns.png").read_bytes()
+    assert png[:8] == b"\x89PNG\r\n\x1a\n" and len(png) > 10_000
+
+
+@pytest.mark.parametrize("uncertainty", ["1d", "3d"])
+def test_plots_for_1d_and_3d(tmp_path, uncertainty):
+    from rrls.evaluation import plot_result
+
+    result = evaluate(
+        _policy("hopper"),
+        "hopper",
+        uncertainty,
+        nb_mesh_dim=3,
+        episodes=1,
+        workers=1,
+        out_dir=tmp_path,
+    )
+    path = plot_result(tmp_path)
+    assert path.exists() and path.stat().st_size > 10_000
+    with pytest.raises(ValueError, match="give a path"):
+        plot_result(result)
+
+
+def test_cli_evaluate_needs_a_task(tmp_path):
+    from rrls.cli import main
+
+    path = _policy("hopper").save(tmp_path / "p.npz")
+    with pytest.raises(SystemExit, match="--task is required"):
+        main(["evaluate", str(path)])

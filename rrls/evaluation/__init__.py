@@ -1,5 +1,6 @@
 """Robust evaluation (paper §4-5): meshes, the batched rollout engine, scores, worst-case search."""
 
+from rrls.evaluation.dynamic import DynamicResult, evaluate_dynamic, make_dynamic_env
 from rrls.evaluation.evaluate import EvaluationResult, evaluate
 from rrls.evaluation.mesh import (
     EvaluationSet,
@@ -17,10 +18,18 @@ from rrls.evaluation.policies import (
     as_policy,
     load_policy,
 )
+from rrls.evaluation.plots import plot_result
 from rrls.evaluation.runner import PolicyError
+from rrls.evaluation.search import WorstCaseSearch, search_worst_case
 
 __all__ = [
     "BatchInvariant",
+    "DynamicResult",
+    "WorstCaseSearch",
+    "evaluate_dynamic",
+    "make_dynamic_env",
+    "plot_result",
+    "search_worst_case",
     "EvaluationResult",
     "EvaluationSet",
     "MLPPolicy",

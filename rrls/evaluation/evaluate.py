@@ -170,7 +170,7 @@ def _box_json(box: UncertaintySet | None) -> dict[str, Any] | None:
         "names": list(box.names),
         "low": box.low.tolist(),
         "high": box.high.tolist(),
-        "nominal": box.nominal.tolist(),
+        "nominal": None if box.nominal is None else box.nominal.tolist(),
         "label": box.label,
     }
 
@@ -286,8 +286,14 @@ def rollout_table(
 
     from rrls.evaluation import runner
 
-    cols = runner.run(spec, policy, workers=workers, lanes=batch_size or runner.LANES,
-                      chunk_dir=chunk_dir, progress=progress)
+    cols = runner.run(
+        spec,
+        policy,
+        workers=workers,
+        lanes=batch_size or runner.LANES,
+        chunk_dir=chunk_dir,
+        progress=progress,
+    )
     episodes = spec.seeds.shape[1]
     point_idx, episode_idx = np.divmod(np.arange(spec.n_episodes), episodes)
     table: dict[str, Any] = {"point": point_idx}

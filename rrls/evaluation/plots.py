@@ -36,8 +36,10 @@ def plot_result(result: EvaluationResult | str | Path, path: str | Path | None =
     plt = _pyplot()
     names = result.param_names
     table = result.per_point
-    title = (f"{result.task} / {result.config.get('uncertainty_name', '')}: worst case "
-             f"{result.worst_case:.1f}, average case {result.average_case:.1f}")
+    title = (
+        f"{result.task} / {result.config.get('uncertainty_name', '')}: worst case "
+        f"{result.worst_case:.1f}, average case {result.average_case:.1f}"
+    )
     if len(names) == 0:
         raise ValueError("a nominal-only evaluation has a single point: nothing to plot")
     if len(names) == 1:
@@ -72,8 +74,14 @@ def _line(ax: Any, result: EvaluationResult, name: str) -> None:
     std = np.nan_to_num(table["std_return"].to_numpy())
     ax.fill_between(x, mean - std, mean + std, alpha=0.2, label="± std over episodes")
     ax.plot(x, mean, marker="o", label="mean return")
-    ax.scatter(result.episodes[name], result.episodes["return"], s=6, alpha=0.4, color="gray",
-               label="episodes")
+    ax.scatter(
+        result.episodes[name],
+        result.episodes["return"],
+        s=6,
+        alpha=0.4,
+        color="gray",
+        label="episodes",
+    )
     i = int(np.argmin(mean))
     ax.scatter([x[i]], [mean[i]], color="red", zorder=3, label="worst case")
     ax.set_xlabel(name)

@@ -39,8 +39,10 @@ class WorstCaseSearch:
 
     def __repr__(self) -> str:
         point = ", ".join(f"{k}={v:.4g}" for k, v in self.params.items())
-        return (f"WorstCaseSearch({self.uncertainty.label}: {self.value:.2f} at {point}, "
-                f"{self.evaluations} candidates x {self.episodes} episodes)")
+        return (
+            f"WorstCaseSearch({self.uncertainty.label}: {self.value:.2f} at {point}, "
+            f"{self.evaluations} candidates x {self.episodes} episodes)"
+        )
 
 
 def search_worst_case(
@@ -85,14 +87,16 @@ def search_worst_case(
         values = np.full(len(points), np.inf)  # over budget: never selected
         run = box.clip(points[: max(0, left)])
         if len(run):
-            spec = runner.RolloutSpec(key, kind, box.names, run,
-                                      np.repeat(common, len(run), axis=0), max_episode_steps)
+            spec = runner.RolloutSpec(
+                key, kind, box.names, run, np.repeat(common, len(run), axis=0), max_episode_steps
+            )
             table = rollout_table(spec, policy, workers)
             means = table.groupby("point")["return"].mean().to_numpy()
             generation = len(records) and records[-1]["generation"] + 1
             for point, value in zip(run, means):
-                records.append({"generation": generation, **box.to_dict(point),
-                                "mean_return": float(value)})
+                records.append(
+                    {"generation": generation, **box.to_dict(point), "mean_return": float(value)}
+                )
             values[: len(run)] = means
         return values
 
@@ -102,8 +106,15 @@ def search_worst_case(
     margin = 0.1 * (box.high - box.low)
     bounds = list(zip((box.low - margin).tolist(), (box.high + margin).tolist()))
     differential_evolution(
-        objective, bounds, popsize=max(1, -(-size // dim)), maxiter=max(1, budget // size),
-        vectorized=True, updating="deferred", polish=False, tol=0, init="latinhypercube",
+        objective,
+        bounds,
+        popsize=max(1, -(-size // dim)),
+        maxiter=max(1, budget // size),
+        vectorized=True,
+        updating="deferred",
+        polish=False,
+        tol=0,
+        init="latinhypercube",
         rng=rng,
     )
     trace = pd.DataFrame.from_records(records)

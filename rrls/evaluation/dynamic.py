@@ -1,0 +1,133 @@
+"""Dynamic evaluation (paper Table 6): a protagonist against a trained adversary, step by step.
+
+The adversary acts every step — choosing the physical parameters (``DynamicAdversarial``, over a
+parameter set or the RARL force set) or perturbing the action (``ProbabilisticActionRobust``,
+NR-MDP/PR-MDP). Episodes run in lockstep (both policies called once per step on the batch);
+each episode ``e`` starts from ``reset(seed=seeds[e])``, so a row equals the one-episode loop
+``env.reset(seed=seed)`` then ``env.step((protagonist(obs[None])[0], adversary(obs[None])[0]))``
+on ``make_dynamic_env(...)``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+
+@dataclass
+class DynamicResult:
+    """Per-episode table (``episode``, ``seed``, ``return``, ``length``) and mean ± std return."""
+
+    env_id: str
+    episodes: Any  # pandas.DataFrame
+
+    @property
+    def mean(self) -> float:
+        return float(self.episodes["return"].mean())
+
+    @property
+    def std(self) -> float:
+        return float(self.episodes["return"].std(ddof=0))
+
+    def __repr__(self) -> str:
+        return (
+            f"DynamicResult({self.env_id}: {self.mean:.2f} ± {self.std:.2f}, "
+            f"{len(self.episodes)} episodes)"
+        )
+
+
+def dynamic_env_id(task: str, game: str = "adversarial", uncertainty: str = "3d") -> str:
+    """The registered id of ``task``'s two-player game.
+
+    ``game="adversarial"`` with ``uncertainty`` in ``1d/2d/3d`` (parameters) or ``rarl`` (forces);
+    ``game="nr"`` / ``"pr"``: the action-robust game (NR-MDP / PR-MDP).
+    """
+    from rrls.tasks import get_task
+
+    key = get_task(task).key
+    if game == "adversarial":
+        name = "forces" if uncertainty == "rarl" else uncertainty
+        return f"rrls/robust-{key}-adversarial-{name}-v0"
+    if game in ("nr", "pr"):
+        return f"rrls/probabilistic-action-robust-{key}-v0"
+    raise ValueError(f"unknown game {game!r}; valid: adversarial, nr, pr")
+
+
+def make_dynamic_env(
+    task: str, game: str = "adversarial", uncertainty: str = "3d", alpha: float = 0.1
+) -> Any:
+    """The two-player env: the registered id, or ``ProbabilisticActionRobust`` with ``alpha``."""
+    import gymnasium as gym
+
+    env_id = dynamic_env_id(task, game, uncertainty)
+    if game == "adversarial":
+        return gym.make(env_id)
+    from rrls.tasks import get_task
+    from rrls.wrappers import ProbabilisticActionRobust
+
+    return ProbabilisticActionRobust(gym.make(f"rrls/robust-{get_task(task).key}-v0"), alpha, game)
+
+
+def evaluate_dynamic(
+    protagonist: Any,
+    adversary: Any,
+    task: str,
+    game: str = "adversarial",
+    uncertainty: str = "3d",
+    episodes: int = 10,
+    seed: int = 0,
+    alpha: float = 0.1,
+    batch_size: int = 64,
+) -> DynamicResult:
+    """Mean ± std return of ``protagonist`` while ``adversary`` plays the game every step.
+
+    Both are policies ``obs[B, obs_dim] -> actions``: the adversary's actions live in its own
+    space (``[-1, 1]^k`` for the parameter game, the agent's action box for NR/PR-MDP).
+    """
+    import pandas as pd
+
+    from rrls.evaluation.policies import as_policy
+    from rrls.evaluation.runner import episode_seeds
+
+    if episodes < 1:
+        raise ValueError(f"episodes must be >= 1, got {episodes}")
+    env_id = dynamic_env_id(task, game, uncertainty)
+    protagonist, adversary = as_policy(protagonist), as_policy(adversary)
+    seeds = episode_seeds(seed, 1, episodes)[0]
+    n_lanes = max(1, min(batch_size, episodes))
+    envs = [make_dynamic_env(task, game, uncertainty, alpha) for _ in range(n_lanes)]
+    returns, lengths = np.zeros(episodes), np.zeros(episodes, dtype=np.int64)
+    queue = iter(range(episodes))
+    lane_ep = np.full(n_lanes, -1)
+    obs: list[np.ndarray | None] = [None] * n_lanes
+
+    def start(lane: int) -> None:
+        e = next(queue, -1)
+        lane_ep[lane] = e
+        if e >= 0:
+            obs[lane], _ = envs[lane].reset(seed=int(seeds[e]))
+
+    for lane in range(n_lanes):
+        start(lane)
+    while (lane_ep >= 0).any():
+        live = np.flatnonzero(lane_ep >= 0)
+        batch = np.stack([obs[lane] for lane in live])
+        agent, adv = np.asarray(protagonist(batch)), np.asarray(adversary(batch))
+        for j, lane in enumerate(live):
+            e = lane_ep[lane]
+            obs[lane], reward, terminated, truncated, _ = envs[lane].step((agent[j], adv[j]))
+            returns[e] += reward
+            lengths[e] += 1
+            if terminated or truncated:
+                start(lane)
+    frame = pd.DataFrame(
+        {
+            "episode": np.arange(episodes),
+            "seed": seeds.astype(np.int64),
+            "return": returns,
+            "length": lengths,
+        }
+    )
+    return DynamicResult(env_id, frame)
