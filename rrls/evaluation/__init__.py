@@ -10,6 +10,7 @@ from rrls.evaluation.mesh import (
     resolve_uncertainty,
 )
 from rrls.evaluation.metrics import normalized_score
+from rrls.evaluation.plots import plot_result
 from rrls.evaluation.policies import (
     BatchInvariant,
     MLPPolicy,
@@ -18,7 +19,6 @@ from rrls.evaluation.policies import (
     as_policy,
     load_policy,
 )
-from rrls.evaluation.plots import plot_result
 from rrls.evaluation.runner import PolicyError
 from rrls.evaluation.search import WorstCaseSearch, search_worst_case
 
