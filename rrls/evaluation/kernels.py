@@ -101,14 +101,18 @@ class FastStepper(GenericStepper):
         models, datas, ctrls, nstep = self.models, self.datas, self.ctrls, self.frame_skip
         mj_step = mujoco.mj_step
         idx = lanes.tolist()
+        stats = self._warnings
+        diverged = np.zeros(len(idx), dtype=bool)
         for j, lane in enumerate(idx):
             ctrls[lane][:] = actions[j]
             # Gymnasium also calls mj_rnePostConstraint here; it only fills cacc/cfrc_* (used by
             # none of these four tasks' observations or rewards, nor by the next mj_step).
             mj_step(models[lane], datas[lane], nstep=nstep)
+            bad_pos, bad_vel, bad_acc = stats[lane]
+            if bad_acc.number or bad_vel.number or bad_pos.number:
+                diverged[j] = True
         qpos = np.array([self.qposs[lane] for lane in idx])
         qvel = np.array([self.qvels[lane] for lane in idx])
-        diverged = self.unstable(idx)
 
         if self.task == "invertedpendulum":
             obs = np.concatenate([qpos, qvel], axis=1)

@@ -49,8 +49,12 @@ class BatchInvariant:
     def __call__(self, obs: np.ndarray) -> np.ndarray:
         obs = np.asarray(obs)
         n, block = len(obs), self.block
+        if n == block:
+            return np.asarray(self.policy(obs))
         padded = np.zeros((max(block, -(-n // block) * block), *obs.shape[1:]), dtype=obs.dtype)
         padded[:n] = obs
+        if len(padded) == block:
+            return np.asarray(self.policy(padded))[:n]
         outs = [
             np.asarray(self.policy(padded[i : i + block])) for i in range(0, len(padded), block)
         ]
