@@ -1,0 +1,172 @@
+"""The TD3 core shared by every baseline (Fujimoto et al. 2018; CleanRL's update, made fast).
+
+Same mathematics as CleanRL's ``td3_continuous_action.py``: twin critics regressed on
+``r + γ (1 - terminated) min(Q1', Q2')(s', clip(π'(s') + clip(ε), low, high))``, a delayed actor
+ascending ``Q1(s, π(s))``, Polyak-averaged targets. What makes it ~2× faster on a CPU: both critics
+in one batched matmul per layer, fused Adam, one ``_foreach_lerp_`` for Polyak averaging, the
+actor loss back-propagated into the actor's parameters only, and a preallocated tensor replay.
+
+Critics may be conditioned on extra inputs (M2TD3's uncertainty parameters ω): pass ``cond``.
+"""
+
+from __future__ import annotations
+
+import copy
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+import torch
+
+from rrls.agents.networks import Actor, TwinCritic
+
+
+@dataclass
+class TD3Config:
+    """The paper's TD3 hyper-parameters (``hyperparameters_td3`` of its tables)."""
+
+    learning_rate: float = 3e-4
+    gamma: float = 0.99
+    tau: float = 0.005
+    policy_noise: float = 0.2
+    noise_clip: float = 0.5
+    exploration_noise: float = 0.1
+    learning_starts: int = 25_000
+    policy_frequency: int = 2
+    batch_size: int = 256
+    buffer_size: int = 1_000_000
+    hidden: tuple[int, ...] = (256, 256)
+
+
+class TD3:
+    """Actor, twin critic, their targets and optimisers; ``update_critic`` / ``update_actor``."""
+
+    def __init__(
+        self,
+        obs_dim: int,
+        act_dim: int,
+        action_low: np.ndarray,
+        action_high: np.ndarray,
+        config: TD3Config,
+        seed: int = 0,
+        device: str | torch.device = "cpu",
+        cond_dim: int = 0,
+        critic_lr: float | None = None,
+    ) -> None:
+        self.config = config
+        self.device = torch.device(device)
+        hidden: Sequence[int] = config.hidden
+        # seeded initialisation without touching torch's global generator
+        with torch.random.fork_rng(devices=[]):
+            torch.manual_seed(seed)
+            self.actor = Actor(obs_dim, act_dim, hidden, action_low, action_high).to(self.device)
+            self.critic = TwinCritic(obs_dim + act_dim + cond_dim, hidden).to(self.device)
+        self.actor_target = copy.deepcopy(self.actor).requires_grad_(False)
+        self.critic_target = copy.deepcopy(self.critic).requires_grad_(False)
+        fused = {"fused": True}
+        self.actor_opt = torch.optim.Adam(self.actor.parameters(), lr=config.learning_rate, **fused)
+        self.critic_opt = torch.optim.Adam(
+            self.critic.parameters(), lr=critic_lr or config.learning_rate, **fused
+        )
+        self.noise = torch.Generator(device=self.device).manual_seed(seed + 1)
+        self.low = torch.as_tensor(action_low, dtype=torch.float32, device=self.device)
+        self.high = torch.as_tensor(action_high, dtype=torch.float32, device=self.device)
+        self._sources = [*self.actor.parameters(), *self.critic.parameters()]
+        self._targets = [*self.actor_target.parameters(), *self.critic_target.parameters()]
+        self.act_dim = act_dim
+        self._np_box = (np.asarray(action_low, np.float32), np.asarray(action_high, np.float32))
+        self._np_scale = self.actor.action_scale.cpu().numpy()
+
+    # -- acting -----------------------------------------------------------------------------
+    @torch.inference_mode()
+    def act(self, obs: np.ndarray) -> np.ndarray:
+        """Deterministic actions for a batch of observations."""
+        x = torch.as_tensor(obs, dtype=torch.float32, device=self.device)
+        return self.actor(x).cpu().numpy()
+
+    def explore(self, obs: np.ndarray, rng: np.random.Generator) -> np.ndarray:
+        """``π(s) + N(0, σ·scale)``, clipped to the action box (one observation)."""
+        action = self.act(obs[None])[0]
+        noise = rng.normal(0.0, self._np_scale * self.config.exploration_noise)
+        return np.clip(action + noise, *self._np_box).astype(np.float32)
+
+    # -- learning ---------------------------------------------------------------------------
+    def td_target(
+        self,
+        reward: torch.Tensor,
+        next_obs: torch.Tensor,
+        terminated: torch.Tensor,
+        next_cond: torch.Tensor | None = None,
+    ) -> torch.Tensor:
+        """``r + γ (1 - terminated) min_i Q_i'(s', ã')`` with target policy smoothing.
+
+        Truncated transitions are stored with ``terminated = 0``: they bootstrap.
+        """
+        cfg = self.config
+        with torch.no_grad():
+            eps = torch.randn(
+                (len(next_obs), self.act_dim), generator=self.noise, device=self.device
+            )
+            eps = (eps * cfg.policy_noise).clamp(-cfg.noise_clip, cfg.noise_clip)
+            next_action = self.actor_target(next_obs) + eps * self.actor_target.action_scale
+            next_action = torch.maximum(torch.minimum(next_action, self.high), self.low)
+            q_next = self.critic_target(_cat(next_obs, next_action, next_cond)).min(0).values
+            return reward + (1.0 - terminated) * cfg.gamma * q_next
+
+    def update_critic(
+        self,
+        obs: torch.Tensor,
+        action: torch.Tensor,
+        target: torch.Tensor,
+        cond: torch.Tensor | None = None,
+    ) -> torch.Tensor:
+        """One Adam step on ``Σ_i mean((Q_i(s, a) - y)²)`` (CleanRL's ``qf1_loss + qf2_loss``)."""
+        q = self.critic(_cat(obs, action, cond))
+        loss = (q - target).pow(2).mean(1).sum()
+        self.critic_opt.zero_grad(set_to_none=True)
+        loss.backward()
+        self.critic_opt.step()
+        return loss.detach()
+
+    def update_actor(self, obs: torch.Tensor, cond: torch.Tensor | None = None) -> torch.Tensor:
+        """One Adam step on ``-mean(Q1(s, π(s)))``, gradients into the actor only."""
+        loss = -self.critic.q1(_cat(obs, self.actor(obs), cond)).mean()
+        self.actor_opt.zero_grad(set_to_none=True)
+        loss.backward(inputs=list(self.actor.parameters()))
+        self.actor_opt.step()
+        return loss.detach()
+
+    @torch.no_grad()
+    def update_targets(self) -> None:
+        """Polyak averaging ``θ' ← θ' + τ (θ - θ')`` of both targets, in one fused call."""
+        torch._foreach_lerp_(self._targets, self._sources, self.config.tau)
+
+    def update(self, batch: dict[str, torch.Tensor], update_actor: bool) -> dict[str, float]:
+        """A full TD3 step on a replay batch (the actor and targets every ``policy_frequency``)."""
+        y = self.td_target(batch["reward"], batch["next_obs"], batch["terminated"])
+        losses = {"critic_loss": self.update_critic(batch["obs"], batch["action"], y)}
+        if update_actor:
+            losses["actor_loss"] = self.update_actor(batch["obs"])
+            self.update_targets()
+        return losses
+
+    # -- checkpoints ------------------------------------------------------------------------
+    def state_dict(self) -> dict[str, object]:
+        return {
+            "actor": self.actor.state_dict(),
+            "critic": self.critic.state_dict(),
+            "actor_target": self.actor_target.state_dict(),
+            "critic_target": self.critic_target.state_dict(),
+            "actor_opt": self.actor_opt.state_dict(),
+            "critic_opt": self.critic_opt.state_dict(),
+            "noise": self.noise.get_state(),
+        }
+
+    def load_state_dict(self, state: dict[str, object]) -> None:
+        for name in ("actor", "critic", "actor_target", "critic_target", "actor_opt", "critic_opt"):
+            getattr(self, name).load_state_dict(state[name])
+        self.noise.set_state(state["noise"])
+
+
+def _cat(obs: torch.Tensor, action: torch.Tensor, cond: torch.Tensor | None) -> torch.Tensor:
+    return torch.cat((obs, action) if cond is None else (obs, action, cond), dim=-1)

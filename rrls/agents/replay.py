@@ -1,0 +1,69 @@
+"""A preallocated tensor replay buffer (no Python objects per transition, no numpy↔torch per batch).
+
+Sampling draws indices from a seeded ``torch.Generator`` whose state is checkpointed, so a resumed
+run samples exactly the batches an uninterrupted run would.
+"""
+
+from __future__ import annotations
+
+import torch
+
+
+class ReplayBuffer:
+    """Circular buffer of transitions; ``fields`` maps a name to its per-transition shape."""
+
+    def __init__(
+        self,
+        capacity: int,
+        fields: dict[str, tuple[int, ...]],
+        device: torch.device | str = "cpu",
+        seed: int = 0,
+    ) -> None:
+        self.capacity = int(capacity)
+        self.device = torch.device(device)
+        self.data = {
+            name: torch.zeros((self.capacity, *shape), dtype=torch.float32, device=self.device)
+            for name, shape in fields.items()
+        }
+        # on CPU, write through numpy views of the same memory: ~1 µs per field instead of ~5
+        self._views = (
+            {name: t.numpy() for name, t in self.data.items()} if self.device.type == "cpu" else None
+        )
+        self.pos = 0
+        self.size = 0
+        self.generator = torch.Generator(device="cpu").manual_seed(seed)
+
+    def add(self, **transition: object) -> None:
+        """Store one transition (arrays or floats, one per field)."""
+        if self._views is not None:
+            for name, value in transition.items():
+                self._views[name][self.pos] = value
+        else:
+            for name, value in transition.items():
+                self.data[name][self.pos] = torch.as_tensor(value, dtype=torch.float32)
+        self.pos = (self.pos + 1) % self.capacity
+        self.size = min(self.size + 1, self.capacity)
+
+    def sample(self, batch_size: int) -> dict[str, torch.Tensor]:
+        idx = torch.randint(0, self.size, (batch_size,), generator=self.generator)
+        idx = idx.to(self.device)
+        return {name: values[idx] for name, values in self.data.items()}
+
+    def __len__(self) -> int:
+        return self.size
+
+    # -- checkpoints ------------------------------------------------------------------------
+    def state_dict(self) -> dict[str, object]:
+        """Only the filled part of the buffer, plus the sampling generator."""
+        return {
+            "data": {name: values[: self.size].cpu().clone() for name, values in self.data.items()},
+            "pos": self.pos,
+            "size": self.size,
+            "generator": self.generator.get_state(),
+        }
+
+    def load_state_dict(self, state: dict[str, object]) -> None:
+        self.pos, self.size = int(state["pos"]), int(state["size"])
+        for name, values in state["data"].items():
+            self.data[name][: self.size] = values.to(self.device)
+        self.generator.set_state(state["generator"])
