@@ -55,6 +55,78 @@ def build_parser() -> argparse.ArgumentParser:
     )
     ev.add_argument("--plot", action="store_true", help="also write DIR/returns.png")
 
+    tr = sub.add_parser(
+        "train",
+        help="train a baseline (td3, dr, rarl, nrmdp, m2td3); needs the `train` extra",
+        description="Train a baseline with the paper's hyper-parameters. Checkpoints are written "
+        "to --out; --resume continues a killed run exactly where it stopped.",
+    )
+    tr.add_argument("--algo", required=True, choices=["td3", "dr", "rarl", "nrmdp", "m2td3"])
+    tr.add_argument(
+        "--task",
+        required=True,
+        choices=["ant", "halfcheetah", "hopper", "humanoidstandup", "invertedpendulum", "walker"],
+    )
+    tr.add_argument(
+        "--uncertainty",
+        choices=["1d", "2d", "3d", "rarl"],
+        default=None,
+        help="default: rarl for RARL, else 3d (2d for invertedpendulum)",
+    )
+    tr.add_argument("--steps", type=int, default=5_000_000, help="env steps (default 5M)")
+    tr.add_argument(
+        "--learning-starts",
+        type=int,
+        default=25_000,
+        help="random-action steps before learning (default 25k)",
+    )
+    tr.add_argument(
+        "--eval-every",
+        type=int,
+        default=50_000,
+        help="evaluate every N steps (0 disables; default 50k)",
+    )
+    tr.add_argument("--seed", type=int, default=0)
+    tr.add_argument(
+        "--out",
+        default=None,
+        help="run directory (default runs/<algo>-<task>-<uncertainty>-seed<S>)",
+    )
+    tr.add_argument("--device", default="cpu", help="cpu or cuda")
+    tr.add_argument("--resume", action="store_true", help="continue the run in --out")
+    tr.add_argument(
+        "--hidden",
+        type=int,
+        nargs="+",
+        default=[256, 256],
+        help="hidden layer sizes (default 256 256)",
+    )
+    tr.add_argument(
+        "--batch-size", type=int, default=None, help="default: the paper's (TD3 256, M2TD3 100)"
+    )
+    tr.add_argument(
+        "--eval-mesh",
+        type=int,
+        default=0,
+        help="also evaluate over a mesh with N points per dimension (default 0: off)",
+    )
+    tr.add_argument("--eval-episodes", type=int, default=5)
+    tr.add_argument(
+        "--checkpoint-every",
+        type=int,
+        default=50_000,
+        help="checkpoint at the first episode end after every N steps",
+    )
+    tr.add_argument("--stop-at", type=int, default=None, help=argparse.SUPPRESS)
+
+    quick = sub.add_parser(
+        "quickstart",
+        help="train TD3, M2TD3 and DR on InvertedPendulum's 1D set, evaluate, print, plot",
+    )
+    quick.add_argument("--out", default="quickstart", help="output directory")
+    quick.add_argument("--steps", type=int, default=None, help="steps per algorithm")
+    quick.add_argument("--seed", type=int, default=0)
+
     plot = sub.add_parser("plot", help="plot a saved evaluation: return over the uncertainty set")
     plot.add_argument("dir", help="an `rrls evaluate` output directory")
     plot.add_argument("--out", help="PNG path (default DIR/returns.png)")
@@ -69,6 +141,12 @@ def main(argv: list[str] | None = None) -> int:
         return check_main(args.task, args.steps, args.seed)
     if args.command == "evaluate":
         return _evaluate(args)
+    if args.command == "train":
+        return _train(args)
+    if args.command == "quickstart":
+        from rrls.quickstart import main as quickstart_main
+
+        return quickstart_main(args.out, args.steps, args.seed)
     if args.command == "plot":
         from rrls.evaluation.plots import plot_result
 
@@ -125,6 +203,44 @@ def _evaluate(args: argparse.Namespace) -> int:
     width = max(len(k) for k, _ in rows)
     for key, value in rows:
         print(f"{key:<{width}}  {value}")
+    return 0
+
+
+def _train(args: argparse.Namespace) -> int:
+    try:
+        from rrls.agents import Interrupted, TrainConfig, default_uncertainty, train
+    except ImportError as err:
+        raise SystemExit(f"rrls train needs torch: pip install 'rrls[train]' ({err})") from err
+    uncertainty = args.uncertainty or default_uncertainty(args.algo, args.task)
+    out = args.out or f"runs/{args.algo}-{args.task}-{uncertainty}-seed{args.seed}"
+    config = TrainConfig(
+        algo=args.algo,
+        task=args.task,
+        uncertainty=uncertainty,
+        steps=args.steps,
+        learning_starts=args.learning_starts,
+        eval_every=args.eval_every,
+        seed=args.seed,
+        out=out,
+        device=args.device,
+        hidden=tuple(args.hidden),
+        batch_size=args.batch_size,
+        eval_mesh=args.eval_mesh,
+        eval_episodes=args.eval_episodes,
+        checkpoint_every=args.checkpoint_every,
+        stop_at=args.stop_at,
+    )
+    try:
+        run_dir = train(config, resume=args.resume)
+    except Interrupted as stop:
+        print(f"{stop}; continue with --resume")
+        return 3
+    except FileExistsError as err:
+        raise SystemExit(f"rrls train: {err}") from err
+    print(
+        f"trained {args.algo} on {args.task}/{uncertainty}: {run_dir}/policy.npz "
+        f"(evaluate with: rrls evaluate {run_dir})"
+    )
     return 0
 
 

@@ -49,10 +49,21 @@ class TrainConfig:
 
     def identity(self) -> dict[str, Any]:
         """What must match for ``--resume`` (``steps`` may grow, logging options may change)."""
-        keep = ("algo", "task", "uncertainty", "learning_starts", "seed", "hidden", "batch_size",
-                "max_episode_steps")
-        return {k: (list(v) if isinstance(v, tuple) else v) for k, v in asdict(self).items()
-                if k in keep}
+        keep = (
+            "algo",
+            "task",
+            "uncertainty",
+            "learning_starts",
+            "seed",
+            "hidden",
+            "batch_size",
+            "max_episode_steps",
+        )
+        return {
+            k: (list(v) if isinstance(v, tuple) else v)
+            for k, v in asdict(self).items()
+            if k in keep
+        }
 
 
 class Interrupted(Exception):
@@ -65,9 +76,14 @@ def versions() -> dict[str, str]:
 
     from rrls import __version__
 
-    return {"rrls": __version__, "torch": torch.__version__, "gymnasium": gymnasium.__version__,
-            "mujoco": mujoco.__version__, "numpy": np.__version__,
-            "python": platform.python_version()}
+    return {
+        "rrls": __version__,
+        "torch": torch.__version__,
+        "gymnasium": gymnasium.__version__,
+        "mujoco": mujoco.__version__,
+        "numpy": np.__version__,
+        "python": platform.python_version(),
+    }
 
 
 def rng_state(gen: np.random.Generator) -> str:
@@ -121,7 +137,9 @@ class Run:
         saved = json.loads(state["config"])
         if saved != self.config.identity():
             diff = sorted(k for k in saved if saved[k] != self.config.identity().get(k))
-            raise ValueError(f"cannot resume {self.dir}: it was trained with other {', '.join(diff)}")
+            raise ValueError(
+                f"cannot resume {self.dir}: it was trained with other {', '.join(diff)}"
+            )
         self.step, self.episodes = int(state["step"]), int(state["episodes"])
         self._last_checkpoint = self._last_eval = self.step
         self._last_eval = int(state["last_eval"])
@@ -132,8 +150,13 @@ class Run:
 
     def save(self, state: dict[str, Any]) -> None:
         """Write the checkpoint atomically (call at an episode boundary, before the reset)."""
-        state = {**state, "step": self.step, "episodes": self.episodes,
-                 "last_eval": self._last_eval, "config": json.dumps(self.config.identity())}
+        state = {
+            **state,
+            "step": self.step,
+            "episodes": self.episodes,
+            "last_eval": self._last_eval,
+            "config": json.dumps(self.config.identity()),
+        }
         buf = io.BytesIO()
         torch.save(state, buf)
         atomic_write_bytes(self.checkpoint_path, buf.getvalue())
@@ -160,13 +183,21 @@ class Run:
             self.writer.add_scalar(key, float(value), step)
 
     def progress(self) -> Any:
-        from tqdm.auto import tqdm
-
         import sys
 
-        disable = not sys.stderr.isatty() if self.config.progress is None else not self.config.progress
-        self._bar = tqdm(total=self.config.steps, initial=self.step, unit="step",
-                         desc=f"{self.config.algo} {self.task}", disable=disable, smoothing=0.05)
+        from tqdm.auto import tqdm
+
+        disable = (
+            not sys.stderr.isatty() if self.config.progress is None else not self.config.progress
+        )
+        self._bar = tqdm(
+            total=self.config.steps,
+            initial=self.step,
+            unit="step",
+            desc=f"{self.config.algo} {self.task}",
+            disable=disable,
+            smoothing=0.05,
+        )
         self._t0, self._t0_step = time.perf_counter(), self.step
         return self._bar
 
@@ -174,8 +205,14 @@ class Run:
         self.episodes += 1
         elapsed = time.perf_counter() - self._t0
         sps = (self.step - self._t0_step) / elapsed if elapsed > 0 else 0.0
-        self.log({"charts/episode_return": episode_return, "charts/episode_length": length,
-                  "charts/steps_per_second": sps, **extra})
+        self.log(
+            {
+                "charts/episode_return": episode_return,
+                "charts/episode_length": length,
+                "charts/steps_per_second": sps,
+                **extra,
+            }
+        )
         if self._bar is not None:
             self._bar.set_postfix(ret=f"{episode_return:.1f}", refresh=False)
 
@@ -191,20 +228,41 @@ class Run:
         self._last_eval = self.step
         policy = actor.to_mlp_policy(metadata)
         cfg = self.config
-        nominal = evaluate(policy, self.task, "nominal", episodes=cfg.eval_episodes, seed=10_000,
-                           workers=1, progress=False)
+        nominal = evaluate(
+            policy,
+            self.task,
+            "nominal",
+            episodes=cfg.eval_episodes,
+            seed=10_000,
+            workers=1,
+            progress=False,
+        )
         scores = {"eval/nominal_return": nominal.average_case}
         if cfg.eval_mesh > 0:
-            mesh = evaluate(policy, self.task, self.eval_set(), nb_mesh_dim=cfg.eval_mesh,
-                            episodes=1, seed=10_000, workers=1, progress=False)
-            scores.update({"eval/worst_case": mesh.worst_case,
-                           "eval/average_case": mesh.average_case})
+            mesh = evaluate(
+                policy,
+                self.task,
+                self.eval_set(),
+                nb_mesh_dim=cfg.eval_mesh,
+                episodes=1,
+                seed=10_000,
+                workers=1,
+                progress=False,
+            )
+            scores.update(
+                {"eval/worst_case": mesh.worst_case, "eval/average_case": mesh.average_case}
+            )
         self.log(scores)
         return scores
 
     def eval_set(self) -> str:
-        return self.config.uncertainty if self.config.uncertainty != "rarl" else "3d" \
-            if self.task != "invertedpendulum" else "2d"
+        return (
+            self.config.uncertainty
+            if self.config.uncertainty != "rarl"
+            else "3d"
+            if self.task != "invertedpendulum"
+            else "2d"
+        )
 
     # -- the end ----------------------------------------------------------------------------
     def finish(self, actor: Any, metadata: dict[str, Any], summary: dict[str, Any]) -> Path:
@@ -213,8 +271,9 @@ class Run:
         buf = io.BytesIO()
         torch.save({k: v.cpu() for k, v in actor.state_dict().items()}, buf)
         atomic_write_bytes(self.dir / "actor.pt", buf.getvalue())
-        atomic_write_json(self.dir / "run.json", {**metadata, "config": _jsonable(self.config),
-                                                  **summary})
+        atomic_write_json(
+            self.dir / "run.json", {**metadata, "config": _jsonable(self.config), **summary}
+        )
         if self._bar is not None:
             self._bar.close()
         if self._writer is not None:
@@ -232,9 +291,17 @@ def metadata(config: TrainConfig, obs_dim: int, act_dim: int, **extra: Any) -> d
     """What the saved policy records about itself (``rrls evaluate RUN_DIR`` reads ``task``)."""
     from rrls.tasks import get_task
 
-    return {"algorithm": config.algo, "task": get_task(config.task).key,
-            "uncertainty": config.uncertainty, "obs_dim": obs_dim, "act_dim": act_dim,
-            "hidden": list(config.hidden), "seed": config.seed, "versions": versions(), **extra}
+    return {
+        "algorithm": config.algo,
+        "task": get_task(config.task).key,
+        "uncertainty": config.uncertainty,
+        "obs_dim": obs_dim,
+        "act_dim": act_dim,
+        "hidden": list(config.hidden),
+        "seed": config.seed,
+        "versions": versions(),
+        **extra,
+    }
 
 
 def _jsonable(config: TrainConfig) -> dict[str, Any]:

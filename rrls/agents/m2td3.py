@@ -79,8 +79,11 @@ class Candidates(torch.nn.Module):
     def restart(self, rng: np.random.Generator) -> list[int]:
         """Re-initialise candidates that collapsed onto another or are rarely the worst."""
         values = self.values().numpy()
-        close = {i for i, j in combinations(range(self.N), 2)
-                 if np.abs(values[i] - values[j]).sum() <= self.DISTANCE}
+        close = {
+            i
+            for i, j in combinations(range(self.N), 2)
+            if np.abs(values[i] - values[j]).sum() <= self.DISTANCE
+        }
         for k in sorted(close):
             self.reinitialise(k, rng)
         rare = [k for k in range(self.N) if self.probabilities[k] < self.MIN_PROBABILITY]
@@ -99,9 +102,11 @@ class Candidates(torch.nn.Module):
         self.probabilities[k] += coeff
 
     def state(self) -> dict[str, object]:
-        return {"logits": torch.stack([p.detach() for p in self.logits]),
-                "optimizers": [opt.state_dict() for opt in self.optimizers],
-                "probabilities": torch.as_tensor(self.probabilities)}
+        return {
+            "logits": torch.stack([p.detach() for p in self.logits]),
+            "optimizers": [opt.state_dict() for opt in self.optimizers],
+            "probabilities": torch.as_tensor(self.probabilities),
+        }
 
     def restore(self, state: dict[str, object]) -> None:
         with torch.no_grad():
@@ -126,13 +131,27 @@ def train(config: TrainConfig, resume: bool = False) -> Path:
     half = (box.high - box.low) / 2
     omega_std = 1.0 * half  # omega_std_rate
     omega_noise, omega_clip = 0.2 * half, 0.5 * half  # policy_noise_rate, noise_clip_omega_rate
-    cfg = TD3Config(learning_starts=config.learning_starts, hidden=tuple(config.hidden),
-                    batch_size=config.batch_size or 100)
-    agent = TD3(obs_dim, act_dim, low, high, cfg, seed=config.seed, device=config.device,
-                cond_dim=dim)
-    buffer = ReplayBuffer(min(cfg.buffer_size, config.steps), {
-        "obs": (obs_dim,), "action": (act_dim,), "reward": (), "next_obs": (obs_dim,),
-        "terminated": (), "omega": (dim,)}, device=config.device, seed=config.seed + 2)
+    cfg = TD3Config(
+        learning_starts=config.learning_starts,
+        hidden=tuple(config.hidden),
+        batch_size=config.batch_size or 100,
+    )
+    agent = TD3(
+        obs_dim, act_dim, low, high, cfg, seed=config.seed, device=config.device, cond_dim=dim
+    )
+    buffer = ReplayBuffer(
+        min(cfg.buffer_size, config.steps),
+        {
+            "obs": (obs_dim,),
+            "action": (act_dim,),
+            "reward": (),
+            "next_obs": (obs_dim,),
+            "terminated": (),
+            "omega": (dim,),
+        },
+        device=config.device,
+        seed=config.seed + 2,
+    )
     rng = np.random.default_rng(config.seed)
     candidates = Candidates(box.low, box.high, rng).to(config.device)
     omega_low = torch.as_tensor(box.low, dtype=torch.float32, device=config.device)
@@ -148,8 +167,9 @@ def train(config: TrainConfig, resume: bool = False) -> Path:
             return rng.uniform(box.low, box.high)
         candidates.restart(rng)
         k = candidates.select(rng)
-        return np.clip(candidates.value(k).detach().cpu().numpy() + rng.normal(0, omega_std),
-                       box.low, box.high)
+        return np.clip(
+            candidates.value(k).detach().cpu().numpy() + rng.normal(0, omega_std), box.low, box.high
+        )
 
     state = run.load()
     if state is not None:
@@ -176,21 +196,28 @@ def train(config: TrainConfig, resume: bool = False) -> Path:
             episode_return += reward
             episode_length += 1
             truncated = episode_length >= config.max_episode_steps
-            buffer.add(obs=obs, action=action, reward=reward, next_obs=next_obs,
-                       terminated=float(terminated), omega=omega)
+            buffer.add(
+                obs=obs,
+                action=action,
+                reward=reward,
+                next_obs=next_obs,
+                terminated=float(terminated),
+                omega=omega,
+            )
             obs = next_obs
 
             if run.step > cfg.learning_starts:
                 batch = buffer.sample(cfg.batch_size)
                 # critic: TD3's target with smoothing noise on the next action *and* on ω
-                eps = torch.randn(batch["omega"].shape, generator=agent.noise,
-                                  device=agent.device)
+                eps = torch.randn(batch["omega"].shape, generator=agent.noise, device=agent.device)
                 eps = torch.maximum(torch.minimum(eps * noise_scale, noise_clip), -noise_clip)
                 next_w = torch.maximum(torch.minimum(batch["omega"] + eps, omega_high), omega_low)
-                y = agent.td_target(batch["reward"], batch["next_obs"], batch["terminated"],
-                                    next_cond=next_w)
-                critic_loss = agent.update_critic(batch["obs"], batch["action"], y,
-                                                  cond=batch["omega"])
+                y = agent.td_target(
+                    batch["reward"], batch["next_obs"], batch["terminated"], next_cond=next_w
+                )
+                critic_loss = agent.update_critic(
+                    batch["obs"], batch["action"], y, cond=batch["omega"]
+                )
                 if run.step % cfg.policy_frequency == 0:
                     # the worst candidate: the lowest mean Q1(s, π(s), ω̂ₖ)
                     s = batch["obs"]
@@ -198,14 +225,16 @@ def train(config: TrainConfig, resume: bool = False) -> Path:
                         a = agent.actor(s)
                         w = candidates.values().to(agent.device)
                         n, b = len(w), len(s)
-                        x = torch.cat((s.repeat(n, 1), a.repeat(n, 1),
-                                       w.repeat_interleave(b, 0)), dim=1)
+                        x = torch.cat(
+                            (s.repeat(n, 1), a.repeat(n, 1), w.repeat_interleave(b, 0)), dim=1
+                        )
                         q = agent.critic.q1(x).view(n, b).mean(1)
                     k = int(n - 1 - torch.argmin(q.flip(0)))  # ties: the last, as the authors
                     worst = w[k].expand(b, -1)
                     # ω̂ₖ descends Q1(s, π(s), ω̂ₖ)
-                    omega_loss = agent.critic.q1(torch.cat(
-                        (s, a, candidates.value(k).expand(b, -1)), dim=1)).mean()
+                    omega_loss = agent.critic.q1(
+                        torch.cat((s, a, candidates.value(k).expand(b, -1)), dim=1)
+                    ).mean()
                     candidates.optimizers[k].zero_grad(set_to_none=True)
                     omega_loss.backward(inputs=[candidates.logits[k]])
                     candidates.optimizers[k].step()
@@ -213,29 +242,54 @@ def train(config: TrainConfig, resume: bool = False) -> Path:
                     agent.update_targets()
                     candidates.mark_worst(k, last_length)
                     if run.step % 1000 == 0:
-                        run.log({"losses/critic_loss": critic_loss.item(),
-                                 "losses/actor_loss": actor_loss.item(),
-                                 "losses/omega_loss": omega_loss.item()})
+                        run.log(
+                            {
+                                "losses/critic_loss": critic_loss.item(),
+                                "losses/actor_loss": actor_loss.item(),
+                                "losses/omega_loss": omega_loss.item(),
+                            }
+                        )
             if run.eval_due():
                 run.evaluate(agent.actor, meta)
 
             if terminated or truncated:
                 values = candidates.values().cpu().numpy()
-                extra = {f"m2td3/probability_{k}": p for k, p in enumerate(candidates.probabilities)}
-                extra.update({f"m2td3/hatomega_{k}_{name}": values[k, i]
-                              for k in range(len(values)) for i, name in enumerate(box.names)})
+                extra = {
+                    f"m2td3/probability_{k}": p for k, p in enumerate(candidates.probabilities)
+                }
+                extra.update(
+                    {
+                        f"m2td3/hatomega_{k}_{name}": values[k, i]
+                        for k in range(len(values))
+                        for i, name in enumerate(box.names)
+                    }
+                )
                 run.episode_end(episode_return, episode_length, **extra)
                 last_length = episode_length
                 episode_return, episode_length = 0.0, 0
                 if run.checkpoint_due():
-                    run.save({"agent": agent.state_dict(), "buffer": buffer.state_dict(),
-                              "candidates": candidates.state(), "rng": rng_state(rng),
-                              "env_rng": rng_state(env.np_random), "last_length": last_length})
+                    run.save(
+                        {
+                            "agent": agent.state_dict(),
+                            "buffer": buffer.state_dict(),
+                            "candidates": candidates.state(),
+                            "rng": rng_state(rng),
+                            "env_rng": rng_state(env.np_random),
+                            "last_length": last_length,
+                        }
+                    )
                 omega = next_omega()
                 obs, _ = env.reset(options=dict(zip(box.names, omega.tolist())))
             bar.update(1)
     finally:
         run.close()
-    return run.finish(agent.actor, meta, {"steps": run.step, "episodes": run.episodes,
-                                          "hatomega": candidates.values().tolist(),
-                                          "probabilities": candidates.probabilities.tolist()})
+    return run.finish(
+        agent.actor,
+        meta,
+        {
+            "steps": run.step,
+            "episodes": run.episodes,
+            "hatomega": candidates.values().tolist(),
+            "probabilities": candidates.probabilities.tolist(),
+        },
+    )

@@ -29,8 +29,8 @@ class Actor(nn.Module):
         super().__init__()
         sizes = [obs_dim, *hidden, act_dim]
         self.layers = nn.ModuleList(nn.Linear(a, b) for a, b in zip(sizes[:-1], sizes[1:]))
-        low = torch.as_tensor(np.broadcast_to(action_low, (act_dim,)), dtype=torch.float32)
-        high = torch.as_tensor(np.broadcast_to(action_high, (act_dim,)), dtype=torch.float32)
+        low = torch.tensor(np.broadcast_to(action_low, (act_dim,)), dtype=torch.float32)
+        high = torch.tensor(np.broadcast_to(action_high, (act_dim,)), dtype=torch.float32)
         self.register_buffer("action_scale", (high - low) / 2)
         self.register_buffer("action_bias", (high + low) / 2)
 
@@ -46,8 +46,13 @@ class Actor(nn.Module):
 
         weights = [layer.weight.detach().cpu().numpy().T for layer in self.layers]
         biases = [layer.bias.detach().cpu().numpy() for layer in self.layers]
-        return MLPPolicy(weights, biases, self.action_scale.cpu().numpy(),
-                         self.action_bias.cpu().numpy(), metadata=metadata)
+        return MLPPolicy(
+            weights,
+            biases,
+            self.action_scale.cpu().numpy(),
+            self.action_bias.cpu().numpy(),
+            metadata=metadata,
+        )
 
 
 class TwinCritic(nn.Module):
@@ -60,7 +65,9 @@ class TwinCritic(nn.Module):
         self.biases = nn.ParameterList()
         for fan_in, fan_out in zip(sizes[:-1], sizes[1:]):
             bound = 1 / math.sqrt(fan_in)  # nn.Linear's default init, per critic
-            self.weights.append(nn.Parameter(torch.empty(n, fan_in, fan_out).uniform_(-bound, bound)))
+            self.weights.append(
+                nn.Parameter(torch.empty(n, fan_in, fan_out).uniform_(-bound, bound))
+            )
             self.biases.append(nn.Parameter(torch.empty(n, 1, fan_out).uniform_(-bound, bound)))
         self.n = n
 

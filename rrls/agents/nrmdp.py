@@ -19,8 +19,9 @@ from rrls.agents.rarl import train_two_player
 ALPHA = 0.1
 
 
-def train(config: TrainConfig, resume: bool = False, alpha: float = ALPHA,
-          mode: str = "nr") -> Path:
+def train(
+    config: TrainConfig, resume: bool = False, alpha: float = ALPHA, mode: str = "nr"
+) -> Path:
     """Train NR-MDP (``mode="nr"``) or PR-MDP (``mode="pr"``) with mixing ``alpha``."""
     from rrls.wrappers import ProbabilisticActionRobust
 

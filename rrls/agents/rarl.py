@@ -30,8 +30,9 @@ def train(config: TrainConfig, resume: bool = False) -> Path:
     from rrls.wrappers import DynamicAdversarial
 
     kind = "force" if config.uncertainty == "rarl" else "robust"
-    env = DynamicAdversarial(make_env(config.task, kind),
-                             get_uncertainty_set(config.task, config.uncertainty))
+    env = DynamicAdversarial(
+        make_env(config.task, kind), get_uncertainty_set(config.task, config.uncertainty)
+    )
 
     def alternate(step: int) -> tuple[bool, bool]:
         protagonist_phase = (step // PHASE_STEPS) % 2 == 0
@@ -53,15 +54,38 @@ def train_two_player(
     run = Run(config, resume)
     obs_dim = env.observation_space.shape[0]
     spaces = env.action_space.spaces
-    cfg = TD3Config(learning_starts=config.learning_starts, hidden=tuple(config.hidden),
-                    batch_size=config.batch_size or TD3Config.batch_size)
+    cfg = TD3Config(
+        learning_starts=config.learning_starts,
+        hidden=tuple(config.hidden),
+        batch_size=config.batch_size or TD3Config.batch_size,
+    )
     players, buffers = [], []
     for i, space in enumerate(spaces):
-        players.append(TD3(obs_dim, space.shape[0], space.low, space.high, cfg,
-                           seed=config.seed + 1000 * i, device=config.device))
-        buffers.append(ReplayBuffer(min(cfg.buffer_size, config.steps), {
-            "obs": (obs_dim,), "action": space.shape, "reward": (), "next_obs": (obs_dim,),
-            "terminated": ()}, device=config.device, seed=config.seed + 2 + 1000 * i))
+        players.append(
+            TD3(
+                obs_dim,
+                space.shape[0],
+                space.low,
+                space.high,
+                cfg,
+                seed=config.seed + 1000 * i,
+                device=config.device,
+            )
+        )
+        buffers.append(
+            ReplayBuffer(
+                min(cfg.buffer_size, config.steps),
+                {
+                    "obs": (obs_dim,),
+                    "action": space.shape,
+                    "reward": (),
+                    "next_obs": (obs_dim,),
+                    "terminated": (),
+                },
+                device=config.device,
+                seed=config.seed + 2 + 1000 * i,
+            )
+        )
     protagonist, adversary = players
     rng = np.random.default_rng(config.seed)
     meta = metadata(config, obs_dim, spaces[0].shape[0])
@@ -70,8 +94,9 @@ def train_two_player(
     if state is None:
         obs, _ = env.reset(seed=config.seed)
     else:
-        for player, buffer, saved, saved_buffer in zip(players, buffers, state["agents"],
-                                                       state["buffers"]):
+        for player, buffer, saved, saved_buffer in zip(
+            players, buffers, state["agents"], state["buffers"]
+        ):
             player.load_state_dict(saved)
             buffer.load_state_dict(saved_buffer)
         set_rng_state(rng, state["rng"])
@@ -93,14 +118,20 @@ def train_two_player(
             truncated = episode_length >= config.max_episode_steps
             # zero-sum: the adversary learns from -reward; truncation bootstraps for both
             for buffer, action, sign in zip(buffers, actions, (1.0, -1.0)):
-                buffer.add(obs=obs, action=action, reward=sign * reward, next_obs=next_obs,
-                           terminated=float(terminated))
+                buffer.add(
+                    obs=obs,
+                    action=action,
+                    reward=sign * reward,
+                    next_obs=next_obs,
+                    terminated=float(terminated),
+                )
             obs = next_obs
 
             if run.step > cfg.learning_starts:
                 update_actor = run.step % cfg.policy_frequency == 0
-                for name, player, buffer, active in zip(("protagonist", "adversary"), players,
-                                                        buffers, schedule(run.step)):
+                for name, player, buffer, active in zip(
+                    ("protagonist", "adversary"), players, buffers, schedule(run.step)
+                ):
                     if active:
                         losses = player.update(buffer.sample(cfg.batch_size), update_actor)
                         if run.step % 1000 == 0:
@@ -109,13 +140,19 @@ def train_two_player(
                 run.evaluate(protagonist.actor, meta)
 
             if terminated or truncated:
-                run.episode_end(episode_return, episode_length,
-                                **{"charts/adversary_return": -episode_return})
+                run.episode_end(
+                    episode_return, episode_length, **{"charts/adversary_return": -episode_return}
+                )
                 episode_return, episode_length = 0.0, 0
                 if run.checkpoint_due():
-                    run.save({"agents": [p.state_dict() for p in players],
-                              "buffers": [b.state_dict() for b in buffers],
-                              "rng": rng_state(rng), "env_rng": rng_state(env.unwrapped.np_random)})
+                    run.save(
+                        {
+                            "agents": [p.state_dict() for p in players],
+                            "buffers": [b.state_dict() for b in buffers],
+                            "rng": rng_state(rng),
+                            "env_rng": rng_state(env.unwrapped.np_random),
+                        }
+                    )
                 obs, _ = env.reset()
             bar.update(1)
     finally:

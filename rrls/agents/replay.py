@@ -27,7 +27,9 @@ class ReplayBuffer:
         }
         # on CPU, write through numpy views of the same memory: ~1 µs per field instead of ~5
         self._views = (
-            {name: t.numpy() for name, t in self.data.items()} if self.device.type == "cpu" else None
+            {name: t.numpy() for name, t in self.data.items()}
+            if self.device.type == "cpu"
+            else None
         )
         self.pos = 0
         self.size = 0

@@ -28,12 +28,24 @@ def train_single_agent(config: TrainConfig, env: Any, resume: bool = False) -> P
     obs_dim = env.observation_space.shape[0]
     low, high = env.action_space.low, env.action_space.high
     act_dim = len(low)
-    cfg = TD3Config(learning_starts=config.learning_starts, hidden=tuple(config.hidden),
-                    batch_size=config.batch_size or TD3Config.batch_size)
+    cfg = TD3Config(
+        learning_starts=config.learning_starts,
+        hidden=tuple(config.hidden),
+        batch_size=config.batch_size or TD3Config.batch_size,
+    )
     agent = TD3(obs_dim, act_dim, low, high, cfg, seed=config.seed, device=config.device)
-    buffer = ReplayBuffer(min(cfg.buffer_size, config.steps), {
-        "obs": (obs_dim,), "action": (act_dim,), "reward": (), "next_obs": (obs_dim,),
-        "terminated": ()}, device=config.device, seed=config.seed + 2)
+    buffer = ReplayBuffer(
+        min(cfg.buffer_size, config.steps),
+        {
+            "obs": (obs_dim,),
+            "action": (act_dim,),
+            "reward": (),
+            "next_obs": (obs_dim,),
+            "terminated": (),
+        },
+        device=config.device,
+        seed=config.seed + 2,
+    )
     rng = np.random.default_rng(config.seed)  # exploration noise and the initial random actions
     meta = metadata(config, obs_dim, act_dim)
 
@@ -61,13 +73,19 @@ def train_single_agent(config: TrainConfig, env: Any, resume: bool = False) -> P
             episode_length += 1
             truncated = episode_length >= config.max_episode_steps
             # a truncated transition keeps terminated=0: its target bootstraps from next_obs
-            buffer.add(obs=obs, action=action, reward=reward, next_obs=next_obs,
-                       terminated=float(terminated))
+            buffer.add(
+                obs=obs,
+                action=action,
+                reward=reward,
+                next_obs=next_obs,
+                terminated=float(terminated),
+            )
             obs = next_obs
 
             if run.step > cfg.learning_starts:
-                losses = agent.update(buffer.sample(cfg.batch_size),
-                                      update_actor=run.step % cfg.policy_frequency == 0)
+                losses = agent.update(
+                    buffer.sample(cfg.batch_size), update_actor=run.step % cfg.policy_frequency == 0
+                )
                 if run.step % 1000 == 0:
                     run.log({f"losses/{k}": v.item() for k, v in losses.items()})
             if run.eval_due():
@@ -77,8 +95,14 @@ def train_single_agent(config: TrainConfig, env: Any, resume: bool = False) -> P
                 run.episode_end(episode_return, episode_length)
                 episode_return, episode_length = 0.0, 0
                 if run.checkpoint_due():
-                    run.save({"agent": agent.state_dict(), "buffer": buffer.state_dict(),
-                              "rng": rng_state(rng), "env_rng": rng_state(env.unwrapped.np_random)})
+                    run.save(
+                        {
+                            "agent": agent.state_dict(),
+                            "buffer": buffer.state_dict(),
+                            "rng": rng_state(rng),
+                            "env_rng": rng_state(env.unwrapped.np_random),
+                        }
+                    )
                 obs, _ = env.reset()
             bar.update(1)
     finally:
