@@ -115,7 +115,7 @@ class Run:
         self.checkpoint_path = self.dir / "checkpoint.pt"
         if self.checkpoint_path.exists() and not resume:
             raise FileExistsError(
-                f"{self.dir} already holds a run; pass --resume to continue it or choose another --out"
+                f"{self.dir} already holds a run: pass --resume to continue it, or another --out"
             )
         self.dir.mkdir(parents=True, exist_ok=True)
         self.step = 0
@@ -266,7 +266,7 @@ class Run:
 
     # -- the end ----------------------------------------------------------------------------
     def finish(self, actor: Any, metadata: dict[str, Any], summary: dict[str, Any]) -> Path:
-        """Save the final policy (``policy.npz`` and ``actor.pt``: tensors only) and ``run.json``."""
+        """Save the final policy (``policy.npz``, ``actor.pt``: tensors only) and ``run.json``."""
         actor.to_mlp_policy(metadata).save(self.dir / "policy.npz")
         buf = io.BytesIO()
         torch.save({k: v.cpu() for k, v in actor.state_dict().items()}, buf)

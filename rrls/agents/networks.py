@@ -41,7 +41,7 @@ class Actor(nn.Module):
         return torch.tanh(self.layers[-1](h)) * self.action_scale + self.action_bias
 
     def to_mlp_policy(self, metadata: dict | None = None):  # noqa: ANN201 - avoids a cycle
-        """The same actor as a numpy ``MLPPolicy`` (the safe ``.npz`` format ``rrls evaluate`` reads)."""
+        """The same actor as a numpy ``MLPPolicy`` (the safe ``.npz`` read by ``rrls evaluate``)."""
         from rrls.evaluation.policies import MLPPolicy
 
         weights = [layer.weight.detach().cpu().numpy().T for layer in self.layers]
