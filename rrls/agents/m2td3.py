@@ -46,8 +46,8 @@ class Candidates(torch.nn.Module):
 
     def __init__(self, low: np.ndarray, high: np.ndarray, rng: np.random.Generator) -> None:
         super().__init__()
-        self.register_buffer("low", torch.as_tensor(low, dtype=torch.float32))
-        self.register_buffer("high", torch.as_tensor(high, dtype=torch.float32))
+        self.register_buffer("low", torch.tensor(np.array(low), dtype=torch.float32))
+        self.register_buffer("high", torch.tensor(np.array(high), dtype=torch.float32))
         self.logits = torch.nn.ParameterList(
             torch.nn.Parameter(torch.zeros(len(low))) for _ in range(self.N)
         )

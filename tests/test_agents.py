@@ -1,0 +1,185 @@
+"""Baselines: the TD3 core's mathematics, time limits, exact resume, M2TD3's candidates, the CLI."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+torch = pytest.importorskip("torch")
+
+from rrls.agents import TrainConfig, train  # noqa: E402
+from rrls.agents.core import TD3, TD3Config  # noqa: E402
+from rrls.agents.m2td3 import Candidates  # noqa: E402
+from rrls.cli import main  # noqa: E402
+
+SMALL = ["--hidden", "16", "16", "--batch-size", "32"]
+
+
+def _cli_train(out, algo, steps=300, extra=()):
+    return main(["train", "--algo", algo, "--task", "invertedpendulum", "--steps", str(steps),
+                 "--learning-starts", "100", "--eval-every", "150", "--seed", "1", "--out",
+                 str(out), "--checkpoint-every", "50", *SMALL, *extra])
+
+
+@pytest.mark.parametrize("algo", ["td3", "dr", "rarl", "nrmdp", "m2td3"])
+def test_every_algorithm_trains_through_the_cli(tmp_path, algo, capsys):
+    out = tmp_path / algo
+    uncertainty = ["--uncertainty", "1d"] if algo in ("dr", "m2td3") else []
+    assert _cli_train(out, algo, extra=uncertainty) == 0
+    meta = json.loads((out / "run.json").read_text())
+    assert meta["algorithm"] == algo and meta["task"] == "invertedpendulum"
+    assert meta["steps"] == 300 and meta["obs_dim"] == 4 and meta["act_dim"] == 1
+    assert {"torch", "rrls", "mujoco"} <= set(meta["versions"])
+    assert list((out / "tb").glob("events.out.tfevents.*"))
+    weights = torch.load(out / "actor.pt", weights_only=True)
+    assert weights["layers.0.weight"].shape == (16, 4)
+    # the run directory is a policy for `rrls evaluate` (the task comes from its metadata)
+    capsys.readouterr()
+    assert main(["evaluate", str(out), "--uncertainty", "1d", "--mesh", "2", "--episodes", "1",
+                 "--workers", "1", "--out", str(tmp_path / "eval")]) == 0
+    assert "worst case" in capsys.readouterr().out
+
+
+@pytest.mark.parametrize("algo", ["td3", "m2td3", "rarl"])
+def test_killed_and_resumed_run_ends_bit_identical(tmp_path, algo):
+    extra = ["--uncertainty", "1d"] if algo == "m2td3" else []
+    assert _cli_train(tmp_path / "whole", algo, steps=400, extra=extra) == 0
+    assert _cli_train(tmp_path / "cut", algo, steps=400, extra=[*extra, "--stop-at", "220"]) == 3
+    with pytest.raises(SystemExit, match="--resume"):
+        _cli_train(tmp_path / "cut", algo, steps=400, extra=extra)
+    assert _cli_train(tmp_path / "cut", algo, steps=400, extra=[*extra, "--resume"]) == 0
+    whole = torch.load(tmp_path / "whole" / "checkpoint.pt", weights_only=True)
+    cut = torch.load(tmp_path / "cut" / "checkpoint.pt", weights_only=True)
+    assert whole["step"] == cut["step"] and whole["rng"] == cut["rng"]
+    a, b = (torch.load(d / "actor.pt", weights_only=True) for d in (tmp_path / "whole",
+                                                                     tmp_path / "cut"))
+    assert all(torch.equal(a[k], b[k]) for k in a)
+    key = "agents" if algo == "rarl" else "agent"
+    sa = whole[key][0] if algo == "rarl" else whole[key]
+    sb = cut[key][0] if algo == "rarl" else cut[key]
+    for net in ("critic", "critic_target", "actor_target"):
+        assert all(torch.equal(sa[net][k], sb[net][k]) for k in sa[net])
+    assert json.loads((tmp_path / "whole" / "run.json").read_text())["steps"] == 400
+
+
+def test_resume_refuses_another_configuration(tmp_path):
+    assert _cli_train(tmp_path / "r", "td3", steps=200, extra=["--stop-at", "150"]) == 3
+    with pytest.raises(ValueError, match="seed"):
+        train(TrainConfig(algo="td3", task="invertedpendulum", uncertainty="2d", steps=200,
+                          learning_starts=100, seed=2, out=str(tmp_path / "r"), hidden=(16, 16),
+                          batch_size=32, progress=False), resume=True)
+
+
+# -- the TD3 core against hand computations --------------------------------------------------------
+def _tiny() -> TD3:
+    cfg = TD3Config(hidden=(3,), policy_noise=0.0, gamma=0.9, tau=0.25)
+    return TD3(2, 1, np.array([-2.0]), np.array([2.0]), cfg, seed=0)
+
+
+def _mlp(x, weights, biases, out_act=None):
+    for i, (w, b) in enumerate(zip(weights, biases)):
+        x = x @ w + b
+        if i < len(weights) - 1:
+            x = torch.relu(x)
+    return out_act(x) if out_act else x
+
+
+def test_td_target_matches_the_formula_by_hand():
+    agent = _tiny()
+    next_obs = torch.tensor([[0.5, -1.0], [2.0, 0.3]])
+    reward, terminated = torch.tensor([1.0, -0.5]), torch.tensor([0.0, 1.0])
+    y = agent.td_target(reward, next_obs, terminated)
+    actor = agent.actor_target
+    a = 2.0 * _mlp(next_obs, [layer.weight.T for layer in actor.layers],
+                   [layer.bias for layer in actor.layers], torch.tanh)
+    crit = agent.critic_target
+    x = torch.cat([next_obs, a], 1)
+    q = [_mlp(x, [w[i] for w in crit.weights], [b[i, 0] for b in crit.biases]).squeeze(1)
+         for i in range(2)]
+    expected = reward + 0.9 * (1 - terminated) * torch.minimum(q[0], q[1])
+    torch.testing.assert_close(y, expected)
+    assert y[1] == -0.5  # terminated: no bootstrap
+
+
+def test_critic_loss_actor_loss_and_polyak_by_hand():
+    agent = _tiny()
+    obs, action = torch.tensor([[0.1, 0.2], [0.3, -0.4]]), torch.tensor([[0.5], [-1.0]])
+    target = torch.tensor([1.0, 2.0])
+    crit = agent.critic
+    x = torch.cat([obs, action], 1)
+    q = [_mlp(x, [w[i] for w in crit.weights], [b[i, 0] for b in crit.biases]).squeeze(1)
+         for i in range(2)]
+    expected = ((q[0] - target) ** 2).mean() + ((q[1] - target) ** 2).mean()
+    before = [p.detach().clone() for p in agent.critic_target.parameters()]
+    loss = agent.update_critic(obs, action, target)
+    torch.testing.assert_close(loss, expected.detach())
+    a = agent.actor(obs)
+    q1 = _mlp(torch.cat([obs, a], 1), [w[0] for w in crit.weights], [b[0, 0] for b in crit.biases])
+    critic_before = [p.detach().clone() for p in agent.critic.parameters()]
+    torch.testing.assert_close(agent.update_actor(obs), -q1.mean().detach())
+    # the actor step leaves the critic untouched
+    assert all(torch.equal(p, c) for p, c in zip(agent.critic.parameters(), critic_before))
+    agent.update_targets()
+    for old, new, src in zip(before, agent.critic_target.parameters(), agent.critic.parameters()):
+        torch.testing.assert_close(new, 0.75 * old + 0.25 * src)
+
+
+def test_truncation_bootstraps_and_no_transition_crosses_a_reset(tmp_path):
+    # HalfCheetah never terminates: 10-step episodes end by truncation only
+    config = TrainConfig(algo="td3", task="halfcheetah", steps=30, learning_starts=100,
+                         eval_every=0, out=str(tmp_path), hidden=(8,), batch_size=8,
+                         checkpoint_every=1, max_episode_steps=10, progress=False)
+    train(config)
+    buf = torch.load(tmp_path / "checkpoint.pt", weights_only=True)["buffer"]["data"]
+    assert len(buf["obs"]) == 30 and not buf["terminated"].any()
+    for i in range(29):
+        same = torch.equal(buf["next_obs"][i], buf["obs"][i + 1])
+        assert same == (i not in (9, 19))  # after a reset the next obs is a new initial state
+    # InvertedPendulum under random actions falls: those transitions are terminal
+    config = TrainConfig(algo="td3", task="invertedpendulum", uncertainty="2d", steps=60,
+                         learning_starts=100, eval_every=0, out=str(tmp_path / "ip"),
+                         hidden=(8,), batch_size=8, checkpoint_every=1, progress=False)
+    train(config)
+    state = torch.load(tmp_path / "ip" / "checkpoint.pt", weights_only=True)
+    term = state["buffer"]["data"]["terminated"]
+    assert term.sum() == state["episodes"] and term[-1] == 1
+
+
+# -- M2TD3's candidates --------------------------------------------------------------------------
+def test_candidates_stay_in_the_box_and_restart_by_the_rules():
+    rng = np.random.default_rng(0)
+    low, high = np.array([0.1, 1.0]), np.array([3.0, 11.0])
+    cands = Candidates(low, high, rng)
+    values = cands.values().numpy()
+    assert ((values >= low) & (values <= high)).all()
+    for _ in range(300):  # push every candidate hard towards +infinity
+        for k in range(cands.N):
+            loss = -cands.value(k).sum() * 1e3
+            cands.optimizers[k].zero_grad()
+            loss.backward()
+            cands.optimizers[k].step()
+    values = cands.values().numpy()
+    assert ((values >= low) & (values <= high)).all()
+
+    # two candidates within L1 distance 0.1: the first of the pair is re-initialised
+    with torch.no_grad():
+        cands.logits[2].copy_(cands.logits[4])
+    cands.probabilities = np.array([0.3, 0.1, 0.2, 0.2, 0.2])
+    kept = cands.values().numpy()
+    assert cands.restart(rng) == [2]
+    after = cands.values().numpy()
+    assert not np.allclose(after[2], kept[2]) and np.allclose(np.delete(after, 2, 0),
+                                                             np.delete(kept, 2, 0))
+    assert cands.probabilities[2] == pytest.approx((0.3 + 0.1 + 0.2 + 0.2) / 4)
+
+    # a candidate whose probability fell below 0.05 is re-initialised too
+    cands.probabilities = np.array([0.5, 0.02, 0.18, 0.1, 0.2])
+    assert 1 in cands.restart(rng)
+    assert cands.probabilities[1] == pytest.approx((0.5 + 0.18 + 0.1 + 0.2) / 4)
+
+    # the worst candidate's probability moves by 1/L towards 1
+    cands.probabilities = np.full(5, 0.2)
+    cands.mark_worst(3, episode_length=10)
+    np.testing.assert_allclose(cands.probabilities, [0.18, 0.18, 0.18, 0.28, 0.18])
