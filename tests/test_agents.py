@@ -18,9 +18,29 @@ SMALL = ["--hidden", "16", "16", "--batch-size", "32"]
 
 
 def _cli_train(out, algo, steps=300, extra=()):
-    return main(["train", "--algo", algo, "--task", "invertedpendulum", "--steps", str(steps),
-                 "--learning-starts", "100", "--eval-every", "150", "--seed", "1", "--out",
-                 str(out), "--checkpoint-every", "50", *SMALL, *extra])
+    return main(
+        [
+            "train",
+            "--algo",
+            algo,
+            "--task",
+            "invertedpendulum",
+            "--steps",
+            str(steps),
+            "--learning-starts",
+            "100",
+            "--eval-every",
+            "150",
+            "--seed",
+            "1",
+            "--out",
+            str(out),
+            "--checkpoint-every",
+            "50",
+            *SMALL,
+            *extra,
+        ]
+    )
 
 
 @pytest.mark.parametrize("algo", ["td3", "dr", "rarl", "nrmdp", "m2td3"])
@@ -37,8 +57,25 @@ def test_every_algorithm_trains_through_the_cli(tmp_path, algo, capsys):
     assert weights["layers.0.weight"].shape == (16, 4)
     # the run directory is a policy for `rrls evaluate` (the task comes from its metadata)
     capsys.readouterr()
-    assert main(["evaluate", str(out), "--uncertainty", "1d", "--mesh", "2", "--episodes", "1",
-                 "--workers", "1", "--out", str(tmp_path / "eval")]) == 0
+    assert (
+        main(
+            [
+                "evaluate",
+                str(out),
+                "--uncertainty",
+                "1d",
+                "--mesh",
+                "2",
+                "--episodes",
+                "1",
+                "--workers",
+                "1",
+                "--out",
+                str(tmp_path / "eval"),
+            ]
+        )
+        == 0
+    )
     assert "worst case" in capsys.readouterr().out
 
 
@@ -53,8 +90,10 @@ def test_killed_and_resumed_run_ends_bit_identical(tmp_path, algo):
     whole = torch.load(tmp_path / "whole" / "checkpoint.pt", weights_only=True)
     cut = torch.load(tmp_path / "cut" / "checkpoint.pt", weights_only=True)
     assert whole["step"] == cut["step"] and whole["rng"] == cut["rng"]
-    a, b = (torch.load(d / "actor.pt", weights_only=True) for d in (tmp_path / "whole",
-                                                                     tmp_path / "cut"))
+    a, b = (
+        torch.load(d / "actor.pt", weights_only=True)
+        for d in (tmp_path / "whole", tmp_path / "cut")
+    )
     assert all(torch.equal(a[k], b[k]) for k in a)
     key = "agents" if algo == "rarl" else "agent"
     sa = whole[key][0] if algo == "rarl" else whole[key]
@@ -67,9 +106,21 @@ def test_killed_and_resumed_run_ends_bit_identical(tmp_path, algo):
 def test_resume_refuses_another_configuration(tmp_path):
     assert _cli_train(tmp_path / "r", "td3", steps=200, extra=["--stop-at", "150"]) == 3
     with pytest.raises(ValueError, match="seed"):
-        train(TrainConfig(algo="td3", task="invertedpendulum", uncertainty="2d", steps=200,
-                          learning_starts=100, seed=2, out=str(tmp_path / "r"), hidden=(16, 16),
-                          batch_size=32, progress=False), resume=True)
+        train(
+            TrainConfig(
+                algo="td3",
+                task="invertedpendulum",
+                uncertainty="2d",
+                steps=200,
+                learning_starts=100,
+                seed=2,
+                out=str(tmp_path / "r"),
+                hidden=(16, 16),
+                batch_size=32,
+                progress=False,
+            ),
+            resume=True,
+        )
 
 
 # -- the TD3 core against hand computations --------------------------------------------------------
@@ -92,12 +143,18 @@ def test_td_target_matches_the_formula_by_hand():
     reward, terminated = torch.tensor([1.0, -0.5]), torch.tensor([0.0, 1.0])
     y = agent.td_target(reward, next_obs, terminated)
     actor = agent.actor_target
-    a = 2.0 * _mlp(next_obs, [layer.weight.T for layer in actor.layers],
-                   [layer.bias for layer in actor.layers], torch.tanh)
+    a = 2.0 * _mlp(
+        next_obs,
+        [layer.weight.T for layer in actor.layers],
+        [layer.bias for layer in actor.layers],
+        torch.tanh,
+    )
     crit = agent.critic_target
     x = torch.cat([next_obs, a], 1)
-    q = [_mlp(x, [w[i] for w in crit.weights], [b[i, 0] for b in crit.biases]).squeeze(1)
-         for i in range(2)]
+    q = [
+        _mlp(x, [w[i] for w in crit.weights], [b[i, 0] for b in crit.biases]).squeeze(1)
+        for i in range(2)
+    ]
     expected = reward + 0.9 * (1 - terminated) * torch.minimum(q[0], q[1])
     torch.testing.assert_close(y, expected)
     assert y[1] == -0.5  # terminated: no bootstrap
@@ -109,8 +166,10 @@ def test_critic_loss_actor_loss_and_polyak_by_hand():
     target = torch.tensor([1.0, 2.0])
     crit = agent.critic
     x = torch.cat([obs, action], 1)
-    q = [_mlp(x, [w[i] for w in crit.weights], [b[i, 0] for b in crit.biases]).squeeze(1)
-         for i in range(2)]
+    q = [
+        _mlp(x, [w[i] for w in crit.weights], [b[i, 0] for b in crit.biases]).squeeze(1)
+        for i in range(2)
+    ]
     expected = ((q[0] - target) ** 2).mean() + ((q[1] - target) ** 2).mean()
     before = [p.detach().clone() for p in agent.critic_target.parameters()]
     loss = agent.update_critic(obs, action, target)
@@ -128,9 +187,19 @@ def test_critic_loss_actor_loss_and_polyak_by_hand():
 
 def test_truncation_bootstraps_and_no_transition_crosses_a_reset(tmp_path):
     # HalfCheetah never terminates: 10-step episodes end by truncation only
-    config = TrainConfig(algo="td3", task="halfcheetah", steps=30, learning_starts=100,
-                         eval_every=0, out=str(tmp_path), hidden=(8,), batch_size=8,
-                         checkpoint_every=1, max_episode_steps=10, progress=False)
+    config = TrainConfig(
+        algo="td3",
+        task="halfcheetah",
+        steps=30,
+        learning_starts=100,
+        eval_every=0,
+        out=str(tmp_path),
+        hidden=(8,),
+        batch_size=8,
+        checkpoint_every=1,
+        max_episode_steps=10,
+        progress=False,
+    )
     train(config)
     buf = torch.load(tmp_path / "checkpoint.pt", weights_only=True)["buffer"]["data"]
     assert len(buf["obs"]) == 30 and not buf["terminated"].any()
@@ -138,9 +207,19 @@ def test_truncation_bootstraps_and_no_transition_crosses_a_reset(tmp_path):
         same = torch.equal(buf["next_obs"][i], buf["obs"][i + 1])
         assert same == (i not in (9, 19))  # after a reset the next obs is a new initial state
     # InvertedPendulum under random actions falls: those transitions are terminal
-    config = TrainConfig(algo="td3", task="invertedpendulum", uncertainty="2d", steps=60,
-                         learning_starts=100, eval_every=0, out=str(tmp_path / "ip"),
-                         hidden=(8,), batch_size=8, checkpoint_every=1, progress=False)
+    config = TrainConfig(
+        algo="td3",
+        task="invertedpendulum",
+        uncertainty="2d",
+        steps=60,
+        learning_starts=100,
+        eval_every=0,
+        out=str(tmp_path / "ip"),
+        hidden=(8,),
+        batch_size=8,
+        checkpoint_every=1,
+        progress=False,
+    )
     train(config)
     state = torch.load(tmp_path / "ip" / "checkpoint.pt", weights_only=True)
     term = state["buffer"]["data"]["terminated"]
@@ -170,8 +249,9 @@ def test_candidates_stay_in_the_box_and_restart_by_the_rules():
     kept = cands.values().numpy()
     assert cands.restart(rng) == [2]
     after = cands.values().numpy()
-    assert not np.allclose(after[2], kept[2]) and np.allclose(np.delete(after, 2, 0),
-                                                             np.delete(kept, 2, 0))
+    assert not np.allclose(after[2], kept[2]) and np.allclose(
+        np.delete(after, 2, 0), np.delete(kept, 2, 0)
+    )
     assert cands.probabilities[2] == pytest.approx((0.3 + 0.1 + 0.2 + 0.2) / 4)
 
     # a candidate whose probability fell below 0.05 is re-initialised too
@@ -183,3 +263,69 @@ def test_candidates_stay_in_the_box_and_restart_by_the_rules():
     cands.probabilities = np.full(5, 0.2)
     cands.mark_worst(3, episode_length=10)
     np.testing.assert_allclose(cands.probabilities, [0.18, 0.18, 0.18, 0.28, 0.18])
+
+
+# -- slow learning checks (python3 -m pytest -m slow) --------------------------------------------
+def _train_ip(tmp_path, algo, uncertainty, steps, seed=0):
+    config = TrainConfig(
+        algo=algo,
+        task="invertedpendulum",
+        uncertainty=uncertainty,
+        steps=steps,
+        learning_starts=1000,
+        eval_every=0,
+        seed=seed,
+        out=str(tmp_path / f"{algo}-{seed}"),
+        progress=False,
+    )
+    return train(config)
+
+
+@pytest.mark.slow
+def test_td3_balances_the_nominal_pendulum_within_20k_steps(tmp_path):
+    from rrls.evaluation import evaluate
+
+    run = _train_ip(tmp_path, "td3", "2d", 20_000)
+    assert evaluate(run, "invertedpendulum", "nominal", episodes=5, workers=1).worst_case >= 800
+
+
+@pytest.mark.slow
+def test_m2td3_worst_case_beats_td3_on_the_1d_mesh(tmp_path):
+    from rrls.evaluation import evaluate
+
+    for seed in (0, 1):
+        scores = {
+            algo: evaluate(
+                _train_ip(tmp_path, algo, "1d", 20_000, seed),
+                "invertedpendulum",
+                "1d",
+                nb_mesh_dim=10,
+                episodes=3,
+                workers=1,
+            ).worst_case
+            for algo in ("td3", "m2td3")
+        }
+        assert scores["m2td3"] > scores["td3"], (seed, scores)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("algo, uncertainty", [("dr", "1d"), ("rarl", "rarl"), ("nrmdp", "1d")])
+def test_robust_baselines_improve_on_a_random_policy(tmp_path, algo, uncertainty):
+    from rrls.evaluation import evaluate
+
+    rng = np.random.default_rng(0)
+    random_policy = lambda obs: rng.uniform(-3, 3, size=(len(obs), 1))  # noqa: E731
+    baseline = evaluate(random_policy, "invertedpendulum", "nominal", episodes=10, workers=1)
+    run = _train_ip(tmp_path, algo, uncertainty, 15_000)
+    trained = evaluate(run, "invertedpendulum", "nominal", episodes=10, workers=1)
+    assert trained.average_case > 2 * baseline.average_case
+
+
+def test_quickstart_trains_evaluates_prints_and_plots(tmp_path, capsys):
+    assert main(["quickstart", "--out", str(tmp_path), "--steps", "300"]) == 0
+    out = capsys.readouterr().out
+    for algo in ("td3", "m2td3", "dr"):
+        assert f"\n{algo} " in out
+        assert (tmp_path / algo / "policy.npz").exists()
+        assert (tmp_path / f"{algo}-eval" / "summary.json").exists()
+    assert "worst case" in out and (tmp_path / "quickstart.png").stat().st_size > 10_000
