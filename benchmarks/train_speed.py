@@ -125,36 +125,26 @@ def rrls_algo(algo: str, task: str, steps: int, warmup: int) -> float:
     learning_starts = 1000
     # time a run to learning_starts + warmup and one `steps` longer: the difference is `steps`
     # steps of acting + updating, without start-up and random-action phases
-    with tempfile.TemporaryDirectory() as out:
-        config = TrainConfig(
-            algo=algo,
-            task=task,
-            uncertainty="3d",
-            steps=learning_starts + warmup,
-            learning_starts=learning_starts,
-            eval_every=0,
-            out=out,
-            progress=False,
-            checkpoint_every=10**9,
-        )
-        t0 = time.perf_counter()
-        train(config)
-        short = time.perf_counter() - t0
-    with tempfile.TemporaryDirectory() as out:
-        config = TrainConfig(
-            algo=algo,
-            task=task,
-            uncertainty="3d",
-            steps=learning_starts + warmup + steps,
-            learning_starts=learning_starts,
-            eval_every=0,
-            out=out,
-            progress=False,
-            checkpoint_every=10**9,
-        )
-        t0 = time.perf_counter()
-        train(config)
-        long = time.perf_counter() - t0
+
+    def seconds(total: int) -> float:
+        with tempfile.TemporaryDirectory() as out:
+            config = TrainConfig(
+                algo=algo,
+                task=task,
+                uncertainty="3d",
+                steps=total,
+                learning_starts=learning_starts,
+                eval_every=0,
+                out=out,
+                progress=False,
+                checkpoint_every=10**9,
+            )
+            t0 = time.perf_counter()
+            train(config)
+            return time.perf_counter() - t0
+
+    short = seconds(learning_starts + warmup)
+    long = seconds(learning_starts + warmup + steps)
     return steps / (long - short)
 
 

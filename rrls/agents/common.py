@@ -11,7 +11,6 @@ from __future__ import annotations
 
 import io
 import json
-import platform
 import time
 from dataclasses import asdict, dataclass
 from pathlib import Path
@@ -71,19 +70,10 @@ class Interrupted(Exception):
 
 
 def versions() -> dict[str, str]:
-    import gymnasium
-    import mujoco
+    """The evaluation's version record plus torch (saved with every policy)."""
+    from rrls.evaluation.evaluate import _versions
 
-    from rrls import __version__
-
-    return {
-        "rrls": __version__,
-        "torch": torch.__version__,
-        "gymnasium": gymnasium.__version__,
-        "mujoco": mujoco.__version__,
-        "numpy": np.__version__,
-        "python": platform.python_version(),
-    }
+    return {**_versions(), "torch": torch.__version__}
 
 
 def rng_state(gen: np.random.Generator) -> str:
@@ -141,7 +131,7 @@ class Run:
                 f"cannot resume {self.dir}: it was trained with other {', '.join(diff)}"
             )
         self.step, self.episodes = int(state["step"]), int(state["episodes"])
-        self._last_checkpoint = self._last_eval = self.step
+        self._last_checkpoint = self.step
         self._last_eval = int(state["last_eval"])
         return state
 
