@@ -105,6 +105,12 @@ def build_parser() -> argparse.ArgumentParser:
         "--batch-size", type=int, default=None, help="default: the paper's (TD3 256, M2TD3 100)"
     )
     tr.add_argument(
+        "--learning-rate",
+        type=float,
+        default=None,
+        help="Adam step size of actor and critics (default: the paper's 3e-4)",
+    )
+    tr.add_argument(
         "--eval-mesh",
         type=int,
         default=0,
@@ -225,6 +231,7 @@ def _train(args: argparse.Namespace) -> int:
         device=args.device,
         hidden=tuple(args.hidden),
         batch_size=args.batch_size,
+        learning_rate=args.learning_rate,
         eval_mesh=args.eval_mesh,
         eval_episodes=args.eval_episodes,
         checkpoint_every=args.checkpoint_every,

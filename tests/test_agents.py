@@ -47,7 +47,12 @@ def _cli_train(out, algo, steps=300, extra=()):
 def test_every_algorithm_trains_through_the_cli(tmp_path, algo, capsys):
     out = tmp_path / algo
     uncertainty = ["--uncertainty", "1d"] if algo in ("dr", "m2td3") else []
-    assert _cli_train(out, algo, extra=uncertainty) == 0
+    assert _cli_train(out, algo, extra=[*uncertainty, "--learning-rate", "0.002"]) == 0
+    state = torch.load(out / "checkpoint.pt", weights_only=True)
+    agents = state["agents"] if "agents" in state else [state["agent"]]
+    for agent in agents:  # --learning-rate reaches every player's actor and critic optimisers
+        for opt in ("actor_opt", "critic_opt"):
+            assert agent[opt]["param_groups"][0]["lr"] == 0.002
     meta = json.loads((out / "run.json").read_text())
     assert meta["algorithm"] == algo and meta["task"] == "invertedpendulum"
     assert meta["steps"] == 300 and meta["obs_dim"] == 4 and meta["act_dim"] == 1
@@ -266,8 +271,15 @@ def test_candidates_stay_in_the_box_and_restart_by_the_rules():
 
 
 # -- slow learning checks (python3 -m pytest -m slow) --------------------------------------------
+# A 20 k-step budget with the paper's Adam step 3e-4 leaves TD3 oscillating on InvertedPendulum-v5
+# (returns ~50-130 for every seed tried, like the CleanRL-style reference); at 1e-3 — the original
+# TD3 paper's rate — it balances by ~16 k steps. The reduced budget uses it, as the quickstart does.
+QUICK_LR = 1e-3
+
+
 def _train_ip(tmp_path, algo, uncertainty, steps, seed=0):
     config = TrainConfig(
+        learning_rate=QUICK_LR,
         algo=algo,
         task="invertedpendulum",
         uncertainty=uncertainty,

@@ -32,7 +32,7 @@ import numpy as np
 import torch
 
 from rrls.agents.common import Run, TrainConfig, make_env, metadata, rng_state, set_rng_state
-from rrls.agents.core import TD3, TD3Config
+from rrls.agents.core import TD3
 from rrls.agents.replay import ReplayBuffer
 
 
@@ -131,11 +131,7 @@ def train(config: TrainConfig, resume: bool = False) -> Path:
     half = (box.high - box.low) / 2
     omega_std = 1.0 * half  # omega_std_rate
     omega_noise, omega_clip = 0.2 * half, 0.5 * half  # policy_noise_rate, noise_clip_omega_rate
-    cfg = TD3Config(
-        learning_starts=config.learning_starts,
-        hidden=tuple(config.hidden),
-        batch_size=config.batch_size or 100,
-    )
+    cfg = config.td3_config(batch_size=100)
     agent = TD3(
         obs_dim, act_dim, low, high, cfg, seed=config.seed, device=config.device, cond_dim=dim
     )

@@ -18,7 +18,7 @@ from typing import Any
 import numpy as np
 
 from rrls.agents.common import Run, TrainConfig, make_env, metadata, rng_state, set_rng_state
-from rrls.agents.core import TD3, TD3Config
+from rrls.agents.core import TD3
 from rrls.agents.replay import ReplayBuffer
 
 PHASE_STEPS = 2_000  # env steps per RARL phase (protagonist, then adversary, then ...)
@@ -54,11 +54,7 @@ def train_two_player(
     run = Run(config, resume)
     obs_dim = env.observation_space.shape[0]
     spaces = env.action_space.spaces
-    cfg = TD3Config(
-        learning_starts=config.learning_starts,
-        hidden=tuple(config.hidden),
-        batch_size=config.batch_size or TD3Config.batch_size,
-    )
+    cfg = config.td3_config()
     players, buffers = [], []
     for i, space in enumerate(spaces):
         players.append(

@@ -13,7 +13,7 @@ from typing import Any
 import numpy as np
 
 from rrls.agents.common import Run, TrainConfig, make_env, metadata, rng_state, set_rng_state
-from rrls.agents.core import TD3, TD3Config
+from rrls.agents.core import TD3
 from rrls.agents.replay import ReplayBuffer
 
 
@@ -28,11 +28,7 @@ def train_single_agent(config: TrainConfig, env: Any, resume: bool = False) -> P
     obs_dim = env.observation_space.shape[0]
     low, high = env.action_space.low, env.action_space.high
     act_dim = len(low)
-    cfg = TD3Config(
-        learning_starts=config.learning_starts,
-        hidden=tuple(config.hidden),
-        batch_size=config.batch_size or TD3Config.batch_size,
-    )
+    cfg = config.td3_config()
     agent = TD3(obs_dim, act_dim, low, high, cfg, seed=config.seed, device=config.device)
     buffer = ReplayBuffer(
         min(cfg.buffer_size, config.steps),
