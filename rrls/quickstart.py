@@ -16,7 +16,7 @@ from pathlib import Path
 
 TASK, SET = "invertedpendulum", "1d"
 ALGOS = ("td3", "m2td3", "dr")
-STEPS = 25_000
+STEPS = 40_000
 LEARNING_STARTS = 1_000
 LEARNING_RATE = 1e-3
 
