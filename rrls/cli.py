@@ -111,6 +111,11 @@ def build_parser() -> argparse.ArgumentParser:
         help="Adam step size of actor and critics (default: the paper's 3e-4)",
     )
     tr.add_argument(
+        "--normalize-omega",
+        action="store_true",
+        help="M2TD3: critics see the parameters rescaled to [-1, 1] (the authors feed raw values)",
+    )
+    tr.add_argument(
         "--eval-mesh",
         type=int,
         default=0,
@@ -232,6 +237,7 @@ def _train(args: argparse.Namespace) -> int:
         hidden=tuple(args.hidden),
         batch_size=args.batch_size,
         learning_rate=args.learning_rate,
+        normalize_omega=args.normalize_omega,
         eval_mesh=args.eval_mesh,
         eval_episodes=args.eval_episodes,
         checkpoint_every=args.checkpoint_every,

@@ -41,6 +41,7 @@ class TrainConfig:
     hidden: tuple[int, ...] = (256, 256)
     batch_size: int | None = None  # None: the algorithm's paper value (TD3 256, M2TD3 100)
     learning_rate: float | None = None  # None: the paper's 3e-4 (actor and critics)
+    normalize_omega: bool = False  # M2TD3: critics see ω rescaled to [-1, 1] (authors: raw)
     eval_episodes: int = 5
     eval_mesh: int = 0  # points per dimension of the coarse evaluation mesh (0: nominal only)
     checkpoint_every: int = 50_000
@@ -59,6 +60,7 @@ class TrainConfig:
             "hidden",
             "batch_size",
             "learning_rate",
+            "normalize_omega",
             "max_episode_steps",
         )
         return {

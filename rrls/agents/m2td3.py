@@ -21,6 +21,11 @@ Where the table is silent we follow the authors' code: ω̂ are re-initialised a
 episode; the omega std stays at ``omega_std_rate`` (their code defines a linear decay towards
 ``min_omega_std_rate`` but never calls it). One deliberate difference: the authors store
 time-limit truncations as terminal; here truncated transitions bootstrap, as in our TD3.
+
+Opt-in (``normalize_omega`` / ``--normalize-omega``): the critics see ω rescaled to [-1, 1]. The
+authors feed raw values; on InvertedPendulum's pole mass (1-31) raw ω swamps the first layer and
+M2TD3 barely learns in 20 k steps (average 51 over the 1D mesh, seed 1), rescaled it learns as
+fast as DR (average 879). The same function class — only the optimisation's conditioning changes.
 """
 
 from __future__ import annotations
@@ -66,7 +71,7 @@ class Candidates(torch.nn.Module):
 
     def reinitialise(self, k: int, rng: np.random.Generator, probability: bool = True) -> None:
         """A fresh uniform point and a fresh Adam; its probability = the mean of the others."""
-        low, high = self.low.numpy(), self.high.numpy()
+        low, high = self.low.cpu().numpy(), self.high.cpu().numpy()
         y = (rng.uniform(low, high) - low) / np.maximum(high - low, 1e-5)
         y = np.clip(y, 1e-5, 1 - 1e-5)
         with torch.no_grad():
@@ -78,7 +83,7 @@ class Candidates(torch.nn.Module):
 
     def restart(self, rng: np.random.Generator) -> list[int]:
         """Re-initialise candidates that collapsed onto another or are rarely the worst."""
-        values = self.values().numpy()
+        values = self.values().cpu().numpy()
         close = {
             i
             for i, j in combinations(range(self.N), 2)
@@ -155,6 +160,13 @@ def train(config: TrainConfig, resume: bool = False) -> Path:
     noise_scale = torch.as_tensor(omega_noise, dtype=torch.float32, device=config.device)
     noise_clip = torch.as_tensor(omega_clip, dtype=torch.float32, device=config.device)
     meta = metadata(config, obs_dim, act_dim)
+
+    def critic_omega(w: torch.Tensor) -> torch.Tensor:
+        """The critics' view of ω: raw (the authors) or rescaled to [-1, 1] (opt-in)."""
+        if not config.normalize_omega:
+            return w
+        return (w - omega_low) / (omega_high - omega_low) * 2.0 - 1.0
+
     last_length = config.max_episode_steps
 
     def next_omega() -> np.ndarray:
@@ -209,10 +221,13 @@ def train(config: TrainConfig, resume: bool = False) -> Path:
                 eps = torch.maximum(torch.minimum(eps * noise_scale, noise_clip), -noise_clip)
                 next_w = torch.maximum(torch.minimum(batch["omega"] + eps, omega_high), omega_low)
                 y = agent.td_target(
-                    batch["reward"], batch["next_obs"], batch["terminated"], next_cond=next_w
+                    batch["reward"],
+                    batch["next_obs"],
+                    batch["terminated"],
+                    next_cond=critic_omega(next_w),
                 )
                 critic_loss = agent.update_critic(
-                    batch["obs"], batch["action"], y, cond=batch["omega"]
+                    batch["obs"], batch["action"], y, cond=critic_omega(batch["omega"])
                 )
                 if run.step % cfg.policy_frequency == 0:
                     # the worst candidate: the lowest mean Q1(s, π(s), ω̂ₖ)
@@ -222,19 +237,24 @@ def train(config: TrainConfig, resume: bool = False) -> Path:
                         w = candidates.values().to(agent.device)
                         n, b = len(w), len(s)
                         x = torch.cat(
-                            (s.repeat(n, 1), a.repeat(n, 1), w.repeat_interleave(b, 0)), dim=1
+                            (
+                                s.repeat(n, 1),
+                                a.repeat(n, 1),
+                                critic_omega(w).repeat_interleave(b, 0),
+                            ),
+                            dim=1,
                         )
                         q = agent.critic.q1(x).view(n, b).mean(1)
                     k = int(n - 1 - torch.argmin(q.flip(0)))  # ties: the last, as the authors
                     worst = w[k].expand(b, -1)
                     # ω̂ₖ descends Q1(s, π(s), ω̂ₖ)
                     omega_loss = agent.critic.q1(
-                        torch.cat((s, a, candidates.value(k).expand(b, -1)), dim=1)
+                        torch.cat((s, a, critic_omega(candidates.value(k)).expand(b, -1)), dim=1)
                     ).mean()
                     candidates.optimizers[k].zero_grad(set_to_none=True)
                     omega_loss.backward(inputs=[candidates.logits[k]])
                     candidates.optimizers[k].step()
-                    actor_loss = agent.update_actor(s, cond=worst)
+                    actor_loss = agent.update_actor(s, cond=critic_omega(worst))
                     agent.update_targets()
                     candidates.mark_worst(k, last_length)
                     if run.step % 1000 == 0:
