@@ -321,12 +321,16 @@ def test_td3_balances_the_nominal_pendulum_within_20k_steps(tmp_path):
 
 @pytest.mark.slow
 def test_m2td3_worst_case_beats_td3_on_the_1d_mesh(tmp_path):
+    # 40 k steps each (the quickstart's budget): at 20 k neither has learned the light-pole end
+    # of the set (every method's worst point is pole mass 1) and the comparison is a coin flip
+    # (measured: seed 0 M2TD3 ahead, seed 1 67 vs 81); at 40 k TD3 has overfitted the nominal
+    # pole there (13-14) while M2TD3 holds ~50.
     from rrls.evaluation import evaluate
 
     for seed in (0, 1):
         scores = {
             algo: evaluate(
-                _train_ip(tmp_path, algo, "1d", 20_000, seed),
+                _train_ip(tmp_path, algo, "1d", 40_000, seed),
                 "invertedpendulum",
                 "1d",
                 nb_mesh_dim=10,
