@@ -123,6 +123,12 @@ def test_normalize_omega_changes_what_the_m2td3_critics_see(tmp_path):
     assert not torch.equal(raw["weights.0"], unit["weights.0"])
 
 
+def test_bad_learning_rate_is_refused():
+    for lr in (0.0, -1e-3, float("nan")):
+        with pytest.raises(ValueError, match="learning_rate"):
+            TrainConfig(learning_rate=lr).td3_config()
+
+
 def test_resume_refuses_another_configuration(tmp_path):
     assert _cli_train(tmp_path / "r", "td3", steps=200, extra=["--stop-at", "150"]) == 3
     with pytest.raises(ValueError, match="seed"):

@@ -71,11 +71,14 @@ class TrainConfig:
 
     def td3_config(self, batch_size: int = 256) -> TD3Config:
         """The TD3 hyper-parameters of this run: the paper's, with this run's overrides."""
+        lr = self.learning_rate
+        if lr is not None and not (np.isfinite(lr) and lr > 0):
+            raise ValueError(f"learning_rate must be a positive finite number, got {lr}")
         return TD3Config(
             learning_starts=self.learning_starts,
             hidden=tuple(self.hidden),
             batch_size=self.batch_size or batch_size,
-            learning_rate=self.learning_rate or TD3Config.learning_rate,
+            learning_rate=lr if lr is not None else TD3Config.learning_rate,
         )
 
 
@@ -142,9 +145,11 @@ class Run:
         if not self.resumed:
             return None
         state = torch.load(self.checkpoint_path, weights_only=True, map_location="cpu")
-        saved = json.loads(state["config"])
-        if saved != self.config.identity():
-            diff = sorted(k for k in saved if saved[k] != self.config.identity().get(k))
+        current = self.config.identity()
+        # options added since the checkpoint was written count as their defaults
+        saved = {**TrainConfig().identity(), **json.loads(state["config"])}
+        diff = sorted(k for k in current if saved.get(k) != current[k])
+        if diff:
             raise ValueError(
                 f"cannot resume {self.dir}: it was trained with other {', '.join(diff)}"
             )
