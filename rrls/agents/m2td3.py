@@ -38,7 +38,7 @@ import torch
 
 from rrls.agents.common import Run, TrainConfig, make_env, metadata, rng_state, set_rng_state
 from rrls.agents.core import TD3
-from rrls.agents.replay import ReplayBuffer
+from rrls.agents.replay import ReplayBuffer, transition_fields
 
 
 class Candidates(torch.nn.Module):
@@ -142,14 +142,7 @@ def train(config: TrainConfig, resume: bool = False) -> Path:
     )
     buffer = ReplayBuffer(
         min(cfg.buffer_size, config.steps),
-        {
-            "obs": (obs_dim,),
-            "action": (act_dim,),
-            "reward": (),
-            "next_obs": (obs_dim,),
-            "terminated": (),
-            "omega": (dim,),
-        },
+        transition_fields(obs_dim, (act_dim,), omega=(dim,)),
         device=config.device,
         seed=config.seed + 2,
     )

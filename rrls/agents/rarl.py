@@ -19,7 +19,7 @@ import numpy as np
 
 from rrls.agents.common import Run, TrainConfig, make_env, metadata, rng_state, set_rng_state
 from rrls.agents.core import TD3
-from rrls.agents.replay import ReplayBuffer
+from rrls.agents.replay import ReplayBuffer, transition_fields
 
 PHASE_STEPS = 2_000  # env steps per RARL phase (protagonist, then adversary, then ...)
 
@@ -71,13 +71,7 @@ def train_two_player(
         buffers.append(
             ReplayBuffer(
                 min(cfg.buffer_size, config.steps),
-                {
-                    "obs": (obs_dim,),
-                    "action": space.shape,
-                    "reward": (),
-                    "next_obs": (obs_dim,),
-                    "terminated": (),
-                },
+                transition_fields(obs_dim, space.shape),
                 device=config.device,
                 seed=config.seed + 2 + 1000 * i,
             )

@@ -9,6 +9,20 @@ from __future__ import annotations
 import torch
 
 
+def transition_fields(
+    obs_dim: int, act_shape: tuple[int, ...], **extra: tuple[int, ...]
+) -> dict[str, tuple[int, ...]]:
+    """The fields of a TD3 transition (plus ``extra`` ones, e.g. M2TD3's ω) for ``ReplayBuffer``."""
+    return {
+        "obs": (obs_dim,),
+        "action": tuple(act_shape),
+        "reward": (),
+        "next_obs": (obs_dim,),
+        "terminated": (),
+        **extra,
+    }
+
+
 class ReplayBuffer:
     """Circular buffer of transitions; ``fields`` maps a name to its per-transition shape."""
 

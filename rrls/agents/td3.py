@@ -14,7 +14,7 @@ import numpy as np
 
 from rrls.agents.common import Run, TrainConfig, make_env, metadata, rng_state, set_rng_state
 from rrls.agents.core import TD3
-from rrls.agents.replay import ReplayBuffer
+from rrls.agents.replay import ReplayBuffer, transition_fields
 
 
 def train(config: TrainConfig, resume: bool = False) -> Path:
@@ -32,13 +32,7 @@ def train_single_agent(config: TrainConfig, env: Any, resume: bool = False) -> P
     agent = TD3(obs_dim, act_dim, low, high, cfg, seed=config.seed, device=config.device)
     buffer = ReplayBuffer(
         min(cfg.buffer_size, config.steps),
-        {
-            "obs": (obs_dim,),
-            "action": (act_dim,),
-            "reward": (),
-            "next_obs": (obs_dim,),
-            "terminated": (),
-        },
+        transition_fields(obs_dim, (act_dim,)),
         device=config.device,
         seed=config.seed + 2,
     )
