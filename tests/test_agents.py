@@ -12,6 +12,7 @@ torch = pytest.importorskip("torch")
 from rrls.agents import TrainConfig, train  # noqa: E402
 from rrls.agents.core import TD3, TD3Config  # noqa: E402
 from rrls.agents.m2td3 import Candidates  # noqa: E402
+from rrls.agents.networks import Actor, TwinCritic  # noqa: E402
 from rrls.cli import main  # noqa: E402
 
 SMALL = ["--hidden", "16", "16", "--batch-size", "32"]
@@ -209,6 +210,66 @@ def test_critic_loss_actor_loss_and_polyak_by_hand():
     agent.update_targets()
     for old, new, src in zip(before, agent.critic_target.parameters(), agent.critic.parameters()):
         torch.testing.assert_close(new, 0.75 * old + 0.25 * src)
+
+
+def test_explicit_backprop_matches_autograd():
+    # the update back-propagates by hand; its gradients must be autograd's, cond columns included
+    torch.manual_seed(0)
+    obs, action, cond = torch.randn(7, 4), torch.rand(7, 2) * 2 - 1, torch.randn(7, 3)
+    target = torch.randn(7)
+    actor = Actor(4, 2, (5, 6), np.array([-1.0, -2.0]), np.array([1.0, 3.0]))
+    critic = TwinCritic(4 + 2 + 3, (5, 6))
+    x = torch.cat([obs, action, cond], 1)
+
+    loss = (critic(x) - target).pow(2).mean(1).sum()
+    expected = torch.autograd.grad(loss, list(critic.parameters()))
+    with torch.no_grad():
+        q, saved = critic.forward_saved(x)
+        grads = [torch.zeros_like(p) for p in critic.parameters()]
+        critic.backward_saved(saved, 2 * (q - target) / len(target), grads)
+    for got, want in zip(grads, expected):
+        torch.testing.assert_close(got, want)
+
+    a = actor(obs)
+    loss = -critic.q1(torch.cat([obs, a, cond], 1)).mean()
+    expected = torch.autograd.grad(loss, list(actor.parameters()))
+    with torch.no_grad():
+        a2, saved_a = actor.forward_saved(obs)
+        torch.testing.assert_close(a2, a.detach())
+        q1, saved_q = critic.forward_saved(torch.cat([obs, a2, cond], 1), n=1)
+        grad_a = critic.backward_saved(
+            saved_q, torch.full_like(q1, -1 / 7), input_columns=slice(4, 6)
+        )
+        grads = [torch.zeros_like(p) for p in actor.parameters()]
+        actor.backward_saved(saved_a, grad_a[0], grads)
+    for got, want in zip(grads, expected):
+        torch.testing.assert_close(got, want)
+
+
+def test_update_steps_like_torch_adam():
+    # adam_step drives the fused kernel directly; it must equal Adam(fused=True).step()
+    agent, reference = _tiny(), _tiny()
+    obs, action = torch.tensor([[0.1, 0.2], [0.3, -0.4]]), torch.tensor([[0.5], [-1.0]])
+    target = torch.tensor([1.0, 2.0])
+    for _ in range(3):
+        agent.update_critic(obs, action, target)
+        agent.update_actor(obs)
+        loss = (reference.critic(torch.cat([obs, action], 1)) - target).pow(2).mean(1).sum()
+        reference.critic_opt.zero_grad()
+        loss.backward()
+        reference.critic_opt.step()
+        loss = -reference.critic.q1(torch.cat([obs, reference.actor(obs)], 1)).mean()
+        reference.actor_opt.zero_grad()
+        loss.backward(inputs=list(reference.actor.parameters()))
+        reference.actor_opt.step()
+    for net in ("actor", "critic"):
+        for got, want in zip(
+            getattr(agent, net).parameters(), getattr(reference, net).parameters()
+        ):
+            torch.testing.assert_close(got, want)
+    opt, ref = agent.critic_opt.state_dict(), reference.critic_opt.state_dict()
+    assert opt["state"][0].keys() == ref["state"][0].keys()
+    assert float(opt["state"][0]["step"]) == float(ref["state"][0]["step"]) == 3
 
 
 def test_truncation_bootstraps_and_no_transition_crosses_a_reset(tmp_path):
