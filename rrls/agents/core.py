@@ -92,7 +92,10 @@ class TD3:
 
     def explore(self, obs: np.ndarray, rng: np.random.Generator) -> np.ndarray:
         """``π(s) + N(0, σ·scale)``, clipped to the action box (one observation)."""
-        action = self.act(obs[None])[0]
+        if self.device.type == "cpu":
+            action = self.actor.act_one(obs)
+        else:
+            action = self.act(obs[None])[0]
         noise = rng.normal(0.0, self._np_scale * self.config.exploration_noise)
         return np.clip(action + noise, *self._np_box).astype(np.float32)
 

@@ -63,7 +63,7 @@ class ReplayBuffer:
     def sample(self, batch_size: int) -> dict[str, torch.Tensor]:
         idx = torch.randint(0, self.size, (batch_size,), generator=self.generator)
         idx = idx.to(self.device)
-        return {name: values[idx] for name, values in self.data.items()}
+        return {name: values.index_select(0, idx) for name, values in self.data.items()}
 
     def __len__(self) -> int:
         return self.size
