@@ -116,13 +116,12 @@ class TD3:
             eps = torch.randn(
                 (len(next_obs), self.act_dim), generator=self.noise, device=self.device
             )
-            eps = (eps * cfg.policy_noise).clamp(-cfg.noise_clip, cfg.noise_clip)
+            eps.mul_(cfg.policy_noise).clamp_(-cfg.noise_clip, cfg.noise_clip)
             next_action = self.actor_target.forward_saved(next_obs)[0]
-            next_action.addcmul_(eps, self.actor_target.action_scale)
-            next_action = torch.maximum(torch.minimum(next_action, self.high), self.low)
+            next_action.addcmul_(eps, self.actor_target.action_scale).clamp_(self.low, self.high)
             q_next = self.critic_target.forward_saved(_cat(next_obs, next_action, next_cond))[0]
-            q_next = q_next.min(0).values
-            return reward + (1.0 - terminated) * cfg.gamma * q_next
+            # (1 - terminated) is 0 or 1, so this rounds exactly like r + (1 - d) γ min Q
+            return torch.addcmul(reward, 1.0 - terminated, q_next.amin(0), value=cfg.gamma)
 
     @torch.no_grad()
     def update_critic(
