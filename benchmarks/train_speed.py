@@ -6,7 +6,8 @@ Side by side in one run, on this machine, Hopper (nominal), the paper's sizes (2
 (a) the straightforward version — written the way CleanRL's ``td3_continuous_action.py`` writes
     it: two separate critic modules, a Python loop over parameters for Polyak averaging, plain
     Adam, numpy<->torch conversion of every transition and batch (a list-of-arrays replay);
-(b) ``rrls.agents`` TD3 (batched twin critic, fused Adam, ``_foreach_lerp_``, tensor replay);
+(b) ``rrls.agents`` TD3 (batched twin critic, explicit back-propagation, the fused Adam kernel
+    called directly, ``_foreach_lerp_``, tensor replay, acting in numpy);
 (c) M2TD3 (``rrls.agents.m2td3``) for reference;
 (a') the straightforward version with denormals flushed to zero, to separate that one setting
     (which ``rrls train`` makes) from the rest of the work.
