@@ -272,6 +272,38 @@ def test_update_steps_like_torch_adam():
     assert float(opt["state"][0]["step"]) == float(ref["state"][0]["step"]) == 3
 
 
+def test_replay_batches_keep_each_transition_together_and_survive_a_checkpoint():
+    from rrls.agents.replay import ReplayBuffer, transition_fields
+
+    fields = transition_fields(3, (2, 2), omega=(1,))
+    buffer = ReplayBuffer(8, fields, seed=5)
+    for i in range(11):  # wraps around: transitions 3..10 remain
+        buffer.add(
+            obs=np.full(3, i),
+            action=np.full((2, 2), -i),
+            reward=10.0 * i,
+            next_obs=np.full(3, i + 1),
+            terminated=float(i % 2),
+            omega=[0.5 * i],
+        )
+    assert len(buffer) == 8
+    batch = buffer.sample(64)
+    i = batch["obs"][:, 0]
+    assert set(i.tolist()) <= set(range(3, 11))
+    assert batch["action"].shape == (64, 2, 2) and batch["reward"].shape == (64,)
+    torch.testing.assert_close(batch["action"], -i.view(-1, 1, 1).expand(-1, 2, 2))
+    torch.testing.assert_close(batch["reward"], 10 * i)
+    torch.testing.assert_close(batch["next_obs"], (i + 1).view(-1, 1).expand(-1, 3))
+    torch.testing.assert_close(batch["terminated"], i % 2)
+    torch.testing.assert_close(batch["omega"][:, 0], 0.5 * i)
+
+    restored = ReplayBuffer(8, fields, seed=0)
+    restored.load_state_dict(buffer.state_dict())
+    expected, got = buffer.sample(16), restored.sample(16)
+    for name, values in expected.items():
+        torch.testing.assert_close(got[name], values)
+
+
 def test_truncation_bootstraps_and_no_transition_crosses_a_reset(tmp_path):
     # HalfCheetah never terminates: 10-step episodes end by truncation only
     config = TrainConfig(

@@ -147,7 +147,9 @@ class TwinCritic(nn.Module):
         layers = self._layers()
         last = len(layers) - 1
         for i, (w, b) in enumerate(layers):
-            h = torch.baddbmm(b[:n], h, w[:n])
+            if n != self.n:
+                w, b = w[:n], b[:n]
+            h = torch.baddbmm(b, h, w)
             if i < last:
                 h = h.relu_()
                 saved.append(h)
@@ -171,7 +173,7 @@ class TwinCritic(nn.Module):
         depth = len(layers)
         d = grad_q.unsqueeze(-1)
         for i in reversed(range(depth)):
-            w = layers[i][0][:n]
+            w = layers[i][0] if n == self.n else layers[i][0][:n]
             if grads is not None:
                 torch.bmm(saved[i].transpose(1, 2), d, out=grads[i])
                 torch.sum(d, 1, keepdim=True, out=grads[depth + i])

@@ -6,6 +6,8 @@ run samples exactly the batches an uninterrupted run would.
 
 from __future__ import annotations
 
+import math
+
 import torch
 
 
@@ -35,10 +37,16 @@ class ReplayBuffer:
     ) -> None:
         self.capacity = int(capacity)
         self.device = torch.device(device)
-        self.data = {
-            name: torch.zeros((self.capacity, *shape), dtype=torch.float32, device=self.device)
-            for name, shape in fields.items()
-        }
+        # one (capacity, width) table, each field a block of its columns: a batch is a single
+        # index_select (one gather instead of one per field), fields are views of it
+        self.columns: dict[str, tuple[slice, tuple[int, ...]]] = {}
+        width = 0
+        for name, shape in fields.items():
+            size = math.prod(shape)
+            self.columns[name] = (slice(width, width + size), tuple(shape))
+            width += size
+        self.table = torch.zeros((self.capacity, width), dtype=torch.float32, device=self.device)
+        self.data = {name: self._field(self.table, name) for name in self.columns}
         # on CPU, write through numpy views of the same memory: ~1 µs per field instead of ~5
         self._views = (
             {name: t.numpy() for name, t in self.data.items()}
@@ -48,6 +56,10 @@ class ReplayBuffer:
         self.pos = 0
         self.size = 0
         self.generator = torch.Generator(device="cpu").manual_seed(seed)
+
+    def _field(self, rows: torch.Tensor, name: str) -> torch.Tensor:
+        cols, shape = self.columns[name]
+        return rows[:, cols].view(len(rows), *shape)
 
     def add(self, **transition: object) -> None:
         """Store one transition (arrays or floats, one per field)."""
@@ -62,8 +74,8 @@ class ReplayBuffer:
 
     def sample(self, batch_size: int) -> dict[str, torch.Tensor]:
         idx = torch.randint(0, self.size, (batch_size,), generator=self.generator)
-        idx = idx.to(self.device)
-        return {name: values.index_select(0, idx) for name, values in self.data.items()}
+        rows = self.table.index_select(0, idx.to(self.device))
+        return {name: self._field(rows, name) for name in self.columns}
 
     def __len__(self) -> int:
         return self.size
