@@ -19,8 +19,14 @@ import numpy as np
 import torch
 from torch import nn
 
-# ReLU's backward: the gradient where the saved activation is positive, else 0 (autograd's op)
-_relu_backward = torch.ops.aten.threshold_backward
+
+def _relu_backward_(grad: torch.Tensor, output: torch.Tensor) -> torch.Tensor:
+    """ReLU's backward in place: ``grad`` where the saved ``output`` is positive, else 0.
+
+    Autograd's own op (``threshold_backward``), written into ``grad`` instead of a new tensor:
+    ~1 % of an update saved by not allocating (and first-touching) another activation-sized block.
+    """
+    return torch.ops.aten.threshold_backward.grad_input(grad, output, 0, grad_input=grad)
 
 
 class Actor(nn.Module):
@@ -91,7 +97,7 @@ class Actor(nn.Module):
             torch.mm(d.t(), inputs[i], out=grads[2 * i])
             torch.sum(d, 0, out=grads[2 * i + 1])
             if i:
-                d = _relu_backward(torch.mm(d, layers[i][0]), inputs[i], 0)
+                d = _relu_backward_(torch.mm(d, layers[i][0]), inputs[i])
 
     def to_mlp_policy(self, metadata: dict | None = None):  # noqa: ANN201 - avoids a cycle
         """The same actor as a numpy ``MLPPolicy`` (the safe ``.npz`` read by ``rrls evaluate``)."""
@@ -180,7 +186,7 @@ class TwinCritic(nn.Module):
             if i:
                 # the output layer has one unit: its backward is a broadcast product, not a matmul
                 dh = d * w.transpose(1, 2) if i == depth - 1 else torch.bmm(d, w.transpose(1, 2))
-                d = _relu_backward(dh, saved[i], 0)
+                d = _relu_backward_(dh, saved[i])
         if input_columns is None:
             return None
         return torch.bmm(d, layers[0][0][:n, input_columns].transpose(1, 2))
