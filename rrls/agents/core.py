@@ -4,7 +4,7 @@ Same mathematics as CleanRL's ``td3_continuous_action.py``: twin critics regress
 ``r + γ (1 - terminated) min(Q1', Q2')(s', clip(π'(s') + clip(ε), low, high))``, a delayed actor
 ascending ``Q1(s, π(s))``, Polyak-averaged targets. What makes it faster on a CPU: both critics
 in one batched matmul per layer; explicit back-propagation instead of autograd (the networks'
-``forward_saved`` / ``backward_saved``: autograd's per-op bookkeeping is ~¼ of an update at
+``forward_saved`` / ``backward_saved``: autograd's per-op bookkeeping was ~20 % of an update at
 these sizes), the actor loss back-propagated through Q1's action columns into the actor only;
 the fused Adam kernel called without ``torch.optim``'s per-step Python; one ``_foreach_lerp_``
 for Polyak averaging; a preallocated tensor replay.

@@ -6,7 +6,7 @@ separate ``nn.Linear`` stacks, initialised the same way (PyTorch's Linear defaul
 
 Both networks also offer explicit back-propagation (``forward_saved`` / ``backward_saved``): the
 TD3 update calls these instead of autograd, because at these sizes (256-256, batch 256, on a
-CPU) autograd's per-operation bookkeeping costs about a quarter of an update. The gradients are
+CPU) autograd's per-operation bookkeeping cost ~20 % of an update. The gradients are
 autograd's (tests compare them); ``forward`` stays the differentiable path for everything else.
 """
 
