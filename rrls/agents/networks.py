@@ -135,13 +135,9 @@ class TwinCritic(nn.Module):
         return list(zip(self.weights._parameters.values(), self.biases._parameters.values()))
 
     def forward(self, x: torch.Tensor) -> torch.Tensor:
-        h = x.unsqueeze(0).expand(self.n, *x.shape)
-        last = len(self.weights) - 1
-        for i, (w, b) in enumerate(zip(self.weights, self.biases)):
-            h = torch.baddbmm(b, h, w)
-            if i < last:
-                h = torch.relu(h)
-        return h.squeeze(-1)
+        # the same ops as forward_saved (in-place ReLUs are fine for autograd: baddbmm's
+        # backward does not need its output)
+        return self.forward_saved(x)[0]
 
     def forward_saved(
         self, x: torch.Tensor, n: int | None = None
