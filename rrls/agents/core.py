@@ -81,7 +81,7 @@ class TD3:
         self._targets = [*self.actor_target.parameters(), *self.critic_target.parameters()]
         self.act_dim = act_dim
         self._np_box = (np.asarray(action_low, np.float32), np.asarray(action_high, np.float32))
-        self._np_scale = self.actor.action_scale.cpu().numpy()
+        self._np_sigma = self.actor.action_scale.cpu().numpy() * config.exploration_noise
 
     # -- acting -----------------------------------------------------------------------------
     @torch.inference_mode()
@@ -96,7 +96,7 @@ class TD3:
             action = self.actor.act_one(obs)
         else:
             action = self.act(obs[None])[0]
-        noise = rng.normal(0.0, self._np_scale * self.config.exploration_noise)
+        noise = rng.normal(0.0, self._np_sigma)
         return np.clip(action + noise, *self._np_box).astype(np.float32)
 
     # -- learning ---------------------------------------------------------------------------
@@ -193,22 +193,18 @@ def adam_step(opt: torch.optim.Adam, grads: list[torch.Tensor]) -> None:
     checkpoints and ``opt.state_dict()`` are unchanged), without its ~100 µs of per-call Python
     (grouping tensors by device and dtype, hooks, ...). One parameter group, no AMSGrad.
     """
+    cache = getattr(opt, "_rrls_fused", None)
+    if cache is None or cache[0] is not opt.state:  # first step, or state loaded since
+        cache = opt._rrls_fused = _fused_adam_state(opt)
+    _, params, exp_avgs, exp_avg_sqs, steps, step_counts = cache
+    step_counts.add_(1)  # every parameter's step counter at once (they are views of it)
     group = opt.param_groups[0]
-    params = group["params"]
-    states = [opt.state[p] for p in params]
-    for p, state in zip(params, states):
-        if not state:  # what Adam(fused=True) creates on its first step
-            state["step"] = torch.zeros((), dtype=torch.float32, device=p.device)
-            state["exp_avg"] = torch.zeros_like(p, memory_format=torch.preserve_format)
-            state["exp_avg_sq"] = torch.zeros_like(p, memory_format=torch.preserve_format)
-    steps = [state["step"] for state in states]
-    torch._foreach_add_(steps, 1)
     beta1, beta2 = group["betas"]
     torch._fused_adam_(
         params,
         grads,
-        [state["exp_avg"] for state in states],
-        [state["exp_avg_sq"] for state in states],
+        exp_avgs,
+        exp_avg_sqs,
         [],
         steps,
         amsgrad=False,
@@ -220,6 +216,33 @@ def adam_step(opt: torch.optim.Adam, grads: list[torch.Tensor]) -> None:
         maximize=False,
         grad_scale=None,
         found_inf=None,
+    )
+
+
+def _fused_adam_state(opt: torch.optim.Adam) -> tuple:
+    """The tensor lists ``adam_step`` feeds the kernel, made once per ``opt.state``.
+
+    Creates the state ``Adam(fused=True)`` creates on its first step, then re-seats the per-
+    parameter ``step`` counters as 0-d views of one vector (same values, same ``state_dict``), so
+    one ``add_`` advances them all: ``_foreach_add_`` over six 0-d tensors cost ~24 µs.
+    """
+    params = opt.param_groups[0]["params"]
+    states = [opt.state[p] for p in params]
+    for p, state in zip(params, states):
+        if not state:
+            state["step"] = torch.zeros((), dtype=torch.float32, device=p.device)
+            state["exp_avg"] = torch.zeros_like(p, memory_format=torch.preserve_format)
+            state["exp_avg_sq"] = torch.zeros_like(p, memory_format=torch.preserve_format)
+    step_counts = torch.stack([state["step"] for state in states])
+    for i, state in enumerate(states):
+        state["step"] = step_counts[i]
+    return (
+        opt.state,
+        list(params),
+        [state["exp_avg"] for state in states],
+        [state["exp_avg_sq"] for state in states],
+        [state["step"] for state in states],
+        step_counts,
     )
 
 

@@ -68,11 +68,23 @@ class Actor(nn.Module):
         dispatch there against ~10 µs here. Equal to ``forward`` up to float32 rounding.
         """
         h = np.asarray(obs, dtype=np.float32)
-        layers = self._layers()
-        for i, (w, b) in enumerate(layers):
-            h = w.detach().numpy() @ h + b.detach().numpy()
-            h = np.maximum(h, 0.0) if i < len(layers) - 1 else np.tanh(h)
-        return h * self.action_scale.numpy() + self.action_bias.numpy()
+        *hidden, (w_out, b_out), scale, bias = self._numpy_views()
+        for w, b in hidden:
+            h = np.maximum(w @ h + b, 0.0)
+        return np.tanh(w_out @ h + b_out) * scale + bias
+
+    def _numpy_views(self) -> list:
+        """Numpy views of the weights, action scale and bias, made once: the optimisers update
+        the tensors in place, so the views stay current. Remade if a tensor's storage moved."""
+        tensors = [t for layer in self._layers() for t in layer]
+        tensors += [self.action_scale, self.action_bias]
+        key = [t.data_ptr() for t in tensors]
+        if getattr(self, "_views_key", None) != key:
+            arrays = [t.detach().numpy() for t in tensors]
+            self._views = [tuple(arrays[i : i + 2]) for i in range(0, len(arrays) - 2, 2)]
+            self._views += arrays[-2:]
+            self._views_key = key
+        return self._views
 
     def forward_saved(self, obs: torch.Tensor) -> tuple[torch.Tensor, list[torch.Tensor]]:
         """``forward`` without a graph, keeping the activations ``backward_saved`` needs."""

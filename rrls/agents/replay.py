@@ -46,6 +46,7 @@ class ReplayBuffer:
             self.columns[name] = (slice(width, width + size), tuple(shape))
             width += size
         self.table = torch.zeros((self.capacity, width), dtype=torch.float32, device=self.device)
+        self._widths = [cols.stop - cols.start for cols, _ in self.columns.values()]
         self.data = {name: self._field(self.table, name) for name in self.columns}
         # on CPU, write through numpy views of the same memory: ~1 µs per field instead of ~5
         self._views = (
@@ -75,7 +76,16 @@ class ReplayBuffer:
     def sample(self, batch_size: int) -> dict[str, torch.Tensor]:
         idx = torch.randint(0, self.size, (batch_size,), generator=self.generator)
         rows = self.table.index_select(0, idx.to(self.device))
-        return {name: self._field(rows, name) for name in self.columns}
+        # one split into column blocks (~8 µs for a TD3 batch, against ~19 for a slice and a
+        # view per field); scalars lose their column, other shapes are restored by a view
+        batch = {}
+        for (name, (_, shape)), block in zip(self.columns.items(), rows.split(self._widths, 1)):
+            if not shape:
+                block = block.squeeze(1)
+            elif len(shape) > 1:
+                block = block.view(batch_size, *shape)
+            batch[name] = block
+        return batch
 
     def __len__(self) -> int:
         return self.size
