@@ -29,7 +29,36 @@ def _relu_backward_(grad: torch.Tensor, output: torch.Tensor) -> torch.Tensor:
     return torch.ops.aten.threshold_backward.grad_input(grad, output, 0, grad_input=grad)
 
 
-class Actor(nn.Module):
+class _ViewCache:
+    """Views of a module's parameters (transposes, slices, numpy arrays) made once, not per call.
+
+    Why: at an update's ~100 operations, each view op costs a few µs, more in a training loop
+    whose caches the env step has just evicted. The views stay current because optimisers,
+    Polyak averaging and ``load_state_dict`` write into the parameters in place; anything that
+    moves them to new storage (``.to()``, ``load_state_dict(assign=True)``) drops the cache.
+    """
+
+    def _views(self, key: object, make):  # noqa: ANN001, ANN202
+        cache = self.__dict__.setdefault("_view_cache", {})
+        if key not in cache:
+            cache[key] = make()
+        return cache[key]
+
+    def _apply(self, fn, recurse=True):  # noqa: ANN001, ANN202 - nn.Module's signature
+        self.__dict__.pop("_view_cache", None)
+        return super()._apply(fn, recurse)
+
+    def _load_from_state_dict(self, *args, **kwargs) -> None:  # noqa: ANN002, ANN003
+        self.__dict__.pop("_view_cache", None)
+        super()._load_from_state_dict(*args, **kwargs)
+
+    def __getstate__(self) -> dict:
+        state = dict(self.__dict__)  # deepcopy and pickling rebuild the views, not copy them
+        state.pop("_view_cache", None)
+        return state
+
+
+class Actor(_ViewCache, nn.Module):
     """Deterministic policy: ReLU hidden layers, tanh output scaled to the action box."""
 
     def __init__(
@@ -54,12 +83,12 @@ class Actor(nn.Module):
             h = torch.relu(layer(h))
         return torch.tanh(self.layers[-1](h)) * self.action_scale + self.action_bias
 
-    def _layers(self) -> list[tuple[torch.Tensor, torch.Tensor]]:
-        """``(weight, bias)`` per layer, read from the registries directly: the ``ModuleList`` and
-        ``Module.__getattr__`` route costs ~40 µs per update in the hot loop."""
-        return [
-            (m._parameters["weight"], m._parameters["bias"]) for m in self.layers._modules.values()
-        ]
+    def _layers(self) -> list[tuple[torch.Tensor, torch.Tensor, torch.Tensor]]:
+        """``(weight, bias, weight.T)`` per layer, cached (``_ViewCache``)."""
+        return self._views(
+            "layers",
+            lambda: [(m.weight, m.bias, m.weight.t()) for m in self.layers],
+        )
 
     def act_one(self, obs: np.ndarray) -> np.ndarray:
         """π(s) for one observation, in numpy on views of the (CPU) weights.
@@ -68,33 +97,24 @@ class Actor(nn.Module):
         dispatch there against ~10 µs here. Equal to ``forward`` up to float32 rounding.
         """
         h = np.asarray(obs, dtype=np.float32)
-        *hidden, (w_out, b_out), scale, bias = self._numpy_views()
+        *hidden, (w_out, b_out), scale, bias = self._views("numpy", self._numpy_views)
         for w, b in hidden:
             h = np.maximum(w @ h + b, 0.0)
         return np.tanh(w_out @ h + b_out) * scale + bias
 
     def _numpy_views(self) -> list:
-        """Numpy views of the weights, action scale and bias, made once: the optimisers update
-        the tensors in place, so the views stay current. Remade if a tensor's storage moved."""
-        tensors = [t for layer in self._layers() for t in layer]
-        tensors += [self.action_scale, self.action_bias]
-        key = [t.data_ptr() for t in tensors]
-        if getattr(self, "_views_key", None) != key:
-            arrays = [t.detach().numpy() for t in tensors]
-            self._views = [tuple(arrays[i : i + 2]) for i in range(0, len(arrays) - 2, 2)]
-            self._views += arrays[-2:]
-            self._views_key = key
-        return self._views
+        views: list = [(w.detach().numpy(), b.detach().numpy()) for w, b, _ in self._layers()]
+        return views + [self.action_scale.numpy(), self.action_bias.numpy()]
 
     def forward_saved(self, obs: torch.Tensor) -> tuple[torch.Tensor, list[torch.Tensor]]:
         """``forward`` without a graph, keeping the activations ``backward_saved`` needs."""
-        *hidden, (w_out, b_out) = self._layers()
+        *hidden, (_, b_out, w_out_t) = self._layers()
         saved = [obs]
         h = obs
-        for w, b in hidden:
-            h = torch.addmm(b, h, w.t()).relu_()
+        for _, b, w_t in hidden:
+            h = torch.addmm(b, h, w_t).relu_()
             saved.append(h)
-        t = torch.addmm(b_out, h, w_out.t()).tanh_()
+        t = torch.addmm(b_out, h, w_out_t).tanh_()
         saved.append(t)
         return torch.addcmul(self.action_bias, t, self.action_scale), saved
 
@@ -126,7 +146,7 @@ class Actor(nn.Module):
         )
 
 
-class TwinCritic(nn.Module):
+class TwinCritic(_ViewCache, nn.Module):
     """``n`` Q-networks Q(x) over the same input, evaluated together: output ``(n, B)``."""
 
     def __init__(self, in_dim: int, hidden: Sequence[int] = (256, 256), n: int = 2) -> None:
@@ -142,9 +162,18 @@ class TwinCritic(nn.Module):
             self.biases.append(nn.Parameter(torch.empty(n, 1, fan_out).uniform_(-bound, bound)))
         self.n = n
 
-    def _layers(self) -> list[tuple[torch.Tensor, torch.Tensor]]:
-        """``(weights, biases)`` per layer, without ``ParameterList.__getitem__`` (~2 µs each)."""
-        return list(zip(self.weights._parameters.values(), self.biases._parameters.values()))
+    def _layers(self, n: int | None = None) -> list[tuple[torch.Tensor, ...]]:
+        """``(weights, biases, weights transposed)`` of the first ``n`` critics per layer, cached
+        (``_ViewCache``): no ``ParameterList`` indexing, slicing or transposing per call."""
+        n = self.n if n is None else n
+
+        def make() -> list[tuple[torch.Tensor, ...]]:
+            pairs = zip(self.weights._parameters.values(), self.biases._parameters.values())
+            if n == self.n:
+                return [(w, b, w.transpose(1, 2)) for w, b in pairs]
+            return [(w[:n], b[:n], w[:n].transpose(1, 2)) for w, b in pairs]
+
+        return self._views(("layers", n), make)
 
     def forward(self, x: torch.Tensor) -> torch.Tensor:
         # the same ops as forward_saved (in-place ReLUs are fine for autograd: baddbmm's
@@ -155,14 +184,11 @@ class TwinCritic(nn.Module):
         self, x: torch.Tensor, n: int | None = None
     ) -> tuple[torch.Tensor, list[torch.Tensor]]:
         """The first ``n`` critics' ``(n, B)`` values without a graph, keeping the activations."""
-        n = self.n if n is None else n
-        h = x.unsqueeze(0).expand(n, *x.shape)
+        layers = self._layers(n)
+        h = x.expand(len(layers[0][0]), *x.shape)
         saved = [h]
-        layers = self._layers()
         last = len(layers) - 1
-        for i, (w, b) in enumerate(layers):
-            if n != self.n:
-                w, b = w[:n], b[:n]
+        for i, (w, b, _) in enumerate(layers):
             h = torch.baddbmm(b, h, w)
             if i < last:
                 h = h.relu_()
@@ -183,21 +209,25 @@ class TwinCritic(nn.Module):
         actor loss needs the gradient with respect to the action columns only).
         """
         n = grad_q.shape[0]
-        layers = self._layers()
+        layers = self._layers(n)
         depth = len(layers)
         d = grad_q.unsqueeze(-1)
         for i in reversed(range(depth)):
-            w = layers[i][0] if n == self.n else layers[i][0][:n]
             if grads is not None:
                 torch.bmm(saved[i].transpose(1, 2), d, out=grads[i])
                 torch.sum(d, 1, keepdim=True, out=grads[depth + i])
             if i:
+                w_t = layers[i][2]
                 # the output layer has one unit: its backward is a broadcast product, not a matmul
-                dh = d * w.transpose(1, 2) if i == depth - 1 else torch.bmm(d, w.transpose(1, 2))
+                dh = d * w_t if i == depth - 1 else torch.bmm(d, w_t)
                 d = _relu_backward_(dh, saved[i])
         if input_columns is None:
             return None
-        return torch.bmm(d, layers[0][0][:n, input_columns].transpose(1, 2))
+        cols = (input_columns.start, input_columns.stop)
+        w_in_t = self._views(
+            ("input columns", n, cols), lambda: layers[0][0][:, input_columns].transpose(1, 2)
+        )
+        return torch.bmm(d, w_in_t)
 
     def q1(self, x: torch.Tensor) -> torch.Tensor:
         """The first critic only (TD3's actor loss): half the work of ``forward``."""
