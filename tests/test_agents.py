@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import copy
 import json
 
 import numpy as np
@@ -244,6 +245,43 @@ def test_explicit_backprop_matches_autograd():
         actor.backward_saved(saved_a, grad_a[0], grads)
     for got, want in zip(grads, expected):
         torch.testing.assert_close(got, want)
+
+
+@torch.no_grad()
+def test_cached_parameter_views_follow_the_parameters():
+    # the hot path reuses views of the parameters; they must track in-place updates, and a copy
+    # or a load that brings new storage must not keep reading the old weights
+    torch.manual_seed(0)
+    obs, x = torch.randn(4, 3), torch.randn(4, 5)
+    actor, critic = Actor(3, 2, (8, 8)), TwinCritic(5, (8, 8))
+    actor.forward_saved(obs), actor.act_one(obs[0].numpy()), critic.forward_saved(x, n=1)
+
+    for p in [*actor.parameters(), *critic.parameters()]:
+        p.add_(0.1)  # what Adam and Polyak averaging do
+    torch.testing.assert_close(actor.forward_saved(obs)[0], actor(obs))
+    np.testing.assert_allclose(actor.act_one(obs[0].numpy()), actor(obs[:1])[0], atol=1e-6)
+    torch.testing.assert_close(critic.forward_saved(x, n=1)[0][0], critic.q1(x))
+
+    twin, twin_critic = copy.deepcopy(actor), copy.deepcopy(critic)
+    for p in [*twin.parameters(), *twin_critic.parameters()]:
+        p.mul_(-2.0)
+    torch.testing.assert_close(twin.forward_saved(obs)[0], twin(obs))
+    assert not torch.allclose(twin.forward_saved(obs)[0], actor.forward_saved(obs)[0])
+    torch.testing.assert_close(twin_critic.forward_saved(x)[0][0], twin_critic.q1(x))
+    torch.testing.assert_close(critic.forward_saved(x)[0][0], critic.q1(x))
+
+    other, other_critic = Actor(3, 2, (8, 8)), TwinCritic(5, (8, 8))
+    actor.load_state_dict(other.state_dict(), assign=True)
+    critic.load_state_dict(other_critic.state_dict(), assign=True)
+    torch.testing.assert_close(actor.forward_saved(obs)[0], other(obs))
+    np.testing.assert_allclose(actor.act_one(obs[0].numpy()), other(obs[:1])[0], atol=1e-6)
+    torch.testing.assert_close(critic.forward_saved(x, n=1)[0][0], other_critic.q1(x))
+
+    with torch.enable_grad():  # views cached under no_grad must not cut a graph
+        critic.forward_saved(x, n=1)[0].sum().backward()
+        actor.forward_saved(obs)[0].sum().backward()
+    assert all(p.grad is not None for p in actor.parameters())
+    assert critic.weights[0].grad[0].abs().sum() > 0
 
 
 def test_update_steps_like_torch_adam():

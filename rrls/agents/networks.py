@@ -39,6 +39,8 @@ class _ViewCache:
     """
 
     def _views(self, key: object, make):  # noqa: ANN001, ANN202
+        # per grad mode: a view made under no_grad would not carry gradients in a graph
+        key = (key, torch.is_grad_enabled())
         cache = self.__dict__.setdefault("_view_cache", {})
         if key not in cache:
             cache[key] = make()
