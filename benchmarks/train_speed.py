@@ -71,22 +71,72 @@ class ActorNet(nn.Module):
         return x * self.action_scale + self.action_bias
 
 
+class CleanRLTD3:
+    """CleanRL's networks, optimisers and update lines, shared by (a) and (a')."""
+
+    def __init__(self, obs_dim: int, act_dim: int, low: np.ndarray, high: np.ndarray) -> None:
+        self.low, self.high = float(low[0]), float(high[0])  # CleanRL clamps to scalar bounds
+        self.actor = ActorNet(obs_dim, act_dim, (high - low) / 2, (high + low) / 2)
+        self.qf1, self.qf2 = QNetwork(obs_dim, act_dim), QNetwork(obs_dim, act_dim)
+        self.qf1_target, self.qf2_target = QNetwork(obs_dim, act_dim), QNetwork(obs_dim, act_dim)
+        self.target_actor = ActorNet(obs_dim, act_dim, (high - low) / 2, (high + low) / 2)
+        self.target_actor.load_state_dict(self.actor.state_dict())
+        self.qf1_target.load_state_dict(self.qf1.state_dict())
+        self.qf2_target.load_state_dict(self.qf2.state_dict())
+        critic_params = list(self.qf1.parameters()) + list(self.qf2.parameters())
+        self.q_optimizer = torch.optim.Adam(critic_params, lr=3e-4)
+        self.actor_optimizer = torch.optim.Adam(list(self.actor.parameters()), lr=3e-4)
+
+    def act(self, obs: np.ndarray) -> np.ndarray:
+        with torch.no_grad():
+            actions = self.actor(torch.Tensor(obs))
+            actions += torch.normal(0, self.actor.action_scale * 0.1)
+            return actions.cpu().numpy().clip(self.low, self.high)
+
+    def update(self, o, a, r, no, d, step: int) -> dict[str, torch.Tensor]:  # noqa: ANN001
+        """One TD3 update on a batch of tensors, line for line as CleanRL writes it."""
+        with torch.no_grad():
+            clipped_noise = (torch.randn_like(a) * 0.2).clamp(
+                -0.5, 0.5
+            ) * self.target_actor.action_scale
+            next_state_actions = (self.target_actor(no) + clipped_noise).clamp(self.low, self.high)
+            qf1_next_target = self.qf1_target(no, next_state_actions)
+            qf2_next_target = self.qf2_target(no, next_state_actions)
+            min_qf_next_target = torch.min(qf1_next_target, qf2_next_target)
+            next_q_value = r.flatten() + (1 - d.flatten()) * 0.99 * min_qf_next_target.view(-1)
+        out = {
+            "qf1_values": self.qf1(o, a).view(-1),
+            "qf2_values": self.qf2(o, a).view(-1),
+        }
+        out["qf1_loss"] = F.mse_loss(out["qf1_values"], next_q_value)
+        out["qf2_loss"] = F.mse_loss(out["qf2_values"], next_q_value)
+        out["qf_loss"] = out["qf1_loss"] + out["qf2_loss"]
+        self.q_optimizer.zero_grad()
+        out["qf_loss"].backward()
+        self.q_optimizer.step()
+        if step % 2 == 0:
+            out["actor_loss"] = -self.qf1(o, self.actor(o)).mean()
+            self.actor_optimizer.zero_grad()
+            out["actor_loss"].backward()
+            self.actor_optimizer.step()
+            for net, target in (
+                (self.actor, self.target_actor),
+                (self.qf1, self.qf1_target),
+                (self.qf2, self.qf2_target),
+            ):
+                for param, target_param in zip(net.parameters(), target.parameters()):
+                    target_param.data.copy_(0.005 * param.data + 0.995 * target_param.data)
+        return out
+
+
 def straightforward(task: str, steps: int, warmup: int, seed: int = 0) -> float:
-    """CleanRL-style TD3; returns env steps/s over ``steps`` steps after ``warmup`` updates."""
+    """CleanRL's update in a lean loop; env steps/s over ``steps`` steps after ``warmup``."""
     env = make_env(task)
     obs_dim, act_dim = env.observation_space.shape[0], env.action_space.shape[0]
     low, high = env.action_space.low, env.action_space.high
     torch.manual_seed(seed)
     rng = np.random.default_rng(seed)
-    actor = ActorNet(obs_dim, act_dim, (high - low) / 2, (high + low) / 2)
-    qf1, qf2 = QNetwork(obs_dim, act_dim), QNetwork(obs_dim, act_dim)
-    qf1_target, qf2_target = QNetwork(obs_dim, act_dim), QNetwork(obs_dim, act_dim)
-    target_actor = ActorNet(obs_dim, act_dim, (high - low) / 2, (high + low) / 2)
-    target_actor.load_state_dict(actor.state_dict())
-    qf1_target.load_state_dict(qf1.state_dict())
-    qf2_target.load_state_dict(qf2.state_dict())
-    q_optimizer = torch.optim.Adam(list(qf1.parameters()) + list(qf2.parameters()), lr=3e-4)
-    actor_optimizer = torch.optim.Adam(list(actor.parameters()), lr=3e-4)
+    td3 = CleanRLTD3(obs_dim, act_dim, low, high)
     buffer: list[tuple] = []
     obs, _ = env.reset(seed=seed)
     for _ in range(1000):  # a filled buffer to sample from
@@ -98,10 +148,7 @@ def straightforward(task: str, steps: int, warmup: int, seed: int = 0) -> float:
     for step in range(warmup + steps):
         if step == warmup:
             start = time.perf_counter()
-        with torch.no_grad():
-            action = actor(torch.Tensor(obs).unsqueeze(0))
-            action += torch.normal(0, actor.action_scale * 0.1)
-            action = action.cpu().numpy().clip(low, high)[0]
+        action = td3.act(obs[None])[0]
         next_obs, reward, terminated, _, _ = env.step(action)
         buffer.append((obs, action, reward, next_obs, terminated))
         obs = next_obs if not terminated else env.reset()[0]
@@ -109,25 +156,8 @@ def straightforward(task: str, steps: int, warmup: int, seed: int = 0) -> float:
         idx = rng.integers(0, len(buffer), 256)
         o, a, r, no, d = (np.array(x) for x in zip(*(buffer[i] for i in idx)))
         o, a, no = torch.Tensor(o), torch.Tensor(a), torch.Tensor(no)
-        r, d = torch.Tensor(r).flatten(), torch.Tensor(d.astype(np.float32)).flatten()
-        with torch.no_grad():
-            clipped_noise = (torch.randn_like(a) * 0.2).clamp(-0.5, 0.5) * target_actor.action_scale
-            next_a = (target_actor(no) + clipped_noise).clamp(torch.Tensor(low), torch.Tensor(high))
-            min_q = torch.min(qf1_target(no, next_a), qf2_target(no, next_a))
-            next_q = r + (1 - d) * 0.99 * min_q.view(-1)
-        qf1_loss = F.mse_loss(qf1(o, a).view(-1), next_q)
-        qf2_loss = F.mse_loss(qf2(o, a).view(-1), next_q)
-        q_optimizer.zero_grad()
-        (qf1_loss + qf2_loss).backward()
-        q_optimizer.step()
-        if step % 2 == 0:
-            actor_loss = -qf1(o, actor(o)).mean()
-            actor_optimizer.zero_grad()
-            actor_loss.backward()
-            actor_optimizer.step()
-            for net, target in ((actor, target_actor), (qf1, qf1_target), (qf2, qf2_target)):
-                for param, target_param in zip(net.parameters(), target.parameters()):
-                    target_param.data.copy_(0.005 * param.data + 0.995 * target_param.data)
+        r, d = torch.Tensor(r), torch.Tensor(d.astype(np.float32))
+        td3.update(o, a, r, no, d, step)
     return steps / (time.perf_counter() - start)
 
 
@@ -137,8 +167,8 @@ def cleanrl(task: str, steps: int, warmup: int, seed: int = 0) -> float:
     Everything the script does per step after learning starts: a one-env ``SyncVectorEnv`` of
     ``gym.make`` + ``RecordEpisodeStatistics``, its replay buffer (``cleanrl_utils.buffers`` is
     Stable-Baselines3's ``ReplayBuffer``: 1 M preallocated numpy rows, numpy indexing and a
-    ``torch.tensor`` copy per field and batch), the update of ``straightforward`` (the same
-    modules and lines), TensorBoard scalars every 100 steps. Two changes, neither timed: the
+    ``torch.tensor`` copy per field and batch), ``CleanRLTD3``'s update (the same modules and
+    lines as (a')), TensorBoard scalars every 100 steps. Two changes, neither timed: the
     ``print`` of steps/s is dropped, and a truncation does not read ``infos["final_observation"]``
     (Gymnasium 1.x no longer provides it: the published script stops there with a KeyError).
     """
@@ -158,15 +188,7 @@ def cleanrl(task: str, steps: int, warmup: int, seed: int = 0) -> float:
     low, high = envs.single_action_space.low, envs.single_action_space.high
     np.random.seed(seed)  # noqa: NPY002 - SB3's buffer (CleanRL's) samples from the global one
     torch.manual_seed(seed)
-    actor = ActorNet(obs_dim, act_dim, (high - low) / 2, (high + low) / 2)
-    qf1, qf2 = QNetwork(obs_dim, act_dim), QNetwork(obs_dim, act_dim)
-    qf1_target, qf2_target = QNetwork(obs_dim, act_dim), QNetwork(obs_dim, act_dim)
-    target_actor = ActorNet(obs_dim, act_dim, (high - low) / 2, (high + low) / 2)
-    target_actor.load_state_dict(actor.state_dict())
-    qf1_target.load_state_dict(qf1.state_dict())
-    qf2_target.load_state_dict(qf2.state_dict())
-    q_optimizer = torch.optim.Adam(list(qf1.parameters()) + list(qf2.parameters()), lr=3e-4)
-    actor_optimizer = torch.optim.Adam(list(actor.parameters()), lr=3e-4)
+    td3 = CleanRLTD3(obs_dim, act_dim, low, high)
     envs.single_observation_space.dtype = np.float32
     rb = SB3ReplayBuffer(
         1_000_000,
@@ -186,10 +208,7 @@ def cleanrl(task: str, steps: int, warmup: int, seed: int = 0) -> float:
             if global_step < learning_starts:
                 actions = np.array([envs.single_action_space.sample()])
             else:
-                with torch.no_grad():
-                    actions = actor(torch.Tensor(obs))
-                    actions += torch.normal(0, actor.action_scale * 0.1)
-                    actions = actions.cpu().numpy().clip(low, high)
+                actions = td3.act(obs)
             next_obs, rewards, terminations, truncations, infos = envs.step(actions)
             if "final_info" in infos:
                 for info in infos["final_info"]:
@@ -204,46 +223,20 @@ def cleanrl(task: str, steps: int, warmup: int, seed: int = 0) -> float:
             obs = next_obs
             if global_step > learning_starts:
                 data = rb.sample(256)
-                with torch.no_grad():
-                    clipped_noise = (torch.randn_like(data.actions) * 0.2).clamp(
-                        -0.5, 0.5
-                    ) * target_actor.action_scale
-                    next_state_actions = (
-                        target_actor(data.next_observations) + clipped_noise
-                    ).clamp(float(low[0]), float(high[0]))
-                    qf1_next_target = qf1_target(data.next_observations, next_state_actions)
-                    qf2_next_target = qf2_target(data.next_observations, next_state_actions)
-                    min_qf_next_target = torch.min(qf1_next_target, qf2_next_target)
-                    next_q_value = data.rewards.flatten() + (
-                        1 - data.dones.flatten()
-                    ) * 0.99 * min_qf_next_target.view(-1)
-                qf1_a_values = qf1(data.observations, data.actions).view(-1)
-                qf2_a_values = qf2(data.observations, data.actions).view(-1)
-                qf1_loss = F.mse_loss(qf1_a_values, next_q_value)
-                qf2_loss = F.mse_loss(qf2_a_values, next_q_value)
-                qf_loss = qf1_loss + qf2_loss
-                q_optimizer.zero_grad()
-                qf_loss.backward()
-                q_optimizer.step()
-                if global_step % 2 == 0:
-                    actor_loss = -qf1(data.observations, actor(data.observations)).mean()
-                    actor_optimizer.zero_grad()
-                    actor_loss.backward()
-                    actor_optimizer.step()
-                    for net, target in (
-                        (actor, target_actor),
-                        (qf1, qf1_target),
-                        (qf2, qf2_target),
-                    ):
-                        for param, target_param in zip(net.parameters(), target.parameters()):
-                            target_param.data.copy_(0.005 * param.data + 0.995 * target_param.data)
+                losses = td3.update(
+                    data.observations,
+                    data.actions,
+                    data.rewards,
+                    data.next_observations,
+                    data.dones,
+                    global_step,
+                )
                 if global_step % 100 == 0:
-                    writer.add_scalar("losses/qf1_values", qf1_a_values.mean().item(), global_step)
-                    writer.add_scalar("losses/qf2_values", qf2_a_values.mean().item(), global_step)
-                    writer.add_scalar("losses/qf1_loss", qf1_loss.item(), global_step)
-                    writer.add_scalar("losses/qf2_loss", qf2_loss.item(), global_step)
-                    writer.add_scalar("losses/qf_loss", qf_loss.item() / 2.0, global_step)
-                    writer.add_scalar("losses/actor_loss", actor_loss.item(), global_step)
+                    for name in ("qf1_values", "qf2_values"):
+                        writer.add_scalar(f"losses/{name}", losses[name].mean().item(), global_step)
+                    for name in ("qf1_loss", "qf2_loss", "actor_loss"):
+                        writer.add_scalar(f"losses/{name}", losses[name].item(), global_step)
+                    writer.add_scalar("losses/qf_loss", losses["qf_loss"].item() / 2.0, global_step)
                     writer.add_scalar("charts/SPS", global_step, global_step)
         elapsed = time.perf_counter() - start
         writer.close()
