@@ -47,6 +47,7 @@ class TrainConfig:
     checkpoint_every: int = 50_000
     max_episode_steps: int = 1000
     progress: bool | None = None
+    threads: int | None = None  # torch threads; None: the cores other processes leave idle
     stop_at: int | None = None  # testing aid: stop (as if killed) at the first checkpoint >= this
 
     def identity(self) -> dict[str, Any]:
@@ -127,8 +128,15 @@ class Run:
         self.dir.mkdir(parents=True, exist_ok=True)
         # Dead ReLU units get zero gradients, so their Adam moments decay through the denormal
         # range, where x86 arithmetic is ~100x slower: measured, each Adam step took 5x longer.
-        # Flush them to zero, as TensorFlow does on CPU (threads started later inherit it).
+        # Flush them to zero, as TensorFlow does on CPU (threads started later inherit it);
+        # ``close`` puts the process back as it was.
+        self._flushed_before = _flush_denormal_enabled()
         torch.set_flush_denormal(True)
+        from rrls.agents.threads import AdaptiveThreads
+
+        self.threads = AdaptiveThreads(config.threads)
+        self.scalars_path = self.dir / "scalars.csv"
+        self._scalars: Any = None
         self.step = 0
         self.episodes = 0
         self._last_checkpoint = 0
@@ -156,6 +164,7 @@ class Run:
         self.step, self.episodes = int(state["step"]), int(state["episodes"])
         self._last_checkpoint = self.step
         self._last_eval = int(state["last_eval"])
+        _truncate_scalars(self.scalars_path, self.step)
         return state
 
     def checkpoint_due(self) -> bool:
@@ -172,6 +181,8 @@ class Run:
         }
         buf = io.BytesIO()
         torch.save(state, buf)
+        if self._scalars is not None:  # the curves reach at least as far as the checkpoint
+            self._scalars.flush()
         atomic_write_bytes(self.checkpoint_path, buf.getvalue())
         self._last_checkpoint = self.step
         stop = self.config.stop_at
@@ -194,6 +205,19 @@ class Run:
         step = self.step if step is None else step
         for key, value in values.items():
             self.writer.add_scalar(key, float(value), step)
+
+    def record(self, values: dict[str, float]) -> None:
+        """Log ``values`` and append them to ``scalars.csv`` (``step,metric,value``): the
+        training curves as a plain table, for reports that must not parse TensorBoard files."""
+        self.log(values)
+        if self._scalars is None:
+            new = not self.scalars_path.exists()
+            self._scalars = open(self.scalars_path, "a", encoding="utf-8")  # noqa: SIM115
+            if new:
+                self._scalars.write("step,metric,value\n")
+        self._scalars.writelines(
+            f"{self.step},{key},{float(value)!r}\n" for key, value in values.items()
+        )
 
     def progress(self) -> Any:
         import sys
@@ -218,7 +242,7 @@ class Run:
         self.episodes += 1
         elapsed = time.perf_counter() - self._t0
         sps = (self.step - self._t0_step) / elapsed if elapsed > 0 else 0.0
-        self.log(
+        self.record(
             {
                 "charts/episode_return": episode_return,
                 "charts/episode_length": length,
@@ -226,6 +250,7 @@ class Run:
                 **extra,
             }
         )
+        self.threads.poll()
         if self._bar is not None:
             self._bar.set_postfix(ret=f"{episode_return:.1f}", refresh=False)
 
@@ -265,7 +290,7 @@ class Run:
             scores.update(
                 {"eval/worst_case": mesh.worst_case, "eval/average_case": mesh.average_case}
             )
-        self.log(scores)
+        self.record(scores)
         return scores
 
     def eval_set(self) -> str:
@@ -278,8 +303,21 @@ class Run:
         )
 
     # -- the end ----------------------------------------------------------------------------
-    def finish(self, actor: Any, metadata: dict[str, Any], summary: dict[str, Any]) -> Path:
-        """Save the final policy (``policy.npz``, ``actor.pt``: tensors only) and ``run.json``."""
+    def finish(
+        self,
+        actor: Any,
+        metadata: dict[str, Any],
+        summary: dict[str, Any],
+        adversary: Any = None,
+        adversary_metadata: dict[str, Any] | None = None,
+    ) -> Path:
+        """Save the final policy (``policy.npz``, ``actor.pt``: tensors only) and ``run.json``;
+        for two-player runs also the final adversary (``adversary.npz``, same safe format, its
+        metadata saying which game and set it plays), for the dynamic evaluation (Table 6)."""
+        if adversary is not None:
+            adversary.to_mlp_policy({**metadata, **(adversary_metadata or {})}).save(
+                self.dir / "adversary.npz"
+            )
         actor.to_mlp_policy(metadata).save(self.dir / "policy.npz")
         buf = io.BytesIO()
         torch.save({k: v.cpu() for k, v in actor.state_dict().items()}, buf)
@@ -287,17 +325,20 @@ class Run:
         atomic_write_json(
             self.dir / "run.json", {**metadata, "config": _jsonable(self.config), **summary}
         )
-        if self._bar is not None:
-            self._bar.close()
-        if self._writer is not None:
-            self._writer.close()
+        self.close()
         return self.dir
 
     def close(self) -> None:
+        """Close logs and give the process back its thread count and denormal mode."""
         if self._bar is not None:
             self._bar.close()
         if self._writer is not None:
             self._writer.close()
+        if self._scalars is not None:
+            self._scalars.close()
+            self._scalars = None
+        self.threads.restore()
+        torch.set_flush_denormal(self._flushed_before)
 
 
 def metadata(config: TrainConfig, obs_dim: int, act_dim: int, **extra: Any) -> dict[str, Any]:
@@ -315,6 +356,22 @@ def metadata(config: TrainConfig, obs_dim: int, act_dim: int, **extra: Any) -> d
         "versions": versions(),
         **extra,
     }
+
+
+def _flush_denormal_enabled() -> bool:
+    """Whether this thread flushes float32 denormals to zero (torch has no getter for it)."""
+    tiny = torch.tensor([1e-37], dtype=torch.float32)
+    return bool((tiny * 1e-3).item() == 0.0)
+
+
+def _truncate_scalars(path: Path, step: int) -> None:
+    """Drop curve rows written after the checkpoint being resumed (they will be redone)."""
+    if not path.exists():
+        return
+    lines = path.read_text(encoding="utf-8").splitlines(keepends=True)
+    rows = [ln for ln in lines[1:] if ln.endswith("\n") and int(ln.split(",", 1)[0]) <= step]
+    keep = lines[:1] + rows
+    atomic_write_bytes(path, "".join(keep).encode())
 
 
 def _jsonable(config: TrainConfig) -> dict[str, Any]:

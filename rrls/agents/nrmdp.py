@@ -26,4 +26,5 @@ def train(
     from rrls.wrappers import ProbabilisticActionRobust
 
     env = ProbabilisticActionRobust(make_env(config.task), alpha=alpha, mode=mode)
-    return train_two_player(config, env, lambda step: (True, True), resume)
+    game = {"game": mode, "alpha": alpha}
+    return train_two_player(config, env, lambda step: (True, True), resume, game)

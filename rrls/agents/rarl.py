@@ -38,7 +38,8 @@ def train(config: TrainConfig, resume: bool = False) -> Path:
         protagonist_phase = (step // PHASE_STEPS) % 2 == 0
         return protagonist_phase, not protagonist_phase
 
-    return train_two_player(config, env, alternate, resume)
+    game = {"game": "adversarial", "uncertainty": config.uncertainty}
+    return train_two_player(config, env, alternate, resume, game)
 
 
 def train_two_player(
@@ -46,6 +47,7 @@ def train_two_player(
     env: Any,
     schedule: Callable[[int], tuple[bool, bool]],
     resume: bool = False,
+    game: dict | None = None,
 ) -> Path:
     """Two TD3 learners on a two-player env whose action is ``(agent, adversary)``.
 
@@ -147,4 +149,10 @@ def train_two_player(
             bar.update(1)
     finally:
         run.close()
-    return run.finish(protagonist.actor, meta, {"steps": run.step, "episodes": run.episodes})
+    return run.finish(
+        protagonist.actor,
+        {**meta, **(game or {})},
+        {"steps": run.step, "episodes": run.episodes},
+        adversary=adversary.actor,
+        adversary_metadata={"role": "adversary"},
+    )

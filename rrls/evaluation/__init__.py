@@ -1,6 +1,11 @@
 """Robust evaluation (paper §4-5): meshes, the batched rollout engine, scores, worst-case search."""
 
-from rrls.evaluation.dynamic import DynamicResult, evaluate_dynamic, make_dynamic_env
+from rrls.evaluation.dynamic import (
+    DynamicResult,
+    evaluate_dynamic,
+    evaluate_run_dynamic,
+    make_dynamic_env,
+)
 from rrls.evaluation.evaluate import EvaluationResult, evaluate
 from rrls.evaluation.mesh import (
     EvaluationSet,
@@ -27,6 +32,7 @@ __all__ = [
     "DynamicResult",
     "WorstCaseSearch",
     "evaluate_dynamic",
+    "evaluate_run_dynamic",
     "make_dynamic_env",
     "plot_result",
     "search_worst_case",

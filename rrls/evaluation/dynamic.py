@@ -11,6 +11,7 @@ on ``make_dynamic_env(...)``.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -131,3 +132,34 @@ def evaluate_dynamic(
         }
     )
     return DynamicResult(env_id, frame)
+
+
+def evaluate_run_dynamic(
+    run_dir: str | Path, episodes: int = 10, seed: int = 0, batch_size: int = 64
+) -> DynamicResult:
+    """Paper Table 6 for one training run: its protagonist against its own final adversary.
+
+    ``run_dir`` is a RARL or NR-/PR-MDP run of ``rrls train``: ``policy.npz`` and
+    ``adversary.npz``, whose metadata name the task, the game and the set (or alpha) it played.
+    """
+    from rrls.evaluation.policies import MLPPolicy
+
+    run_dir = Path(run_dir)
+    path = run_dir / "adversary.npz"
+    if not path.exists():
+        raise FileNotFoundError(
+            f"{run_dir} holds no adversary.npz: only RARL and NR-MDP/PR-MDP runs train one"
+        )
+    protagonist, adversary = MLPPolicy.load(run_dir / "policy.npz"), MLPPolicy.load(path)
+    meta = adversary.metadata
+    return evaluate_dynamic(
+        protagonist,
+        adversary,
+        meta["task"],
+        game=meta.get("game", "adversarial"),
+        uncertainty=meta.get("uncertainty", "3d"),
+        episodes=episodes,
+        seed=seed,
+        alpha=float(meta.get("alpha", 0.1)),
+        batch_size=batch_size,
+    )
