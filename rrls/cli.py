@@ -6,7 +6,7 @@ import argparse
 import sys
 
 
-def build_parser() -> argparse.ArgumentParser:
+def build_parser(with_train: bool = True) -> argparse.ArgumentParser:
     from rrls import __version__
 
     parser = argparse.ArgumentParser(prog="rrls", description="Robust Reinforcement Learning Suite")
@@ -61,74 +61,18 @@ def build_parser() -> argparse.ArgumentParser:
         description="Train a baseline with the paper's hyper-parameters. Checkpoints are written "
         "to --out; --resume continues a killed run exactly where it stopped.",
     )
-    tr.add_argument("--algo", required=True, choices=["td3", "dr", "rarl", "nrmdp", "m2td3"])
-    tr.add_argument(
-        "--task",
-        required=True,
-        choices=["ant", "halfcheetah", "hopper", "humanoidstandup", "invertedpendulum", "walker"],
+    if with_train:  # the options come from the dataclasses, which need torch: only for `train`
+        from rrls.agents.options import add_train_arguments
+
+        add_train_arguments(tr)
+
+    ed = sub.add_parser(
+        "evaluate-dynamic",
+        help="a RARL / NR-MDP run's policy against its own trained adversary (paper Table 6)",
     )
-    tr.add_argument(
-        "--uncertainty",
-        choices=["1d", "2d", "3d", "rarl"],
-        default=None,
-        help="default: rarl for RARL, else 3d (2d for invertedpendulum)",
-    )
-    tr.add_argument("--steps", type=int, default=5_000_000, help="env steps (default 5M)")
-    tr.add_argument(
-        "--learning-starts",
-        type=int,
-        default=25_000,
-        help="random-action steps before learning (default 25k)",
-    )
-    tr.add_argument(
-        "--eval-every",
-        type=int,
-        default=50_000,
-        help="evaluate every N steps (0 disables; default 50k)",
-    )
-    tr.add_argument("--seed", type=int, default=0)
-    tr.add_argument(
-        "--out",
-        default=None,
-        help="run directory (default runs/<algo>-<task>-<uncertainty>-seed<S>)",
-    )
-    tr.add_argument("--device", default="cpu", help="cpu or cuda")
-    tr.add_argument("--resume", action="store_true", help="continue the run in --out")
-    tr.add_argument(
-        "--hidden",
-        type=int,
-        nargs="+",
-        default=[256, 256],
-        help="hidden layer sizes (default 256 256)",
-    )
-    tr.add_argument(
-        "--batch-size", type=int, default=None, help="default: the paper's (TD3 256, M2TD3 100)"
-    )
-    tr.add_argument(
-        "--learning-rate",
-        type=float,
-        default=None,
-        help="Adam step size of actor and critics (default: the paper's 3e-4)",
-    )
-    tr.add_argument(
-        "--normalize-omega",
-        action="store_true",
-        help="M2TD3: critics see the parameters rescaled to [-1, 1] (the authors feed raw values)",
-    )
-    tr.add_argument(
-        "--eval-mesh",
-        type=int,
-        default=0,
-        help="also evaluate over a mesh with N points per dimension (default 0: off)",
-    )
-    tr.add_argument("--eval-episodes", type=int, default=5)
-    tr.add_argument(
-        "--checkpoint-every",
-        type=int,
-        default=50_000,
-        help="checkpoint at the first episode end after every N steps",
-    )
-    tr.add_argument("--stop-at", type=int, default=None, help=argparse.SUPPRESS)
+    ed.add_argument("run_dir", help="an `rrls train` run directory holding adversary.npz")
+    ed.add_argument("--episodes", type=int, default=10, help="episodes (default 10, the paper's)")
+    ed.add_argument("--seed", type=int, default=0, help="seed of the episodes' resets")
 
     quick = sub.add_parser(
         "quickstart",
@@ -145,7 +89,15 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv: list[str] | None = None) -> int:
-    args = build_parser().parse_args(argv)
+    argv = sys.argv[1:] if argv is None else list(argv)
+    with_train = argv[:1] == ["train"]
+    if with_train:
+        try:
+            import torch  # noqa: F401
+        except ImportError as err:
+            print(f"rrls train needs torch: pip install 'rrls[train]' ({err})", file=sys.stderr)
+            return 2
+    args = build_parser(with_train).parse_args(argv)
     if args.command == "check":
         from rrls.check import main as check_main
 
@@ -154,6 +106,8 @@ def main(argv: list[str] | None = None) -> int:
         return _evaluate(args)
     if args.command == "train":
         return _train(args)
+    if args.command == "evaluate-dynamic":
+        return _evaluate_dynamic(args)
     if args.command == "quickstart":
         from rrls.quickstart import main as quickstart_main
 
@@ -218,42 +172,38 @@ def _evaluate(args: argparse.Namespace) -> int:
 
 
 def _train(args: argparse.Namespace) -> int:
+    from rrls.agents import Interrupted, train
+    from rrls.agents.options import config_from_args
+
     try:
-        from rrls.agents import Interrupted, TrainConfig, default_uncertainty, train
-    except ImportError as err:
-        raise SystemExit(f"rrls train needs torch: pip install 'rrls[train]' ({err})") from err
-    uncertainty = args.uncertainty or default_uncertainty(args.algo, args.task)
-    out = args.out or f"runs/{args.algo}-{args.task}-{uncertainty}-seed{args.seed}"
-    config = TrainConfig(
-        algo=args.algo,
-        task=args.task,
-        uncertainty=uncertainty,
-        steps=args.steps,
-        learning_starts=args.learning_starts,
-        eval_every=args.eval_every,
-        seed=args.seed,
-        out=out,
-        device=args.device,
-        hidden=tuple(args.hidden),
-        batch_size=args.batch_size,
-        learning_rate=args.learning_rate,
-        normalize_omega=args.normalize_omega,
-        eval_mesh=args.eval_mesh,
-        eval_episodes=args.eval_episodes,
-        checkpoint_every=args.checkpoint_every,
-        stop_at=args.stop_at,
-    )
-    try:
-        run_dir = train(config, resume=args.resume)
+        config, resume = config_from_args(args)
+        run_dir = train(config, resume=resume)
     except Interrupted as stop:
         print(f"{stop}; continue with --resume")
         return 3
-    except FileExistsError as err:
-        raise SystemExit(f"rrls train: {err}") from err
+    except (ValueError, FileExistsError) as err:
+        print(f"rrls train: {err}", file=sys.stderr)
+        return 2
     print(
-        f"trained {args.algo} on {args.task}/{uncertainty}: {run_dir}/policy.npz "
+        f"trained {config.algo} on {config.task}/{config.uncertainty}: {run_dir}/policy.npz "
         f"(evaluate with: rrls evaluate {run_dir})"
     )
+    if (run_dir / "adversary.npz").exists():
+        print(f"against its own adversary (paper Table 6): rrls evaluate-dynamic {run_dir}")
+    return 0
+
+
+def _evaluate_dynamic(args: argparse.Namespace) -> int:
+    from rrls.evaluation import evaluate_run_dynamic
+
+    try:
+        if args.episodes < 1:
+            raise ValueError(f"--episodes must be >= 1, got {args.episodes}")
+        result = evaluate_run_dynamic(args.run_dir, episodes=args.episodes, seed=args.seed)
+    except (ValueError, FileNotFoundError) as err:
+        print(f"rrls evaluate-dynamic: {err}", file=sys.stderr)
+        return 2
+    print(f"{result.env_id}: {result.mean:.2f} ± {result.std:.2f} over {args.episodes} episodes")
     return 0
 
 

@@ -10,7 +10,7 @@ import pytest
 
 torch = pytest.importorskip("torch")
 
-from rrls.agents import TrainConfig, train  # noqa: E402
+from rrls.agents import TrainConfig, hyperparameters, train  # noqa: E402
 from rrls.agents.core import TD3, TD3Config  # noqa: E402
 from rrls.agents.m2td3 import Candidates  # noqa: E402
 from rrls.agents.networks import Actor, TwinCritic  # noqa: E402
@@ -50,11 +50,13 @@ def test_every_algorithm_trains_through_the_cli(tmp_path, algo, capsys):
     out = tmp_path / algo
     uncertainty = ["--uncertainty", "1d"] if algo in ("dr", "m2td3") else []
     assert _cli_train(out, algo, extra=[*uncertainty, "--learning-rate", "0.002"]) == 0
-    state = torch.load(out / "checkpoint.pt", weights_only=True)
+    state = torch.load(out / "checkpoint.pt", weights_only=True)["learner"]
     agents = state["agents"] if "agents" in state else [state["agent"]]
-    for agent in agents:  # --learning-rate reaches every player's actor and critic optimisers
+    for agent in agents + [state.get("adversary", {})]:
+        # --learning-rate reaches every player's actor and critic optimisers
         for opt in ("actor_opt", "critic_opt"):
-            assert agent[opt]["param_groups"][0]["lr"] == 0.002
+            if opt in agent:
+                assert agent[opt]["param_groups"][0]["lr"] == 0.002
     meta = json.loads((out / "run.json").read_text())
     assert meta["algorithm"] == algo and meta["task"] == "invertedpendulum"
     assert meta["steps"] == 300 and meta["obs_dim"] == 4 and meta["act_dim"] == 1
@@ -86,13 +88,14 @@ def test_every_algorithm_trains_through_the_cli(tmp_path, algo, capsys):
     assert "worst case" in capsys.readouterr().out
 
 
-@pytest.mark.parametrize("algo", ["td3", "m2td3", "rarl"])
+@pytest.mark.parametrize("algo", ["td3", "dr", "rarl", "nrmdp", "m2td3"])
 def test_killed_and_resumed_run_ends_bit_identical(tmp_path, algo):
-    extra = ["--uncertainty", "1d"] if algo == "m2td3" else []
+    extra = ["--uncertainty", "1d"] if algo in ("m2td3", "dr") else []
+    extra += ["--phase-steps", "70"] if algo == "rarl" else []  # both phases before the cut
+    extra += ["--ratio", "2"] if algo == "nrmdp" else []
     assert _cli_train(tmp_path / "whole", algo, steps=400, extra=extra) == 0
     assert _cli_train(tmp_path / "cut", algo, steps=400, extra=[*extra, "--stop-at", "220"]) == 3
-    with pytest.raises(SystemExit, match="--resume"):
-        _cli_train(tmp_path / "cut", algo, steps=400, extra=extra)
+    assert _cli_train(tmp_path / "cut", algo, steps=400, extra=extra) == 2  # needs --resume
     assert _cli_train(tmp_path / "cut", algo, steps=400, extra=[*extra, "--resume"]) == 0
     whole = torch.load(tmp_path / "whole" / "checkpoint.pt", weights_only=True)
     cut = torch.load(tmp_path / "cut" / "checkpoint.pt", weights_only=True)
@@ -103,10 +106,14 @@ def test_killed_and_resumed_run_ends_bit_identical(tmp_path, algo):
     )
     assert all(torch.equal(a[k], b[k]) for k in a)
     key = "agents" if algo == "rarl" else "agent"
-    sa = whole[key][0] if algo == "rarl" else whole[key]
-    sb = cut[key][0] if algo == "rarl" else cut[key]
+    sa, sb = whole["learner"][key], cut["learner"][key]
+    sa, sb = (sa[-1], sb[-1]) if algo == "rarl" else (sa, sb)  # rarl: the adversary's
     for net in ("critic", "critic_target", "actor_target"):
         assert all(torch.equal(sa[net][k], sb[net][k]) for k in sa[net])
+    if algo in ("rarl", "nrmdp"):  # the saved adversaries are equal too
+        adversaries = [np.load(d / "adversary.npz") for d in (tmp_path / "whole", tmp_path / "cut")]
+        weights = [k for k in adversaries[0].files if k != "header"]  # the header names the dir
+        assert all(np.array_equal(adversaries[0][k], adversaries[1][k]) for k in weights)
     assert json.loads((tmp_path / "whole" / "run.json").read_text())["steps"] == 400
 
 
@@ -117,7 +124,7 @@ def test_normalize_omega_changes_what_the_m2td3_critics_see(tmp_path):
         _cli_train(tmp_path / "unit", "m2td3", steps=250, extra=[*extra, "--normalize-omega"]) == 0
     )
     raw, unit = (
-        torch.load(tmp_path / d / "checkpoint.pt", weights_only=True)["agent"]["critic"]
+        torch.load(tmp_path / d / "checkpoint.pt", weights_only=True)["learner"]["agent"]["critic"]
         for d in ("raw", "unit")
     )
     # same seed, same data until learning starts: only the critics' input scale differs
@@ -128,7 +135,7 @@ def test_normalize_omega_changes_what_the_m2td3_critics_see(tmp_path):
 def test_bad_learning_rate_is_refused():
     for lr in (0.0, -1e-3, float("nan")):
         with pytest.raises(ValueError, match="learning_rate"):
-            TrainConfig(learning_rate=lr).td3_config()
+            hyperparameters(TrainConfig(hyper={"learning_rate": lr}))
 
 
 def test_resume_refuses_another_configuration(tmp_path):
@@ -140,12 +147,10 @@ def test_resume_refuses_another_configuration(tmp_path):
                 task="invertedpendulum",
                 uncertainty="2d",
                 steps=200,
-                learning_starts=100,
                 seed=2,
                 out=str(tmp_path / "r"),
-                hidden=(16, 16),
-                batch_size=32,
                 progress=False,
+                hyper={"learning_starts": 100, "hidden": (16, 16), "batch_size": 32},
             ),
             resume=True,
         )
@@ -348,17 +353,16 @@ def test_truncation_bootstraps_and_no_transition_crosses_a_reset(tmp_path):
         algo="td3",
         task="halfcheetah",
         steps=30,
-        learning_starts=100,
         eval_every=0,
         out=str(tmp_path),
-        hidden=(8,),
-        batch_size=8,
         checkpoint_every=1,
         max_episode_steps=10,
         progress=False,
+        hyper={"learning_starts": 100, "hidden": (8,), "batch_size": 8},
     )
     train(config)
-    buf = torch.load(tmp_path / "checkpoint.pt", weights_only=True)["buffer"]["data"]
+    learner = torch.load(tmp_path / "checkpoint.pt", weights_only=True)["learner"]
+    buf = learner["buffer"]["data"]
     assert len(buf["obs"]) == 30 and not buf["terminated"].any()
     for i in range(29):
         same = torch.equal(buf["next_obs"][i], buf["obs"][i + 1])
@@ -369,17 +373,15 @@ def test_truncation_bootstraps_and_no_transition_crosses_a_reset(tmp_path):
         task="invertedpendulum",
         uncertainty="2d",
         steps=60,
-        learning_starts=100,
         eval_every=0,
         out=str(tmp_path / "ip"),
-        hidden=(8,),
-        batch_size=8,
         checkpoint_every=1,
         progress=False,
+        hyper={"learning_starts": 100, "hidden": (8,), "batch_size": 8},
     )
     train(config)
     state = torch.load(tmp_path / "ip" / "checkpoint.pt", weights_only=True)
-    term = state["buffer"]["data"]["terminated"]
+    term = state["learner"]["buffer"]["data"]["terminated"]
     assert term.sum() == state["episodes"] and term[-1] == 1
 
 
@@ -391,7 +393,7 @@ def test_candidates_stay_in_the_box_and_restart_by_the_rules():
     values = cands.values().numpy()
     assert ((values >= low) & (values <= high)).all()
     for _ in range(300):  # push every candidate hard towards +infinity
-        for k in range(cands.N):
+        for k in range(cands.n):
             loss = -cands.value(k).sum() * 1e3
             cands.optimizers[k].zero_grad()
             loss.backward()
@@ -431,19 +433,20 @@ def test_candidates_stay_in_the_box_and_restart_by_the_rules():
 QUICK_LR = 1e-3
 
 
-def _train_ip(tmp_path, algo, uncertainty, steps, seed=0):
+def _train_ip(tmp_path, algo, uncertainty, steps, seed=0, **hyper):
+    hyper = {"learning_rate": QUICK_LR, "learning_starts": 1000, **hyper}
+    if algo == "m2td3":
+        hyper["normalize_omega"] = True
     config = TrainConfig(
-        learning_rate=QUICK_LR,
-        normalize_omega=True,
         algo=algo,
         task="invertedpendulum",
         uncertainty=uncertainty,
         steps=steps,
-        learning_starts=1000,
         eval_every=0,
         seed=seed,
         out=str(tmp_path / f"{algo}-{seed}"),
         progress=False,
+        hyper=hyper,
     )
     return train(config)
 

@@ -12,7 +12,7 @@ from __future__ import annotations
 import io
 import json
 import time
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -25,62 +25,101 @@ from rrls.agents.core import TD3Config
 ALGOS = ("td3", "dr", "rarl", "nrmdp", "m2td3")
 
 
+def benchmark_set(task: str) -> str:
+    """The paper's benchmark set (§5: every baseline trains on the 3D set; InvertedPendulum,
+    which has no 3D set, on its 2D set)."""
+    from rrls.tasks import get_task
+
+    return "2d" if "3d" not in get_task(task).sets else "3d"
+
+
+def _run_field(default: Any, help: str, **extra: Any) -> Any:  # noqa: A002 - argparse's word
+    return field(default=default, metadata={"help": help, **extra})
+
+
 @dataclass
 class TrainConfig:
-    """One training run: the ``rrls train`` options (defaults reproduce the paper)."""
+    """One training run: what, where, how long. The algorithm's hyper-parameters are its own
+    dataclass (``rrls.agents.<algo>.Config``, the paper's values); ``hyper`` overrides fields of
+    it (``{"learning_rate": 1e-3}``). ``rrls train`` offers every field of both as an option."""
 
-    algo: str = "td3"
-    task: str = "hopper"
-    uncertainty: str = "3d"
-    steps: int = 5_000_000
-    learning_starts: int = 25_000
-    eval_every: int = 50_000
-    seed: int = 0
-    out: str = "runs/run"
-    device: str = "cpu"
-    hidden: tuple[int, ...] = (256, 256)
-    batch_size: int | None = None  # None: the algorithm's paper value (TD3 256, M2TD3 100)
-    learning_rate: float | None = None  # None: the paper's 3e-4 (actor and critics)
-    normalize_omega: bool = False  # M2TD3: critics see ω rescaled to [-1, 1] (authors: raw)
-    eval_episodes: int = 5
-    eval_mesh: int = 0  # points per dimension of the coarse evaluation mesh (0: nominal only)
-    checkpoint_every: int = 50_000
-    max_episode_steps: int = 1000
-    progress: bool | None = None
-    threads: int | None = None  # torch threads; None: the cores other processes leave idle
+    algo: str = _run_field("td3", "the baseline", choices=ALGOS)
+    task: str = _run_field("hopper", "the task")
+    uncertainty: str | None = _run_field(
+        None,
+        "the uncertainty set trained on (and evaluated over): 1d, 2d, 3d or rarl (forces); "
+        "default: the paper's benchmark set, 3d (2d for invertedpendulum)",
+    )
+    steps: int = _run_field(5_000_000, "env steps")
+    seed: int = _run_field(0, "seed of every random draw (networks, replay, env, noise)")
+    out: str | None = _run_field(None, "run directory (default runs/<algo>-<task>-<set>-seed<S>)")
+    device: str = _run_field("cpu", "torch device: cpu, cuda or cuda:N")
+    threads: int | None = _run_field(
+        None,
+        "torch threads (default: the cores other processes leave idle, re-checked every few "
+        "seconds, so runs sharing a machine never oversubscribe it)",
+    )
+    eval_every: int = _run_field(50_000, "evaluate every N steps (0: never)")
+    eval_episodes: int = _run_field(5, "episodes per point of the periodic evaluation")
+    eval_mesh: int = _run_field(
+        0, "periodic evaluation also over a mesh of N points per dimension (0: nominal only)"
+    )
+    checkpoint_every: int = _run_field(
+        50_000, "checkpoint at the first episode end after every N steps"
+    )
+    max_episode_steps: int = _run_field(1000, "time limit: episodes are truncated here")
+    progress: bool | None = None  # progress bar (None: when stderr is a terminal)
+    overwrite: bool = _run_field(False, "replace a finished run in --out")
     stop_at: int | None = None  # testing aid: stop (as if killed) at the first checkpoint >= this
+    hyper: dict[str, Any] = field(default_factory=dict)
 
-    def identity(self) -> dict[str, Any]:
-        """What must match for ``--resume`` (``steps`` may grow, logging options may change)."""
-        keep = (
-            "algo",
-            "task",
-            "uncertainty",
-            "learning_starts",
-            "seed",
-            "hidden",
-            "batch_size",
-            "learning_rate",
-            "normalize_omega",
-            "max_episode_steps",
-        )
-        return {
-            k: (list(v) if isinstance(v, tuple) else v)
-            for k, v in asdict(self).items()
-            if k in keep
+    def __post_init__(self) -> None:
+        from rrls.tasks import get_task
+
+        if self.algo not in ALGOS:
+            raise ValueError(f"unknown algorithm {self.algo!r}; valid: {', '.join(ALGOS)}")
+        task = get_task(self.task)  # ValueError listing the tasks
+        if self.uncertainty is None:
+            self.uncertainty = benchmark_set(task.key)
+        if self.uncertainty not in task.sets:
+            raise ValueError(
+                f"task {task.key!r} has no uncertainty set {self.uncertainty!r}; "
+                f"valid: {', '.join(task.sets)}"
+            )
+        if self.out is None:
+            self.out = f"runs/{self.algo}-{task.key}-{self.uncertainty}-seed{self.seed}"
+        checks = {
+            "steps": self.steps >= 1,
+            "seed": self.seed >= 0,
+            "eval_every": self.eval_every >= 0,
+            "eval_episodes": self.eval_episodes >= 1,
+            "eval_mesh": self.eval_mesh >= 0,
+            "checkpoint_every": self.checkpoint_every >= 1,
+            "max_episode_steps": self.max_episode_steps >= 1,
+            "threads": self.threads is None or self.threads >= 1,
         }
+        for name, ok in checks.items():
+            if not ok:
+                raise ValueError(f"{name} out of range: {getattr(self, name)}")
+        try:
+            device = torch.device(self.device)
+        except RuntimeError as err:
+            raise ValueError(f"device {self.device!r} is not a torch device: {err}") from None
+        if device.type == "cuda" and not torch.cuda.is_available():
+            raise ValueError(f"device {self.device!r}: no CUDA device is available")
+        if device.type not in ("cpu", "cuda"):
+            raise ValueError(f"device {self.device!r}: rrls trains on cpu or cuda")
 
-    def td3_config(self, batch_size: int = 256) -> TD3Config:
-        """The TD3 hyper-parameters of this run: the paper's, with this run's overrides."""
-        lr = self.learning_rate
-        if lr is not None and not (np.isfinite(lr) and lr > 0):
-            raise ValueError(f"learning_rate must be a positive finite number, got {lr}")
-        return TD3Config(
-            learning_starts=self.learning_starts,
-            hidden=tuple(self.hidden),
-            batch_size=self.batch_size or batch_size,
-            learning_rate=lr if lr is not None else TD3Config.learning_rate,
-        )
+    def identity(self, hyper: TD3Config) -> dict[str, Any]:
+        """What must match for ``--resume`` (``steps`` may grow, logging options may change)."""
+        return {
+            "algo": self.algo,
+            "task": self.task,
+            "uncertainty": self.uncertainty,
+            "seed": self.seed,
+            "max_episode_steps": self.max_episode_steps,
+            "hyper": _jsonable(asdict(hyper)),
+        }
 
 
 class Interrupted(Exception):
@@ -102,30 +141,61 @@ def set_rng_state(gen: np.random.Generator, state: str) -> None:
     gen.bit_generator.state = json.loads(state)
 
 
-def make_env(task: str, kind: str = "robust", **kwargs: Any) -> Any:
-    """A bare robust (or force) env of ``task``: the training loop handles the time limit."""
-    from rrls.envs import FORCE_ENVS, ROBUST_ENVS
+def task_env(task: str, uncertainty: str = "nominal") -> tuple[Any, Any]:
+    """A bare env of ``task`` (no time limit: the loop truncates) of the family ``uncertainty``
+    needs, and the set's box (``None`` for the nominal task)."""
+    from rrls.envs import FORCE_ENVS, ROBUST_ENVS, get_uncertainty_set
     from rrls.tasks import get_task
 
     key = get_task(task).key
-    return (FORCE_ENVS if kind == "force" else ROBUST_ENVS)[key](**kwargs)
+    if uncertainty == "nominal":
+        return ROBUST_ENVS[key](), None
+    envs = FORCE_ENVS if uncertainty == "rarl" else ROBUST_ENVS
+    return envs[key](), get_uncertainty_set(key, uncertainty)
 
 
 class Run:
     """The run directory: TensorBoard logs, progress bar, checkpoints, evaluation, final policy."""
 
-    def __init__(self, config: TrainConfig, resume: bool = False) -> None:
+    def __init__(
+        self, config: TrainConfig, resume: bool = False, hyper: TD3Config | None = None
+    ) -> None:
         from rrls.tasks import get_task
 
         self.config = config
+        self.hyper = hyper if hyper is not None else TD3Config()
         self.task = get_task(config.task).key
+        self.uncertainty = config.uncertainty
         self.dir = Path(config.out)
         self.checkpoint_path = self.dir / "checkpoint.pt"
-        if self.checkpoint_path.exists() and not resume:
+        self.step = 0
+        self.episodes = 0
+        self.finished = False
+        done = _finished_steps(self.dir)
+        if config.overwrite:
+            _remove_run_files(self.dir)
+        elif done is not None:
+            if not resume:
+                raise FileExistsError(
+                    f"{self.dir} holds a finished run ({done} steps): pass --overwrite to "
+                    "replace it, --resume with more --steps to extend it, or another --out"
+                )
+            if config.steps <= done:
+                self._check_identity(self._read_checkpoint())
+                if config.steps < done:
+                    raise ValueError(
+                        f"cannot resume {self.dir}: it has already trained {done} steps, "
+                        f"more than --steps {config.steps}"
+                    )
+                self.finished, self.step = True, done
+                return
+        elif self.checkpoint_path.exists() and not resume:
             raise FileExistsError(
-                f"{self.dir} already holds a run: pass --resume to continue it, or another --out"
+                f"{self.dir} already holds a run: pass --resume to continue it, --overwrite to "
+                "replace it, or another --out"
             )
         self.dir.mkdir(parents=True, exist_ok=True)
+        _remove_temporary_files(self.dir)  # left by a write killed half-way
         # Dead ReLU units get zero gradients, so their Adam moments decay through the denormal
         # range, where x86 arithmetic is ~100x slower: measured, each Adam step took 5x longer.
         # Flush them to zero, as TensorFlow does on CPU (threads started later inherit it);
@@ -137,8 +207,6 @@ class Run:
         self.threads = AdaptiveThreads(config.threads)
         self.scalars_path = self.dir / "scalars.csv"
         self._scalars: Any = None
-        self.step = 0
-        self.episodes = 0
         self._last_checkpoint = 0
         self._last_eval = 0
         self._writer: Any = None
@@ -148,18 +216,45 @@ class Run:
         self.resumed = resume and self.checkpoint_path.exists()
 
     # -- checkpoints ------------------------------------------------------------------------
+    def _read_checkpoint(self) -> dict[str, Any]:
+        """The checkpoint, or a one-line error naming the file when it cannot be used."""
+        path = self.checkpoint_path
+        try:
+            state = torch.load(path, weights_only=True, map_location="cpu")
+        except Exception as err:  # empty, truncated, not a checkpoint: all say the same
+            raise ValueError(
+                f"cannot resume from {path}: the file is not a readable checkpoint "
+                f"({type(err).__name__}); delete it (or pass --overwrite) to start again"
+            ) from None
+        if not isinstance(state, dict) or "learner" not in state or "config" not in state:
+            raise ValueError(
+                f"cannot resume from {path}: it was written by another version of rrls "
+                "(another layout); pass --overwrite to start again"
+            )
+        return state
+
+    def _check_identity(self, state: dict[str, Any]) -> None:
+        saved = json.loads(state["config"])
+        current = self.config.identity(self.hyper)
+        diff = [k for k in current if k != "hyper" and saved.get(k) != current[k]]
+        diff += [
+            k for k in current["hyper"] if saved.get("hyper", {}).get(k) != current["hyper"][k]
+        ]
+        if diff:
+            raise ValueError(
+                f"cannot resume {self.dir}: it was trained with other {', '.join(sorted(diff))}"
+            )
+
     def load(self) -> dict[str, Any] | None:
         """The saved state when resuming (checked against this config), else ``None``."""
         if not self.resumed:
             return None
-        state = torch.load(self.checkpoint_path, weights_only=True, map_location="cpu")
-        current = self.config.identity()
-        # options added since the checkpoint was written count as their defaults
-        saved = {**TrainConfig().identity(), **json.loads(state["config"])}
-        diff = sorted(k for k in current if saved.get(k) != current[k])
-        if diff:
+        state = self._read_checkpoint()
+        self._check_identity(state)
+        if int(state["step"]) > self.config.steps:
             raise ValueError(
-                f"cannot resume {self.dir}: it was trained with other {', '.join(diff)}"
+                f"cannot resume from {self.checkpoint_path}: it is at step {int(state['step'])}, "
+                f"beyond --steps {self.config.steps}"
             )
         self.step, self.episodes = int(state["step"]), int(state["episodes"])
         self._last_checkpoint = self.step
@@ -177,7 +272,7 @@ class Run:
             "step": self.step,
             "episodes": self.episodes,
             "last_eval": self._last_eval,
-            "config": json.dumps(self.config.identity()),
+            "config": json.dumps(self.config.identity(self.hyper)),
         }
         buf = io.BytesIO()
         torch.save(state, buf)
@@ -294,13 +389,23 @@ class Run:
         return scores
 
     def eval_set(self) -> str:
-        return (
-            self.config.uncertainty
-            if self.config.uncertainty != "rarl"
-            else "3d"
-            if self.task != "invertedpendulum"
-            else "2d"
-        )
+        """The set of the periodic mesh evaluation: the run's, or the benchmark's for forces."""
+        return self.uncertainty if self.uncertainty != "rarl" else benchmark_set(self.task)
+
+    def metadata(self, env: Any, learner: Any) -> dict[str, Any]:
+        """What the saved policies record (``rrls evaluate RUN_DIR`` reads task and set)."""
+        return {
+            "algorithm": self.config.algo,
+            "task": self.task,
+            "uncertainty": self.uncertainty,
+            "obs_dim": env.observation_space.shape[0],
+            "act_dim": learner.actor.layers[-1].out_features,
+            "hidden": list(self.hyper.hidden),
+            "seed": self.config.seed,
+            "run_dir": str(self.dir),
+            "versions": versions(),
+            **(learner.game or {}),
+        }
 
     # -- the end ----------------------------------------------------------------------------
     def finish(
@@ -315,7 +420,8 @@ class Run:
         for two-player runs also the final adversary (``adversary.npz``, same safe format, its
         metadata saying which game and set it plays), for the dynamic evaluation (Table 6)."""
         if adversary is not None:
-            adversary.to_mlp_policy({**metadata, **(adversary_metadata or {})}).save(
+            meta = {**metadata, "act_dim": adversary.layers[-1].out_features}
+            adversary.to_mlp_policy({**meta, **(adversary_metadata or {})}).save(
                 self.dir / "adversary.npz"
             )
         actor.to_mlp_policy(metadata).save(self.dir / "policy.npz")
@@ -323,7 +429,13 @@ class Run:
         torch.save({k: v.cpu() for k, v in actor.state_dict().items()}, buf)
         atomic_write_bytes(self.dir / "actor.pt", buf.getvalue())
         atomic_write_json(
-            self.dir / "run.json", {**metadata, "config": _jsonable(self.config), **summary}
+            self.dir / "run.json",
+            {
+                **metadata,
+                "config": _jsonable(asdict(self.config)),
+                "hyperparameters": _jsonable(asdict(self.hyper)),
+                **summary,
+            },
         )
         self.close()
         return self.dir
@@ -339,23 +451,6 @@ class Run:
             self._scalars = None
         self.threads.restore()
         torch.set_flush_denormal(self._flushed_before)
-
-
-def metadata(config: TrainConfig, obs_dim: int, act_dim: int, **extra: Any) -> dict[str, Any]:
-    """What the saved policy records about itself (``rrls evaluate RUN_DIR`` reads ``task``)."""
-    from rrls.tasks import get_task
-
-    return {
-        "algorithm": config.algo,
-        "task": get_task(config.task).key,
-        "uncertainty": config.uncertainty,
-        "obs_dim": obs_dim,
-        "act_dim": act_dim,
-        "hidden": list(config.hidden),
-        "seed": config.seed,
-        "versions": versions(),
-        **extra,
-    }
 
 
 def _flush_denormal_enabled() -> bool:
@@ -374,8 +469,36 @@ def _truncate_scalars(path: Path, step: int) -> None:
     atomic_write_bytes(path, "".join(keep).encode())
 
 
-def _jsonable(config: TrainConfig) -> dict[str, Any]:
-    return {k: (list(v) if isinstance(v, tuple) else v) for k, v in asdict(config).items()}
+def _jsonable(fields: dict[str, Any]) -> dict[str, Any]:
+    return {k: (list(v) if isinstance(v, tuple) else v) for k, v in fields.items()}
+
+
+RUN_FILES = ("checkpoint.pt", "policy.npz", "adversary.npz", "actor.pt", "run.json", "scalars.csv")
+
+
+def _finished_steps(run_dir: Path) -> int | None:
+    """The steps of the finished run in ``run_dir`` (policy and run.json written), else None."""
+    try:
+        if (run_dir / "policy.npz").exists():
+            return int(json.loads((run_dir / "run.json").read_text())["steps"])
+    except (OSError, ValueError, KeyError):
+        pass
+    return None
+
+
+def _remove_run_files(run_dir: Path) -> None:
+    """``--overwrite``: what a previous run left (its checkpoint, policies, logs)."""
+    import shutil
+
+    for name in RUN_FILES:
+        (run_dir / name).unlink(missing_ok=True)
+    shutil.rmtree(run_dir / "tb", ignore_errors=True)
+
+
+def _remove_temporary_files(run_dir: Path) -> None:
+    """Temporary files of atomic writes killed half-way (``.checkpoint.pt.XXXX.tmp``)."""
+    for path in run_dir.glob(".*.tmp"):
+        path.unlink(missing_ok=True)
 
 
 class _NullWriter:

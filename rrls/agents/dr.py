@@ -1,22 +1,27 @@
 """Domain Randomization (Tobin et al. 2017): TD3 on environments whose parameters are drawn
 uniformly from the uncertainty set at every episode (``rrls.wrappers.DomainRandomization``).
 
-The draws come from the environment's own seeded generator, so they are part of the checkpoint.
+The learner is TD3's, unchanged; only the environment differs. The draws come from the
+environment's own seeded generator, so they are part of the checkpoint.
 """
 
 from __future__ import annotations
 
-from pathlib import Path
+from typing import Any
 
-from rrls.agents.common import TrainConfig, make_env
-from rrls.agents.td3 import train_single_agent
-from rrls.envs import get_uncertainty_set
-from rrls.wrappers import DomainRandomization
+from rrls.agents.common import task_env
+from rrls.agents.core import TD3Config
+from rrls.agents.td3 import Learner
+
+Config = TD3Config
 
 
-def train(config: TrainConfig, resume: bool = False) -> Path:
-    """Train TD3 under domain randomisation over ``config.uncertainty``."""
-    box = get_uncertainty_set(config.task, config.uncertainty)
-    kind = "force" if config.uncertainty == "rarl" else "robust"
-    env = DomainRandomization(make_env(config.task, kind), box)
-    return train_single_agent(config, env, resume)
+def make_env(task: str, uncertainty: str, config: TD3Config) -> Any:
+    """The task whose parameters (or forces, for ``rarl``) are redrawn at every reset."""
+    from rrls.wrappers import DomainRandomization
+
+    env, box = task_env(task, uncertainty)
+    return DomainRandomization(env, box)
+
+
+__all__ = ["Config", "Learner", "make_env"]

@@ -1,0 +1,125 @@
+"""``rrls train``'s options, generated from the dataclasses — never a second copy of a default.
+
+Run options come from ``TrainConfig``; hyper-parameters from every algorithm's ``Config``
+(``--learning-rate``, ``--alpha``, ``--phase-steps``, ...). A hyper-parameter option defaults to
+"the algorithm's own value" and its help lists those values; giving one that the chosen
+algorithm does not have is refused, naming the algorithms that have it.
+"""
+
+from __future__ import annotations
+
+import argparse
+import typing
+from dataclasses import fields
+from typing import Any
+
+from rrls.agents.common import ALGOS, TrainConfig
+from rrls.agents.loop import algorithm
+
+_SKIP = {"progress", "hyper", "stop_at"}
+
+
+def _kind(hint: Any) -> Any:
+    """The option's element type from a field's annotation (``int | None`` -> int)."""
+    args = [a for a in typing.get_args(hint) if a is not type(None)]
+    if typing.get_origin(hint) is tuple:
+        return (tuple, args[0])
+    if args:
+        return _kind(args[0])
+    return hint
+
+
+def _add(parser: argparse._ActionsContainer, name: str, kind: Any, **kwargs: Any) -> None:
+    flag = "--" + name.replace("_", "-")
+    if kind is bool:
+        parser.add_argument(flag, action=argparse.BooleanOptionalAction, **kwargs)
+    elif isinstance(kind, tuple):
+        parser.add_argument(flag, type=kind[1], nargs="+", metavar="N", **kwargs)
+    else:
+        parser.add_argument(flag, type=kind, **kwargs)
+
+
+def hyperparameter_table() -> dict[str, dict[str, Any]]:
+    """name -> {"kind", "help", "choices", "defaults": {algo: default}} over all algorithms."""
+    table: dict[str, dict[str, Any]] = {}
+    for algo in ALGOS:
+        cls = algorithm(algo).Config
+        hints = typing.get_type_hints(cls)
+        for f in fields(cls):
+            entry = table.setdefault(
+                f.name,
+                {
+                    "kind": _kind(hints[f.name]),
+                    "help": f.metadata.get("help", ""),
+                    "choices": f.metadata.get("choices"),
+                    "defaults": {},
+                },
+            )
+            entry["defaults"][algo] = f.default
+    return table
+
+
+def _show(value: Any) -> str:
+    return " ".join(map(str, value)) if isinstance(value, tuple) else str(value)
+
+
+def add_train_arguments(parser: argparse.ArgumentParser) -> None:
+    """Every ``TrainConfig`` field and every algorithm hyper-parameter, as options."""
+    from rrls.tasks import TASKS
+
+    hints = typing.get_type_hints(TrainConfig)
+    run = parser.add_argument_group("the run")
+    for f in fields(TrainConfig):
+        if f.name in _SKIP:
+            continue
+        kwargs: dict[str, Any] = {"default": None, "help": f.metadata.get("help", "")}
+        if f.name in ("algo", "task"):
+            kwargs.update(required=True, choices=ALGOS if f.name == "algo" else list(TASKS))
+        elif f.name == "uncertainty":
+            kwargs["choices"] = ["1d", "2d", "3d", "rarl"]
+        elif f.default is not None and not isinstance(f.default, bool):
+            kwargs["help"] += f" (default {f.default})"
+        if isinstance(f.default, bool):
+            run.add_argument(
+                "--" + f.name.replace("_", "-"), action="store_true", help=kwargs["help"]
+            )
+            continue
+        _add(run, f.name, _kind(hints[f.name]), **kwargs)
+    run.add_argument("--resume", action="store_true", help="continue the run in --out exactly")
+    run.add_argument("--stop-at", type=int, default=None, help=argparse.SUPPRESS)
+
+    hyper = parser.add_argument_group(
+        "hyper-parameters (default: the algorithm's paper value, shown per algorithm)"
+    )
+    for name, entry in hyperparameter_table().items():
+        defaults = entry["defaults"]
+        values = set(map(_show, defaults.values()))
+        if len(values) == 1 and len(defaults) == len(ALGOS):
+            shown = f"default {values.pop()}"
+        else:
+            shown = ", ".join(f"{a}: {_show(v)}" for a, v in defaults.items())
+        kwargs = {"default": None, "help": f"{entry['help']} ({shown})"}
+        if entry["choices"]:
+            kwargs["choices"] = entry["choices"]
+        _add(hyper, name, entry["kind"], **kwargs)
+
+
+def config_from_args(args: argparse.Namespace) -> tuple[TrainConfig, bool]:
+    """The ``TrainConfig`` (and ``--resume``) the parsed options describe."""
+    table = hyperparameter_table()
+    hyper = {}
+    for name, entry in table.items():
+        value = getattr(args, name)
+        if value is None:
+            continue
+        if args.algo not in entry["defaults"]:
+            owners = ", ".join(entry["defaults"])
+            flag = "--" + name.replace("_", "-")
+            raise ValueError(f"{flag} does not apply to {args.algo} (only to {owners})")
+        hyper[name] = tuple(value) if isinstance(entry["kind"], tuple) else value
+    run = {
+        f.name: getattr(args, f.name)
+        for f in fields(TrainConfig)
+        if f.name not in ("progress", "hyper") and getattr(args, f.name, None) is not None
+    }
+    return TrainConfig(**run, hyper=hyper), bool(args.resume)
