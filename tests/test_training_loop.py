@@ -1,0 +1,335 @@
+"""The one training loop: options from the dataclasses, NR-MDP/PR-MDP's updates against plain
+autograd, saved adversaries, run-directory hygiene and process hygiene."""
+
+from __future__ import annotations
+
+import copy
+import json
+
+import numpy as np
+import pytest
+
+torch = pytest.importorskip("torch")
+
+from rrls.agents import TrainConfig, hyperparameters, train  # noqa: E402
+from rrls.agents.core import TD3, TD3Config  # noqa: E402
+from rrls.cli import main  # noqa: E402
+
+SMALL = ["--hidden", "16", "16", "--batch-size", "32", "--learning-starts", "100"]
+
+
+def _cli(out, algo, steps=200, *extra):
+    return main(
+        [
+            "train",
+            "--algo",
+            algo,
+            "--task",
+            "invertedpendulum",
+            "--steps",
+            str(steps),
+            "--eval-every",
+            "0",
+            "--checkpoint-every",
+            "50",
+            "--out",
+            str(out),
+            *SMALL,
+            *extra,
+        ]
+    )
+
+
+# -- options come from the dataclasses ------------------------------------------------------------
+def test_every_algorithm_option_reaches_its_learner(tmp_path, capsys):
+    assert (
+        _cli(tmp_path / "pr", "nrmdp", 200, "--mode", "pr", "--alpha", "0.3", "--ratio", "3") == 0
+    )
+    run = json.loads((tmp_path / "pr" / "run.json").read_text())
+    assert run["hyperparameters"]["mode"] == "pr" and run["hyperparameters"]["alpha"] == 0.3
+    assert run["hyperparameters"]["ratio"] == 3 and run["game"] == "pr"
+    assert _cli(tmp_path / "rarl", "rarl", 200, "--phase-steps", "30") == 0
+    run = json.loads((tmp_path / "rarl" / "run.json").read_text())
+    assert run["hyperparameters"]["phase_steps"] == 30
+    assert run["uncertainty"] == "2d"  # the benchmark's set by default, not the force set
+    args = ("--uncertainty", "1d", "--hatomega-learning-rate", "0.01", "--learning-rate", "0.002")
+    assert _cli(tmp_path / "m2", "m2td3", 200, *args) == 0
+    state = torch.load(tmp_path / "m2" / "checkpoint.pt", weights_only=True)["learner"]
+    assert state["candidates"]["optimizers"][0]["param_groups"][0]["lr"] == 0.01
+    assert state["agent"]["actor_opt"]["param_groups"][0]["lr"] == 0.002
+    capsys.readouterr()
+    assert _cli(tmp_path / "bad", "td3", 200, "--alpha", "0.2") == 2
+    assert "--alpha does not apply to td3 (only to nrmdp)" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize(
+    "option, value",
+    [
+        ("--steps", "-5"),
+        ("--hidden", "0"),
+        ("--seed", "-1"),
+        ("--learning-rate", "-1"),
+        ("--device", "nosuch"),
+        ("--alpha", "1.5"),
+        ("--threads", "0"),
+        ("--uncertainty", "3d"),  # InvertedPendulum has no 3D set
+    ],
+)
+def test_bad_train_options_get_one_line_and_exit_2(tmp_path, capsys, option, value):
+    assert _cli(tmp_path / "r", "nrmdp" if option == "--alpha" else "td3", 200, option, value) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.startswith("rrls train: ") and "\n" not in err and "Traceback" not in err
+    assert not (tmp_path / "r" / "checkpoint.pt").exists()
+
+
+# -- run directories ---------------------------------------------------------------------------
+def test_finished_runs_bad_checkpoints_and_killed_writes(tmp_path, capsys):
+    out = tmp_path / "run"
+    assert _cli(out, "td3", 200) == 0
+    policy = (out / "policy.npz").stat().st_mtime_ns
+    capsys.readouterr()
+    assert _cli(out, "td3", 200) == 2  # a finished run is never overwritten silently
+    assert "finished run" in capsys.readouterr().err
+    assert _cli(out, "td3", 200, "--resume") == 0  # nothing left to do
+    assert (out / "policy.npz").stat().st_mtime_ns == policy
+    assert _cli(out, "td3", 150, "--resume") == 2
+    assert "more than --steps 150" in capsys.readouterr().err
+    assert _cli(out, "td3", 300, "--resume") == 0  # extends it
+    assert json.loads((out / "run.json").read_text())["steps"] == 300
+    assert _cli(out, "td3", 200, "--overwrite") == 0
+    assert json.loads((out / "run.json").read_text())["steps"] == 200
+
+    cut = tmp_path / "cut"
+    assert _cli(cut, "td3", 300, "--stop-at", "120") == 3
+    (cut / ".checkpoint.pt.x1y2.tmp").write_bytes(b"half a checkpoint")  # a killed write
+    (cut / "checkpoint.pt").write_bytes(b"")
+    capsys.readouterr()
+    assert _cli(cut, "td3", 300, "--resume") == 2
+    err = capsys.readouterr().err.strip()
+    assert str(cut / "checkpoint.pt") in err and "\n" not in err
+    (cut / "checkpoint.pt").unlink()
+    assert _cli(cut, "td3", 300, "--resume") == 0  # no checkpoint: starts afresh
+    assert not list(cut.glob(".*.tmp"))
+
+
+def test_a_run_leaves_the_process_as_it_found_it(tmp_path):
+    from rrls.agents.common import _flush_denormal_enabled
+
+    threads, flush = torch.get_num_threads(), _flush_denormal_enabled()
+    config = TrainConfig(
+        algo="td3",
+        task="invertedpendulum",
+        steps=150,
+        eval_every=0,
+        threads=1,
+        out=str(tmp_path / "r"),
+        progress=False,
+        hyper={"learning_starts": 50, "hidden": (8,), "batch_size": 8},
+    )
+    train(config)
+    assert torch.get_num_threads() == threads and _flush_denormal_enabled() == flush
+    curves = (tmp_path / "r" / "scalars.csv").read_text().splitlines()
+    assert curves[0] == "step,metric,value"
+    assert any(",charts/episode_return," in line for line in curves[1:])
+
+
+def test_adaptive_threads_use_idle_cores_and_give_them_back():
+    from rrls.agents.threads import AdaptiveThreads
+
+    before = torch.get_num_threads()
+    fixed = AdaptiveThreads(1)
+    assert torch.get_num_threads() == 1 and fixed.poll() == 1
+    fixed.restore()
+    auto = AdaptiveThreads(None, interval=0.0)
+    assert 1 <= auto.threads <= auto.cores and torch.get_num_threads() == auto.threads
+    busy = auto.poll()  # this process's own work never counts as "others"
+    assert 1 <= busy <= auto.cores
+    auto.restore()
+    assert torch.get_num_threads() == before
+
+
+# -- NR-MDP / PR-MDP (Tessler et al. 2019) ----------------------------------------------------
+def _nrmdp_learner(mode: str, alpha: float = 0.3):
+    from rrls.agents import nrmdp
+
+    config = TrainConfig(algo="nrmdp", task="invertedpendulum", steps=100, progress=False)
+    hyper = nrmdp.Config(
+        alpha=alpha, mode=mode, hidden=(5,), policy_noise=0.0, batch_size=4, ratio=1, tau=0.5
+    )
+    env = nrmdp.make_env("invertedpendulum", "2d", hyper)
+    return nrmdp.Learner(env, hyper, config, np.random.default_rng(0)), hyper
+
+
+def _q1(agent, obs, action):
+    return agent.critic.q1(torch.cat([obs, action], 1))
+
+
+@pytest.mark.parametrize("mode", ["nr", "pr"])
+def test_action_robust_target_is_the_references(mode):
+    learner, hyper = _nrmdp_learner(mode)
+    agent, alpha = learner.agent, hyper.alpha
+    g = torch.Generator().manual_seed(0)
+    batch = {
+        "next_obs": torch.randn(4, 4, generator=g),
+        "reward": torch.randn(4, generator=g),
+        "terminated": torch.tensor([0.0, 1.0, 0.0, 0.0]),
+    }
+    s2 = batch["next_obs"]
+    with torch.no_grad():
+        mine, theirs = agent.actor_target(s2), learner.opponent.target(s2)
+
+        def q(a):
+            return agent.critic_target(torch.cat([s2, a], 1)).amin(0)
+
+        if mode == "nr":  # one critic on the mixed target action
+            value = q((1 - alpha) * mine + alpha * theirs)
+        else:  # the mixture of the two players' values
+            value = (1 - alpha) * q(mine) + alpha * q(theirs)
+        expected = batch["reward"] + hyper.gamma * (1 - batch["terminated"]) * value
+    torch.testing.assert_close(learner.target(batch), expected)
+
+
+@pytest.mark.parametrize("mode", ["nr", "pr"])
+def test_action_robust_policy_steps_match_autograd_and_the_adversary_lowers_q(mode):
+    learner, hyper = _nrmdp_learner(mode)
+    agent, opponent, alpha = learner.agent, learner.opponent, hyper.alpha
+    reference = copy.deepcopy(learner)
+    obs = torch.randn(4, 4, generator=torch.Generator().manual_seed(1))
+
+    def objective(ref, adversary_moves: bool):
+        a, o = ref.agent, ref.opponent
+        if mode == "nr":
+            if adversary_moves:
+                action = (1 - alpha) * a.actor_target(obs) + alpha * o.actor(obs)
+            else:
+                action = (1 - alpha) * a.actor(obs) + alpha * o.target(obs)
+            return _q1(a, obs, action).mean()
+        if adversary_moves:
+            return alpha * _q1(a, obs, o.actor(obs)).mean()
+        return (1 - alpha) * _q1(a, obs, a.actor(obs)).mean()
+
+    for adversary_moves in (True, False):
+        before = objective(learner, adversary_moves).item()
+        # plain autograd + torch.optim on a copy: the reference the fast path must equal
+        ref = reference.opponent if adversary_moves else reference.agent.player
+        loss = objective(reference, adversary_moves) * (1.0 if adversary_moves else -1.0)
+        ref.opt.zero_grad()
+        loss.backward(inputs=list(ref.actor.parameters()))
+        ref.opt.step()
+        if adversary_moves:
+            got = agent.policy_step(
+                opponent,
+                obs,
+                share=alpha if mode == "nr" else 1.0,
+                other=(1 - alpha) * agent.actor_target(obs).detach() if mode == "nr" else None,
+                weight=1.0 if mode == "nr" else alpha,
+                descend=True,
+            )
+        else:
+            got = agent.policy_step(
+                agent.player,
+                obs,
+                share=1 - alpha if mode == "nr" else 1.0,
+                other=alpha * opponent.target(obs).detach() if mode == "nr" else None,
+                weight=1.0 if mode == "nr" else 1 - alpha,
+            )
+        torch.testing.assert_close(got, loss.detach())
+        moved = opponent.actor if adversary_moves else agent.actor
+        ref_moved = ref.actor
+        for p, r in zip(moved.parameters(), ref_moved.parameters()):
+            torch.testing.assert_close(p, r)
+        after = objective(learner, adversary_moves).item()
+        # the adversary's step lowers the protagonist's Q, the protagonist's raises it
+        assert (after < before) if adversary_moves else (after > before)
+
+
+def test_the_update_schedule_gives_the_adversary_one_policy_step_in_ratio_plus_one():
+    learner, hyper = _nrmdp_learner("nr")  # ratio 1: alternate
+    for i in range(4):
+        learner.store(
+            np.zeros(4), None, 1.0, np.ones(4), False, {"executed_action": np.array([0.1 * i])}
+        )
+    kinds = [sorted(learner.update(step, True)) for step in range(4)]
+    assert kinds == [
+        ["actor_loss", "critic_loss"],
+        ["adversary_loss", "critic_loss"],
+        ["actor_loss", "critic_loss"],
+        ["adversary_loss", "critic_loss"],
+    ]
+    assert sorted(learner.update(5, False)) == ["critic_loss"]
+
+
+def test_td3_update_matches_a_plain_autograd_reference():
+    # the whole fast update (target, critic, actor, Polyak) against autograd + torch.optim
+    cfg = TD3Config(hidden=(6,), policy_noise=0.0, tau=0.1, batch_size=5)
+    agent = TD3(3, 2, np.array([-1.0, -2.0]), np.array([1.0, 2.0]), cfg, seed=0)
+    ref = copy.deepcopy(agent)
+    g = torch.Generator().manual_seed(3)
+    for step in range(4):
+        batch = {
+            "obs": torch.randn(5, 3, generator=g),
+            "action": torch.rand(5, 2, generator=g),
+            "reward": torch.randn(5, generator=g),
+            "next_obs": torch.randn(5, 3, generator=g),
+            "terminated": (torch.rand(5, generator=g) < 0.3).float(),
+        }
+        agent.update(batch, update_actor=step % 2 == 1)
+        with torch.no_grad():
+            a2 = ref.actor_target(batch["next_obs"])
+            q2 = ref.critic_target(torch.cat([batch["next_obs"], a2], 1)).amin(0)
+            y = batch["reward"] + cfg.gamma * (1 - batch["terminated"]) * q2
+        q = ref.critic(torch.cat([batch["obs"], batch["action"]], 1))
+        ref.critic_opt.zero_grad()
+        ((q - y) ** 2).mean(1).sum().backward()
+        ref.critic_opt.step()
+        if step % 2 == 1:
+            loss = -ref.critic.q1(torch.cat([batch["obs"], ref.actor(batch["obs"])], 1)).mean()
+            ref.actor_opt.zero_grad()
+            loss.backward(inputs=list(ref.actor.parameters()))
+            ref.actor_opt.step()
+            with torch.no_grad():
+                for net in ("actor", "critic"):
+                    src, dst = getattr(ref, net), getattr(ref, f"{net}_target")
+                    for p, t in zip(src.parameters(), dst.parameters()):
+                        t.mul_(1 - cfg.tau).add_(cfg.tau * p)
+    for net in ("actor", "critic", "actor_target", "critic_target"):
+        for got, want in zip(getattr(agent, net).parameters(), getattr(ref, net).parameters()):
+            torch.testing.assert_close(got, want, rtol=1e-5, atol=1e-6)
+
+
+# -- adversaries saved, and played against (paper Table 6) ------------------------------------
+def test_adversary_is_saved_and_evaluate_dynamic_plays_against_it(tmp_path, capsys):
+    from rrls.evaluation import MLPPolicy, evaluate_dynamic, evaluate_run_dynamic
+
+    out = tmp_path / "nr"
+    assert _cli(out, "nrmdp", 200, "--alpha", "0.4") == 0
+    adversary = MLPPolicy.load(out / "adversary.npz")
+    assert adversary.metadata["role"] == "adversary" and adversary.metadata["game"] == "nr"
+    assert adversary.metadata["alpha"] == 0.4 and adversary.metadata["task"] == "invertedpendulum"
+    result = evaluate_run_dynamic(out, episodes=3, seed=5)
+    direct = evaluate_dynamic(
+        MLPPolicy.load(out / "policy.npz"),
+        adversary,
+        "invertedpendulum",
+        "nr",
+        episodes=3,
+        seed=5,
+        alpha=0.4,
+    )
+    assert result.episodes.equals(direct.episodes)
+    capsys.readouterr()
+    assert main(["evaluate-dynamic", str(out), "--episodes", "3", "--seed", "5"]) == 0
+    assert f"{result.mean:.2f} ± {result.std:.2f}" in capsys.readouterr().out
+
+    assert _cli(tmp_path / "rarl", "rarl", 200) == 0
+    meta = MLPPolicy.load(tmp_path / "rarl" / "adversary.npz").metadata
+    assert meta["game"] == "adversarial" and meta["uncertainty"] == "2d" and meta["act_dim"] == 2
+    assert len(evaluate_run_dynamic(tmp_path / "rarl", episodes=2).episodes) == 2
+    assert _cli(tmp_path / "td3", "td3", 120) == 0
+    assert main(["evaluate-dynamic", str(tmp_path / "td3")]) == 2
+    assert "no adversary.npz" in capsys.readouterr().err
+
+
+def test_hyperparameters_refuse_unknown_names():
+    with pytest.raises(ValueError, match="td3 has no hyper-parameter 'alpha'"):
+        hyperparameters(TrainConfig(hyper={"alpha": 0.1}))
