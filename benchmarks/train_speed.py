@@ -18,6 +18,11 @@ env step after learning starts. Env steps per second of:
 
 Every measurement runs in a fresh process. Ratios are against (a) and against (a').
 
+Then runs sharing the machine (``--no-shared`` skips it): one run alone with one thread and with
+the default (adaptive) threads, as many runs at once as there are cores with the default, and
+the same with every run on all cores (oversubscribed, the collapse the default avoids). Target
+(issue 11): the shared default >= 0.9 x cores x one single-threaded run.
+
 Target: (b) >= 2x the straightforward version. Measured after learning starts and ``--warmup``
 updates (default 3 000: enough for dead units' Adam moments to reach the denormal range, as in
 real training).
@@ -30,6 +35,7 @@ from __future__ import annotations
 import argparse
 import importlib.util
 import multiprocessing
+import os
 import statistics
 import tempfile
 import time
@@ -41,7 +47,8 @@ import torch
 import torch.nn.functional as F  # noqa: N812
 from torch import nn
 
-from rrls.agents.common import TrainConfig, make_env
+from rrls.agents import TrainConfig, train
+from rrls.agents.common import task_env
 
 
 # -- (a) the straightforward version ---------------------------------------------------------------
@@ -131,7 +138,7 @@ class CleanRLTD3:
 
 def straightforward(task: str, steps: int, warmup: int, seed: int = 0) -> float:
     """CleanRL's update in a lean loop; env steps/s over ``steps`` steps after ``warmup``."""
-    env = make_env(task)
+    env = task_env(task)[0]
     obs_dim, act_dim = env.observation_space.shape[0], env.action_space.shape[0]
     low, high = env.action_space.low, env.action_space.high
     torch.manual_seed(seed)
@@ -245,8 +252,9 @@ def cleanrl(task: str, steps: int, warmup: int, seed: int = 0) -> float:
 
 
 # -- (b), (c) rrls ---------------------------------------------------------------------------------
-def rrls_algo(algo: str, task: str, steps: int, warmup: int) -> float:
-    """Env steps/s of ``rrls.agents`` after learning starts, timed at the env's ``step`` calls."""
+def rrls_algo(algo: str, task: str, steps: int, warmup: int, threads: int | None = None) -> float:
+    """Env steps/s of ``rrls.agents`` after learning starts, timed at the env's ``step`` calls
+    (``threads``: ``rrls train --threads``; None is its default, the adaptive count)."""
     import importlib
 
     module = importlib.import_module(f"rrls.agents.{algo}")
@@ -267,17 +275,30 @@ def rrls_algo(algo: str, task: str, steps: int, warmup: int) -> float:
                 task=task,
                 uncertainty="3d",
                 steps=learning_starts + warmup + steps + 1,
-                learning_starts=learning_starts,
                 eval_every=0,
                 out=out,
                 progress=False,
                 checkpoint_every=10**9,
+                threads=threads,
+                hyper={"learning_starts": learning_starts},
             )
-            module.train(config)
+            train(config)
     finally:
         module.make_env = plain
     first = learning_starts + warmup
     return steps / (stamps[first + steps] - stamps[first])
+
+
+def _rrls_td3(task: str, steps: int, warmup: int, threads: int | None) -> float:
+    warnings.simplefilter("ignore")
+    return rrls_algo("td3", task, steps, warmup, threads)
+
+
+def side_by_side(runs: int, threads: int | None, task: str, steps: int, warmup: int) -> float:
+    """Summed env steps/s of ``runs`` TD3 runs started together, each in its own process."""
+    ctx = multiprocessing.get_context("spawn")
+    with ctx.Pool(runs) as pool:
+        return sum(pool.starmap(_rrls_td3, [(task, steps, warmup, threads)] * runs))
 
 
 def _measure(name: str, task: str, steps: int, warmup: int) -> float:
@@ -306,6 +327,12 @@ def main() -> None:
     parser.add_argument("--steps", type=int, default=600)
     parser.add_argument("--warmup", type=int, default=3000)
     parser.add_argument("--rounds", type=int, default=3)
+    parser.add_argument(
+        "--no-shared",
+        dest="shared",
+        action="store_false",
+        help="skip the runs-sharing-the-machine table (threads)",
+    )
     args = parser.parse_args()
     warnings.simplefilter("ignore")
     names = list(ROWS)
@@ -321,6 +348,19 @@ def main() -> None:
             for name in runs:
                 job = (name, args.task, args.steps, args.warmup)
                 runs[name].append(pool.apply(_measure, job))
+    shared: dict[str, list[float]] = {}
+    if args.shared:
+        cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else 2
+        cases = {
+            "alone-1": (1, 1),
+            "alone-default": (1, None),
+            "shared-default": (cores, None),
+            "shared-all": (cores, cores),
+        }
+        shared = {k: [] for k in cases}
+        for _ in range(args.rounds):
+            for key, (n, threads) in cases.items():
+                shared[key].append(side_by_side(n, threads, args.task, args.steps, args.warmup))
     med = {k: statistics.median(v) for k, v in runs.items()}
     print(
         f"\n{args.task}, CPU ({torch.get_num_threads()} threads), 256-256, one update per env "
@@ -332,6 +372,30 @@ def main() -> None:
     for name, value in med.items():
         ratios = " | ".join(f"{value / med[k]:.2f}x" for k in refs)
         print(f"| {ROWS[name]} | {value:.0f} | {ratios} |")
+    if not shared:
+        return
+    sm = {k: statistics.median(v) for k, v in shared.items()}
+    one = sm["alone-1"]
+    print(
+        f"\nRuns sharing the machine ({cores} cores; TD3, summed env steps/s, median of "
+        f"{args.rounds}). Target: {cores} runs at once with the default threads >= 0.9 x "
+        f"{cores} x one single-threaded run; one run alone with the default >= 1.5x (a).\n"
+    )
+    print(
+        "| runs at once | threads per run | env steps/s (sum) | vs one 1-thread run |"
+        + (" ratio vs (a) |" if "cleanrl" in med else "")
+    )
+    print("|---|---|---|---|" + ("---|" if "cleanrl" in med else ""))
+    labels = {
+        "alone-1": ("1", "1 (--threads 1)"),
+        "alone-default": ("1", "default (adaptive)"),
+        "shared-default": (str(cores), "default (adaptive)"),
+        "shared-all": (str(cores), f"{cores} (--threads {cores}: oversubscribed)"),
+    }
+    for key, value in sm.items():
+        runs_at_once, threads = labels[key]
+        extra = f" {value / med['cleanrl']:.2f}x |" if "cleanrl" in med else ""
+        print(f"| {runs_at_once} | {threads} | {value:.0f} | {value / one:.2f}x |{extra}")
 
 
 if __name__ == "__main__":
