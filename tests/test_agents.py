@@ -498,3 +498,20 @@ def test_quickstart_trains_evaluates_prints_and_plots(tmp_path, capsys):
         assert (tmp_path / algo / "policy.npz").exists()
         assert (tmp_path / f"{algo}-eval" / "summary.json").exists()
     assert "worst case" in out and (tmp_path / "quickstart.png").stat().st_size > 10_000
+
+
+@pytest.mark.slow
+def test_nrmdp_adversary_lowers_the_protagonists_return_more_than_a_random_one(tmp_path):
+    # Tessler's game on InvertedPendulum: the trained adversary (10 % of the executed action)
+    # must hurt its own protagonist more than an adversary acting uniformly at random
+    from rrls.evaluation import MLPPolicy, evaluate_dynamic, evaluate_run_dynamic
+
+    run = _train_ip(tmp_path, "nrmdp", "1d", 15_000)
+    trained = evaluate_run_dynamic(run, episodes=20, seed=0)
+    rng = np.random.default_rng(0)
+    random_adversary = lambda obs: rng.uniform(-3, 3, size=(len(obs), 1))  # noqa: E731
+    protagonist = MLPPolicy.load(run / "policy.npz")
+    baseline = evaluate_dynamic(
+        protagonist, random_adversary, "invertedpendulum", "nr", episodes=20, seed=0
+    )
+    assert trained.mean < baseline.mean, (trained, baseline)

@@ -20,7 +20,7 @@ import numpy as np
 import torch
 
 from rrls._io import atomic_write_bytes, atomic_write_json
-from rrls.agents.core import TD3Config
+from rrls.agents.core import TD3Config, hp
 
 ALGOS = ("td3", "dr", "rarl", "nrmdp", "m2td3")
 
@@ -33,43 +33,37 @@ def benchmark_set(task: str) -> str:
     return "2d" if "3d" not in get_task(task).sets else "3d"
 
 
-def _run_field(default: Any, help: str, **extra: Any) -> Any:  # noqa: A002 - argparse's word
-    return field(default=default, metadata={"help": help, **extra})
-
-
 @dataclass
 class TrainConfig:
     """One training run: what, where, how long. The algorithm's hyper-parameters are its own
     dataclass (``rrls.agents.<algo>.Config``, the paper's values); ``hyper`` overrides fields of
     it (``{"learning_rate": 1e-3}``). ``rrls train`` offers every field of both as an option."""
 
-    algo: str = _run_field("td3", "the baseline", choices=ALGOS)
-    task: str = _run_field("hopper", "the task")
-    uncertainty: str | None = _run_field(
+    algo: str = hp("td3", "the baseline", choices=ALGOS)
+    task: str = hp("hopper", "the task")
+    uncertainty: str | None = hp(
         None,
         "the uncertainty set trained on (and evaluated over): 1d, 2d, 3d or rarl (forces); "
         "default: the paper's benchmark set, 3d (2d for invertedpendulum)",
     )
-    steps: int = _run_field(5_000_000, "env steps")
-    seed: int = _run_field(0, "seed of every random draw (networks, replay, env, noise)")
-    out: str | None = _run_field(None, "run directory (default runs/<algo>-<task>-<set>-seed<S>)")
-    device: str = _run_field("cpu", "torch device: cpu, cuda or cuda:N")
-    threads: int | None = _run_field(
+    steps: int = hp(5_000_000, "env steps")
+    seed: int = hp(0, "seed of every random draw (networks, replay, env, noise)")
+    out: str | None = hp(None, "run directory (default runs/<algo>-<task>-<set>-seed<S>)")
+    device: str = hp("cpu", "torch device: cpu, cuda or cuda:N")
+    threads: int | None = hp(
         None,
         "torch threads (default: the cores other processes leave idle, re-checked every few "
         "seconds, so runs sharing a machine never oversubscribe it)",
     )
-    eval_every: int = _run_field(50_000, "evaluate every N steps (0: never)")
-    eval_episodes: int = _run_field(5, "episodes per point of the periodic evaluation")
-    eval_mesh: int = _run_field(
+    eval_every: int = hp(50_000, "evaluate every N steps (0: never)")
+    eval_episodes: int = hp(5, "episodes per point of the periodic evaluation")
+    eval_mesh: int = hp(
         0, "periodic evaluation also over a mesh of N points per dimension (0: nominal only)"
     )
-    checkpoint_every: int = _run_field(
-        50_000, "checkpoint at the first episode end after every N steps"
-    )
-    max_episode_steps: int = _run_field(1000, "time limit: episodes are truncated here")
+    checkpoint_every: int = hp(50_000, "checkpoint at the first episode end after every N steps")
+    max_episode_steps: int = hp(1000, "time limit: episodes are truncated here")
     progress: bool | None = None  # progress bar (None: when stderr is a terminal)
-    overwrite: bool = _run_field(False, "replace a finished run in --out")
+    overwrite: bool = hp(False, "replace a finished run in --out")
     stop_at: int | None = None  # testing aid: stop (as if killed) at the first checkpoint >= this
     hyper: dict[str, Any] = field(default_factory=dict)
 

@@ -25,7 +25,7 @@ from rrls.agents.networks import Actor, TwinCritic
 
 
 def hp(default: Any, help: str, **extra: Any) -> Any:  # noqa: A002 - argparse's word
-    """A hyper-parameter: its default and the ``rrls train --help`` text (the CLI reads both)."""
+    """An option's default and its ``rrls train --help`` text (the CLI reads both from here)."""
     return field(default=default, metadata={"help": help, **extra})
 
 

@@ -41,6 +41,7 @@ from typing import Any
 import numpy as np
 import torch
 
+from rrls.agents import td3
 from rrls.agents.common import TrainConfig, task_env
 from rrls.agents.core import TD3, TD3Config, hp
 from rrls.agents.loop import Learner as _Learner
@@ -233,10 +234,7 @@ class Learner(_Learner):
             self.omega = np.clip(centre + rng.normal(0, self.omega_std), box.low, box.high)
         return dict(zip(box.names, self.omega.tolist()))
 
-    def act(self, obs: np.ndarray, rng: np.random.Generator, warmup: bool) -> np.ndarray:
-        if warmup:
-            return rng.uniform(self.low, self.high).astype(np.float32)
-        return self.agent.explore(obs, rng)
+    act = td3.Learner.act  # acts as TD3: uniform during the warm-up, then π(s) + noise
 
     def store(self, obs, action, reward, next_obs, terminated, info) -> None:  # noqa: ANN001
         self.buffer.add(
