@@ -73,6 +73,7 @@ class TrainConfig:
         if self.algo not in ALGOS:
             raise ValueError(f"unknown algorithm {self.algo!r}; valid: {', '.join(ALGOS)}")
         task = get_task(self.task)  # ValueError listing the tasks
+        self.task = task.key
         if self.uncertainty is None:
             self.uncertainty = benchmark_set(task.key)
         if self.uncertainty not in task.sets:
@@ -175,7 +176,8 @@ class Run:
                     "replace it, --resume with more --steps to extend it, or another --out"
                 )
             if config.steps <= done:
-                self._check_identity(self._read_checkpoint())
+                if self.checkpoint_path.exists():
+                    self._check_identity(self._read_checkpoint())
                 if config.steps < done:
                     raise ValueError(
                         f"cannot resume {self.dir}: it has already trained {done} steps, "
