@@ -44,12 +44,17 @@ def dynamic_env_id(task: str, game: str = "adversarial", uncertainty: str = "3d"
     ``game="adversarial"`` with ``uncertainty`` in ``1d/2d/3d`` (parameters) or ``rarl`` (forces);
     ``game="nr"`` / ``"pr"``: the action-robust game (NR-MDP / PR-MDP).
     """
-    from rrls.tasks import get_task
+    from rrls.envs import resolve
 
-    key = get_task(task).key
     if game == "adversarial":
-        name = "forces" if uncertainty == "rarl" else uncertainty
-        return f"rrls/robust-{key}-adversarial-{name}-v0"
+        if not isinstance(uncertainty, str):
+            raise ValueError("the registered adversarial games take a set name (1d, 2d, 3d, rarl)")
+        resolved = resolve(task, uncertainty)
+        if resolved.is_nominal:
+            raise ValueError("the nominal model has no parameters for an adversary to play")
+        name = "forces" if resolved.family == "force" else resolved.name
+        return f"rrls/robust-{resolved.task}-adversarial-{name}-v0"
+    key = resolve(task, "nominal").task
     if game in ("nr", "pr"):
         return f"rrls/probabilistic-action-robust-{key}-v0"
     raise ValueError(f"unknown game {game!r}; valid: adversarial, nr, pr")

@@ -21,18 +21,14 @@ Bounds = Mapping[str, Sequence[float]] | UncertaintySet
 
 
 def resolve_uncertainty(task: str, uncertainty: str | UncertaintySet) -> UncertaintySet:
-    """An ``UncertaintySet`` from a set name (``1d``, ``2d``, ``3d``, ``rarl``, ``nominal``)."""
-    from rrls.envs import get_uncertainty_set, nominal_params
+    """The box of a set name (``1d``, ``2d``, ``3d``, ``rarl``, ``nominal``) or a user box.
 
-    if isinstance(uncertainty, UncertaintySet):
-        return uncertainty
-    name = str(uncertainty).lower()
-    if name == "nominal":
-        # the single nominal point of the 1D set's parameter: the unmodified model
-        box = get_uncertainty_set(task, "1d")
-        value = nominal_params(task)[box.names[0]]
-        return UncertaintySet(box.names, [value], [value], [value], f"{box.label[:-3]}/nominal")
-    return get_uncertainty_set(task, name)
+    ``"nominal"`` is zero-dimensional: the model exactly as Gymnasium ships it (see
+    :func:`rrls.envs.resolve`, the one place that maps names to sets and env families).
+    """
+    from rrls.envs import resolve
+
+    return resolve(task, uncertainty).box
 
 
 def evaluation_points(
@@ -43,8 +39,6 @@ def evaluation_points(
 ) -> np.ndarray:
     """The mesh of ``task``'s set as an ``(nb_mesh_dim ** d, d)`` array (no env is built)."""
     box = resolve_uncertainty(task, uncertainty)
-    if box.dim and np.all(box.low == box.high):
-        return box.low[None, :].copy()
     return box.mesh(nb_mesh_dim, endpoint=endpoint)
 
 
@@ -106,7 +100,7 @@ def generate_evaluation_set(
 
 def default_evaluation_set(task: str, uncertainty: str = "3d", nb_mesh_dim: int = 10):
     """The paper's evaluation set of ``task`` over ``uncertainty`` (10 points per dimension)."""
-    from rrls.envs import env_class
+    from rrls.envs import resolve
 
-    box = resolve_uncertainty(task, uncertainty)
-    return EvaluationSet(env_class(task, uncertainty), box, box.mesh(nb_mesh_dim))
+    resolved = resolve(task, uncertainty)
+    return EvaluationSet(resolved.env_class, resolved.box, resolved.box.mesh(nb_mesh_dim))

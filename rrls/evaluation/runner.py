@@ -23,13 +23,11 @@ import sys
 import warnings
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 import numpy as np
-
-from rrls.uncertainty import UncertaintySet
 
 CHUNK = 50  # episodes per chunk: the unit of resumption and of work sharing
 LANES = 64  # live episodes per worker (one policy block)
@@ -49,7 +47,6 @@ class RolloutSpec:
     points: np.ndarray  # (P, d)
     seeds: np.ndarray  # (P, E) uint32
     max_episode_steps: int = 1000
-    env_kwargs: dict[str, Any] = field(default_factory=dict)
 
     @property
     def n_episodes(self) -> int:
@@ -78,19 +75,28 @@ def episode_seeds(seed: int, n_points: int, episodes: int) -> np.ndarray:
 
 
 # -- one worker ------------------------------------------------------------------------------------
-_WORKER: dict[str, Any] = {}
+#: bare envs per (task, family), reused within one evaluation (building is slower than
+#: resetting); ``evaluate`` and ``search_worst_case`` empty it when they return
+_ENV_CACHE: dict[tuple[str, str], list[Any]] = {}
 
 
 def _envs(spec: RolloutSpec, n: int) -> list[Any]:
-    """Bare envs (no wrappers), cached per process: building is slower than resetting."""
-    from rrls.envs import FORCE_ENVS, ROBUST_ENVS
+    """Bare envs (no wrappers) of the spec's family; every lane is reset before use."""
+    from rrls.envs import FAMILY_ENVS
 
-    key = (spec.task, spec.kind, tuple(sorted(spec.env_kwargs.items())))
-    envs = _WORKER.setdefault(("envs", key), [])
-    cls = (FORCE_ENVS if spec.kind == "force" else ROBUST_ENVS)[spec.task]
+    envs = _ENV_CACHE.setdefault((spec.task, spec.kind), [])
+    cls = FAMILY_ENVS[spec.kind][spec.task]
     while len(envs) < n:
-        envs.append(cls(**spec.env_kwargs))
+        envs.append(cls())
     return envs[:n]
+
+
+def clear_env_cache() -> None:
+    """Close and forget the cached envs (no state survives from one evaluation to the next)."""
+    for envs in _ENV_CACHE.values():
+        for env in envs:
+            env.close()
+    _ENV_CACHE.clear()
 
 
 Finished = list[tuple[int, float, int, bool, bool]]  # (row, return, length, terminated, diverged)
@@ -205,6 +211,12 @@ def _check_actions(
     spec: RolloutSpec,
     act_dim: int,
 ) -> None:
+    if actions.dtype.kind not in "biuf":
+        r = int(lane_row[live[0]])
+        raise PolicyError(
+            f"policy returned {actions.dtype} values; actions must be real numbers — at "
+            f"{spec.describe(r)}, step {lengths[live[0]]}"
+        )
     if actions.shape != (len(live), act_dim):
         r = int(lane_row[live[0]])
         raise PolicyError(
@@ -420,16 +432,3 @@ def _progress_bar(total: int, progress: bool | None) -> Any:
 
     disable = not sys.stderr.isatty() if progress is None else not progress
     return tqdm(total=total, unit="episode", desc="evaluating", disable=disable, smoothing=0.1)
-
-
-def spec_for(
-    task: str,
-    box: UncertaintySet | None,
-    points: np.ndarray,
-    seeds: np.ndarray,
-    kind: str = "robust",
-) -> RolloutSpec:
-    names = box.names if box is not None else ()
-    return RolloutSpec(
-        task, kind, tuple(names), np.asarray(points, float).reshape(len(seeds), -1), seeds
-    )
