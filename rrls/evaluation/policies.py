@@ -177,8 +177,11 @@ class MLPPolicy:
         except FileNotFoundError:
             raise
         except Exception as err:  # noqa: BLE001 - any unreadable content: one clear message
+            reason = str(err)
+            if "pickle" in reason or not isinstance(err, (KeyError, ValueError)) or not reason:
+                reason = "not an .npz archive"  # never suggest unpickling an unknown file
             raise ValueError(
-                f"{path} is not an rrls MLP policy file (an .npz written by rrls): {err}"
+                f"{path} is not an rrls MLP policy file (an .npz written by rrls): {reason}"
             ) from None
         return cls(
             weights, biases, scale, bias, dtype=weights[0].dtype, metadata=header.get("metadata")

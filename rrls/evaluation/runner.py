@@ -241,8 +241,10 @@ def _worker_main(
     results: Any,
     lanes: int,
     fast: bool,
+    parent: int,
 ) -> None:
     """A worker process: pull rows from the shared counter, send finished episodes back."""
+    _exit_with_parent(parent)
     try:
         try:  # one BLAS thread per process: the processes already use every core
             from threadpoolctl import threadpool_limits
@@ -265,6 +267,37 @@ def _worker_main(
         results.put(None)
     except BaseException as err:  # noqa: BLE001 - forwarded to the parent, which re-raises
         results.put(_Failure(err))
+
+
+def _exit_with_parent(parent: int) -> None:
+    """Make this worker die with the evaluation that started it, even after ``kill -9``.
+
+    Linux: ``prctl(PR_SET_PDEATHSIG, SIGKILL)``; elsewhere (or if that fails) a daemon thread
+    that polls the parent pid. Either way a worker never outlives its parent blocked on a queue.
+    """
+    import signal
+    import threading
+    import time
+
+    if sys.platform.startswith("linux"):
+        try:
+            import ctypes
+
+            libc = ctypes.CDLL(None, use_errno=True)
+            pr_set_pdeathsig = 1
+            if libc.prctl(pr_set_pdeathsig, int(signal.SIGKILL), 0, 0, 0) == 0:
+                if os.getppid() != parent:  # the parent died before prctl took effect
+                    os._exit(1)
+                return
+        except (OSError, AttributeError):  # pragma: no cover - no libc/prctl: poll instead
+            pass
+
+    def watch() -> None:  # pragma: no cover - non-Linux fallback
+        while os.getppid() == parent:
+            time.sleep(1.0)
+        os._exit(1)
+
+    threading.Thread(target=watch, name="rrls-parent-watch", daemon=True).start()
 
 
 class _Failure:
@@ -327,10 +360,9 @@ def run(
         chunk_dir.mkdir(parents=True, exist_ok=True)
         for c in range(n_chunks):
             path = chunk_dir / f"{c:06d}.npz"
-            if path.exists():
-                with np.load(path, allow_pickle=False) as f:
-                    for k in cols:
-                        cols[k][c * chunk : c * chunk + remaining[c]] = f[k]
+            if path.exists() and _load_chunk(
+                path, cols, slice(c * chunk, c * chunk + remaining[c])
+            ):
                 remaining[c] = 0
     todo = np.concatenate(
         [np.arange(c * chunk, c * chunk + remaining[c]) for c in range(n_chunks) if remaining[c]]
@@ -371,6 +403,28 @@ def run(
     return cols
 
 
+def _load_chunk(path: Path, cols: dict[str, np.ndarray], block: slice) -> bool:
+    """Fill ``cols[block]`` from a saved chunk; a truncated, empty or malformed file is reported
+    by name, removed and recomputed (``False``), never a bare ``BadZipFile``/``EOFError``."""
+    size = block.stop - block.start
+    try:
+        with np.load(path, allow_pickle=False) as f:
+            data = {k: np.asarray(f[k]) for k in cols}
+        for k, v in data.items():
+            if v.shape != (size,) or not np.can_cast(v.dtype, cols[k].dtype, "same_kind"):
+                raise ValueError(f"column {k!r} has shape {v.shape} and dtype {v.dtype}")
+    except Exception as err:  # noqa: BLE001 - any unreadable content: recompute the chunk
+        warnings.warn(
+            f"chunk file {path} is unreadable ({type(err).__name__}: {err}); recomputing it",
+            stacklevel=3,
+        )
+        path.unlink(missing_ok=True)
+        return False
+    for k, v in data.items():
+        cols[k][block] = v
+    return True
+
+
 def _run_processes(
     spec: RolloutSpec,
     policy: Callable,
@@ -390,7 +444,7 @@ def _run_processes(
     procs = [
         ctx.Process(
             target=_worker_main,
-            args=(spec, policy, todo, counter, results, lanes, fast),
+            args=(spec, policy, todo, counter, results, lanes, fast, os.getpid()),
             daemon=True,
         )
         for _ in range(workers)
