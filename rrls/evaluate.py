@@ -35,11 +35,13 @@ _CONSTANTS = {
 def __getattr__(name: str) -> EvaluationSet:
     if name not in _CONSTANTS:
         raise AttributeError(f"module 'rrls.evaluate' has no attribute {name!r}")
-    from rrls.envs import resolve
+    from rrls.envs import FAMILY_ENVS
+    from rrls.tasks import TASKS
 
     task, set_name = _CONSTANTS[name]
-    resolved = resolve(task, set_name)
-    value = generate_evaluation_set(resolved.env_class, resolved.box, nb_mesh_dim=10)
+    spec = TASKS[task]  # the table's bounds and family: no env is built to make the set
+    env_class = FAMILY_ENVS[spec.families[set_name]][task]
+    value = generate_evaluation_set(env_class, spec.sets[set_name], nb_mesh_dim=10)
     globals()[name] = value
     return value
 
