@@ -1,4 +1,4 @@
-"""One source of truth for task -> set -> env family; no hidden shared state; original paths."""
+"""Bad input and faults: one line naming the culprit, nothing changed, CLI exit status 2."""
 
 from __future__ import annotations
 
@@ -27,7 +27,7 @@ from rrls.uncertainty import UncertaintySet
 ROOT = pathlib.Path(__file__).resolve().parents[1]
 
 
-# -- the resolver ---------------------------------------------------------------------------------
+# -- the resolver -----------------------------------------------------------------------
 @pytest.mark.parametrize("task", TASK_KEYS)
 def test_every_named_set_resolves_to_its_family_class_and_box(task):
     for name in TASKS[task].sets:
@@ -104,7 +104,7 @@ def test_nominal_everywhere_is_the_model_as_shipped():
     assert len(result.episodes) == 2 and result.uncertainty is None
 
 
-# -- no hidden shared state -----------------------------------------------------------------------
+# -- no hidden shared state -------------------------------------------------------------
 def test_nominal_params_cannot_be_changed_by_a_caller():
     first = nominal_params("hopper")
     first["torsomass"] = 99.0
@@ -179,7 +179,7 @@ def test_fast_and_generic_steppers_agree_step_by_step(task, family):
             start(int(lane))
 
 
-# -- code written for the original RRLS -----------------------------------------------------------
+# -- code written for the original RRLS -------------------------------------------------
 def test_original_module_paths_import():
     from rrls._interface import ModifiedParamsEnv, check_protocol_modified_params_env
     from rrls.envs.ant import AntParamsBound, RobustAnt  # noqa: F401
