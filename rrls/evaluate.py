@@ -5,9 +5,6 @@ constant is a lazy :class:`~rrls.evaluation.EvaluationSet` made on first access 
 (module ``__getattr__``), and its environments are built only when read. The Hopper sets act on
 ``RobustHopper`` (the original built them from ``RobustWalker2d``, docs/differences.md #8).
 
->>> import rrls.evaluate
->>> "EVALUATION_ROBUST_ANT_3D" in vars(rrls.evaluate)  # nothing built at import
-False
 >>> from rrls.evaluate import EVALUATION_ROBUST_HOPPER_2D
 >>> len(EVALUATION_ROBUST_HOPPER_2D)
 100
