@@ -144,9 +144,12 @@ def nominal_params(task: str, kind: str = "robust") -> dict[str, float]:
 
 
 def get_uncertainty_set(task: str, name: str = "3d") -> UncertaintySet:
-    """The paper's uncertainty set ``name`` (``1d``, ``2d``, ``3d`` or ``rarl``) of ``task``."""
+    """The paper's uncertainty set ``name`` (``1d``, ``2d``, ``3d``, ``rarl``; ``nominal``: the
+    zero-dimensional set of the unmodified model) of ``task``, with its family and nominal point."""
     spec = get_task(task)
     key = str(name).lower()
+    if key == "nominal":
+        return resolve(spec.key, key).box  # zero-dimensional: the model as shipped
     if key not in spec.sets:
         raise ValueError(
             f"task {spec.key!r} has no uncertainty set {name!r}; "
