@@ -189,6 +189,11 @@ def test_original_module_paths_import():
     from rrls.envs.pendulum import InvertedPendulumParamsBound  # noqa: F401
     from rrls.envs.walker import RobustWalker2d, Walker2dParamsBound  # noqa: F401
     from rrls.evaluate import EVALUATION_ROBUST_HOPPER_1D, generate_evaluation_set  # noqa: F401
+    from rrls.wrappers import ProbalisticActionRobust
+    from rrls.wrappers.probabilistic_action_robust import ProbabilisticActionRobust
+    from rrls.wrappers.probalistic_action_robust import ProbalisticActionRobust as Misspelt
+
+    assert ProbalisticActionRobust is ProbabilisticActionRobust is Misspelt
 
     env = rrls.make_wrapped_env(
         RobustHopper,
