@@ -1,4 +1,4 @@
-"""The original RRLS module path ``rrls.wrappers.probabilistic_action_robust``: imports unchanged."""
+"""The original RRLS module path ``rrls.wrappers.probabilistic_action_robust``."""
 
 from rrls.wrappers.action_robust import ProbabilisticActionRobust
 

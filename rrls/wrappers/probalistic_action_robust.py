@@ -1,4 +1,4 @@
-"""The original RRLS module path ``rrls.wrappers.probalistic_action_robust``: imports unchanged."""
+"""The original RRLS module path ``rrls.wrappers.probalistic_action_robust`` (sic)."""
 
 from rrls.wrappers.action_robust import ProbabilisticActionRobust
 
