@@ -312,3 +312,31 @@ def test_uncertainty_sets_refuse_malformed_bounds():
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         assert UncertaintySet((), [], []).mesh(4).shape == (1, 0)
+
+
+def test_damaged_result_files_are_named(tmp_path, capsys):
+    out = tmp_path / "ev"
+    evaluate(_ip_policy(), "invertedpendulum", "1d", nb_mesh_dim=2, episodes=1, out_dir=out)
+    (out / "summary.json").write_text("{ truncated")
+    code, err = _run(["plot", str(out)], capsys)
+    assert code == 2 and f"{out / 'summary.json'} is not valid JSON" in err
+    (out / "evaluation.json").write_text("[]")
+    with pytest.raises(ValueError, match="evaluation.json does not hold a JSON object"):
+        evaluate(_ip_policy(), "invertedpendulum", "1d", nb_mesh_dim=2, episodes=1, out_dir=out)
+
+
+def test_library_entry_points_refuse_bad_sets_and_seeds_before_building_anything():
+    from rrls import generate_evaluation_set
+
+    built = []
+
+    def factory(**params):
+        built.append(params)
+        return RobustHopper(**params)
+
+    factory.param_specs = RobustHopper.param_specs
+    with pytest.raises(ValueError, match="torsomass is a mass"):
+        generate_evaluation_set(factory, {"torsomass": [-1.0, 2.0]})
+    assert not built
+    with pytest.raises(ValueError, match="seed must be an integer >= 0, got -1"):
+        evaluate(_ip_policy(), "invertedpendulum", "1d", seed=-1)

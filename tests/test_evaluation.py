@@ -476,3 +476,36 @@ def test_cli_evaluate_needs_a_task(tmp_path, capsys):
     assert capsys.readouterr().err.strip() == (
         "rrls evaluate: --task is required (the policy does not record its task)"
     )
+
+
+def test_3d_plot_shares_one_colour_scale_and_names_the_policy(tmp_path):
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from rrls.evaluation import plot_result
+
+    policy = _policy("hopper")
+    policy.metadata.update(algorithm="m2td3", seed=7)
+    out = tmp_path / "ev"
+    evaluate(policy, "hopper", "3d", nb_mesh_dim=2, episodes=1, out_dir=out, max_episode_steps=15)
+    seen = {}
+    real_savefig = plt.Figure.savefig
+
+    def capture(fig, *args, **kwargs):
+        seen["fig"] = fig
+        return real_savefig(fig, *args, **kwargs)
+
+    plt.Figure.savefig = capture
+    try:
+        plot_result(out)
+    finally:
+        plt.Figure.savefig = real_savefig
+    fig = seen["fig"]
+    assert fig._suptitle.get_text().startswith("m2td3 seed 7 on hopper / 3d")
+    meshes = [a.collections[0] for a in fig.axes if a.get_label() != "<colorbar>"][:3]
+    assert len(meshes) == 3
+    assert len({m.get_clim() for m in meshes}) == 1  # one scale for the three slices
+    table = EvaluationResult.load(out).per_point["mean_return"]
+    assert meshes[0].get_clim() == (table.min(), table.max())

@@ -109,11 +109,16 @@ class EvaluationResult:
         summary_path = out_dir / "summary.json"
         if not summary_path.exists():
             raise FileNotFoundError(f"{out_dir} holds no summary.json: not an rrls evaluation")
-        summary = json.loads(summary_path.read_text())
-        if (out_dir / "episodes.parquet").exists():
-            episodes = pd.read_parquet(out_dir / "episodes.parquet")
-        else:
-            episodes = pd.read_csv(out_dir / "episodes.csv")
+        summary = _read_json(summary_path)
+        table = out_dir / "episodes.parquet"
+        if not table.exists():
+            table = out_dir / "episodes.csv"
+        try:
+            episodes = pd.read_parquet(table) if table.suffix == ".parquet" else pd.read_csv(table)
+        except FileNotFoundError:
+            raise FileNotFoundError(f"{out_dir} holds no episodes table") from None
+        except Exception as err:  # noqa: BLE001 - any unreadable table: name the file
+            raise ValueError(f"{table} is unreadable: {err}") from None
         box = summary.get("uncertainty")
         box = UncertaintySet(**box) if box and box.get("names") else None
         config = {k: summary[k] for k in summary if k not in _DERIVED}
@@ -138,6 +143,19 @@ _DERIVED = {
     "episodes_total",
     "diverged",
 }
+
+
+def _read_json(path: Path) -> dict[str, Any]:
+    """A JSON object from ``path``; a damaged file is named in the error."""
+    try:
+        data = json.loads(path.read_text())
+    except (ValueError, UnicodeDecodeError) as err:
+        raise ValueError(
+            f"{path} is not valid JSON ({err}); remove it or use another directory"
+        ) from None
+    if not isinstance(data, dict):
+        raise ValueError(f"{path} does not hold a JSON object")
+    return data
 
 
 def _table_name() -> str:
@@ -210,6 +228,8 @@ def evaluate(
         _check_counts(workers=workers)
     if batch_size is not None:
         _check_counts(batch_size=batch_size)
+    if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
+        raise ValueError(f"seed must be an integer >= 0, got {seed!r}")
     points = resolved.box.mesh(nb_mesh_dim, endpoint=endpoint)
     seeds = runner.episode_seeds(seed, len(points), episodes)
     spec = runner.RolloutSpec(key, kind, resolved.box.names, points, seeds, max_episode_steps)
@@ -396,7 +416,7 @@ def _prepare_out_dir(out_dir: Path, config: dict[str, Any]) -> Path:
 
     path = out_dir / "evaluation.json"
     if path.exists():
-        old = json.loads(path.read_text())
+        old = _read_json(path)
         diff = sorted(k for k in set(old) | set(config) if old.get(k) != config.get(k))
         if diff:
             raise ValueError(

@@ -146,7 +146,10 @@ def generate_evaluation_set(
     >>> envs[0].get_params()["worldfriction"]
     0.1
     """
+    from rrls.params import check_bounds
+
     box = UncertaintySet.from_bounds(param_bounds)
+    check_bounds(getattr(modified_env, "param_specs", ()), box)  # refuse now, not at env build
     return EvaluationSet(modified_env, box, box.mesh(nb_mesh_dim, endpoint=endpoint))
 
 
