@@ -340,3 +340,10 @@ def test_library_entry_points_refuse_bad_sets_and_seeds_before_building_anything
     assert not built
     with pytest.raises(ValueError, match="seed must be an integer >= 0, got -1"):
         evaluate(_ip_policy(), "invertedpendulum", "1d", seed=-1)
+
+
+def test_a_policy_of_another_task_is_named_whatever_its_form(files):
+    run = files / "run"  # trained on invertedpendulum
+    for policy in (run, str(run / "policy.npz"), MLPPolicy.load(run / "policy.npz")):
+        with pytest.raises(ValueError, match="trained on 'invertedpendulum', not on task 'hopper'"):
+            evaluate(policy, "hopper", "1d", nb_mesh_dim=2, episodes=1)

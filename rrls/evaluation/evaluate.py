@@ -221,8 +221,6 @@ def evaluate(
     from rrls.evaluation import runner
 
     resolved = resolve(task, uncertainty)
-    key, kind = resolved.task, resolved.family
-    box = None if resolved.is_nominal else resolved.box
     _check_counts(episodes=episodes, nb_mesh_dim=nb_mesh_dim, max_episode_steps=max_episode_steps)
     if workers is not None:
         _check_counts(workers=workers)
@@ -232,24 +230,18 @@ def evaluate(
         raise ValueError(f"seed must be an integer >= 0, got {seed!r}")
     points = resolved.box.mesh(nb_mesh_dim, endpoint=endpoint)
     seeds = runner.episode_seeds(seed, len(points), episodes)
-    spec = runner.RolloutSpec(key, kind, resolved.box.names, points, seeds, max_episode_steps)
-    try:
-        return _evaluate(
-            policy,
-            spec,
-            resolved,
-            box,
-            uncertainty,
-            nb_mesh_dim,
-            endpoint,
-            episodes,
-            seed,
-            workers,
-            batch_size,
-            out_dir,
-            progress,
-            max_episode_steps,
-        )
+    spec = runner.RolloutSpec(
+        resolved.task, resolved.family, resolved.box.names, points, seeds, max_episode_steps
+    )
+    settings = {
+        "mesh": nb_mesh_dim,
+        "endpoint": endpoint,
+        "episodes": episodes,
+        "seed": seed,
+        "max_episode_steps": max_episode_steps,
+    }
+    try:  # the engine's env cache lives only as long as this evaluation
+        return _evaluate(policy, resolved, spec, settings, workers, batch_size, out_dir, progress)
     finally:
         runner.clear_env_cache()
 
@@ -263,24 +255,20 @@ def _check_counts(**values: Any) -> None:
 
 def _evaluate(
     policy: Any,
-    spec: Any,
     resolved: Any,
-    box: UncertaintySet | None,
-    uncertainty: str | UncertaintySet,
-    nb_mesh_dim: int,
-    endpoint: bool,
-    episodes: int,
-    seed: int,
+    spec: Any,
+    settings: dict[str, Any],
     workers: int | None,
     batch_size: int | None,
     out_dir: str | Path | None,
     progress: bool | None,
-    max_episode_steps: int,
 ) -> EvaluationResult:
     from rrls.evaluation import runner
-    from rrls.evaluation.policies import policy_fingerprint
+    from rrls.evaluation.policies import as_policy, policy_fingerprint
 
     key, kind = resolved.task, resolved.family
+    box = None if resolved.is_nominal else resolved.box
+    policy = as_policy(policy)
     trained_on = (getattr(policy, "metadata", None) or {}).get("task")
     if trained_on is not None and trained_on != key:
         raise ValueError(f"the policy was trained on {trained_on!r}, not on task {key!r}")
@@ -290,16 +278,13 @@ def _evaluate(
         "uncertainty": _box_json(box),
         "uncertainty_name": resolved.name or resolved.label,
         "env": f"rrls/{kind}-{key}-v0",
-        "mesh": nb_mesh_dim,
-        "endpoint": endpoint,
-        "episodes": episodes,
-        "seed": seed,
-        "max_episode_steps": max_episode_steps,
+        **settings,
         "chunk": runner.CHUNK,
         "policy_fingerprint": policy_fingerprint(policy, obs_dim),
     }
     if out_dir is None:
-        return _finish(key, box, rollout_table(spec, policy, workers, batch_size), config, policy)
+        frame = rollout_table(spec, policy, workers, batch_size, None, progress)
+        return _finish(key, box, frame, config, policy)
     from rrls._io import DirectoryLock
 
     with DirectoryLock(Path(out_dir)):  # one evaluation at a time per directory
