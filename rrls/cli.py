@@ -293,7 +293,6 @@ def _evaluate(args: argparse.Namespace) -> int:
         args.out
         or f"evaluations/{task}-{uncertainty}-mesh{args.mesh}-ep{args.episodes}-seed{args.seed}"
     )
-    args.uncertainty = uncertainty
     result = evaluate(
         policy,
         task,
@@ -310,7 +309,7 @@ def _evaluate(args: argparse.Namespace) -> int:
     summary = result.summary()
     worst = ", ".join(f"{k}={v:.4g}" for k, v in result.worst_point.items()) or "nominal model"
     rows = [
-        ("task / set", f"{result.task} / {args.uncertainty}"),
+        ("task / set", f"{result.task} / {uncertainty}"),
         (
             "mesh",
             f"{len(result.per_point)} points ({args.mesh} per dimension) "
@@ -321,13 +320,13 @@ def _evaluate(args: argparse.Namespace) -> int:
         ("diverged", f"{summary['diverged']} of {summary['episodes_total']} episodes"),
         ("written", f"{out / 'summary.json'}, {out / _table_file(out)}"),
     ]
-    if args.plot:
-        from rrls.evaluation.plots import plot_result
-
-        rows.append(("plot", str(plot_result(out))))
     width = max(len(k) for k, _ in rows)
     for key, value in rows:
         print(f"{key:<{width}}  {value}")
+    if args.plot:  # after the table: a refused plot (nominal: one point) loses no result
+        from rrls.evaluation.plots import plot_result
+
+        print(f"{'plot':<{width}}  {plot_result(out)}")
     return 0
 
 
