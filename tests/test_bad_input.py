@@ -347,3 +347,14 @@ def test_a_policy_of_another_task_is_named_whatever_its_form(files):
     for policy in (run, str(run / "policy.npz"), MLPPolicy.load(run / "policy.npz")):
         with pytest.raises(ValueError, match="trained on 'invertedpendulum', not on task 'hopper'"):
             evaluate(policy, "hopper", "1d", nb_mesh_dim=2, episodes=1)
+
+
+def test_dynamic_evaluation_names_the_policy_that_returns_non_numbers():
+    from rrls.evaluation import evaluate_dynamic
+
+    still = lambda o: np.zeros((len(o), 1))  # noqa: E731
+    words = lambda o: np.full((len(o), 2), "push")  # noqa: E731
+    with pytest.raises(PolicyError, match="the adversary returned <U4 values"):
+        evaluate_dynamic(still, words, "invertedpendulum", "adversarial", "rarl", episodes=1)
+    with pytest.raises(PolicyError, match="the protagonist returned shape \\(1,\\) for 1"):
+        evaluate_dynamic(lambda o: np.zeros(1), still, "invertedpendulum", "nr", episodes=1)

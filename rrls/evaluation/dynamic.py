@@ -119,7 +119,8 @@ def evaluate_dynamic(
     while (lane_ep >= 0).any():
         live = np.flatnonzero(lane_ep >= 0)
         batch = np.stack([obs[lane] for lane in live])
-        agent, adv = np.asarray(protagonist(batch)), np.asarray(adversary(batch))
+        agent = _actions(protagonist(batch), "protagonist", len(live))
+        adv = _actions(adversary(batch), "adversary", len(live))
         for j, lane in enumerate(live):
             e = lane_ep[lane]
             obs[lane], reward, terminated, truncated, _ = envs[lane].step((agent[j], adv[j]))
@@ -136,3 +137,15 @@ def evaluate_dynamic(
         }
     )
     return DynamicResult(env_id, frame)
+
+
+def _actions(out: Any, who: str, n: int) -> np.ndarray:
+    """A policy's batch of actions, or a ``PolicyError`` naming which policy misbehaved."""
+    from rrls.evaluation.runner import PolicyError
+
+    actions = np.asarray(out)
+    if actions.dtype.kind not in "biuf":
+        raise PolicyError(f"the {who} returned {actions.dtype} values; actions must be numbers")
+    if actions.ndim != 2 or len(actions) != n:
+        raise PolicyError(f"the {who} returned shape {actions.shape} for {n} observations")
+    return actions
