@@ -29,7 +29,13 @@ _LAZY = {
     "get_uncertainty_set": "rrls.envs",
     "generate_evaluation_set": "rrls.evaluation",
     "evaluation": "rrls.evaluation",
+    "evaluate": "rrls.evaluate",
 }
+
+
+def make_wrapped_env(cls_env: Any, wrapper: Any, **kwargs: Any) -> Any:
+    """``wrapper(env=cls_env(), **kwargs)``: the original code's helper (and entry point)."""
+    return wrapper(env=cls_env(), **kwargs)
 
 
 def __getattr__(name: str) -> Any:
@@ -50,4 +56,11 @@ from rrls._registration import register_envs  # noqa: E402
 
 register_envs()
 
-__all__ = ["UncertaintySet", "__version__", "get_uncertainty_set", "register_envs", *_LAZY]
+__all__ = [
+    "UncertaintySet",
+    "__version__",
+    "get_uncertainty_set",
+    "make_wrapped_env",
+    "register_envs",
+    *_LAZY,
+]

@@ -12,12 +12,24 @@ from typing import Any
 import numpy as np
 
 
+def _umask() -> int:
+    """The process umask (read by setting and restoring it: there is no getter)."""
+    mask = os.umask(0o022)
+    os.umask(mask)
+    return mask
+
+
 def atomic_write_bytes(path: str | Path, data: bytes) -> Path:
-    """Write ``data`` to a temporary file beside ``path``, fsync, then rename it to ``path``."""
+    """Write ``data`` to a temporary file beside ``path``, fsync, then rename it to ``path``.
+
+    The file gets the mode ``open()`` would give it (0666 minus the umask), not ``mkstemp``'s
+    0600: results on a shared cluster stay readable by the group the user intends.
+    """
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
     try:
+        os.fchmod(fd, 0o666 & ~_umask())
         with os.fdopen(fd, "wb") as f:
             f.write(data)
             f.flush()
@@ -48,3 +60,40 @@ def atomic_write_table(path: str | Path, frame: Any) -> Path:
     else:
         frame.to_csv(buf, index=False, float_format="%.17g")
     return atomic_write_bytes(path, buf.getvalue())
+
+
+class DirectoryLock:
+    """An exclusive lock on a directory (``DIR/.lock``) for one run at a time.
+
+    Two evaluations writing into the same directory would mix their chunks and summaries; the
+    second one is refused with a ``FileExistsError`` naming the directory. The lock is an
+    ``flock`` held by the open file, so a killed process releases it (no stale lock files).
+    """
+
+    def __init__(self, directory: str | Path) -> None:
+        self.directory = Path(directory)
+        self._fd: int | None = None
+
+    def __enter__(self) -> DirectoryLock:
+        self.directory.mkdir(parents=True, exist_ok=True)
+        fd = os.open(self.directory / ".lock", os.O_RDWR | os.O_CREAT, 0o666)
+        try:
+            import fcntl
+        except ImportError:  # pragma: no cover - not POSIX: no locking
+            self._fd = fd
+            return self
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except OSError:
+            os.close(fd)
+            raise FileExistsError(
+                f"{self.directory} is in use by another running rrls command; wait for it to "
+                "finish or use another output directory"
+            ) from None
+        self._fd = fd
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        if self._fd is not None:
+            os.close(self._fd)  # closing the descriptor releases the flock
+            self._fd = None

@@ -51,10 +51,15 @@ def register_envs() -> None:
         robust, force = f"rrls.envs:Robust{task.name}", f"rrls.envs:Force{task.name}"
         _register(f"rrls/robust-{key}-v0", robust)
         _register(f"rrls/force-{key}-v0", force)
-        for name in task.sets:
-            if name == "rarl":
-                continue
+        for name, family in task.families.items():
             bounds = _bounds(task, name)
+            if family == "force":
+                _register(
+                    f"rrls/robust-{key}-adversarial-forces-v0",
+                    force,
+                    _wrapper("DynamicAdversarial", "adversarial", params_bound=bounds),
+                )
+                continue
             _register(
                 f"rrls/robust-{key}-adversarial-{name}-v0",
                 robust,
@@ -65,11 +70,6 @@ def register_envs() -> None:
                 robust,
                 _wrapper("DomainRandomization", "domain_randomization", params_bound=bounds),
             )
-        _register(
-            f"rrls/robust-{key}-adversarial-forces-v0",
-            force,
-            _wrapper("DynamicAdversarial", "adversarial", params_bound=_bounds(task, "rarl")),
-        )
         par = _wrapper("ProbabilisticActionRobust", "action_robust", alpha=NR_MDP_ALPHA)
         _register(f"rrls/probabilistic-action-robust-{key}-v0", robust, par)
         _register(f"probabilistic-action-robust-{key}-v0", robust, par)

@@ -6,6 +6,7 @@ from __future__ import annotations
 import itertools
 import time
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -39,26 +40,29 @@ def _episode(env, steps: int, seed: int, options: dict[str, float] | None) -> tu
 
 def run_check(tasks: list[str] | None = None, steps: int = 100, seed: int = 0) -> list[CheckRow]:
     """Rows of the check table (one per task x set x point)."""
-    from rrls.envs import FORCE_ENVS, ROBUST_ENVS, get_uncertainty_set
+    from rrls.envs import resolve
     from rrls.tasks import TASKS, get_task
 
+    if isinstance(steps, bool) or not isinstance(steps, int) or steps < 1:
+        raise ValueError(f"steps must be an integer >= 1, got {steps!r}")
     rows: list[CheckRow] = []
     for key in [get_task(t).key for t in tasks] if tasks else list(TASKS):
-        points: list[tuple[str, str, dict[str, float] | None]] = [("nominal", "nominal", None)]
-        for name in TASKS[key].sets:
-            box = get_uncertainty_set(key, name)
+        envs: dict[type, Any] = {}  # one env per family, reset between points
+        for name in ("nominal", *TASKS[key].sets):
+            resolved = resolve(key, name)
+            box = resolved.box
+            if resolved.env_class not in envs:
+                envs[resolved.env_class] = resolved.make_env()
+            env = envs[resolved.env_class]
             for corner in itertools.product(*zip(box.low, box.high)):
-                label = ",".join(f"{v:g}" for v in corner)
-                points.append((name, label, box.to_dict(corner)))
-        envs = {"robust": ROBUST_ENVS[key](), "force": FORCE_ENVS[key]()}
-        for name, label, params in points:
-            env = envs["force" if name == "rarl" else "robust"]
-            env.reset_params()
-            try:
-                n, ret = _episode(env, steps, seed, params)
-                rows.append(CheckRow(key, name, label, n, ret, True))
-            except Exception as exc:  # report, keep checking the rest
-                rows.append(CheckRow(key, name, label, 0, float("nan"), False, repr(exc)))
+                label = ",".join(f"{v:g}" for v in corner) or "nominal"
+                params = box.to_dict(corner) or None
+                env.reset_params()
+                try:
+                    n, ret = _episode(env, steps, seed, params)
+                    rows.append(CheckRow(key, name, label, n, ret, True))
+                except Exception as exc:  # report, keep checking the rest
+                    rows.append(CheckRow(key, name, label, 0, float("nan"), False, repr(exc)))
     return rows
 
 

@@ -5,6 +5,61 @@ from __future__ import annotations
 import argparse
 import sys
 
+#: what a command may raise for bad input: reported as ``rrls <command>: <message>``, exit 2
+USAGE_ERRORS = (ValueError, FileNotFoundError, FileExistsError, NotADirectoryError)
+TASK_CHOICES = ["ant", "halfcheetah", "hopper", "humanoidstandup", "invertedpendulum", "walker"]
+SET_CHOICES = ["1d", "2d", "3d", "rarl", "nominal"]
+
+
+class UsageError(ValueError):
+    """Bad command-line input found after parsing (reported on one line, exit status 2)."""
+
+
+def _integer(text: str) -> int:
+    try:
+        return int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not an integer") from None
+
+
+def positive_int(text: str) -> int:
+    """argparse ``type=``: an integer >= 1."""
+    value = _integer(text)
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"must be an integer >= 1, got {text}")
+    return value
+
+
+def nonnegative_int(text: str) -> int:
+    """argparse ``type=``: an integer >= 0 (seeds, optional counts)."""
+    value = _integer(text)
+    if value < 0:
+        raise argparse.ArgumentTypeError(f"must be an integer >= 0, got {text}")
+    return value
+
+
+def positive_float(text: str) -> float:
+    """argparse ``type=``: a finite float > 0 (learning rates, scales)."""
+    import math
+
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a number") from None
+    if not math.isfinite(value) or value <= 0:
+        raise argparse.ArgumentTypeError(f"must be a finite number > 0, got {text}")
+    return value
+
+
+def task_key(text: str) -> str:
+    """argparse ``type=``: a task name or alias (``walker2d``), as its key."""
+    from rrls.tasks import get_task
+
+    try:
+        return get_task(text).key
+    except ValueError as err:
+        raise argparse.ArgumentTypeError(str(err)) from None
+
 
 def build_parser(with_train: bool = True) -> argparse.ArgumentParser:
     from rrls import __version__
@@ -16,31 +71,65 @@ def build_parser(with_train: bool = True) -> argparse.ArgumentParser:
     check = sub.add_parser(
         "check",
         help="build every env and run short random episodes at the nominal point and set corners",
+        description="Smoke-test the physics stack: for each task, build the robust and force "
+        "envs and run one short random-action episode at the nominal model and at every corner "
+        "of every uncertainty set. Prints a table; exit status 1 if any episode failed.",
     )
-    check.add_argument("--task", action="append", help="only these tasks (repeatable)")
-    check.add_argument("--steps", type=int, default=100, help="steps per episode (default 100)")
-    check.add_argument("--seed", type=int, default=0)
+    check.add_argument(
+        "--task",
+        action="append",
+        type=task_key,
+        metavar="TASK",
+        help=f"only this task (repeatable; default: all of {', '.join(TASK_CHOICES)})",
+    )
+    check.add_argument(
+        "--steps", type=positive_int, default=100, help="steps per episode (default 100)"
+    )
+    check.add_argument(
+        "--seed", type=nonnegative_int, default=0, help="seed of resets and actions (default 0)"
+    )
 
     ev = sub.add_parser(
         "evaluate",
         help="evaluate a policy over a mesh of an uncertainty set (worst / average case)",
         description="Evaluate POLICY over a uniform mesh of the uncertainty set (paper §4). "
-        "Re-running the same command with the same --out resumes an interrupted evaluation.",
+        "Re-running the same command with the same --out resumes an interrupted evaluation; "
+        "a second evaluation into the same --out while one runs is refused.",
     )
     ev.add_argument("policy", help="a policy file (.npz MLP) or an `rrls train` run directory")
     ev.add_argument(
         "--task",
-        help="ant, halfcheetah, hopper, humanoidstandup, "
-        "invertedpendulum or walker (default: the policy's own task, if it records one)",
+        type=task_key,
+        metavar="TASK",
+        help=f"one of {', '.join(TASK_CHOICES)} (default: the policy's own task, if recorded)",
     )
-    ev.add_argument("--uncertainty", default="3d", help="1d, 2d, 3d, rarl or nominal (default 3d)")
-    ev.add_argument("--mesh", type=int, default=10, help="points per dimension (default 10)")
-    ev.add_argument("--episodes", type=int, default=5, help="episodes per point (default 5)")
-    ev.add_argument("--seed", type=int, default=0)
-    ev.add_argument("--workers", type=int, default=None, help="processes (default: all cores)")
+    ev.add_argument(
+        "--uncertainty",
+        choices=SET_CHOICES,
+        type=str.lower,
+        default=None,
+        help="the set to mesh: 1d, 2d, 3d (masses/friction), rarl (forces) or nominal (the "
+        "model as shipped). Default: the set the policy was trained on, else 3d (2d for "
+        "invertedpendulum)",
+    )
+    ev.add_argument(
+        "--mesh", type=positive_int, default=10, help="points per dimension (default 10)"
+    )
+    ev.add_argument(
+        "--episodes", type=positive_int, default=5, help="episodes per point (default 5)"
+    )
+    ev.add_argument(
+        "--seed",
+        type=nonnegative_int,
+        default=0,
+        help="root of the per-episode seeds (default 0); results depend only on it",
+    )
+    ev.add_argument(
+        "--workers", type=positive_int, default=None, help="processes (default: all cores)"
+    )
     ev.add_argument(
         "--batch-size",
-        type=int,
+        type=positive_int,
         default=None,
         help="live episodes per worker (results do not depend on it)",
     )
@@ -71,8 +160,12 @@ def build_parser(with_train: bool = True) -> argparse.ArgumentParser:
         help="a RARL / NR-MDP run's policy against its own trained adversary (paper Table 6)",
     )
     ed.add_argument("run_dir", help="an `rrls train` run directory holding adversary.npz")
-    ed.add_argument("--episodes", type=int, default=10, help="episodes (default 10, the paper's)")
-    ed.add_argument("--seed", type=int, default=0, help="seed of the episodes' resets")
+    ed.add_argument(
+        "--episodes", type=positive_int, default=10, help="episodes (default 10, the paper's)"
+    )
+    ed.add_argument(
+        "--seed", type=nonnegative_int, default=0, help="seed of the episodes' resets (default 0)"
+    )
 
     quick = sub.add_parser(
         "quickstart",
@@ -82,22 +175,37 @@ def build_parser(with_train: bool = True) -> argparse.ArgumentParser:
     quick.add_argument("--steps", type=int, default=None, help="steps per algorithm")
     quick.add_argument("--seed", type=int, default=0)
 
-    plot = sub.add_parser("plot", help="plot a saved evaluation: return over the uncertainty set")
+    plot = sub.add_parser(
+        "plot",
+        help="plot a saved evaluation: return over the uncertainty set",
+        description="Draw the mean return over the uncertainty set from an `rrls evaluate` "
+        "output directory: a line (1D), a heatmap (2D) or three slices through the worst point "
+        "on one colour scale (3D).",
+    )
     plot.add_argument("dir", help="an `rrls evaluate` output directory")
     plot.add_argument("--out", help="PNG path (default DIR/returns.png)")
     return parser
 
 
 def main(argv: list[str] | None = None) -> int:
+    """Run one command. Bad input (``USAGE_ERRORS``) is one line on stderr and exit status 2."""
     argv = sys.argv[1:] if argv is None else list(argv)
     with_train = argv[:1] == ["train"]
-    if with_train:
+    if with_train:  # `train`'s options are generated from the dataclasses, which need torch
         try:
             import torch  # noqa: F401
         except ImportError as err:
             print(f"rrls train needs torch: pip install 'rrls[train]' ({err})", file=sys.stderr)
             return 2
     args = build_parser(with_train).parse_args(argv)
+    try:
+        return _dispatch(args)
+    except USAGE_ERRORS as err:
+        print(f"rrls {args.command}: {err}", file=sys.stderr)
+        return 2
+
+
+def _dispatch(args: argparse.Namespace) -> int:
     if args.command == "check":
         from rrls.check import main as check_main
 
@@ -113,8 +221,12 @@ def main(argv: list[str] | None = None) -> int:
 
         return quickstart_main(args.out, args.steps, args.seed)
     if args.command == "plot":
+        from pathlib import Path
+
         from rrls.evaluation.plots import plot_result
 
+        if not Path(args.dir).is_dir():
+            raise FileNotFoundError(f"no evaluation directory {args.dir}")
         print(plot_result(args.dir, args.out))
         return 0
     raise AssertionError(args.command)  # argparse rejects unknown commands
@@ -124,20 +236,25 @@ def _evaluate(args: argparse.Namespace) -> int:
     from pathlib import Path
 
     from rrls.evaluation import evaluate, load_policy
+    from rrls.tasks import get_task
 
     policy = load_policy(args.policy)
-    task = args.task or getattr(policy, "metadata", {}).get("task")
+    meta = getattr(policy, "metadata", {}) or {}
+    task = args.task or meta.get("task")
     if task is None:
-        raise SystemExit("rrls evaluate: --task is required (the policy does not record its task)")
+        raise UsageError("--task is required (the policy does not record its task)")
+    task = get_task(task).key
+    if meta.get("task") not in (None, task):
+        raise UsageError(f"the policy was trained on {meta['task']!r}, not on --task {task!r}")
+    uncertainty = args.uncertainty or _default_set(task, meta)
     out = Path(
         args.out
-        or f"evaluations/{task}-{args.uncertainty}-mesh{args.mesh}"
-        f"-ep{args.episodes}-seed{args.seed}"
+        or f"evaluations/{task}-{uncertainty}-mesh{args.mesh}-ep{args.episodes}-seed{args.seed}"
     )
     result = evaluate(
         policy,
         task,
-        args.uncertainty,
+        uncertainty,
         nb_mesh_dim=args.mesh,
         episodes=args.episodes,
         seed=args.seed,
@@ -150,7 +267,7 @@ def _evaluate(args: argparse.Namespace) -> int:
     summary = result.summary()
     worst = ", ".join(f"{k}={v:.4g}" for k, v in result.worst_point.items()) or "nominal model"
     rows = [
-        ("task / set", f"{result.task} / {args.uncertainty}"),
+        ("task / set", f"{result.task} / {uncertainty}"),
         (
             "mesh",
             f"{len(result.per_point)} points ({args.mesh} per dimension) "
@@ -161,29 +278,37 @@ def _evaluate(args: argparse.Namespace) -> int:
         ("diverged", f"{summary['diverged']} of {summary['episodes_total']} episodes"),
         ("written", f"{out / 'summary.json'}, {out / _table_file(out)}"),
     ]
-    if args.plot:
-        from rrls.evaluation.plots import plot_result
-
-        rows.append(("plot", str(plot_result(out))))
     width = max(len(k) for k, _ in rows)
     for key, value in rows:
         print(f"{key:<{width}}  {value}")
+    if args.plot:  # after the table: a refused plot (nominal: one point) loses no result
+        from rrls.evaluation.plots import plot_result
+
+        print(f"{'plot':<{width}}  {plot_result(out)}")
     return 0
+
+
+def _default_set(task: str, meta: dict) -> str:
+    """The set the policy was trained on, else 3d (the largest set where there is no 3d)."""
+    from rrls.tasks import get_task
+
+    trained = meta.get("uncertainty")
+    if isinstance(trained, str) and trained.lower() in (*get_task(task).sets, "nominal"):
+        return trained.lower()
+    sets = [s for s in get_task(task).sets if get_task(task).families[s] == "robust"]
+    return "3d" if "3d" in sets else sets[-1]
 
 
 def _train(args: argparse.Namespace) -> int:
     from rrls.agents import Interrupted, train
     from rrls.agents.options import config_from_args
 
+    config, resume = config_from_args(args)  # bad options: ValueError, one line from main()
     try:
-        config, resume = config_from_args(args)
         run_dir = train(config, resume=resume)
     except Interrupted as stop:
         print(f"{stop}; continue with --resume")
         return 3
-    except (ValueError, FileExistsError) as err:
-        print(f"rrls train: {err}", file=sys.stderr)
-        return 2
     print(
         f"trained {config.algo} on {config.task}/{config.uncertainty}: {run_dir}/policy.npz "
         f"(evaluate with: rrls evaluate {run_dir})"
@@ -196,13 +321,7 @@ def _train(args: argparse.Namespace) -> int:
 def _evaluate_dynamic(args: argparse.Namespace) -> int:
     from rrls.evaluation import evaluate_run_dynamic
 
-    try:
-        if args.episodes < 1:
-            raise ValueError(f"--episodes must be >= 1, got {args.episodes}")
-        result = evaluate_run_dynamic(args.run_dir, episodes=args.episodes, seed=args.seed)
-    except (ValueError, FileNotFoundError) as err:
-        print(f"rrls evaluate-dynamic: {err}", file=sys.stderr)
-        return 2
+    result = evaluate_run_dynamic(args.run_dir, episodes=args.episodes, seed=args.seed)
     print(f"{result.env_id}: {result.mean:.2f} ± {result.std:.2f} over {args.episodes} episodes")
     return 0
 

@@ -42,6 +42,9 @@ _MIN_VALUE: dict[str, tuple[float, bool]] = {
     "body_mass": (0.0, False),  # mass must be > 0
     "geom_friction": (0.0, True),  # friction must be >= 0
 }
+#: upper limit of each field: far beyond any physical value, below where MuJoCo overflows
+#: (``worldfriction=1e300`` gives NaN observations; 1e8 still steps finitely)
+_MAX_VALUE: dict[str, float] = {"body_mass": 1e9, "geom_friction": 1e6}
 
 
 @dataclass(frozen=True)
@@ -82,6 +85,9 @@ class ParamSpec:
                 what = "mass" if self.field == "body_mass" else "friction"
                 op = ">=" if inclusive else ">"
                 return f"{self.name} is a {what} and must be {op} {low}, got {value!r}"
+        high = _MAX_VALUE.get(self.field)
+        if high is not None and value > high:
+            return f"{self.name} must be <= {high:g} (beyond it MuJoCo overflows), got {value!r}"
         return None
 
 
@@ -133,3 +139,19 @@ def force_params(parts: dict[str, str], planar: bool) -> tuple[ParamSpec, ...]:
             rows.append(ParamSpec(f"{part}force_y", "xfrc_applied", body, 1))
             rows.append(ParamSpec(f"{part}force_z", "xfrc_applied", body, 2))
     return tuple(rows)
+
+
+def check_bounds(specs: tuple[ParamSpec, ...], box: object) -> None:
+    """Refuse a box (``names``, ``low``, ``high``) whose bounds are not physical values.
+
+    So a set such as ``torsomass in (-1, 2)`` fails where it is built, not episodes later.
+    """
+    by_name = {s.name: s for s in specs} | {a: s for s in specs for a in s.aliases}
+    for name, low, high in zip(box.names, box.low, box.high):  # type: ignore[attr-defined]
+        spec = by_name.get(name)
+        if spec is None:
+            continue  # unknown names are reported by the caller, with the valid ones
+        for bound in (float(low), float(high)):
+            problem = spec.check(bound)
+            if problem:
+                raise ValueError(f"uncertainty set bound out of range: {problem}")

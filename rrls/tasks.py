@@ -20,11 +20,25 @@ class TaskSpec:
     key: str  #: short name used in ids and the CLI: "hopper"
     name: str  #: class-name stem: "Hopper" -> RobustHopper, ForceHopper
     v5_id: str  #: the Gymnasium env it is built on
-    v5_entry_point: str
-    planar: bool  #: every joint moves in the world x-z plane
+    planar: bool  #: every joint moves in the world x-z plane (forces' ``_y`` is vertical)
     params: tuple[ParamSpec, ...]  #: robust env parameters (masses, friction)
     forces: tuple[ParamSpec, ...]  #: force env parameters
     sets: dict[str, Bounds] = field(default_factory=dict)  #: "1d", "2d", "3d", "rarl"
+    #: env family of each set: "robust" (parameters of ``params``) or "force" (of ``forces``)
+    families: dict[str, str] = field(default_factory=dict)
+
+    def family_of(self, names: tuple[str, ...] | list[str]) -> str:
+        """The family whose parameter table holds every name (``"robust"`` if there are none)."""
+        for family, specs in (("robust", self.params), ("force", self.forces)):
+            valid = {s.name for s in specs} | {a for s in specs for a in s.aliases}
+            if all(n in valid for n in names):
+                return family
+        robust = ", ".join(s.name for s in self.params)
+        forces = ", ".join(s.name for s in self.forces)
+        raise ValueError(
+            f"parameters {list(names)} are not all of one family of task {self.key!r}; "
+            f"robust parameters: {robust}; force parameters: {forces}"
+        )
 
 
 WORLD_FRICTION = ParamSpec("worldfriction", "geom_friction", ALL_GEOMS)
@@ -37,7 +51,6 @@ def _rarl(*names: str) -> Bounds:
 def _task(
     key: str,
     name: str,
-    module: str,
     cls: str,
     planar: bool,
     parts: dict[str, str],
@@ -47,16 +60,17 @@ def _task(
 ) -> TaskSpec:
     params = ((WORLD_FRICTION,) if friction else ()) + mass_params(parts)
     forces = force_params(force_parts or parts, planar)
-    return TaskSpec(
+    spec = TaskSpec(
         key=key,
         name=name,
         v5_id=f"{cls.removesuffix('Env')}-v5",
-        v5_entry_point=f"gymnasium.envs.mujoco.{module}:{cls}",
         planar=planar,
         params=params,
         forces=forces,
-        sets=sets,
     )
+    # each set's family is read from the parameter tables (a set mixing families is refused)
+    families = {set_name: spec.family_of(tuple(bounds)) for set_name, bounds in sets.items()}
+    return TaskSpec(**{**spec.__dict__, "sets": sets, "families": families})
 
 
 _ANT_PARTS = {
@@ -99,7 +113,6 @@ TASKS: dict[str, TaskSpec] = {
         _task(
             "ant",
             "Ant",
-            "ant_v5",
             "AntEnv",
             planar=False,
             friction=False,
@@ -125,7 +138,6 @@ TASKS: dict[str, TaskSpec] = {
         _task(
             "halfcheetah",
             "HalfCheetah",
-            "half_cheetah_v5",
             "HalfCheetahEnv",
             planar=True,
             friction=True,
@@ -159,7 +171,6 @@ TASKS: dict[str, TaskSpec] = {
         _task(
             "hopper",
             "Hopper",
-            "hopper_v5",
             "HopperEnv",
             planar=True,
             friction=True,
@@ -178,7 +189,6 @@ TASKS: dict[str, TaskSpec] = {
         _task(
             "humanoidstandup",
             "HumanoidStandUp",
-            "humanoidstandup_v5",
             "HumanoidStandupEnv",
             planar=False,
             friction=False,
@@ -206,7 +216,6 @@ TASKS: dict[str, TaskSpec] = {
         _task(
             "invertedpendulum",
             "InvertedPendulum",
-            "inverted_pendulum_v5",
             "InvertedPendulumEnv",
             planar=True,
             friction=False,
@@ -220,7 +229,6 @@ TASKS: dict[str, TaskSpec] = {
         _task(
             "walker",
             "Walker2d",
-            "walker2d_v5",
             "Walker2dEnv",
             planar=True,
             friction=True,

@@ -36,7 +36,10 @@ class UncertaintySet:
     """A box ``low <= x <= high`` over the parameters ``names``.
 
     ``nominal`` is the unmodified environment's point (``None`` when unknown); ``label`` names
-    the set in reprs and result files (e.g. ``"hopper/3d"``).
+    the set in reprs and result files (e.g. ``"hopper/3d"``); ``family`` is the env family whose
+    parameters it names (``"robust"``: masses and friction, ``"force"``: external forces;
+    ``None`` when unknown: :func:`rrls.envs.resolve` finds it from the task's parameter table).
+    A zero-dimensional set (no names) is the unmodified model itself: its mesh is one empty point.
     """
 
     names: tuple[str, ...]
@@ -44,13 +47,16 @@ class UncertaintySet:
     high: np.ndarray
     nominal: np.ndarray | None = None
     label: str = ""
+    family: str | None = None
 
     def __post_init__(self) -> None:
         names = tuple(self.names)
         low = np.array(self.low, dtype=np.float64).reshape(-1)
         high = np.array(self.high, dtype=np.float64).reshape(-1)
-        if not names:
-            raise ValueError("an uncertainty set needs at least one parameter")
+        if not all(isinstance(n, str) and n for n in names):
+            raise ValueError(f"parameter names must be non-empty strings, got {names!r}")
+        if self.family not in (None, "robust", "force"):
+            raise ValueError(f"family must be 'robust', 'force' or None, got {self.family!r}")
         if len(set(names)) != len(names):
             raise ValueError(f"duplicate parameter names in {names}")
         if low.shape != (len(names),) or high.shape != (len(names),):
@@ -82,19 +88,35 @@ class UncertaintySet:
         bounds: Mapping[str, Sequence[float]],
         nominal: Mapping[str, float] | None = None,
         label: str = "",
+        family: str | None = None,
     ) -> UncertaintySet:
         """From the original code's ``{name: [low, high]}`` dicts (``...ParamsBound.X.value``)."""
         if isinstance(bounds, UncertaintySet):
             return bounds
+        if not isinstance(bounds, Mapping):
+            raise TypeError(
+                f"bounds must be a {{name: [low, high]}} mapping or an UncertaintySet, "
+                f"got {type(bounds).__name__}"
+            )
         names = tuple(bounds)
         for n in names:
+            if isinstance(bounds[n], (str, bytes)) or not hasattr(bounds[n], "__len__"):
+                raise ValueError(f"bounds of {n!r} must be [low, high], got {bounds[n]!r}")
             if len(bounds[n]) != 2:
                 raise ValueError(f"bounds of {n!r} must be [low, high], got {bounds[n]!r}")
-        low = [float(bounds[n][0]) for n in names]
-        high = [float(bounds[n][1]) for n in names]
+        try:
+            low = [float(bounds[n][0]) for n in names]
+            high = [float(bounds[n][1]) for n in names]
+        except (TypeError, ValueError) as err:
+            raise ValueError(f"bounds must be numbers: {err}") from None
         nom = None if nominal is None else [float(nominal[n]) for n in names]
         return cls(
-            names, np.array(low), np.array(high), None if nom is None else np.array(nom), label
+            names,
+            np.array(low, dtype=np.float64).reshape(-1),
+            np.array(high, dtype=np.float64).reshape(-1),
+            None if nom is None else np.array(nom),
+            label,
+            family,
         )
 
     def as_bounds(self) -> dict[str, list[float]]:
@@ -158,6 +180,8 @@ class UncertaintySet:
                 np.arange(lo, hi, (hi - lo) / n) if hi > lo else np.array([lo])
                 for lo, hi in zip(self.low, self.high)
             ]
+        if self.dim == 0:
+            return np.zeros((1, 0))  # the one point of the unmodified model
         return np.array(list(itertools.product(*axes)), dtype=np.float64).reshape(-1, self.dim)
 
     def normalize(self, x: Point) -> np.ndarray:

@@ -29,6 +29,8 @@ def test_version_and_module_entry_point():
     assert out.returncode == 0 and out.stdout.strip() == f"rrls {rrls.__version__}"
 
 
-def test_unknown_task_is_a_clear_error():
-    with pytest.raises(ValueError, match="valid tasks"):
+def test_unknown_task_is_a_clear_error(capsys):
+    with pytest.raises(SystemExit) as stop:
         main(["check", "--task", "cartpole"])
+    assert stop.value.code == 2
+    assert "valid tasks" in capsys.readouterr().err

@@ -354,14 +354,16 @@ def test_dynamic_evaluation_equals_the_plain_two_player_loop(game, uncertainty):
 def test_an_adversary_lowers_the_return():
     from rrls.evaluation import evaluate_dynamic
 
-    protagonist = _policy("hopper")
-    passive = evaluate_dynamic(
-        protagonist, lambda o: np.zeros((len(o), 2)), "hopper", "adversarial", "rarl", episodes=3
-    )
-    pushing = evaluate_dynamic(
-        protagonist, lambda o: np.ones((len(o), 2)), "hopper", "adversarial", "rarl", episodes=3
-    )
-    assert pushing.mean != passive.mean
+    # a pole left alone falls after ~20 steps; a constant 3 N sideways push on it (either way)
+    # topples it in about half the time: the adversary must *lower* the return
+    still = lambda o: np.zeros((len(o), 1))  # noqa: E731
+    game = ("invertedpendulum", "adversarial", "rarl")
+    passive = evaluate_dynamic(still, lambda o: np.zeros((len(o), 2)), *game, episodes=3)
+    assert passive.mean > 15
+    for push in (1.0, -1.0):
+        adversary = lambda o, p=push: np.tile([p, 0.0], (len(o), 1))  # noqa: E731
+        pushing = evaluate_dynamic(still, adversary, *game, episodes=3)
+        assert pushing.mean < 0.75 * passive.mean
 
 
 # -- adapters, CLI and plots --------------------------------------------------------------------
@@ -466,9 +468,44 @@ def test_plots_for_1d_and_3d(tmp_path, uncertainty):
         plot_result(result)
 
 
-def test_cli_evaluate_needs_a_task(tmp_path):
+def test_cli_evaluate_needs_a_task(tmp_path, capsys):
     from rrls.cli import main
 
     path = _policy("hopper").save(tmp_path / "p.npz")
-    with pytest.raises(SystemExit, match="--task is required"):
-        main(["evaluate", str(path)])
+    assert main(["evaluate", str(path)]) == 2
+    assert capsys.readouterr().err.strip() == (
+        "rrls evaluate: --task is required (the policy does not record its task)"
+    )
+
+
+def test_3d_plot_shares_one_colour_scale_and_names_the_policy(tmp_path):
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from rrls.evaluation import plot_result
+
+    policy = _policy("hopper")
+    policy.metadata.update(algorithm="m2td3", seed=7)
+    out = tmp_path / "ev"
+    evaluate(policy, "hopper", "3d", nb_mesh_dim=2, episodes=1, out_dir=out, max_episode_steps=15)
+    seen = {}
+    real_savefig = plt.Figure.savefig
+
+    def capture(fig, *args, **kwargs):
+        seen["fig"] = fig
+        return real_savefig(fig, *args, **kwargs)
+
+    plt.Figure.savefig = capture
+    try:
+        plot_result(out)
+    finally:
+        plt.Figure.savefig = real_savefig
+    fig = seen["fig"]
+    assert fig._suptitle.get_text().startswith("m2td3 seed 7 on hopper / 3d")
+    meshes = [a.collections[0] for a in fig.axes if a.get_label() != "<colorbar>"][:3]
+    assert len(meshes) == 3
+    assert len({m.get_clim() for m in meshes}) == 1  # one scale for the three slices
+    table = EvaluationResult.load(out).per_point["mean_return"]
+    assert meshes[0].get_clim() == (table.min(), table.max())

@@ -82,7 +82,7 @@ def test_adversary_at_fixed_params_matches_the_plain_env():
     box = HopperParamsBound.TWO_DIM.value
     game = DynamicAdversarial(RobustHopper(), box)
     z = np.array([0.5, -0.25], np.float32)
-    point = game.uncertainty_set.to_dict(game.uncertainty_set.denormalize(z.astype(np.float64)))
+    point = {k: float(v) for k, v in game.params_of(z).items()}
     actions = fixed_actions(game.action_space.spaces[0], 100)
     plain = RobustHopper(**point)
     obs_plain, r_plain, _ = rollout(plain, actions, seed=2)

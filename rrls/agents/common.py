@@ -138,15 +138,12 @@ def set_rng_state(gen: np.random.Generator, state: str) -> None:
 
 def task_env(task: str, uncertainty: str = "nominal") -> tuple[Any, Any]:
     """A bare env of ``task`` (no time limit: the loop truncates) of the family ``uncertainty``
-    needs, and the set's box (``None`` for the nominal task)."""
-    from rrls.envs import FORCE_ENVS, ROBUST_ENVS, get_uncertainty_set
-    from rrls.tasks import get_task
+    needs (``rrls.envs.resolve``, the one place that decides), and the set's box (``None`` for
+    the nominal task)."""
+    from rrls.envs import resolve
 
-    key = get_task(task).key
-    if uncertainty == "nominal":
-        return ROBUST_ENVS[key](), None
-    envs = FORCE_ENVS if uncertainty == "rarl" else ROBUST_ENVS
-    return envs[key](), get_uncertainty_set(key, uncertainty)
+    resolved = resolve(task, uncertainty)
+    return resolved.make_env(), (None if resolved.is_nominal else resolved.box)
 
 
 class Run:
@@ -386,7 +383,11 @@ class Run:
 
     def eval_set(self) -> str:
         """The set of the periodic mesh evaluation: the run's, or the benchmark's for forces."""
-        return self.uncertainty if self.uncertainty != "rarl" else benchmark_set(self.task)
+        from rrls.envs import resolve
+
+        if resolve(self.task, self.uncertainty).family == "force":
+            return benchmark_set(self.task)
+        return self.uncertainty
 
     def metadata(self, env: Any, learner: Any) -> dict[str, Any]:
         """What the saved policies record (``rrls evaluate RUN_DIR`` reads task and set)."""

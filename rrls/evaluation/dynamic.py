@@ -45,12 +45,17 @@ def dynamic_env_id(task: str, game: str = "adversarial", uncertainty: str = "3d"
     ``game="adversarial"`` with ``uncertainty`` in ``1d/2d/3d`` (parameters) or ``rarl`` (forces);
     ``game="nr"`` / ``"pr"``: the action-robust game (NR-MDP / PR-MDP).
     """
-    from rrls.tasks import get_task
+    from rrls.envs import resolve
 
-    key = get_task(task).key
     if game == "adversarial":
-        name = "forces" if uncertainty == "rarl" else uncertainty
-        return f"rrls/robust-{key}-adversarial-{name}-v0"
+        if not isinstance(uncertainty, str):
+            raise ValueError("the registered adversarial games take a set name (1d, 2d, 3d, rarl)")
+        resolved = resolve(task, uncertainty)
+        if resolved.is_nominal:
+            raise ValueError("the nominal model has no parameters for an adversary to play")
+        name = "forces" if resolved.family == "force" else resolved.name
+        return f"rrls/robust-{resolved.task}-adversarial-{name}-v0"
+    key = resolve(task, "nominal").task
     if game in ("nr", "pr"):
         return f"rrls/probabilistic-action-robust-{key}-v0"
     raise ValueError(f"unknown game {game!r}; valid: adversarial, nr, pr")
@@ -115,7 +120,8 @@ def evaluate_dynamic(
     while (lane_ep >= 0).any():
         live = np.flatnonzero(lane_ep >= 0)
         batch = np.stack([obs[lane] for lane in live])
-        agent, adv = np.asarray(protagonist(batch)), np.asarray(adversary(batch))
+        agent = _actions(protagonist(batch), "protagonist", len(live))
+        adv = _actions(adversary(batch), "adversary", len(live))
         for j, lane in enumerate(live):
             e = lane_ep[lane]
             obs[lane], reward, terminated, truncated, _ = envs[lane].step((agent[j], adv[j]))
@@ -163,3 +169,15 @@ def evaluate_run_dynamic(
         alpha=float(meta.get("alpha", 0.1)),
         batch_size=batch_size,
     )
+
+
+def _actions(out: Any, who: str, n: int) -> np.ndarray:
+    """A policy's batch of actions, or a ``PolicyError`` naming which policy misbehaved."""
+    from rrls.evaluation.runner import PolicyError
+
+    actions = np.asarray(out)
+    if actions.dtype.kind not in "biuf":
+        raise PolicyError(f"the {who} returned {actions.dtype} values; actions must be numbers")
+    if actions.ndim != 2 or len(actions) != n:
+        raise PolicyError(f"the {who} returned shape {actions.shape} for {n} observations")
+    return actions

@@ -109,11 +109,16 @@ class EvaluationResult:
         summary_path = out_dir / "summary.json"
         if not summary_path.exists():
             raise FileNotFoundError(f"{out_dir} holds no summary.json: not an rrls evaluation")
-        summary = json.loads(summary_path.read_text())
-        if (out_dir / "episodes.parquet").exists():
-            episodes = pd.read_parquet(out_dir / "episodes.parquet")
-        else:
-            episodes = pd.read_csv(out_dir / "episodes.csv")
+        summary = _read_json(summary_path)
+        table = out_dir / "episodes.parquet"
+        if not table.exists():
+            table = out_dir / "episodes.csv"
+        try:
+            episodes = pd.read_parquet(table) if table.suffix == ".parquet" else pd.read_csv(table)
+        except FileNotFoundError:
+            raise FileNotFoundError(f"{out_dir} holds no episodes table") from None
+        except Exception as err:  # noqa: BLE001 - any unreadable table: name the file
+            raise ValueError(f"{table} is unreadable: {err}") from None
         box = summary.get("uncertainty")
         box = UncertaintySet(**box) if box and box.get("names") else None
         config = {k: summary[k] for k in summary if k not in _DERIVED}
@@ -138,6 +143,19 @@ _DERIVED = {
     "episodes_total",
     "diverged",
 }
+
+
+def _read_json(path: Path) -> dict[str, Any]:
+    """A JSON object from ``path``; a damaged file is named in the error."""
+    try:
+        data = json.loads(path.read_text())
+    except (ValueError, UnicodeDecodeError) as err:
+        raise ValueError(
+            f"{path} is not valid JSON ({err}); remove it or use another directory"
+        ) from None
+    if not isinstance(data, dict):
+        raise ValueError(f"{path} does not hold a JSON object")
+    return data
 
 
 def _table_name() -> str:
@@ -175,21 +193,6 @@ def _box_json(box: UncertaintySet | None) -> dict[str, Any] | None:
     }
 
 
-def resolve(task: str, uncertainty: str | UncertaintySet) -> tuple[str, UncertaintySet | None, str]:
-    """(task key, set or None for the nominal model, env family "robust" | "force")."""
-    from rrls.envs import get_uncertainty_set
-    from rrls.tasks import get_task
-
-    key = get_task(task).key
-    if isinstance(uncertainty, UncertaintySet):
-        forces = [n for n in uncertainty.names if "force_" in n]
-        return key, uncertainty, "force" if forces else "robust"
-    name = str(uncertainty).lower()
-    if name == "nominal":
-        return key, None, "robust"  # the model exactly as Gymnasium ships it
-    return key, get_uncertainty_set(key, name), "force" if name == "rarl" else "robust"
-
-
 def evaluate(
     policy: Any,
     task: str,
@@ -214,46 +217,109 @@ def evaluate(
     episodes per worker). With ``out_dir``, finished chunks are kept there and a re-run with the
     same arguments resumes; ``summary.json`` and the episode table are written at the end.
     """
+    from rrls.envs import resolve
     from rrls.evaluation import runner
-    from rrls.evaluation.policies import policy_fingerprint
 
-    key, box, kind = resolve(task, uncertainty)
-    if episodes < 1 or nb_mesh_dim < 1:
-        raise ValueError(f"episodes and nb_mesh_dim must be >= 1, got {episodes}, {nb_mesh_dim}")
-    points = box.mesh(nb_mesh_dim, endpoint=endpoint) if box is not None else np.zeros((1, 0))
+    resolved = resolve(task, uncertainty)
+    _check_counts(episodes=episodes, nb_mesh_dim=nb_mesh_dim, max_episode_steps=max_episode_steps)
+    if workers is not None:
+        _check_counts(workers=workers)
+    if batch_size is not None:
+        _check_counts(batch_size=batch_size)
+    if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
+        raise ValueError(f"seed must be an integer >= 0, got {seed!r}")
+    points = resolved.box.mesh(nb_mesh_dim, endpoint=endpoint)
     seeds = runner.episode_seeds(seed, len(points), episodes)
     spec = runner.RolloutSpec(
-        key, kind, tuple(box.names) if box else (), points, seeds, max_episode_steps
+        resolved.task, resolved.family, resolved.box.names, points, seeds, max_episode_steps
     )
-    policy, obs_dim = prepare_policy(policy, spec)
-
-    config = {
-        "uncertainty": _box_json(box),
-        "uncertainty_name": uncertainty if isinstance(uncertainty, str) else box.label,
-        "env": f"rrls/{kind}-{key}-v0",
+    settings = {
         "mesh": nb_mesh_dim,
         "endpoint": endpoint,
         "episodes": episodes,
         "seed": seed,
         "max_episode_steps": max_episode_steps,
+    }
+    try:  # the engine's env cache lives only as long as this evaluation
+        return _evaluate(policy, resolved, spec, settings, workers, batch_size, out_dir, progress)
+    finally:
+        runner.clear_env_cache()
+
+
+def _check_counts(**values: Any) -> None:
+    """Refuse counts below 1 (and non-integers), naming the argument."""
+    for name, value in values.items():
+        if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 1:
+            raise ValueError(f"{name} must be an integer >= 1, got {value!r}")
+
+
+def _evaluate(
+    policy: Any,
+    resolved: Any,
+    spec: Any,
+    settings: dict[str, Any],
+    workers: int | None,
+    batch_size: int | None,
+    out_dir: str | Path | None,
+    progress: bool | None,
+) -> EvaluationResult:
+    from rrls.evaluation import runner
+    from rrls.evaluation.policies import as_policy, policy_fingerprint
+
+    key, kind = resolved.task, resolved.family
+    box = None if resolved.is_nominal else resolved.box
+    policy = as_policy(policy)
+    trained_on = (getattr(policy, "metadata", None) or {}).get("task")
+    if trained_on is not None and trained_on != key:
+        raise ValueError(f"the policy was trained on {trained_on!r}, not on task {key!r}")
+    policy, obs_dim = prepare_policy(policy, spec)
+
+    config = {
+        "uncertainty": _box_json(box),
+        "uncertainty_name": resolved.name or resolved.label,
+        "env": f"rrls/{kind}-{key}-v0",
+        **settings,
         "chunk": runner.CHUNK,
         "policy_fingerprint": policy_fingerprint(policy, obs_dim),
     }
-    chunk_dir = None
-    if out_dir is not None:
+    if out_dir is None:
+        frame = rollout_table(spec, policy, workers, batch_size, None, progress)
+        return _finish(key, box, frame, config, policy)
+    from rrls._io import DirectoryLock
+
+    with DirectoryLock(Path(out_dir)):  # one evaluation at a time per directory
         chunk_dir = _prepare_out_dir(Path(out_dir), config)
-    frame = rollout_table(spec, policy, workers, batch_size, chunk_dir, progress)
+        frame = rollout_table(spec, policy, workers, batch_size, chunk_dir, progress)
+        result = _finish(key, box, frame, config, policy)
+        result.save(out_dir)
+    return result
+
+
+def _finish(
+    key: str, box: UncertaintySet | None, frame: Any, config: dict[str, Any], policy: Any
+) -> EvaluationResult:
     config["versions"] = _versions()
+    config.update(_policy_record(policy))
     result = EvaluationResult(key, box, frame, config)
     if result.n_diverged:
         warnings.warn(
             f"{result.n_diverged} episode(s) diverged (MuJoCo instability); they are kept with "
             "the return reached before the divergence and flagged in the 'diverged' column",
-            stacklevel=2,
+            stacklevel=4,
         )
-    if out_dir is not None:
-        result.save(out_dir)
     return result
+
+
+def _policy_record(policy: Any) -> dict[str, Any]:
+    """What ``summary.json`` says of the policy: its algorithm, training seed and run directory."""
+    meta = getattr(policy, "metadata", None) or {}
+    record = {
+        "policy_algorithm": meta.get("algorithm"),
+        "policy_seed": meta.get("seed"),
+        "policy_run_dir": meta.get("run_dir"),
+        "policy_path": meta.get("path"),
+    }
+    return {k: v for k, v in record.items() if v is not None}
 
 
 def prepare_policy(policy: Any, spec: Any) -> tuple[Callable[[np.ndarray], Any], int]:
@@ -312,15 +378,17 @@ def _dims(spec: Any) -> tuple[int, int]:
 
 def _check_policy(policy: Callable, obs_dim: int, act_dim: int) -> None:
     """Fail before any rollout if the policy cannot map observations to actions."""
+    from rrls.evaluation.runner import PolicyError
+
     try:
         out = np.asarray(policy(np.zeros((2, obs_dim))))
     except Exception as err:
-        raise TypeError(
+        raise PolicyError(
             f"calling the policy on a batch of observations of shape (2, {obs_dim}) failed: {err}"
         ) from err
+    if out.dtype.kind not in "biuf":
+        raise PolicyError(f"the policy returned {out.dtype} values; actions must be real numbers")
     if out.shape != (2, act_dim):
-        from rrls.evaluation.runner import PolicyError
-
         raise PolicyError(
             f"the policy maps observations (2, {obs_dim}) to shape {out.shape}; expected "
             f"(2, {act_dim}) for this task"
@@ -333,7 +401,7 @@ def _prepare_out_dir(out_dir: Path, config: dict[str, Any]) -> Path:
 
     path = out_dir / "evaluation.json"
     if path.exists():
-        old = json.loads(path.read_text())
+        old = _read_json(path)
         diff = sorted(k for k in set(old) | set(config) if old.get(k) != config.get(k))
         if diff:
             raise ValueError(

@@ -150,8 +150,30 @@ class FastStepper(GenericStepper):
         return healthy
 
 
+def fast_stepper_applies(envs: Sequence[Any], task: str) -> bool:
+    """Whether :class:`FastStepper` reproduces ``env.step`` for these envs.
+
+    Only for the exact default ``Robust<Task>``/``Force<Task>`` classes of the four planar tasks,
+    built with no Gymnasium keyword (physical parameters only): a subclass may override ``step``
+    and a keyword (reward weights, XML file, health ranges) may change what it computes.
+    """
+    from rrls.envs import FAMILY_ENVS
+
+    if task not in FastStepper.TASKS or not envs:
+        return False
+    defaults = {FAMILY_ENVS[family][task] for family in FAMILY_ENVS}
+    for env in envs:
+        cls = type(env)
+        if cls not in defaults:
+            return False
+        kwargs = getattr(env, "_ezpickle_kwargs", None)
+        if kwargs is None or set(kwargs) - {"scale_inertia", *cls._names()}:
+            return False
+    return True
+
+
 def make_stepper(envs: Sequence[Any], task: str, fast: bool = True) -> GenericStepper:
-    """The fastest exact stepper for ``task``'s envs."""
-    if fast and task in FastStepper.TASKS:
+    """The fastest exact stepper for ``task``'s envs (the generic one unless it provably fits)."""
+    if fast and fast_stepper_applies(envs, task):
         return FastStepper(envs, task)
     return GenericStepper(envs)

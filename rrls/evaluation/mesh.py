@@ -10,7 +10,7 @@ Points are plain arrays; environments are built only when asked for, one at a ti
 
 from __future__ import annotations
 
-from collections.abc import Callable, Iterator, Mapping, Sequence
+from collections.abc import Callable, Mapping, MutableSequence, Sequence
 from typing import Any
 
 import numpy as np
@@ -21,18 +21,14 @@ Bounds = Mapping[str, Sequence[float]] | UncertaintySet
 
 
 def resolve_uncertainty(task: str, uncertainty: str | UncertaintySet) -> UncertaintySet:
-    """An ``UncertaintySet`` from a set name (``1d``, ``2d``, ``3d``, ``rarl``, ``nominal``)."""
-    from rrls.envs import get_uncertainty_set, nominal_params
+    """The box of a set name (``1d``, ``2d``, ``3d``, ``rarl``, ``nominal``) or a user box.
 
-    if isinstance(uncertainty, UncertaintySet):
-        return uncertainty
-    name = str(uncertainty).lower()
-    if name == "nominal":
-        # the single nominal point of the 1D set's parameter: the unmodified model
-        box = get_uncertainty_set(task, "1d")
-        value = nominal_params(task)[box.names[0]]
-        return UncertaintySet(box.names, [value], [value], [value], f"{box.label[:-3]}/nominal")
-    return get_uncertainty_set(task, name)
+    ``"nominal"`` is zero-dimensional: the model exactly as Gymnasium ships it (see
+    :func:`rrls.envs.resolve`, the one place that maps names to sets and env families).
+    """
+    from rrls.envs import resolve
+
+    return resolve(task, uncertainty).box
 
 
 def evaluation_points(
@@ -43,16 +39,26 @@ def evaluation_points(
 ) -> np.ndarray:
     """The mesh of ``task``'s set as an ``(nb_mesh_dim ** d, d)`` array (no env is built)."""
     box = resolve_uncertainty(task, uncertainty)
-    if box.dim and np.all(box.low == box.high):
-        return box.low[None, :].copy()
     return box.mesh(nb_mesh_dim, endpoint=endpoint)
 
 
-class EvaluationSet(Sequence):
-    """A lazy sequence of environments, one per mesh point: ``modified_env(**point)``.
+class _Lazy:
+    """A not-yet-built env of an :class:`EvaluationSet`: ``factory(**params)`` on access."""
 
-    Behaves like the original's list (``len``, indexing, iteration) but builds each env on access.
-    ``points`` holds the mesh as an array, ``params(i)`` the i-th point as a dict.
+    __slots__ = ("factory", "params")
+
+    def __init__(self, factory: Callable[..., Any], params: dict[str, float]) -> None:
+        self.factory = factory
+        self.params = params
+
+
+class EvaluationSet(MutableSequence):
+    """A lazy list of environments, one per mesh point: ``modified_env(**point)``.
+
+    Behaves like the original's list — ``len``, indexing, iteration, ``+`` with another list or
+    set, ``random.shuffle``, assignment, ``append`` — but an element is built only when it is
+    read (a new env at each read until something is stored in its place). ``points`` holds the
+    mesh as an array, ``params(i)`` the i-th point as a dict.
     """
 
     def __init__(
@@ -60,21 +66,61 @@ class EvaluationSet(Sequence):
     ) -> None:
         self.modified_env = modified_env
         self.uncertainty_set = box
-        self.points = points
+        self._slots: list[Any] = [_Lazy(modified_env, box.to_dict(p)) for p in points]
+
+    @classmethod
+    def _of(cls, template: EvaluationSet, slots: list[Any]) -> EvaluationSet:
+        out = cls.__new__(cls)
+        out.modified_env, out.uncertainty_set, out._slots = (
+            template.modified_env,
+            template.uncertainty_set,
+            slots,
+        )
+        return out
+
+    @property
+    def points(self) -> np.ndarray:
+        """The mesh points of the (not replaced) elements, ordered like ``names``."""
+        rows = [self.uncertainty_set.to_array(self.params(i)) for i in range(len(self))]
+        return np.array(rows, dtype=np.float64).reshape(len(rows), self.uncertainty_set.dim)
 
     def params(self, i: int) -> dict[str, float]:
-        return self.uncertainty_set.to_dict(self.points[i])
+        slot = self._slots[i]
+        if isinstance(slot, _Lazy):
+            return dict(slot.params)
+        return dict(slot.get_params())
 
     def __len__(self) -> int:
-        return len(self.points)
+        return len(self._slots)
 
     def __getitem__(self, i):  # noqa: ANN001, ANN204 - Sequence protocol
         if isinstance(i, slice):
-            return [self[j] for j in range(*i.indices(len(self)))]
-        return self.modified_env(**self.params(i))
+            return self._of(self, self._slots[i])
+        slot = self._slots[i]
+        return slot.factory(**slot.params) if isinstance(slot, _Lazy) else slot
 
-    def __iter__(self) -> Iterator[Any]:
-        return (self[i] for i in range(len(self)))
+    def __setitem__(self, i, value) -> None:  # noqa: ANN001 - MutableSequence protocol
+        if isinstance(i, slice):
+            value = value._slots if isinstance(value, EvaluationSet) else list(value)
+        self._slots[i] = value
+
+    def __delitem__(self, i) -> None:  # noqa: ANN001 - MutableSequence protocol
+        del self._slots[i]
+
+    def insert(self, index: int, value: Any) -> None:
+        self._slots.insert(index, value)
+
+    def __add__(self, other: Any) -> EvaluationSet:
+        if isinstance(other, EvaluationSet):
+            return self._of(self, self._slots + other._slots)
+        if isinstance(other, (list, tuple)):
+            return self._of(self, self._slots + list(other))
+        return NotImplemented
+
+    def __radd__(self, other: Any) -> EvaluationSet:
+        if isinstance(other, (list, tuple)):
+            return self._of(self, list(other) + self._slots)
+        return NotImplemented
 
     def __repr__(self) -> str:
         name = getattr(self.modified_env, "__name__", repr(self.modified_env))
@@ -100,13 +146,16 @@ def generate_evaluation_set(
     >>> envs[0].get_params()["worldfriction"]
     0.1
     """
+    from rrls.params import check_bounds
+
     box = UncertaintySet.from_bounds(param_bounds)
+    check_bounds(getattr(modified_env, "param_specs", ()), box)  # refuse now, not at env build
     return EvaluationSet(modified_env, box, box.mesh(nb_mesh_dim, endpoint=endpoint))
 
 
 def default_evaluation_set(task: str, uncertainty: str = "3d", nb_mesh_dim: int = 10):
     """The paper's evaluation set of ``task`` over ``uncertainty`` (10 points per dimension)."""
-    from rrls.envs import env_class
+    from rrls.envs import resolve
 
-    box = resolve_uncertainty(task, uncertainty)
-    return EvaluationSet(env_class(task, uncertainty), box, box.mesh(nb_mesh_dim))
+    resolved = resolve(task, uncertainty)
+    return EvaluationSet(resolved.env_class, resolved.box, resolved.box.mesh(nb_mesh_dim))

@@ -37,7 +37,8 @@ def plot_result(result: EvaluationResult | str | Path, path: str | Path | None =
     names = result.param_names
     table = result.per_point
     title = (
-        f"{result.task} / {result.config.get('uncertainty_name', '')}: worst case "
+        f"{_policy_name(result.config)} on {result.task} / "
+        f"{result.config.get('uncertainty_name', '')}: worst case "
         f"{result.worst_case:.1f}, average case {result.average_case:.1f}"
     )
     if len(names) == 0:
@@ -47,20 +48,27 @@ def plot_result(result: EvaluationResult | str | Path, path: str | Path | None =
         _line(ax, result, names[0])
     elif len(names) == 2:
         fig, ax = plt.subplots(figsize=(6, 5))
-        _heatmap(fig, ax, table, names[0], names[1], result.worst_point)
+        mesh = _heatmap(ax, table, names[0], names[1], result.worst_point)
+        fig.colorbar(mesh, ax=ax, label="mean return")
     else:
         worst = result.worst_point
         pairs = [(a, b) for i, a in enumerate(names) for b in names[i + 1 :]]
-        fig, axes = plt.subplots(1, len(pairs), figsize=(5.5 * len(pairs), 4.8), squeeze=False)
+        fig, axes = plt.subplots(
+            1, len(pairs), figsize=(5.5 * len(pairs), 4.8), squeeze=False, layout="constrained"
+        )
+        # one colour scale for every slice (the whole mesh's range), so colours compare
+        limits = (float(table["mean_return"].min()), float(table["mean_return"].max()))
         for ax, (a, b) in zip(axes[0], pairs):
             fixed = {n: worst[n] for n in names if n not in (a, b)}
             mask = np.ones(len(table), dtype=bool)
             for n, v in fixed.items():
                 mask &= np.isclose(table[n].to_numpy(), v)
-            _heatmap(fig, ax, table[mask], a, b, worst)
+            mesh = _heatmap(ax, table[mask], a, b, worst, limits)
             ax.set_title(", ".join(f"{n} = {v:.3g}" for n, v in fixed.items()), fontsize=9)
+        fig.colorbar(mesh, ax=list(axes[0]), label="mean return (all slices)")
     fig.suptitle(title, fontsize=10)
-    fig.tight_layout()
+    if len(names) < 3:  # the 3D figure lays itself out (constrained, shared colorbar)
+        fig.tight_layout()
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(path, dpi=120)
@@ -89,15 +97,44 @@ def _line(ax: Any, result: EvaluationResult, name: str) -> None:
     ax.legend(fontsize=8)
 
 
-def _heatmap(fig: Any, ax: Any, table: Any, a: str, b: str, worst: dict[str, float]) -> None:
+def _heatmap(
+    ax: Any,
+    table: Any,
+    a: str,
+    b: str,
+    worst: dict[str, float],
+    limits: tuple[float, float] | None = None,
+) -> Any:
     grid = table.pivot_table(index=b, columns=a, values="mean_return")
     xs, ys = grid.columns.to_numpy(), grid.index.to_numpy()
-    mesh = ax.pcolormesh(_edges(xs), _edges(ys), grid.to_numpy(), shading="flat", cmap="viridis")
-    fig.colorbar(mesh, ax=ax, label="mean return")
+    vmin, vmax = limits if limits is not None else (None, None)
+    mesh = ax.pcolormesh(
+        _edges(xs),
+        _edges(ys),
+        grid.to_numpy(),
+        shading="flat",
+        cmap="viridis",
+        vmin=vmin,
+        vmax=vmax,
+    )
     ax.scatter([worst[a]], [worst[b]], marker="x", color="red", s=60, label="worst point")
     ax.set_xlabel(a)
     ax.set_ylabel(b)
     ax.legend(fontsize=8, loc="upper right")
+    return mesh
+
+
+def _policy_name(config: dict[str, Any]) -> str:
+    """How a plot title names the evaluated policy: algorithm, training seed, file or run."""
+    where = config.get("policy_run_dir") or config.get("policy_path")
+    parts = [str(config["policy_algorithm"])] if config.get("policy_algorithm") else []
+    if config.get("policy_seed") is not None:
+        parts.append(f"seed {config['policy_seed']}")
+    if where:
+        parts.append(f"({Path(str(where)).name})")
+    if not parts:
+        parts.append(f"policy {config.get('policy_fingerprint', '?')}")
+    return " ".join(parts)
 
 
 def _edges(centers: np.ndarray) -> np.ndarray:

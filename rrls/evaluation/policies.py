@@ -162,22 +162,30 @@ class MLPPolicy:
 
     @classmethod
     def load(cls, path: str | Path) -> MLPPolicy:
-        with np.load(path, allow_pickle=False) as f:
-            if "header" not in f:
-                raise ValueError(f"{path} is not an rrls MLP policy file (no header)")
-            header = json.loads(bytes(f["header"]).decode())
-            if header.get("format") != "rrls-mlp":
-                raise ValueError(f"{path}: unknown policy format {header.get('format')!r}")
-            n = int(header["layers"])
-            weights = [f[f"w{i}"] for i in range(n)]
-            return cls(
-                weights,
-                [f[f"b{i}"] for i in range(n)],
-                f["action_scale"],
-                f["action_bias"],
-                dtype=weights[0].dtype,
-                metadata=header.get("metadata", {}),
-            )
+        """Read a file written by :meth:`save`; anything else is refused (never unpickled)."""
+        try:
+            with np.load(path, allow_pickle=False) as f:
+                if not hasattr(f, "files") or "header" not in f:
+                    raise ValueError("no header")
+                header = json.loads(bytes(f["header"]).decode())
+                if header.get("format") != "rrls-mlp":
+                    raise ValueError(f"unknown policy format {header.get('format')!r}")
+                n = int(header["layers"])
+                weights = [f[f"w{i}"] for i in range(n)]
+                biases = [f[f"b{i}"] for i in range(n)]
+                scale, bias = f["action_scale"], f["action_bias"]
+        except FileNotFoundError:
+            raise
+        except Exception as err:  # noqa: BLE001 - any unreadable content: one clear message
+            reason = str(err)
+            if "pickle" in reason or not isinstance(err, (KeyError, ValueError)) or not reason:
+                reason = "not an .npz archive"  # never suggest unpickling an unknown file
+            raise ValueError(
+                f"{path} is not an rrls MLP policy file (an .npz written by rrls): {reason}"
+            ) from None
+        return cls(
+            weights, biases, scale, bias, dtype=weights[0].dtype, metadata=header.get("metadata")
+        )
 
     def __repr__(self) -> str:
         sizes = [self.obs_dim] + [w.shape[1] for w in self.weights]
@@ -237,22 +245,28 @@ def as_policy(obj: Any) -> Callable[[np.ndarray], np.ndarray]:
 
 
 def load_policy(path: str | Path) -> Callable[[np.ndarray], np.ndarray]:
-    """Load a saved policy: an ``.npz`` MLP file, or a training-run directory of ``rrls train``."""
+    """Load a saved policy: an ``.npz`` MLP file, or a training-run directory of ``rrls train``.
+
+    The returned policy's ``metadata`` records where it came from (``path``, ``run_dir``).
+    """
     path = Path(path)
+    run_dir = None
     if path.is_dir():
         for name in ("policy.npz", "final/policy.npz"):
-            if (path / name).exists():
-                return MLPPolicy.load(path / name)
-        try:
-            from rrls.agents.io import load_run_policy  # type: ignore[import-not-found]
-        except ImportError as err:
-            raise FileNotFoundError(f"{path} holds no policy.npz and is not an rrls run") from err
-        return load_run_policy(path)
-    if not path.exists():
+            if (path / name).is_file():
+                run_dir, path = path, path / name
+                break
+        else:
+            raise FileNotFoundError(f"{path} holds no policy.npz: not an `rrls train` run")
+    elif not path.exists():
         raise FileNotFoundError(f"no policy file {path}")
-    if path.suffix == ".npz":
-        return MLPPolicy.load(path)
-    raise ValueError(f"{path}: unknown policy file type (expected .npz or a run directory)")
+    elif path.suffix != ".npz":
+        raise ValueError(f"{path}: unknown policy file type (expected .npz or a run directory)")
+    policy = MLPPolicy.load(path)
+    policy.metadata.setdefault("path", str(path))
+    if run_dir is not None:
+        policy.metadata.setdefault("run_dir", str(run_dir))
+    return policy
 
 
 def policy_fingerprint(policy: Callable[[np.ndarray], Any], obs_dim: int, n: int = 8) -> str:

@@ -23,13 +23,11 @@ import sys
 import warnings
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 import numpy as np
-
-from rrls.uncertainty import UncertaintySet
 
 CHUNK = 50  # episodes per chunk: the unit of resumption and of work sharing
 LANES = 64  # live episodes per worker (one policy block)
@@ -49,7 +47,6 @@ class RolloutSpec:
     points: np.ndarray  # (P, d)
     seeds: np.ndarray  # (P, E) uint32
     max_episode_steps: int = 1000
-    env_kwargs: dict[str, Any] = field(default_factory=dict)
 
     @property
     def n_episodes(self) -> int:
@@ -78,19 +75,28 @@ def episode_seeds(seed: int, n_points: int, episodes: int) -> np.ndarray:
 
 
 # -- one worker ------------------------------------------------------------------------------------
-_WORKER: dict[str, Any] = {}
+#: bare envs per (task, family), reused within one evaluation (building is slower than
+#: resetting); ``evaluate`` and ``search_worst_case`` empty it when they return
+_ENV_CACHE: dict[tuple[str, str], list[Any]] = {}
 
 
 def _envs(spec: RolloutSpec, n: int) -> list[Any]:
-    """Bare envs (no wrappers), cached per process: building is slower than resetting."""
-    from rrls.envs import FORCE_ENVS, ROBUST_ENVS
+    """Bare envs (no wrappers) of the spec's family; every lane is reset before use."""
+    from rrls.envs import FAMILY_ENVS
 
-    key = (spec.task, spec.kind, tuple(sorted(spec.env_kwargs.items())))
-    envs = _WORKER.setdefault(("envs", key), [])
-    cls = (FORCE_ENVS if spec.kind == "force" else ROBUST_ENVS)[spec.task]
+    envs = _ENV_CACHE.setdefault((spec.task, spec.kind), [])
+    cls = FAMILY_ENVS[spec.kind][spec.task]
     while len(envs) < n:
-        envs.append(cls(**spec.env_kwargs))
+        envs.append(cls())
     return envs[:n]
+
+
+def clear_env_cache() -> None:
+    """Close and forget the cached envs (no state survives from one evaluation to the next)."""
+    for envs in _ENV_CACHE.values():
+        for env in envs:
+            env.close()
+    _ENV_CACHE.clear()
 
 
 Finished = list[tuple[int, float, int, bool, bool]]  # (row, return, length, terminated, diverged)
@@ -205,6 +211,12 @@ def _check_actions(
     spec: RolloutSpec,
     act_dim: int,
 ) -> None:
+    if actions.dtype.kind not in "biuf":
+        r = int(lane_row[live[0]])
+        raise PolicyError(
+            f"policy returned {actions.dtype} values; actions must be real numbers — at "
+            f"{spec.describe(r)}, step {lengths[live[0]]}"
+        )
     if actions.shape != (len(live), act_dim):
         r = int(lane_row[live[0]])
         raise PolicyError(
@@ -229,8 +241,10 @@ def _worker_main(
     results: Any,
     lanes: int,
     fast: bool,
+    parent: int,
 ) -> None:
     """A worker process: pull rows from the shared counter, send finished episodes back."""
+    _exit_with_parent(parent)
     try:
         try:  # one BLAS thread per process: the processes already use every core
             from threadpoolctl import threadpool_limits
@@ -253,6 +267,37 @@ def _worker_main(
         results.put(None)
     except BaseException as err:  # noqa: BLE001 - forwarded to the parent, which re-raises
         results.put(_Failure(err))
+
+
+def _exit_with_parent(parent: int) -> None:
+    """Make this worker die with the evaluation that started it, even after ``kill -9``.
+
+    Linux: ``prctl(PR_SET_PDEATHSIG, SIGKILL)``; elsewhere (or if that fails) a daemon thread
+    that polls the parent pid. Either way a worker never outlives its parent blocked on a queue.
+    """
+    import signal
+    import threading
+    import time
+
+    if sys.platform.startswith("linux"):
+        try:
+            import ctypes
+
+            libc = ctypes.CDLL(None, use_errno=True)
+            pr_set_pdeathsig = 1
+            if libc.prctl(pr_set_pdeathsig, int(signal.SIGKILL), 0, 0, 0) == 0:
+                if os.getppid() != parent:  # the parent died before prctl took effect
+                    os._exit(1)
+                return
+        except (OSError, AttributeError):  # pragma: no cover - no libc/prctl: poll instead
+            pass
+
+    def watch() -> None:  # pragma: no cover - non-Linux fallback
+        while os.getppid() == parent:
+            time.sleep(1.0)
+        os._exit(1)
+
+    threading.Thread(target=watch, name="rrls-parent-watch", daemon=True).start()
 
 
 class _Failure:
@@ -315,10 +360,9 @@ def run(
         chunk_dir.mkdir(parents=True, exist_ok=True)
         for c in range(n_chunks):
             path = chunk_dir / f"{c:06d}.npz"
-            if path.exists():
-                with np.load(path, allow_pickle=False) as f:
-                    for k in cols:
-                        cols[k][c * chunk : c * chunk + remaining[c]] = f[k]
+            if path.exists() and _load_chunk(
+                path, cols, slice(c * chunk, c * chunk + remaining[c])
+            ):
                 remaining[c] = 0
     todo = np.concatenate(
         [np.arange(c * chunk, c * chunk + remaining[c]) for c in range(n_chunks) if remaining[c]]
@@ -359,6 +403,28 @@ def run(
     return cols
 
 
+def _load_chunk(path: Path, cols: dict[str, np.ndarray], block: slice) -> bool:
+    """Fill ``cols[block]`` from a saved chunk; a truncated, empty or malformed file is reported
+    by name, removed and recomputed (``False``), never a bare ``BadZipFile``/``EOFError``."""
+    size = block.stop - block.start
+    try:
+        with np.load(path, allow_pickle=False) as f:
+            data = {k: np.asarray(f[k]) for k in cols}
+        for k, v in data.items():
+            if v.shape != (size,) or not np.can_cast(v.dtype, cols[k].dtype, "same_kind"):
+                raise ValueError(f"column {k!r} has shape {v.shape} and dtype {v.dtype}")
+    except Exception as err:  # noqa: BLE001 - any unreadable content: recompute the chunk
+        warnings.warn(
+            f"chunk file {path} is unreadable ({type(err).__name__}: {err}); recomputing it",
+            stacklevel=3,
+        )
+        path.unlink(missing_ok=True)
+        return False
+    for k, v in data.items():
+        cols[k][block] = v
+    return True
+
+
 def _run_processes(
     spec: RolloutSpec,
     policy: Callable,
@@ -378,7 +444,7 @@ def _run_processes(
     procs = [
         ctx.Process(
             target=_worker_main,
-            args=(spec, policy, todo, counter, results, lanes, fast),
+            args=(spec, policy, todo, counter, results, lanes, fast, os.getpid()),
             daemon=True,
         )
         for _ in range(workers)
@@ -420,16 +486,3 @@ def _progress_bar(total: int, progress: bool | None) -> Any:
 
     disable = not sys.stderr.isatty() if progress is None else not progress
     return tqdm(total=total, unit="episode", desc="evaluating", disable=disable, smoothing=0.1)
-
-
-def spec_for(
-    task: str,
-    box: UncertaintySet | None,
-    points: np.ndarray,
-    seeds: np.ndarray,
-    kind: str = "robust",
-) -> RolloutSpec:
-    names = box.names if box is not None else ()
-    return RolloutSpec(
-        task, kind, tuple(names), np.asarray(points, float).reshape(len(seeds), -1), seeds
-    )

@@ -62,17 +62,39 @@ def search_worst_case(
     seeds). The population (``popsize`` points, default ``max(8, 5 * dim)``) is evaluated in one
     engine call per generation. Returns the worst point, its return and the trace.
     """
+    from rrls.envs import resolve
+    from rrls.evaluation import runner
+
+    resolved = resolve(task, uncertainty)
+    if resolved.is_nominal:
+        raise ValueError("the nominal model has no parameters to search over")
+    if budget < 2 or episodes < 1:
+        raise ValueError(f"budget must be >= 2 and episodes >= 1, got {budget}, {episodes}")
+    try:
+        return _search(
+            policy, resolved, budget, episodes, seed, workers, popsize, max_episode_steps
+        )
+    finally:
+        runner.clear_env_cache()
+
+
+def _search(
+    policy: Any,
+    resolved: Any,
+    budget: int,
+    episodes: int,
+    seed: int,
+    workers: int | None,
+    popsize: int | None,
+    max_episode_steps: int,
+) -> WorstCaseSearch:
     import pandas as pd
     from scipy.optimize import differential_evolution
 
     from rrls.evaluation import runner
-    from rrls.evaluation.evaluate import prepare_policy, resolve, rollout_table
+    from rrls.evaluation.evaluate import prepare_policy, rollout_table
 
-    key, box, kind = resolve(task, uncertainty)
-    if box is None:
-        raise ValueError("the nominal model has no parameters to search over")
-    if budget < 2 or episodes < 1:
-        raise ValueError(f"budget must be >= 2 and episodes >= 1, got {budget}, {episodes}")
+    key, box, kind = resolved.task, resolved.box, resolved.family
     dim = box.dim
     size = int(popsize or max(8, 5 * dim))
     size = min(size, budget)

@@ -5,8 +5,9 @@ from rrls.wrappers.action_robust import ConcatenateActions, ProbabilisticActionR
 from rrls.wrappers.adversarial import DynamicAdversarial
 from rrls.wrappers.domain_randomization import DomainRandomization
 
-#: the original code's (misspelt) name
+#: the original code's (misspelt) names
 ProbalistActionRobustWrapper = ProbabilisticActionRobust
+ProbalisticActionRobust = ProbabilisticActionRobust
 
 __all__ = [
     "ConcatenateActions",
@@ -16,4 +17,5 @@ __all__ = [
     "ParamsForwarding",
     "ProbabilisticActionRobust",
     "ProbalistActionRobustWrapper",
+    "ProbalisticActionRobust",
 ]

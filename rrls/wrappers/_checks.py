@@ -12,11 +12,17 @@ from rrls.uncertainty import UncertaintySet
 
 
 def check_names(env: gym.Env, box: UncertaintySet) -> None:
-    """Refuse a set naming parameters that ``env`` does not have, listing the valid ones."""
+    """Refuse a set naming parameters that ``env`` does not have (listing the valid ones), or
+    whose bounds are not physical values (a negative mass fails here, not episodes later)."""
+    from rrls.params import check_bounds
+
     valid = env.get_wrapper_attr("get_params")()
-    unknown = [n for n in box.names if n not in valid]
+    specs = getattr(env.unwrapped, "param_specs", ())
+    aliases = {a for s in specs for a in s.aliases}
+    unknown = [n for n in box.names if n not in valid and n not in aliases]
     if unknown:
         raise ValueError(f"unknown parameter(s) {unknown}; valid names: {', '.join(valid)}")
+    check_bounds(specs, box)
 
 
 def split_pair(action: Any, space: spaces.Tuple) -> tuple[np.ndarray, np.ndarray]:

@@ -21,8 +21,9 @@ class ProbabilisticActionRobust(ParamsForwarding, gym.utils.RecordConstructorArg
     ``mode="pr"`` (PR-MDP): with probability ``alpha`` the adversary's action is executed
     instead of the agent's, the coin drawn from the env's seeded generator.
 
-    The action space is ``Tuple(A, A)``; ``info["adversarial_reward"] = -reward`` and
-    ``info["executed_action"]`` holds what the env executed.
+    The action space is ``Tuple(A, A)``; ``info["adversarial_reward"] = -reward``,
+    ``info["executed_action"]`` holds what the env executed and, as in the original code,
+    ``info["agent action"]`` / ``info["adversarial action"]`` the two actions given.
 
     >>> import numpy as np
     >>> from rrls.envs import RobustHopper
@@ -37,8 +38,12 @@ class ProbabilisticActionRobust(ParamsForwarding, gym.utils.RecordConstructorArg
     def __init__(self, env: gym.Env, alpha: float = 0.1, mode: Literal["nr", "pr"] = "nr") -> None:
         gym.utils.RecordConstructorArgs.__init__(self, alpha=alpha, mode=mode)
         super().__init__(env)
-        if not (np.isfinite(alpha) and 0.0 <= alpha <= 1.0):
-            raise ValueError(f"alpha must be in [0, 1], got {alpha!r}")
+        if (
+            isinstance(alpha, bool)
+            or not isinstance(alpha, (int, float, np.integer, np.floating))
+            or not (np.isfinite(alpha) and 0.0 <= alpha <= 1.0)
+        ):
+            raise ValueError(f"alpha must be a number in [0, 1], got {alpha!r}")
         if mode not in ("nr", "pr"):
             raise ValueError(f"mode must be 'nr' (NR-MDP) or 'pr' (PR-MDP), got {mode!r}")
         self.alpha = float(alpha)
@@ -54,6 +59,8 @@ class ProbabilisticActionRobust(ParamsForwarding, gym.utils.RecordConstructorArg
         obs, reward, terminated, truncated, info = self.env.step(executed.astype(agent.dtype))
         info["adversarial_reward"] = -reward
         info["executed_action"] = executed
+        info["agent action"] = agent
+        info["adversarial action"] = adversary
         return obs, reward, terminated, truncated, info
 
 

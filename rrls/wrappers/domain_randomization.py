@@ -48,13 +48,24 @@ class DomainRandomization(ParamsForwarding, gym.utils.RecordConstructorArgs):
         check_names(self.env, self.uncertainty_set)
 
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
+        if options is not None and not isinstance(options, dict):
+            raise ValueError(f"options must be a dict of parameters, got {type(options).__name__}")
+        previous = self.env.np_random if seed is not None else None
         if seed is not None:
             self.env.np_random, _ = seeding.np_random(seed)
         rng = self.env.np_random
-        if self.randomize_fn is None:
-            params = self.uncertainty_set.sample(rng)
-        else:
-            params = dict(self.randomize_fn(self.uncertainty_set, rng))
-        obs, info = self.env.reset(options={**params, **(options or {})})
+        state = rng.bit_generator.state
+        try:
+            if self.randomize_fn is None:
+                params = self.uncertainty_set.sample(rng)
+            else:
+                params = dict(self.randomize_fn(self.uncertainty_set, rng))
+            obs, info = self.env.reset(options={**params, **(options or {})})
+        except Exception:
+            # a refused reset changes nothing: not the generator, not the next episode's draw
+            rng.bit_generator.state = state
+            if previous is not None:
+                self.env.np_random = previous
+            raise
         info["randomized_params"] = params
         return obs, info
