@@ -111,8 +111,9 @@ class Display:
         now = time.monotonic()
         if now - self._last_line >= self.interval:
             self._last_line = now
-            rows = "; ".join(self._row(k).split(None, 1)[0] + " " + _short(self._row(k))
-                             for k in running)
+            rows = "; ".join(
+                self._row(k).split(None, 1)[0] + " " + _short(self._row(k)) for k in running
+            )
             print(
                 f"[{time.strftime('%H:%M:%S')}] {c['done']}/{self.total} done, "
                 f"{c['running']} running, {c['failed']} failed, {c['pending']} pending; "
