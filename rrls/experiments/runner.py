@@ -142,6 +142,22 @@ def pending_runs(root: Path, spec: Spec) -> tuple[list[RunKey], int]:
     return todo, len(keys) - len(todo)
 
 
+def plan(root: Path, spec: Spec, todo: int, finished: int, jobs: int, backend: str) -> str:
+    """What is about to run, and the compute estimate (printed before anything starts)."""
+    est = estimate(spec, jobs or 1)
+    return (
+        f"rrls benchmark {root}: preset {spec.preset}, {len(spec.algos)} algorithms x "
+        f"{len(spec.tasks)} tasks x {len(spec.seeds)} seeds = {est['runs']} runs "
+        f"({finished} finished, {todo} to run), {spec.steps:,} steps each, set "
+        f"{spec.uncertainty}, mesh {spec.mesh} x {spec.episodes} episodes; {backend} backend"
+        + (f", {jobs} jobs" if jobs else "")
+        + "\nestimate for the whole grid (from measured single-thread speeds on a 2-core CPU; "
+        f"an estimate, +-30 %): {format_duration(est['cpu_s'])} of compute (training "
+        f"{format_duration(est['train_s'])}, evaluation <= {format_duration(est['eval_s'])}), "
+        f"about {format_duration(est['wall_s'])} wall time with {jobs or 1} parallel runs"
+    )
+
+
 def benchmark(
     out: str | Path,
     spec: Spec,
@@ -161,29 +177,12 @@ def benchmark(
 
     stream = stream or sys.stderr
     root = Path(out)
-    spec = reconcile(root, spec)
+    stored = reconcile(root, spec)  # refuses another protocol; the grid may grow
     root.mkdir(parents=True, exist_ok=True)
-    atomic_write_json(root / "benchmark.json", spec.to_json())
-    todo, finished = pending_runs(root, spec)
-    est = estimate(spec, jobs)
-    print(
-        f"rrls benchmark {root}: preset {spec.preset}, {len(spec.algos)} algorithms x "
-        f"{len(spec.tasks)} tasks x {len(spec.seeds)} seeds = {est['runs']} runs "
-        f"({finished} finished, {len(todo)} to run), {spec.steps:,} steps each, set "
-        f"{spec.uncertainty}, mesh {spec.mesh} x {spec.episodes} episodes; {backend} backend, "
-        f"{jobs} jobs",
-        file=stream,
-        flush=True,
-    )
-    print(
-        f"estimate (from measured single-thread speeds on a 2-core CPU, +-30 %): "
-        f"{format_duration(est['cpu_s'])} of compute (training {format_duration(est['train_s'])},"
-        f" evaluation <= {format_duration(est['eval_s'])}), about "
-        f"{format_duration(est['wall_s'])} wall time with {jobs} jobs for the whole grid",
-        file=stream,
-        flush=True,
-    )
-    display = Display(root, spec, todo, finished, jobs, stream, interval)
+    atomic_write_json(root / "benchmark.json", stored.to_json())
+    todo, finished = pending_runs(root, spec)  # this command's grid only
+    print(plan(root, spec, len(todo), finished, jobs, backend), file=stream, flush=True)
+    display = Display(root, spec, todo, finished, jobs or len(todo), stream, interval)
     code = 0
     try:
         if backend == "ray":
