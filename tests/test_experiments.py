@@ -40,8 +40,20 @@ def test_smoke_benchmark_writes_store_and_report(smoke):
     ev = pd.read_parquet(smoke / "results" / "evaluations.parquet")
     # one row per (run, mesh point, episode), each carrying the run's identity and versions
     assert len(ev) == 5 * 2 * 1
-    for col in ("algorithm", "task", "uncertainty", "seed", "steps", "point", "episode", "return",
-                "rrls_version", "gymnasium_version", "mujoco_version", "polemass"):
+    for col in (
+        "algorithm",
+        "task",
+        "uncertainty",
+        "seed",
+        "steps",
+        "point",
+        "episode",
+        "return",
+        "rrls_version",
+        "gymnasium_version",
+        "mujoco_version",
+        "polemass",
+    ):
         assert col in ev, col
     curves = pd.read_parquet(smoke / "results" / "curves.parquet")
     assert {"step", "episode_return", "eval_nominal_return"} <= set(curves.columns)
@@ -106,11 +118,12 @@ def _alive(pid: int) -> bool:
 
 
 @pytest.mark.skipif(not Path("/proc").exists(), reason="needs /proc to find the run processes")
-def test_killed_driver_leaves_no_process_and_rerun_gives_identical_summary(smoke, tmp_path):
+def test_killed_driver_leaves_no_process_and_rerun_gives_identical_numbers(smoke, tmp_path):
     out = tmp_path / "killed"
     env = {**os.environ, "PYTHONPATH": str(REPO)}
+    algos = ["--algos", "td3,rarl,m2td3"]  # a smaller grid than the fixture's: test time
     driver = subprocess.Popen(
-        [sys.executable, "-m", "rrls", *SMOKE, "--out", str(out)],
+        [sys.executable, "-m", "rrls", *SMOKE, "--out", str(out), *algos],
         cwd=REPO,
         env=env,
         stdout=subprocess.DEVNULL,
@@ -131,16 +144,21 @@ def test_killed_driver_leaves_no_process_and_rerun_gives_identical_summary(smoke
     while any(_alive(p) for p in children) and time.monotonic() < deadline:
         time.sleep(0.1)
     assert not any(_alive(p) for p in children), "run processes outlived the driver"
-    assert len(list(out.glob("runs/*/result.json"))) < 5  # it was really interrupted
-    assert main([*SMOKE, "--out", str(out)]) == 0
-    assert (out / "report" / "summary.json").read_bytes() == (
-        smoke / "report" / "summary.json"
-    ).read_bytes()
+    assert len(list(out.glob("runs/*/result.json"))) < 3  # it was really interrupted
+    assert main([*SMOKE, "--out", str(out), *algos]) == 0
+    resumed = json.loads((out / "report" / "summary.json").read_text())["results"]
+    whole = json.loads((smoke / "report" / "summary.json").read_text())["results"]
+    for algo in ("td3", "rarl", "m2td3"):  # every number, normalised scores and CIs included
+        assert resumed["invertedpendulum"][algo] == whole["invertedpendulum"][algo]
 
 
 def test_ray_backend_runs_the_same_function(smoke, tmp_path):
     ray = pytest.importorskip("ray", reason="the Ray backend needs `pip install rrls[ray]`")
-    ray.init(num_cpus=2, include_dashboard=False, log_to_driver=False)
+    # the workers import this checkout's rrls (as the driver does), with no network beyond here
+    env = {"PYTHONPATH": os.pathsep.join([str(REPO), os.environ.get("PYTHONPATH", "")])}
+    ray.init(
+        num_cpus=2, include_dashboard=False, log_to_driver=False, runtime_env={"env_vars": env}
+    )
     try:
         out = tmp_path / "ray"
         code = main([*SMOKE, "--out", str(out), "--backend", "ray", "--algos", "td3,rarl"])
@@ -149,8 +167,10 @@ def test_ray_backend_runs_the_same_function(smoke, tmp_path):
     assert code == 0
     local = json.loads((smoke / "report" / "summary.json").read_text())["results"]
     remote = json.loads((out / "report" / "summary.json").read_text())["results"]
-    for algo in ("td3", "rarl"):  # same numbers as the local pool
-        assert remote["invertedpendulum"][algo] == local["invertedpendulum"][algo]
+    for algo in ("td3", "rarl"):  # same numbers as the local pool (no M2TD3: no normalised)
+        for metric in ("worst_case", "average_case", "dynamic"):
+            mine = remote["invertedpendulum"][algo].get(metric)
+            assert mine == local["invertedpendulum"][algo].get(metric)
 
 
 @pytest.mark.parametrize(
@@ -206,15 +226,17 @@ def _paper_store(root: Path, drop: tuple[str, str] | None = None) -> dict:
     (10 seeds at mean ± std), and dynamic episodes with Table 6's means and stds."""
     paper = paper_results()
     signs = np.tile([1.0, -1.0], 5)  # mean 0, std (ddof=0) 1
+    skew = np.array([-1 / 3] * 9 + [3.0])  # also mean 0, std 1
     ev_rows, dyn_rows, runs = [], [], []
     for algo, tasks in paper["raw_worst_case"].items():
         for task, (w, sw) in tasks.items():
             if (algo, task) == drop:
                 continue
             a, sa = paper["raw_average_case"][algo][task]
-            for seed, s in enumerate(signs):
+            # a seed's worst case cannot exceed its average case: pick a pattern that allows it
+            z = next(z for z in (signs, skew, -skew) if np.all(w + sw * z <= a + sa * z))
+            for seed, s in enumerate(z):
                 worst, avg = w + sw * s, a + sa * s
-                assert worst <= avg
                 other = (3 * avg - worst) / 2  # points (worst, other, other): mean avg, min worst
                 key = dict(algorithm=algo, task=task, uncertainty="3d", seed=seed, steps=5_000_000)
                 for point, ret in enumerate((worst, other, other)):
@@ -222,7 +244,7 @@ def _paper_store(root: Path, drop: tuple[str, str] | None = None) -> dict:
                 runs.append({**key, "worst_case": worst, "average_case": avg})
                 if algo in paper["dynamic"]:
                     m, sd = paper["dynamic"][algo][task]
-                    dyn_rows.append({**key, "episode": 0, "return": m + sd * s})
+                    dyn_rows.append({**key, "episode": 0, "return": m + sd * signs[seed]})
     results = root / "results"
     results.mkdir(parents=True)
     pd.DataFrame(ev_rows).to_csv(results / "evaluations.csv", index=False)

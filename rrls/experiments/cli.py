@@ -38,7 +38,9 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:
     b.add_argument("--seeds", type=_positive, help="number of seeds (0..N-1)")
     b.add_argument("--steps", type=_positive, help="training steps per run")
     b.add_argument("--learning-starts", type=_positive)
-    b.add_argument("--eval-every", type=_positive, help="periodic evaluation every N steps (0: off)")
+    b.add_argument(
+        "--eval-every", type=_positive, help="periodic evaluation every N steps (0: off)"
+    )
     b.add_argument("--mesh", type=_positive, help="final evaluation: points per dimension")
     b.add_argument("--episodes", type=_positive, help="final evaluation: episodes per point")
     b.add_argument("--jobs", type=_positive, help="parallel runs (default: the number of cores)")

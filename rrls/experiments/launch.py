@@ -301,13 +301,15 @@ def run_local(
                     proc.join()
 
 
-def _finish(root: Path, spec: Spec, key: RunKey, ok: bool, on_event: Status) -> None:
+def _finish(
+    root: Path, spec: Spec, key: RunKey, ok: bool, on_event: Status, detail: str = ""
+) -> None:
     out = run_dir(root, spec, key)
     if ok and (out / "result.json").exists():
         on_event(key, "done", "")
         return
     error = out / "error.txt"
-    text = error.read_text().strip() if error.exists() else "the run's process died"
+    text = error.read_text().strip() if error.exists() else detail or "the run's process died"
     on_event(key, "failed", text.splitlines()[-1] if text else "failed")
 
 
@@ -347,10 +349,10 @@ def run_ray(
                 key = inflight.pop(ref)
                 try:
                     ray.get(ref)
-                    ok = True
-                except Exception:  # the task's traceback is in error.txt
-                    ok = False
-                _finish(root, spec, key, ok, on_event)
+                    ok, detail = True, ""
+                except Exception as err:  # the task's traceback is also in error.txt
+                    ok, detail = False, (str(err).strip().splitlines() or ["failed"])[-1]
+                _finish(root, spec, key, ok, on_event, detail)
             tick()
     finally:
         for ref in inflight:

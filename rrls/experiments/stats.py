@@ -37,15 +37,16 @@ def bootstrap_ci(
     rng: np.random.Generator,
     confidence: float = 0.95,
 ) -> list[float] | None:
-    """Percentile bootstrap CI of ``statistic(*samples)``; each sample resampled on its own
-    (stratified). ``None`` when a sample has fewer than two values (no interval exists)."""
+    """Percentile bootstrap CI of ``statistic(*samples, axis=-1)`` (vectorised: it reduces the
+    last axis); each sample resampled on its own (stratified). ``None`` when a sample has fewer
+    than two values (no interval exists)."""
     from scipy.stats import bootstrap
 
     samples = [np.asarray(s, dtype=float) for s in samples]
     if not samples or min(len(s) for s in samples) < 2:
         return None
     if all(np.all(s == s[0]) for s in samples):
-        value = float(statistic(*samples))
+        value = float(statistic(*samples, axis=-1))
         return [value, value]
     res = bootstrap(
         tuple(samples),
@@ -53,7 +54,8 @@ def bootstrap_ci(
         n_resamples=N_RESAMPLES,
         confidence_level=confidence,
         method="percentile",
-        vectorized=False,
+        vectorized=True,
+        axis=-1,
         paired=False,
         rng=rng,
     )
@@ -93,10 +95,11 @@ def normalise(v: np.ndarray, v_td3: float, v_m2td3: float) -> np.ndarray:
     return (np.asarray(v, dtype=float) - v_td3) / span
 
 
-def improvement_probability(x: np.ndarray, y: np.ndarray) -> float:
-    """P(X > Y) + P(X = Y) / 2 for a random seed of each (the Mann-Whitney U over n·m)."""
-    x, y = np.asarray(x, dtype=float)[:, None], np.asarray(y, dtype=float)[None, :]
-    return float(((x > y).sum() + 0.5 * (x == y).sum()) / (x.size * y.size))
+def improvement_probability(x: np.ndarray, y: np.ndarray) -> Any:
+    """P(X > Y) + P(X = Y) / 2 for a random seed of each (the Mann-Whitney U over n·m);
+    vectorised over leading axes."""
+    x, y = np.asarray(x, dtype=float)[..., :, None], np.asarray(y, dtype=float)[..., None, :]
+    return ((x > y).mean(axis=(-2, -1)) + 0.5 * (x == y).mean(axis=(-2, -1)))[()]
 
 
 def aggregate_poi(
@@ -106,18 +109,14 @@ def aggregate_poi(
     if not pairs:
         return {"value": None, "ci95": None, "n_tasks": 0}
 
-    def stat(*samples: np.ndarray) -> float:
-        return float(
-            np.mean(
-                [
-                    improvement_probability(samples[i], samples[i + 1])
-                    for i in range(0, len(samples), 2)
-                ]
-            )
-        )
+    def stat(*samples: np.ndarray, axis: int = -1) -> Any:
+        pairs_ = range(0, len(samples), 2)
+        per_task = [improvement_probability(samples[i], samples[i + 1]) for i in pairs_]
+        return np.mean(per_task, axis=0)
 
     flat = [s for pair in pairs for s in pair]
-    return {"value": stat(*flat), "ci95": bootstrap_ci(flat, stat, rng), "n_tasks": len(pairs)}
+    value = float(stat(*flat))
+    return {"value": value, "ci95": bootstrap_ci(flat, stat, rng), "n_tasks": len(pairs)}
 
 
 def aggregate_iqm(per_task: list[np.ndarray], rng: np.random.Generator) -> dict[str, Any]:
@@ -126,11 +125,13 @@ def aggregate_iqm(per_task: list[np.ndarray], rng: np.random.Generator) -> dict[
     if not per_task:
         return {"iqm": None, "ci95": None, "mean_over_tasks": None, "std_over_tasks": None}
 
-    def stat(*samples: np.ndarray) -> float:
-        return iqm(np.concatenate(samples))
+    def stat(*samples: np.ndarray, axis: int = -1) -> Any:
+        from scipy.stats import trim_mean
+
+        return trim_mean(np.concatenate(samples, axis=-1), 0.25, axis=-1)
 
     return {
-        "iqm": stat(*per_task),
+        "iqm": float(stat(*per_task)),
         "ci95": bootstrap_ci(per_task, stat, rng),
         "mean_over_tasks": float(np.mean([x.mean() for x in per_task])),
         "std_over_tasks": float(np.mean([x.std() for x in per_task])),

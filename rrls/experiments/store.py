@@ -1,7 +1,8 @@
 """The result store: tidy tables under ``DIR/results/``, rebuilt from the run directories only.
 
 - ``evaluations``: one row per (run, mesh point, episode) of the final mesh evaluation;
-- ``curves``: one row per (run, step) of training returns and periodic evaluations (``scalars.csv``);
+- ``curves``: one row per (run, step) of training returns and periodic evaluations
+  (from ``scalars.csv``);
 - ``dynamic``: one row per episode of the protagonist against its own adversary (RARL, NR-MDP);
 - ``runs``: one row per finished run (worst / average case, dynamic mean).
 
