@@ -118,10 +118,15 @@ def _alive(pid: int) -> bool:
 
 
 @pytest.mark.skipif(not Path("/proc").exists(), reason="needs /proc to find the run processes")
-def test_killed_driver_leaves_no_process_and_rerun_gives_identical_numbers(smoke, tmp_path):
+def test_killed_driver_leaves_no_process_and_rerun_gives_identical_numbers(
+    smoke, tmp_path, capsys
+):
     out = tmp_path / "killed"
     env = {**os.environ, "PYTHONPATH": str(REPO)}
-    algos = ["--algos", "td3,rarl,m2td3"]  # a smaller grid than the fixture's: test time
+    algos = ["--algos", "td3,rarl,m2td3,dr"]  # a smaller grid than the fixture's: test time
+    broken = out / "runs" / "dr-invertedpendulum-1d-seed0"
+    broken.mkdir(parents=True)
+    (broken / "checkpoint.pt").write_bytes(b"not a checkpoint")  # this run must fail alone
     driver = subprocess.Popen(
         [sys.executable, "-m", "rrls", *SMOKE, "--out", str(out), *algos],
         cwd=REPO,
@@ -145,7 +150,11 @@ def test_killed_driver_leaves_no_process_and_rerun_gives_identical_numbers(smoke
         time.sleep(0.1)
     assert not any(_alive(p) for p in children), "run processes outlived the driver"
     assert len(list(out.glob("runs/*/result.json"))) < 3  # it was really interrupted
-    assert main([*SMOKE, "--out", str(out), *algos]) == 0
+    capsys.readouterr()
+    assert main([*SMOKE, "--out", str(out), *algos]) == 1  # dr failed, the others went on
+    err = capsys.readouterr().err
+    assert "FAILED dr-invertedpendulum-1d-seed0" in err and "1 run(s) failed" in err
+    assert (broken / "error.txt").exists() and not (broken / "result.json").exists()
     resumed = json.loads((out / "report" / "summary.json").read_text())["results"]
     whole = json.loads((smoke / "report" / "summary.json").read_text())["results"]
     for algo in ("td3", "rarl", "m2td3"):  # every number, normalised scores and CIs included
