@@ -118,9 +118,7 @@ def _alive(pid: int) -> bool:
 
 
 @pytest.mark.skipif(not Path("/proc").exists(), reason="needs /proc to find the run processes")
-def test_killed_driver_leaves_no_process_and_rerun_gives_identical_numbers(
-    smoke, tmp_path, capsys
-):
+def test_killed_driver_leaves_no_process_and_rerun_gives_identical_numbers(smoke, tmp_path, capsys):
     out = tmp_path / "killed"
     env = {**os.environ, "PYTHONPATH": str(REPO)}
     algos = ["--algos", "td3,rarl,m2td3,dr"]  # a smaller grid than the fixture's: test time
