@@ -3,6 +3,7 @@ a killed driver, spec checks, and the paper's Tables 4-5 recomputed from its raw
 
 from __future__ import annotations
 
+import io
 import json
 import os
 import signal
@@ -18,7 +19,7 @@ import pytest
 from rrls.cli import main
 from rrls.experiments import stats
 from rrls.experiments.report import make_report, paper_results, summarise
-from rrls.experiments.runner import plan
+from rrls.experiments.runner import Display, plan
 from rrls.experiments.spec import Spec, SpecError, estimate, make_spec, reconcile
 
 pytest.importorskip("torch")
@@ -318,3 +319,34 @@ def test_bootstrap_cis_are_reproducible_for_a_seed(tmp_path):
     assert stats.improvement_probability(np.array([2.0, 3.0]), np.array([1.0, 3.0])) == 0.625
     poi = summarise(tmp_path)["aggregate"]["m2td3"]["poi_over_td3_worst_case"]
     assert 0.5 < poi["value"] <= 1 and poi["ci95"][0] <= poi["value"] <= poi["ci95"][1]
+
+
+class _Terminal(io.StringIO):
+    def isatty(self) -> bool:
+        return True
+
+
+@pytest.mark.parametrize("stream_type", [io.StringIO, _Terminal])
+def test_progress_shows_counts_running_runs_and_failures(tmp_path, stream_type):
+    spec = make_spec("smoke", algos="td3,dr,m2td3")
+    keys = spec.runs()
+    run = tmp_path / "runs" / keys[0].name(spec.uncertainty)
+    run.mkdir(parents=True)
+    (run / "progress.json").write_text(
+        json.dumps({"phase": "train", "step": 150, "total": 300, "sps": 50.0})
+    )
+    stream = stream_type()
+    display = Display(tmp_path, spec, keys, done_before=0, slots=2, stream=stream, interval=0)
+    display.event(keys[0], "running", "")
+    display.event(keys[1], "running", "")
+    display.tick()
+    display.event(keys[1], "failed", "ValueError: boom")
+    display.close()
+    text = stream.getvalue()
+    assert "td3-invertedpendulum-1d-seed0" in text and "150/300" in text and "50 steps/s" in text
+    assert "ETA 3 s" in text  # (300 - 150) / 50
+    assert "FAILED dr-invertedpendulum-1d-seed0: ValueError: boom" in text
+    if stream_type is io.StringIO:  # logs: plain lines with the counts
+        assert "0/3 done, 2 running, 0 failed, 1 pending" in text
+    else:
+        assert "pending 1 running 2 done 0 failed 0" in text

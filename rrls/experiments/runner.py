@@ -111,9 +111,7 @@ class Display:
         now = time.monotonic()
         if now - self._last_line >= self.interval:
             self._last_line = now
-            rows = "; ".join(
-                self._row(k).split(None, 1)[0] + " " + _short(self._row(k)) for k in running
-            )
+            rows = "; ".join(" ".join(self._row(k).split()) for k in running)
             print(
                 f"[{time.strftime('%H:%M:%S')}] {c['done']}/{self.total} done, "
                 f"{c['running']} running, {c['failed']} failed, {c['pending']} pending; "
@@ -128,11 +126,6 @@ class Display:
             row.close()
         if self._bar is not None:
             self._bar.close()
-
-
-def _short(row: str) -> str:
-    parts = row.split(None, 1)
-    return " ".join(parts[1].split()) if len(parts) > 1 else ""
 
 
 def pending_runs(root: Path, spec: Spec) -> tuple[list[RunKey], int]:
