@@ -350,3 +350,20 @@ def test_progress_shows_counts_running_runs_and_failures(tmp_path, stream_type):
         assert "0/3 done, 2 running, 0 failed, 1 pending" in text
     else:
         assert "pending 1 running 2 done 0 failed 0" in text
+
+
+def test_quickstart_is_the_quick_preset(tmp_path, capsys, monkeypatch):
+    from rrls.experiments import spec as spec_module
+
+    quick = spec_module.PRESETS["quick"]
+    assert quick["tasks"] == ("invertedpendulum",) and quick["uncertainty"] == "1d"
+    assert len(quick["algos"]) == 5 and quick["learning_rate"] == 1e-3
+    # the real pipeline on a smoke-sized "quick" preset (the real one takes ~10 minutes)
+    small = {**spec_module.PRESETS["smoke"], "algos": ("td3", "m2td3")}
+    monkeypatch.setitem(spec_module.PRESETS, "quick", small)
+    assert main(["quickstart", "--out", str(tmp_path), "--steps", "200"]) == 0
+    out = capsys.readouterr().out
+    assert "worst case" in out and "\ninvertedpendulum   td3 " in out
+    assert json.loads((tmp_path / "benchmark.json").read_text())["preset"] == "quick"
+    assert (tmp_path / "quickstart.png").stat().st_size > 10_000
+    assert (tmp_path / "report" / "report.md").exists()
