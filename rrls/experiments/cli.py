@@ -25,7 +25,7 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:
         "store and the report under --out. Re-running the same command resumes; adding "
         "algorithms, tasks or seeds extends the benchmark. Explicit options override the preset.",
     )
-    b.add_argument("--out", required=True, help="benchmark directory")
+    b.add_argument("--out", required=True, metavar="DIR", help="benchmark directory")
     b.add_argument(
         "--preset",
         default="paper",
@@ -35,17 +35,25 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:
     b.add_argument("--algos", help="comma-separated: td3,dr,rarl,nrmdp,m2td3")
     b.add_argument("--tasks", help="comma-separated: ant,halfcheetah,hopper,humanoidstandup,walker")
     b.add_argument("--uncertainty", help="evaluation set (and DR/M2TD3's training set): 1d, 2d, 3d")
-    b.add_argument("--seeds", type=_positive, help="number of seeds (0..N-1)")
-    b.add_argument("--steps", type=_positive, help="training steps per run")
-    b.add_argument("--learning-starts", type=_positive)
+    b.add_argument("--seeds", type=_positive, metavar="N", help="number of seeds (0..N-1)")
+    b.add_argument("--steps", type=_positive, metavar="N", help="training steps per run")
+    b.add_argument("--learning-starts", type=_positive, metavar="N")
     b.add_argument(
         "--eval-every", type=_positive, help="periodic evaluation every N steps (0: off)"
     )
-    b.add_argument("--mesh", type=_positive, help="final evaluation: points per dimension")
-    b.add_argument("--episodes", type=_positive, help="final evaluation: episodes per point")
-    b.add_argument("--jobs", type=_positive, help="parallel runs (default: the number of cores)")
+    b.add_argument(
+        "--mesh", type=_positive, metavar="N", help="final evaluation: points per dimension"
+    )
+    b.add_argument(
+        "--episodes", type=_positive, metavar="N", help="final evaluation: episodes per point"
+    )
+    b.add_argument(
+        "--jobs", type=_positive, metavar="N", help="parallel runs (default: the number of cores)"
+    )
     b.add_argument("--backend", default="local", help="local (process pool) or ray")
-    b.add_argument("--ray-address", help="Ray cluster address (default: RAY_ADDRESS or local)")
+    b.add_argument(
+        "--ray-address", metavar="ADDR", help="Ray cluster address (default: RAY_ADDRESS or local)"
+    )
     b.add_argument("--device", help="cpu (default) or cuda (Ray: a quarter GPU per run)")
 
     r = sub.add_parser(
@@ -65,6 +73,10 @@ def _fail(command: str, message: str) -> int:
 
 def run(args: argparse.Namespace) -> int:
     """Dispatch ``benchmark`` / ``report`` / ``quickstart``; spec errors -> one line, exit 2."""
+    try:
+        import scipy  # noqa: F401
+    except ImportError:
+        return _fail(args.command, "the report needs SciPy: pip install 'rrls[train]'")
     try:
         if args.command == "report":
             return _report(args)
