@@ -39,7 +39,10 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:
     b.add_argument("--steps", type=_positive, metavar="N", help="training steps per run")
     b.add_argument("--learning-starts", type=_positive, metavar="N")
     b.add_argument(
-        "--eval-every", type=_positive, help="periodic evaluation every N steps (0: off)"
+        "--eval-every",
+        type=_positive,
+        metavar="N",
+        help="periodic evaluation every N steps (0: off)",
     )
     b.add_argument(
         "--mesh", type=_positive, metavar="N", help="final evaluation: points per dimension"
