@@ -137,7 +137,8 @@ def test_killed_driver_leaves_no_process_and_rerun_gives_identical_numbers(smoke
     children: list[int] = []
     while time.monotonic() < deadline:  # kill it while runs are in flight, one already done
         children = _children(driver.pid) or children
-        if list(out.glob("runs/*/result.json")) and list(out.glob("runs/*/checkpoint.pt")):
+        in_flight = [p for p in out.glob("runs/*/checkpoint.pt") if p.parent != broken]
+        if list(out.glob("runs/*/result.json")) and in_flight:
             break
         time.sleep(0.05)
     children = _children(driver.pid) or children

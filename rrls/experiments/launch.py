@@ -69,6 +69,9 @@ def execute_run(root: str, spec_json: dict[str, Any], key: tuple[str, str, int])
     result["seconds_after_training"] = time.time() - start
     atomic_write_json(done, result)
     progress.path.unlink(missing_ok=True)
+    # The checkpoint only serves to resume training (its replay buffer is up to ~250 MB at
+    # 5 M steps: 60 GB for the paper's grid); a finished run keeps its policies, curves, logs.
+    (out / "checkpoint.pt").unlink(missing_ok=True)
     return result
 
 
