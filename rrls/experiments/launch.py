@@ -46,33 +46,59 @@ def execute_run(root: str, spec_json: dict[str, Any], key: tuple[str, str, int])
     os.environ.update(THREAD_ENV)  # before numpy/torch load here (a no-op if already loaded)
     from threadpoolctl import threadpool_limits
 
-    from rrls._io import atomic_write_json
-
     spec, run = Spec.from_json(spec_json), RunKey(*key)
     out = run_dir(Path(root), spec, run)
     done = out / "result.json"
     if done.exists():
         return json.loads(done.read_text())
     out.mkdir(parents=True, exist_ok=True)
+    with _exclusive(out), threadpool_limits(1):
+        return _stages(spec, run, out, done)
+
+
+def _stages(spec: Spec, run: RunKey, out: Path, done: Path) -> dict[str, Any]:
+    from rrls._io import atomic_write_json
+
+    if done.exists():  # finished by another process while this one waited to start
+        return json.loads(done.read_text())
     (out / "error.txt").unlink(missing_ok=True)
     progress = _ProgressFile(out / "progress.json", spec.steps)
     start = time.time()
-    with threadpool_limits(1):
-        if not (out / "run.json").exists():
-            progress.write("train", 0)
-            _train(spec, run, out, progress)
-        progress.write("evaluate", spec.steps)
-        result = _evaluate(spec, run, out)
-        if run.algo in DYNAMIC_ALGOS:
-            progress.write("dynamic", spec.steps)
-            result.update(_dynamic(spec, out))
-    result["seconds_after_training"] = time.time() - start
+    if not (out / "run.json").exists():
+        progress.write("train", 0)
+        _train(spec, run, out, progress)
+    progress.write("evaluate", spec.steps)
+    result = _evaluate(spec, run, out)
+    if run.algo in DYNAMIC_ALGOS:
+        progress.write("dynamic", spec.steps)
+        result.update(_dynamic(spec, out))
+    result["seconds"] = time.time() - start  # this execution's (a resumed run: since resuming)
     atomic_write_json(done, result)
     progress.path.unlink(missing_ok=True)
     # The checkpoint only serves to resume training (its replay buffer is up to ~250 MB at
     # 5 M steps: 60 GB for the paper's grid); a finished run keeps its policies, curves, logs.
     (out / "checkpoint.pt").unlink(missing_ok=True)
     return result
+
+
+@contextmanager
+def _exclusive(out: Path) -> Iterator[None]:
+    """Hold ``out/.lock`` while the run executes: a second driver on the same directory (or an
+    orphan of a killed one) cannot run it twice at once."""
+    try:
+        import fcntl
+    except ImportError:  # not POSIX: no lock
+        yield
+        return
+    with open(out / ".lock", "w") as handle:
+        try:
+            fcntl.flock(handle, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except OSError:
+            raise RuntimeError(f"{out} is being run by another process") from None
+        try:
+            yield
+        finally:
+            fcntl.flock(handle, fcntl.LOCK_UN)
 
 
 def _train(spec: Spec, run: RunKey, out: Path, progress: _ProgressFile) -> None:
