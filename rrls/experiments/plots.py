@@ -26,6 +26,14 @@ def _algo_label(algo: str) -> str:
     return NAMES.get(algo, algo)
 
 
+def _color(algo: str) -> str:
+    """One colour per algorithm in every figure."""
+    from rrls.experiments.report import ORDER
+
+    index = ORDER.index(algo) if algo in ORDER else len(ORDER) + sum(map(ord, algo)) % 5
+    return f"C{index}"
+
+
 def _binned(curves: Any, metric: str, steps: int) -> tuple[np.ndarray, dict[tuple, np.ndarray]]:
     """Per (task, algorithm): an array [seeds, BINS] of the metric averaged within step bins,
     gaps carried forward (an episode can span a bin)."""
@@ -78,15 +86,17 @@ def plot_curves(curves: Any, metric: str, steps: int, path: Path, ylabel: str) -
     tasks = list(dict.fromkeys(t for t, _ in binned))
     fig, axes = plt.subplots(1, len(tasks), figsize=(4.2 * len(tasks), 3.4), squeeze=False)
     for ax, task in zip(axes[0], tasks):
-        for (t, algo), values in binned.items():
-            if t != task:
-                continue
+        from rrls.experiments.report import _sorted
+
+        for algo in _sorted(a for t, a in binned if t == task):
+            values = binned[(task, algo)]
             with warnings.catch_warnings():  # bins before a run's first episode are empty
                 warnings.simplefilter("ignore", RuntimeWarning)
                 mean = np.nanmean(values, axis=0)
-            (line,) = ax.plot(centres, mean, label=f"{_algo_label(algo)} ({len(values)})")
+            label = f"{_algo_label(algo)} ({len(values)})"
+            ax.plot(centres, mean, label=label, color=_color(algo))
             lo, hi = _band(values, stats.rng_for(task, algo, metric, "band"))
-            ax.fill_between(centres, lo, hi, color=line.get_color(), alpha=0.2, linewidth=0)
+            ax.fill_between(centres, lo, hi, color=_color(algo), alpha=0.2, linewidth=0)
         from rrls.experiments.report import TASK_NAMES
 
         ax.set_title(TASK_NAMES.get(task, task))
@@ -133,7 +143,14 @@ def plot_over_set(evaluations: Any, task: str, path: Path) -> Path | None:
         for algo in _sorted(data["algorithm"].unique()):
             sel = data[data["algorithm"] == algo]
             curve = sel.groupby(name)["return"].mean()
-            ax.plot(curve.index, curve.to_numpy(), marker="o", ms=3, label=_algo_label(algo))
+            ax.plot(
+                curve.index,
+                curve.to_numpy(),
+                marker="o",
+                ms=3,
+                label=_algo_label(algo),
+                color=_color(algo),
+            )
         ax.set_xlabel(name)
         ax.set_ylabel("mean return")
         ax.legend(fontsize=7)
