@@ -164,7 +164,7 @@ def summarise(root: str | Path) -> dict[str, Any]:
 def _fmt(value: float | None, digits: int = 2) -> str:
     if value is None or not np.isfinite(value):
         return "–"
-    return f"{value:,.{digits}f}"
+    return f"{round(value, digits) + 0.0:,.{digits}f}"  # + 0.0: no "-0.00"
 
 
 def _pm(cell: dict[str, Any] | None, digits: int = 2) -> str:
@@ -176,7 +176,8 @@ def _pm(cell: dict[str, Any] | None, digits: int = 2) -> str:
 def _tex_pm(cell: dict[str, Any] | None, digits: int = 2, bold: bool = False) -> str:
     if not cell or cell.get("mean") is None:
         return "--"
-    body = f"{cell['mean']:.{digits}f} \\pm {cell['std']:.{digits}f}"
+    mean, std = (round(cell[k], digits) + 0.0 for k in ("mean", "std"))
+    body = f"{mean:.{digits}f} \\pm {std:.{digits}f}"
     return f"$\\mathbf{{{body}}}$" if bold else f"${body}$"
 
 
