@@ -11,7 +11,7 @@ import sys
 from rrls.experiments.spec import PRESETS, SpecError
 
 
-def _positive(value: str) -> int:
+def _int(value: str) -> int:
     return int(value)  # ranges are checked by the spec (one-line errors, exit 2)
 
 
@@ -35,23 +35,21 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:
     b.add_argument("--algos", help="comma-separated: td3,dr,rarl,nrmdp,m2td3")
     b.add_argument("--tasks", help="comma-separated: ant,halfcheetah,hopper,humanoidstandup,walker")
     b.add_argument("--uncertainty", help="evaluation set (and DR/M2TD3's training set): 1d, 2d, 3d")
-    b.add_argument("--seeds", type=_positive, metavar="N", help="number of seeds (0..N-1)")
-    b.add_argument("--steps", type=_positive, metavar="N", help="training steps per run")
-    b.add_argument("--learning-starts", type=_positive, metavar="N")
+    b.add_argument("--seeds", type=_int, metavar="N", help="number of seeds (0..N-1)")
+    b.add_argument("--steps", type=_int, metavar="N", help="training steps per run")
+    b.add_argument("--learning-starts", type=_int, metavar="N")
     b.add_argument(
         "--eval-every",
-        type=_positive,
+        type=_int,
         metavar="N",
         help="periodic evaluation every N steps (0: off)",
     )
+    b.add_argument("--mesh", type=_int, metavar="N", help="final evaluation: points per dimension")
     b.add_argument(
-        "--mesh", type=_positive, metavar="N", help="final evaluation: points per dimension"
+        "--episodes", type=_int, metavar="N", help="final evaluation: episodes per point"
     )
     b.add_argument(
-        "--episodes", type=_positive, metavar="N", help="final evaluation: episodes per point"
-    )
-    b.add_argument(
-        "--jobs", type=_positive, metavar="N", help="parallel runs (default: the number of cores)"
+        "--jobs", type=_int, metavar="N", help="parallel runs (default: the number of cores)"
     )
     b.add_argument("--backend", default="local", help="local (process pool) or ray")
     b.add_argument(
