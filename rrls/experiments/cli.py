@@ -11,12 +11,9 @@ import sys
 from rrls.experiments.spec import PRESETS, SpecError
 
 
-def _int(value: str) -> int:
-    return int(value)  # ranges are checked by the spec (one-line errors, exit 2)
-
-
 def add_parsers(sub: argparse._SubParsersAction) -> None:
-    """Register ``benchmark`` and ``report`` on the ``rrls`` sub-command parser."""
+    """Register ``benchmark`` and ``report`` on the ``rrls`` sub-command parser (ranges are
+    checked by the spec, so that errors are one line with exit status 2)."""
     b = sub.add_parser(
         "benchmark",
         help="train, evaluate and report a grid of runs (the paper's comparison); resumable",
@@ -35,21 +32,19 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:
     b.add_argument("--algos", help="comma-separated: td3,dr,rarl,nrmdp,m2td3")
     b.add_argument("--tasks", help="comma-separated: ant,halfcheetah,hopper,humanoidstandup,walker")
     b.add_argument("--uncertainty", help="evaluation set (and DR/M2TD3's training set): 1d, 2d, 3d")
-    b.add_argument("--seeds", type=_int, metavar="N", help="number of seeds (0..N-1)")
-    b.add_argument("--steps", type=_int, metavar="N", help="training steps per run")
-    b.add_argument("--learning-starts", type=_int, metavar="N")
+    b.add_argument("--seeds", type=int, metavar="N", help="number of seeds (0..N-1)")
+    b.add_argument("--steps", type=int, metavar="N", help="training steps per run")
+    b.add_argument("--learning-starts", type=int, metavar="N")
     b.add_argument(
         "--eval-every",
-        type=_int,
+        type=int,
         metavar="N",
         help="periodic evaluation every N steps (0: off)",
     )
-    b.add_argument("--mesh", type=_int, metavar="N", help="final evaluation: points per dimension")
+    b.add_argument("--mesh", type=int, metavar="N", help="final evaluation: points per dimension")
+    b.add_argument("--episodes", type=int, metavar="N", help="final evaluation: episodes per point")
     b.add_argument(
-        "--episodes", type=_int, metavar="N", help="final evaluation: episodes per point"
-    )
-    b.add_argument(
-        "--jobs", type=_int, metavar="N", help="parallel runs (default: the number of cores)"
+        "--jobs", type=int, metavar="N", help="parallel runs (default: the number of cores)"
     )
     b.add_argument("--backend", default="local", help="local (process pool) or ray")
     b.add_argument(
