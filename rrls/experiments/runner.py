@@ -146,8 +146,12 @@ def plan(root: Path, spec: Spec, todo: int, finished: int, jobs: int, backend: s
         + (f", {jobs} jobs" if jobs else "")
         + "\nestimate for the whole grid (from measured single-thread speeds on a 2-core CPU; "
         f"an estimate, +-30 %): {format_duration(est['cpu_s'])} of compute (training "
-        f"{format_duration(est['train_s'])}, evaluation <= {format_duration(est['eval_s'])}), "
-        f"about {format_duration(est['wall_s'])} wall time with {jobs or 1} parallel runs"
+        f"{format_duration(est['train_s'])}, evaluation <= {format_duration(est['eval_s'])})"
+        + (
+            f", about {format_duration(est['wall_s'])} wall time with {jobs} parallel runs"
+            if jobs
+            else ", divided among the cluster's CPUs"
+        )
     )
 
 
