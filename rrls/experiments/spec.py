@@ -116,6 +116,7 @@ PRESETS: dict[str, dict[str, Any]] = {
         learning_starts=1_000,
         eval_every=2_000,
         eval_episodes=5,
+        eval_mesh=3,  # curves of the worst case too (3 pole masses, 1 episode each)
         mesh=10,
         episodes=5,
         dynamic_episodes=10,
