@@ -379,6 +379,20 @@ def _markdown(
     lines.append("")
     if summary["missing"]:
         lines += ["## Missing cells", ""] + [f"- {m}" for m in summary["missing"]] + [""]
+    no_refs = [
+        t
+        for t in summary["tasks"]
+        if not all(
+            summary["results"][t].get(a, {}).get("worst_case", {}).get("n_seeds")
+            for a in ("td3", "m2td3")
+        )
+    ]
+    if no_refs:
+        lines += [
+            "Normalised scores need finished TD3 and M2TD3 runs on the task (the references); "
+            f"none for: {', '.join(no_refs)}.",
+            "",
+        ]
     lines += ["## Static evaluation", ""]
     for name in ("raw_worst_case", "raw_average_case", "normalised_worst_case"):
         lines += _md_table(summary, name, paper)
