@@ -221,7 +221,7 @@ def test_paper_preset_is_the_protocol_and_prints_an_estimate(tmp_path):
     est = estimate(spec, jobs=2)
     assert est["runs"] == 250 and est["wall_s"] == pytest.approx(est["cpu_s"] / 2)
     # 3 single-learner algorithms at ~330 steps/s, RARL and NR-MDP at about half
-    assert est["train_s"] == pytest.approx(50 * 5e6 * (3 / 330 + 2 / 165))
+    assert est["train_s"] == pytest.approx(50 * 5e6 * (3 / 330 + 2 / 165) + 250 * 5.0)
     text = plan(tmp_path, spec, 250, 0, 2, "local")
     assert "250 runs" in text and "estimate" in text and "days" in text
     # explicit options override the preset

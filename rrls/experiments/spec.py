@@ -253,6 +253,7 @@ def reconcile(out: Path, spec: Spec) -> Spec:
 # of one single-threaded run (TD3 ~330, M2TD3 similar, RARL/NR-MDP about half: two learners),
 # and env steps/s of each task's `env.step` (the evaluation's cost, policy calls excluded).
 TRAIN_STEPS_PER_S = {"td3": 330.0, "dr": 330.0, "m2td3": 330.0, "rarl": 165.0, "nrmdp": 165.0}
+STARTUP_S = 5.0  # per run: a fresh process importing torch, building envs (measured 4-6 s)
 ENV_STEPS_PER_S = {
     "ant": 3_600.0,
     "halfcheetah": 21_800.0,
@@ -270,7 +271,7 @@ def estimate(spec: Spec, jobs: int, max_episode_steps: int = 1000) -> dict[str, 
 
     train = evals = 0.0
     for key in spec.runs():
-        train += spec.steps / TRAIN_STEPS_PER_S[key.algo]
+        train += STARTUP_S + spec.steps / TRAIN_STEPS_PER_S[key.algo]
         dims = len(get_uncertainty_set(key.task, spec.uncertainty).names)
         env_sps = ENV_STEPS_PER_S.get(key.task, 5_000.0)
         n_periodic = spec.steps // spec.eval_every if spec.eval_every else 0
