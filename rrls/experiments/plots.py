@@ -152,13 +152,9 @@ def plot_over_set(evaluations: Any, task: str, path: Path) -> Path | None:
                 color=_color(algo),
             )
         ax.set_xlabel(name)
-        ax.set_ylabel("mean return")
+        ax.set_ylabel("mean return" if len(params) == 1 else "mean return (others averaged)")
         ax.legend(fontsize=7)
-    fig.suptitle(
-        f"{TASK_NAMES.get(task, task)}: return over the uncertainty set "
-        "(mean over seeds, episodes and the other parameters)",
-        fontsize=9,
-    )
+    fig.suptitle(f"{TASK_NAMES.get(task, task)}: return over the uncertainty set", fontsize=10)
     fig.tight_layout()
     path.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(path, dpi=110)
