@@ -74,7 +74,7 @@ def _stages(spec: Spec, run: RunKey, out: Path, done: Path) -> dict[str, Any]:
         result.update(_dynamic(spec, out))
     result["seconds"] = time.time() - start  # this execution's (a resumed run: since resuming)
     atomic_write_json(done, result)
-    progress.path.unlink(missing_ok=True)
+    progress.write("done", spec.steps)
     # The checkpoint only serves to resume training (its replay buffer is up to ~250 MB at
     # 5 M steps: 60 GB for the paper's grid); a finished run keeps its policies, curves, logs.
     (out / "checkpoint.pt").unlink(missing_ok=True)
@@ -179,18 +179,27 @@ class _ProgressFile:
     def __init__(self, path: Path, total: int) -> None:
         self.path, self.total = path, total
         self._last = 0.0
-        self._t0: float | None = None
-        self._s0 = 0
+        self._prev: tuple[float, int] | None = None  # (time, step) of the previous train write
+        self._sps = 0.0
 
     def write(self, phase: str, step: int, force: bool = True) -> None:
         now = time.monotonic()
         if not force and now - self._last < 1.0:
             return
-        if self._t0 is None or phase != "train":
-            self._t0, self._s0 = now, step
-        sps = (step - self._s0) / (now - self._t0) if now > self._t0 else 0.0
         self._last = now
-        data = {"phase": phase, "step": step, "total": self.total, "sps": sps, "pid": os.getpid()}
+        if phase == "train" and step > 0:
+            # smoothed rate between writes (start-up and imports do not count)
+            if self._prev is not None and step > self._prev[1] and now > self._prev[0]:
+                rate = (step - self._prev[1]) / (now - self._prev[0])
+                self._sps = rate if self._sps == 0 else 0.7 * self._sps + 0.3 * rate
+            self._prev = (now, step)
+        data = {
+            "phase": phase,
+            "step": step,
+            "total": self.total,
+            "sps": self._sps,
+            "pid": os.getpid(),
+        }
         tmp = self.path.with_suffix(".tmp")
         tmp.write_text(json.dumps(data))
         os.replace(tmp, self.path)
