@@ -3,6 +3,7 @@ a killed driver, spec checks, and the paper's Tables 4-5 recomputed from its raw
 
 from __future__ import annotations
 
+import importlib.util
 import io
 import json
 import os
@@ -22,7 +23,9 @@ from rrls.experiments.report import make_report, paper_results, summarise
 from rrls.experiments.runner import Display, plan
 from rrls.experiments.spec import Spec, SpecError, estimate, make_spec, reconcile
 
-pytest.importorskip("torch")
+needs_torch = pytest.mark.skipif(
+    importlib.util.find_spec("torch") is None, reason="training needs torch (rrls[train])"
+)
 REPO = Path(__file__).resolve().parents[1]
 SMOKE = ["benchmark", "--preset", "smoke", "--jobs", "2"]
 
@@ -35,6 +38,7 @@ def smoke(tmp_path_factory) -> Path:
     return out
 
 
+@needs_torch
 def test_smoke_benchmark_writes_store_and_report(smoke):
     runs = sorted(p.parent.name for p in smoke.glob("runs/*/result.json"))
     assert len(runs) == 5
@@ -75,6 +79,7 @@ def test_smoke_benchmark_writes_store_and_report(smoke):
     assert (smoke / "report" / "figures" / "curves_episode_return.png").stat().st_size > 5_000
 
 
+@needs_torch
 def test_rerun_skips_finished_runs_and_gives_the_same_summary(smoke, capsys):
     before = (smoke / "report" / "summary.json").read_bytes()
     start = time.perf_counter()
@@ -84,12 +89,14 @@ def test_rerun_skips_finished_runs_and_gives_the_same_summary(smoke, capsys):
     assert (smoke / "report" / "summary.json").read_bytes() == before
 
 
+@needs_torch
 def test_other_protocol_is_refused_naming_the_difference(smoke, capsys):
     assert main([*SMOKE, "--out", str(smoke), "--steps", "400", "--mesh", "3"]) == 2
     err = capsys.readouterr().err.strip()
     assert len(err.splitlines()) == 1 and "steps" in err and "mesh" in err
 
 
+@needs_torch
 def test_adding_seeds_extends_the_benchmark(smoke, tmp_path):
     stored = Spec.from_json(json.loads((smoke / "benchmark.json").read_text()))
     grown = reconcile(smoke, make_spec("smoke", algos="td3,dr", seeds=3))
@@ -118,6 +125,7 @@ def _alive(pid: int) -> bool:
     return state != "Z"
 
 
+@needs_torch
 @pytest.mark.skipif(not Path("/proc").exists(), reason="needs /proc to find the run processes")
 def test_killed_driver_leaves_no_process_and_rerun_gives_identical_numbers(smoke, tmp_path, capsys):
     out = tmp_path / "killed"
@@ -161,6 +169,7 @@ def test_killed_driver_leaves_no_process_and_rerun_gives_identical_numbers(smoke
         assert resumed["invertedpendulum"][algo] == whole["invertedpendulum"][algo]
 
 
+@needs_torch
 def test_ray_backend_runs_the_same_function(smoke, tmp_path):
     ray = pytest.importorskip("ray", reason="the Ray backend needs `pip install rrls[ray]`")
     # the workers import this checkout's rrls (as the driver does), with no network beyond here
@@ -355,6 +364,7 @@ def test_progress_shows_counts_running_runs_and_failures(tmp_path, stream_type):
         assert "pending 1 running 2 done 0 failed 0" in text
 
 
+@needs_torch
 def test_quickstart_is_the_quick_preset(tmp_path, capsys, monkeypatch):
     from rrls.experiments import spec as spec_module
 
