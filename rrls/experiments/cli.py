@@ -122,9 +122,14 @@ def _benchmark(args: argparse.Namespace) -> int:
         import torch  # noqa: F401
     except ImportError:
         return _fail("benchmark", "training needs torch: pip install 'rrls[train]'")
+    from pathlib import Path
+
     from rrls.experiments.runner import benchmark
 
-    return benchmark(args.out, spec, jobs or 0, args.backend, args.ray_address)
+    code = benchmark(args.out, spec, jobs or 0, args.backend, args.ray_address)
+    if code in (0, 1) and (Path(args.out) / "report" / "summary.json").exists():
+        print(_table(args.out))
+    return code
 
 
 def _report(args: argparse.Namespace) -> int:
