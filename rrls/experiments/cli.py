@@ -156,8 +156,11 @@ def _table(root: object) -> str:
 
     summary = json.loads((Path(str(root)) / "report" / "summary.json").read_text())
     lines = [f"{'task':<18} {'algorithm':<10} {'seeds':>5} {'worst case':>20} {'average case':>20}"]
+    from rrls.experiments.report import _sorted
+
     for task, algos in summary["results"].items():
-        for algo, cell in algos.items():
+        for algo in _sorted(algos):
+            cell = algos[algo]
             w, a = cell["worst_case"], cell["average_case"]
             if not w["n_seeds"]:
                 continue
