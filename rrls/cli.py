@@ -169,11 +169,16 @@ def build_parser(with_train: bool = True) -> argparse.ArgumentParser:
 
     quick = sub.add_parser(
         "quickstart",
-        help="train TD3, M2TD3 and DR on InvertedPendulum's 1D set, evaluate, print, plot",
+        help="the `quick` benchmark preset: five algorithms on InvertedPendulum's 1D set, "
+        "evaluated, reported, plotted (~10 min on 2 cores)",
     )
     quick.add_argument("--out", default="quickstart", help="output directory")
     quick.add_argument("--steps", type=int, default=None, help="steps per algorithm")
     quick.add_argument("--seed", type=int, default=0)
+
+    from rrls.experiments.cli import add_parsers
+
+    add_parsers(sub)  # benchmark, report
 
     plot = sub.add_parser(
         "plot",
@@ -216,10 +221,10 @@ def _dispatch(args: argparse.Namespace) -> int:
         return _train(args)
     if args.command == "evaluate-dynamic":
         return _evaluate_dynamic(args)
-    if args.command == "quickstart":
-        from rrls.quickstart import main as quickstart_main
+    if args.command in ("benchmark", "report", "quickstart"):
+        from rrls.experiments.cli import run
 
-        return quickstart_main(args.out, args.steps, args.seed)
+        return run(args)
     if args.command == "plot":
         from pathlib import Path
 

@@ -490,16 +490,6 @@ def test_robust_baselines_improve_on_a_random_policy(tmp_path, algo, uncertainty
     assert trained.average_case > 2 * baseline.average_case
 
 
-def test_quickstart_trains_evaluates_prints_and_plots(tmp_path, capsys):
-    assert main(["quickstart", "--out", str(tmp_path), "--steps", "300"]) == 0
-    out = capsys.readouterr().out
-    for algo in ("td3", "m2td3", "dr"):
-        assert f"\n{algo} " in out
-        assert (tmp_path / algo / "policy.npz").exists()
-        assert (tmp_path / f"{algo}-eval" / "summary.json").exists()
-    assert "worst case" in out and (tmp_path / "quickstart.png").stat().st_size > 10_000
-
-
 @pytest.mark.slow
 def test_nrmdp_adversary_lowers_the_protagonists_return_more_than_a_random_one(tmp_path):
     # Tessler's game on InvertedPendulum, trained at the registered alpha 0.1. At that share the

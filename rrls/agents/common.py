@@ -189,6 +189,9 @@ class Run:
             )
         self.dir.mkdir(parents=True, exist_ok=True)
         _remove_temporary_files(self.dir)  # left by a write killed half-way
+        self.resumed = resume and self.checkpoint_path.exists()
+        if not self.resumed:  # a fresh start: curves and logs of a run killed before its
+            _remove_run_files(self.dir)  # first checkpoint would otherwise be appended to
         # Dead ReLU units get zero gradients, so their Adam moments decay through the denormal
         # range, where x86 arithmetic is ~100x slower: measured, each Adam step took 5x longer.
         # Flush them to zero, as TensorFlow does on CPU (threads started later inherit it);
@@ -206,7 +209,6 @@ class Run:
         self._bar: Any = None
         self._t0 = time.perf_counter()
         self._t0_step = 0
-        self.resumed = resume and self.checkpoint_path.exists()
 
     # -- checkpoints ------------------------------------------------------------------------
     def _read_checkpoint(self) -> dict[str, Any]:

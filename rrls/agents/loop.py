@@ -15,6 +15,7 @@ acts, what it stores and how it updates.
 from __future__ import annotations
 
 import importlib
+from collections.abc import Callable
 from pathlib import Path
 from types import ModuleType
 from typing import Any
@@ -96,11 +97,16 @@ def hyperparameters(config: TrainConfig) -> TD3Config:
     return cls(**config.hyper)
 
 
-def train(config: TrainConfig, resume: bool = False) -> Path:
+def train(
+    config: TrainConfig,
+    resume: bool = False,
+    on_episode: Callable[[int, float], None] | None = None,
+) -> Path:
     """Train ``config.algo`` on ``config.task``; returns the run directory.
 
     With ``resume``, a checkpoint in ``config.out`` is continued exactly (no checkpoint: a fresh
-    start; a finished run with as many steps: returned as it is).
+    start; a finished run with as many steps: returned as it is). ``on_episode(step, return)``
+    is called at every episode end (progress displays of a driver running many runs).
     """
     algo = algorithm(config.algo)
     hyper = hyperparameters(config)
@@ -146,6 +152,8 @@ def train(config: TrainConfig, resume: bool = False) -> Path:
             if terminated or truncated:  # no transition crosses this reset
                 extra = learner.episode_end(episode_return, episode_length)
                 run.episode_end(episode_return, episode_length, **extra)
+                if on_episode is not None:
+                    on_episode(run.step, episode_return)
                 episode_return, episode_length = 0.0, 0
                 if run.checkpoint_due():
                     run.save(

@@ -1,0 +1,6 @@
+"""Experiments: the paper's comparison from one command (``rrls benchmark``, ``rrls report``).
+
+``spec`` (what a benchmark is, presets), ``launch`` (one run; local process pool or Ray),
+``runner`` (the driver: resume, progress), ``store`` (tidy result tables), ``report`` (statistics,
+tables, figures; reads the store only, never the training code), ``paper`` (the paper's numbers).
+"""

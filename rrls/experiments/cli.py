@@ -1,0 +1,198 @@
+"""``rrls benchmark`` and ``rrls report`` (and ``rrls quickstart``, the ``quick`` preset).
+
+Bad specifications end with one line on stderr and exit status 2, before any run starts.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+
+from rrls.experiments.spec import PRESETS, SpecError
+
+
+def add_parsers(sub: argparse._SubParsersAction) -> None:
+    """Register ``benchmark`` and ``report`` on the ``rrls`` sub-command parser (ranges are
+    checked by the spec, so that errors are one line with exit status 2)."""
+    b = sub.add_parser(
+        "benchmark",
+        help="train, evaluate and report a grid of runs (the paper's comparison); resumable",
+        description="Run a grid (algorithm x task x seed): training, the final mesh evaluation, "
+        "the dynamic evaluation of RARL/NR-MDP against their own adversaries; then the result "
+        "store and the report under --out. Re-running the same command resumes; adding "
+        "algorithms, tasks or seeds extends the benchmark. Explicit options override the preset.",
+    )
+    b.add_argument("--out", required=True, metavar="DIR", help="benchmark directory")
+    b.add_argument(
+        "--preset",
+        default="paper",
+        help="smoke (seconds, for tests), quick (~10 min on 2 cores, reduced budget), "
+        "paper (the paper's protocol; default)",
+    )
+    b.add_argument("--algos", help="comma-separated: td3,dr,rarl,nrmdp,m2td3")
+    b.add_argument("--tasks", help="comma-separated: ant,halfcheetah,hopper,humanoidstandup,walker")
+    b.add_argument("--uncertainty", help="evaluation set (and DR/M2TD3's training set): 1d, 2d, 3d")
+    b.add_argument("--seeds", type=int, metavar="N", help="number of seeds (0..N-1)")
+    b.add_argument("--steps", type=int, metavar="N", help="training steps per run")
+    b.add_argument("--learning-starts", type=int, metavar="N")
+    b.add_argument(
+        "--eval-every",
+        type=int,
+        metavar="N",
+        help="periodic evaluation every N steps (0: off)",
+    )
+    b.add_argument("--mesh", type=int, metavar="N", help="final evaluation: points per dimension")
+    b.add_argument("--episodes", type=int, metavar="N", help="final evaluation: episodes per point")
+    b.add_argument(
+        "--jobs", type=int, metavar="N", help="parallel runs (default: the number of cores)"
+    )
+    b.add_argument("--backend", default="local", help="local (process pool) or ray")
+    b.add_argument(
+        "--ray-address", metavar="ADDR", help="Ray cluster address (default: RAY_ADDRESS or local)"
+    )
+    b.add_argument("--device", help="cpu (default) or cuda (Ray: a quarter GPU per run)")
+
+    r = sub.add_parser(
+        "report",
+        help="regenerate a benchmark's report (summary.json, report.md, tables, figures)",
+        description="Rebuild DIR/results from the run directories and write DIR/report: "
+        "summary.json, report.md, tables/*.tex (booktabs) and *.csv, figures.",
+    )
+    r.add_argument("dir", help="a `rrls benchmark --out` directory")
+    r.add_argument("--no-plots", action="store_true", help="skip the figures")
+
+
+def _fail(command: str, message: str) -> int:
+    print(f"rrls {command}: error: {message}", file=sys.stderr)
+    return 2
+
+
+def run(args: argparse.Namespace) -> int:
+    """Dispatch ``benchmark`` / ``report`` / ``quickstart``; spec errors -> one line, exit 2."""
+    try:
+        import scipy  # noqa: F401
+    except ImportError:
+        return _fail(args.command, "the report needs SciPy: pip install 'rrls[train]'")
+    try:
+        if args.command == "report":
+            return _report(args)
+        if args.command == "quickstart":
+            return _quickstart(args)
+        return _benchmark(args)
+    except SpecError as err:
+        return _fail(args.command, str(err))
+
+
+def _spec_from(args: argparse.Namespace) -> tuple:
+    from rrls.experiments.spec import default_jobs, make_spec
+
+    if args.preset not in PRESETS:
+        raise SpecError(f"unknown preset {args.preset!r}; valid: {', '.join(PRESETS)}")
+    if args.backend not in ("local", "ray"):
+        raise SpecError(f"unknown backend {args.backend!r}; valid: local, ray")
+    if args.jobs is not None and args.jobs < 1:
+        raise SpecError(f"--jobs must be >= 1, got {args.jobs}")
+    if args.device is not None and not (args.device == "cpu" or args.device.startswith("cuda")):
+        raise SpecError(f"unknown device {args.device!r}; valid: cpu, cuda")
+    spec = make_spec(
+        args.preset,
+        algos=args.algos,
+        tasks=args.tasks,
+        uncertainty=args.uncertainty.lower() if args.uncertainty else None,
+        seeds=args.seeds,
+        steps=args.steps,
+        learning_starts=args.learning_starts,
+        eval_every=args.eval_every,
+        mesh=args.mesh,
+        episodes=args.episodes,
+        device=args.device,
+    )
+    jobs = args.jobs or (None if args.backend == "ray" else default_jobs())
+    return spec, jobs
+
+
+def _benchmark(args: argparse.Namespace) -> int:
+    spec, jobs = _spec_from(args)
+    if args.backend == "ray":
+        try:
+            import ray  # noqa: F401
+        except ImportError:
+            return _fail("benchmark", "--backend ray needs Ray: pip install 'rrls[ray]'")
+    try:
+        import torch  # noqa: F401
+    except ImportError:
+        return _fail("benchmark", "training needs torch: pip install 'rrls[train]'")
+    from pathlib import Path
+
+    from rrls.experiments.runner import benchmark
+
+    code = benchmark(args.out, spec, jobs or 0, args.backend, args.ray_address)
+    if code in (0, 1) and (Path(args.out) / "report" / "summary.json").exists():
+        print(_table(args.out))
+    return code
+
+
+def _report(args: argparse.Namespace) -> int:
+    from pathlib import Path
+
+    from rrls.experiments.report import make_report
+    from rrls.experiments.store import build_store
+
+    root = Path(args.dir)
+    if not (root / "runs").is_dir() and not (root / "results").is_dir():
+        return _fail("report", f"{root} is not a benchmark directory (no runs/ or results/)")
+    if (root / "runs").is_dir():
+        build_store(root)
+    path = make_report(root, plots=not args.no_plots)
+    print(_table(root))
+    print(f"report: {path}")
+    return 0
+
+
+def _table(root: object) -> str:
+    """The worst / average case per task and algorithm, for the terminal."""
+    import json
+    from pathlib import Path
+
+    summary = json.loads((Path(str(root)) / "report" / "summary.json").read_text())
+    lines = [f"{'task':<18} {'algorithm':<10} {'seeds':>5} {'worst case':>20} {'average case':>20}"]
+    from rrls.experiments.report import _sorted
+
+    for task, algos in summary["results"].items():
+        for algo in _sorted(algos):
+            cell = algos[algo]
+            w, a = cell["worst_case"], cell["average_case"]
+            if not w["n_seeds"]:
+                continue
+            lines.append(
+                f"{task:<18} {algo:<10} {w['n_seeds']:>5} "
+                f"{w['mean']:>11.1f} ± {w['std']:<6.1f} {a['mean']:>11.1f} ± {a['std']:<6.1f}"
+            )
+    return "\n".join(lines)
+
+
+def _quickstart(args: argparse.Namespace) -> int:
+    """The ``quick`` preset in ``--out``: one pipeline with ``rrls benchmark --preset quick``."""
+    import shutil
+    from pathlib import Path
+
+    from rrls.experiments.spec import default_jobs, make_spec
+
+    try:
+        import torch  # noqa: F401
+    except ImportError:
+        return _fail("quickstart", "needs torch: pip install 'rrls[train]'")
+    from rrls.experiments.runner import benchmark
+
+    spec = make_spec("quick", steps=args.steps, first_seed=getattr(args, "seed", 0))
+    code = benchmark(args.out, spec, default_jobs())
+    root = Path(args.out)
+    if (root / "report" / "summary.json").exists():
+        print(_table(root))
+        figure = root / "report" / "figures" / "returns_invertedpendulum.png"
+        if figure.exists():
+            shutil.copyfile(figure, root / "quickstart.png")
+            print(f"plot: {root / 'quickstart.png'}")
+        print(f"report: {root / 'report' / 'report.md'} (reduced budget, not the paper's)")
+        print(f"runs: {root}/runs (TensorBoard: tensorboard --logdir {root}/runs)")
+    return code

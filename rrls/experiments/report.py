@@ -1,0 +1,448 @@
+"""``rrls report DIR``: summary.json, report.md, LaTeX/CSV tables and figures, from the store only.
+
+Conventions (paper §5 and Appendix):
+
+- a run's worst case is the minimum over mesh points of the mean return over the point's
+  episodes, its average case the mean over points; a cell (task, algorithm) is the mean ± std
+  (ddof=0) over seeds of those per-run numbers;
+- normalised score: ``(v - v_TD3) / |v_M2TD3 - v_TD3|`` where ``v_TD3`` and ``v_M2TD3`` are the
+  *seed means* of TD3 and M2TD3 on that task. Each seed of an algorithm is normalised with those
+  references and the cell is the mean ± std over seeds — equal to normalising the seed mean (the
+  map is affine), which is how the paper's Tables 4-5 follow from its raw tables (std = raw std /
+  |v_M2TD3 - v_TD3|); the "Average" column is the mean over tasks of the means and of the stds;
+- Table 6: per seed, the mean return of the protagonist against its own adversary over the
+  episodes; the cell is mean ± std over seeds.
+
+The report never imports the training code: it reads ``DIR/results/`` (and ``benchmark.json``).
+"""
+
+from __future__ import annotations
+
+import json
+from importlib import resources
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from rrls.experiments import stats
+
+ORDER = ("td3", "dr", "m2td3", "rarl", "nrmdp")  # the paper's row order
+NAMES = {"td3": "TD3", "dr": "DR", "m2td3": "M2TD3", "rarl": "RARL", "nrmdp": "NR-MDP"}
+TASK_NAMES = {
+    "ant": "Ant",
+    "halfcheetah": "HalfCheetah",
+    "hopper": "Hopper",
+    "humanoidstandup": "HumanoidStandup",
+    "invertedpendulum": "InvertedPendulum",
+    "walker": "Walker",
+}
+METRICS = ("worst_case", "average_case")
+
+
+def paper_results() -> dict[str, Any]:
+    """The paper's published raw, normalised and Table 6 numbers (package data)."""
+    text = resources.files("rrls.experiments").joinpath("paper_results.json").read_text()
+    return json.loads(text)
+
+
+def _sorted(algos: Any) -> list[str]:
+    algos = list(dict.fromkeys(algos))
+    return sorted(algos, key=lambda a: (ORDER.index(a) if a in ORDER else len(ORDER), a))
+
+
+def summarise(root: str | Path) -> dict[str, Any]:
+    """Everything ``summary.json`` holds, computed from the store."""
+    from rrls.experiments.store import load_store
+
+    root = Path(root)
+    tables = load_store(root)
+    spec_path = root / "benchmark.json"
+    spec = json.loads(spec_path.read_text()) if spec_path.exists() else None
+    ev = tables["evaluations"]
+    scores = stats.per_seed_scores(ev) if len(ev) else None
+    present_tasks = list(dict.fromkeys(ev["task"])) if len(ev) else []
+    present_algos = list(ev["algorithm"].unique()) if len(ev) else []
+    tasks = list(dict.fromkeys([*(spec["tasks"] if spec else []), *present_tasks]))
+    algos = _sorted([*(spec["algos"] if spec else []), *present_algos])
+    n_expected = len(spec["seeds"]) if spec else None
+    uncertainty = spec["uncertainty"] if spec else (ev["uncertainty"].iloc[0] if len(ev) else None)
+
+    def values(task: str, algo: str, metric: str) -> np.ndarray:
+        if scores is None:
+            return np.zeros(0)
+        sel = scores[(scores["task"] == task) & (scores["algorithm"] == algo)]
+        return sel.sort_values("seed")[metric].to_numpy(dtype=float)
+
+    dyn = tables["dynamic"]
+    out: dict[str, Any] = {}
+    missing: list[str] = []
+    for task in tasks:
+        out[task] = {}
+        refs = {m: (values(task, "td3", m), values(task, "m2td3", m)) for m in METRICS}
+        for algo in algos:
+            cell: dict[str, Any] = {}
+            for m in METRICS:
+                cell[m] = stats.describe(values(task, algo, m), stats.rng_for(task, algo, m))
+            n = cell["worst_case"]["n_seeds"]
+            if n == 0:
+                missing.append(f"{algo}/{task}: no finished run")
+            elif n_expected and n < n_expected:
+                missing.append(f"{algo}/{task}: {n} of {n_expected} seeds")
+            cell["normalised"] = {}
+            for m in METRICS:
+                td3, m2td3 = refs[m]
+                x = values(task, algo, m)
+                if len(x) and len(td3) and len(m2td3) and td3.mean() != m2td3.mean():
+                    z = stats.normalise(x, td3.mean(), m2td3.mean())
+                    cell["normalised"][m] = stats.describe(z, stats.rng_for(task, algo, m, "n"))
+                else:
+                    cell["normalised"][m] = None
+            if algo in ("rarl", "nrmdp"):
+                sel = dyn[(dyn["task"] == task) & (dyn["algorithm"] == algo)] if len(dyn) else dyn
+                per_seed = sel.groupby("seed")["return"].mean() if len(sel) else []
+                cell["dynamic"] = stats.describe(
+                    np.asarray(per_seed), stats.rng_for(task, algo, "d")
+                )
+                cell["dynamic"]["episodes"] = len(sel)
+            out[task][algo] = cell
+
+    aggregate: dict[str, Any] = {}
+    for algo in algos:
+        agg: dict[str, Any] = {}
+        for m in METRICS:
+            per_task = []
+            for task in tasks:
+                td3, m2td3 = (values(task, "td3", m), values(task, "m2td3", m))
+                x = values(task, algo, m)
+                if len(x) and len(td3) and len(m2td3) and td3.mean() != m2td3.mean():
+                    per_task.append(stats.normalise(x, td3.mean(), m2td3.mean()))
+            agg[f"normalised_{m}"] = stats.aggregate_iqm(per_task, stats.rng_for(algo, m, "agg"))
+        if algo != "td3":
+            pairs = [
+                (values(t, algo, "worst_case"), values(t, "td3", "worst_case"))
+                for t in tasks
+                if len(values(t, algo, "worst_case")) and len(values(t, "td3", "worst_case"))
+            ]
+            agg["poi_over_td3_worst_case"] = stats.aggregate_poi(pairs, stats.rng_for(algo, "poi"))
+        aggregate[algo] = agg
+    versions = {}
+    for col in ("rrls_version", "gymnasium_version", "mujoco_version"):
+        if col in ev:
+            versions[col.removesuffix("_version")] = sorted(map(str, ev[col].unique()))
+    return {
+        "benchmark": spec,
+        "uncertainty": uncertainty,
+        "tasks": tasks,
+        "algorithms": algos,
+        "results": out,
+        "aggregate": aggregate,
+        "missing": missing,
+        "versions": versions,
+        "conventions": {
+            "worst_case": "per run: min over mesh points of the mean return over the point's "
+            "episodes; cell: mean/std (ddof=0)/IQM/95% percentile-bootstrap CI of the mean over "
+            "seeds",
+            "average_case": "per run: mean over mesh points of the per-point mean return",
+            "normalised": "(v - v_TD3) / |v_M2TD3 - v_TD3| with v_TD3, v_M2TD3 the seed means on "
+            "the task; applied to each seed, then mean/std over seeds (= normalising the seed "
+            "mean, as the paper's Tables 4-5 do)",
+            "aggregate": "IQM over all (task, seed) normalised scores with a stratified bootstrap "
+            "CI (seeds resampled within tasks); mean_over_tasks/std_over_tasks: the paper's "
+            "'Average' column",
+            "poi_over_td3_worst_case": "P(algorithm's worst case > TD3's) for random seeds, "
+            "averaged over tasks; stratified bootstrap CI",
+            "dynamic": "per seed: mean return against the run's own adversary over its episodes; "
+            "cell: mean/std over seeds (paper Table 6)",
+            "bootstrap": f"scipy.stats.bootstrap, percentile, {stats.N_RESAMPLES} resamples, "
+            "generator seeded from the cell's name",
+        },
+    }
+
+
+# --- formatting -----------------------------------------------------------------------------
+def _fmt(value: float | None, digits: int = 2) -> str:
+    if value is None or not np.isfinite(value):
+        return "–"
+    return f"{round(value, digits) + 0.0:,.{digits}f}"  # + 0.0: no "-0.00"
+
+
+def _pm(cell: dict[str, Any] | None, digits: int = 2) -> str:
+    if not cell or cell.get("mean") is None:
+        return "–"
+    return f"{_fmt(cell['mean'], digits)} ± {_fmt(cell['std'], digits)}"
+
+
+def _tex_pm(cell: dict[str, Any] | None, digits: int = 2, bold: bool = False) -> str:
+    if not cell or cell.get("mean") is None:
+        return "--"
+    mean, std = (round(cell[k], digits) + 0.0 for k in ("mean", "std"))
+    body = f"{mean:.{digits}f} \\pm {std:.{digits}f}"
+    return f"$\\mathbf{{{body}}}$" if bold else f"${body}$"
+
+
+def _paper_cell(paper: dict[str, Any], table: str, algo: str, task: str) -> Any:
+    return paper.get(table, {}).get(algo, {}).get(task)
+
+
+TABLES = {
+    # name: (title, cell getter, paper table, digits)
+    "raw_worst_case": ("Raw static worst case (paper Appendix, Table 7)", "worst_case", 2),
+    "raw_average_case": ("Raw static average case (paper Appendix, Table 8)", "average_case", 2),
+    "normalised_worst_case": ("Normalised static worst case (paper Table 4)", "n:worst_case", 2),
+    "normalised_average_case": (
+        "Normalised static average case (paper Table 5)",
+        "n:average_case",
+        2,
+    ),
+    "dynamic": ("Against the run's own adversary (paper Table 6)", "dynamic", 2),
+}
+
+
+def _cell(summary: dict[str, Any], task: str, algo: str, getter: str) -> dict[str, Any] | None:
+    cell = summary["results"].get(task, {}).get(algo)
+    if cell is None:
+        return None
+    if getter.startswith("n:"):
+        return cell["normalised"].get(getter[2:])
+    return cell.get(getter)
+
+
+def _rows(summary: dict[str, Any], name: str) -> list[str]:
+    return [a for a in summary["algorithms"] if name != "dynamic" or a in ("rarl", "nrmdp")]
+
+
+def write_tables(summary: dict[str, Any], out: Path, paper: dict[str, Any]) -> list[Path]:
+    """``tables/<name>.tex`` (booktabs, the paper's layout: algorithms × tasks) and ``.csv``."""
+    import pandas as pd
+
+    from rrls._io import atomic_write_bytes, atomic_write_table
+
+    out.mkdir(parents=True, exist_ok=True)
+    written = []
+    tasks = summary["tasks"]
+    same_protocol = summary["uncertainty"] == paper["uncertainty"]
+    for name, (title, getter, digits) in TABLES.items():
+        algos = _rows(summary, name)
+        normalised = name.startswith("normalised")
+        rows = []
+        for algo in algos:
+            for task in tasks:
+                cell = _cell(summary, task, algo, getter) or {}
+                pub = _paper_cell(paper, name, algo, task) if same_protocol else None
+                rows.append(
+                    {
+                        "algorithm": algo,
+                        "task": task,
+                        "mean": cell.get("mean"),
+                        "std": cell.get("std"),
+                        "iqm": cell.get("iqm"),
+                        "ci95_low": (cell.get("ci95") or [None, None])[0],
+                        "ci95_high": (cell.get("ci95") or [None, None])[1],
+                        "n_seeds": cell.get("n_seeds", 0),
+                        "paper_mean": pub[0] if isinstance(pub, list) else pub,
+                        "paper_std": pub[1] if isinstance(pub, list) else None,
+                    }
+                )
+        atomic_write_table(out / f"{name}.csv", pd.DataFrame(rows))
+        # LaTeX: bold the best mean of each column (as the paper does)
+        best = {}
+        for task in tasks:
+            means = [(_cell(summary, task, a, getter) or {}).get("mean") for a in algos]
+            finite = [m for m in means if m is not None]
+            best[task] = max(finite) if finite else None
+        # Table 6 as the paper prints it: each task in its own unit (10^k), no bold (the paper:
+        # the two algorithms play different adversaries, so no ranking)
+        scale = {t: paper["dynamic_scale"].get(t, 1.0) if name == "dynamic" else 1.0 for t in tasks}
+        cols = [
+            TASK_NAMES.get(t, t) + (f" ($10^{round(np.log10(scale[t]))}$)" if scale[t] != 1 else "")
+            for t in tasks
+        ] + (["Average"] if normalised else [])
+        lines = [
+            "% " + title + " -- generated by `rrls report`",
+            "\\begin{table}[h]",
+            "\\centering",
+            f"\\caption{{{title}}}",
+            "\\begin{tabular}{l" + "c" * len(cols) + "}",
+            "\\toprule",
+            " & " + " & ".join(cols) + " \\\\",
+            "\\midrule",
+        ]
+        for algo in algos:
+            cells = []
+            for task in tasks:
+                cell = _cell(summary, task, algo, getter)
+                is_best = (
+                    cell is not None
+                    and cell.get("mean") is not None
+                    and (cell["mean"] == best[task])
+                    and name != "dynamic"
+                )
+                if cell and cell.get("mean") is not None and scale[task] != 1:
+                    cell = {k: cell[k] / scale[task] for k in ("mean", "std")}
+                cells.append(_tex_pm(cell, digits, bold=is_best and len(algos) > 1))
+            if normalised:
+                agg = summary["aggregate"].get(algo, {}).get(f"normalised_{getter[2:]}", {})
+                avg = {"mean": agg.get("mean_over_tasks"), "std": agg.get("std_over_tasks")}
+                cells.append(_tex_pm(avg, digits))
+            lines.append(f"{NAMES.get(algo, algo)} & " + " & ".join(cells) + " \\\\")
+        lines += ["\\bottomrule", "\\end{tabular}", f"\\label{{tab:rrls-{name}}}", "\\end{table}"]
+        atomic_write_bytes(out / f"{name}.tex", ("\n".join(lines) + "\n").encode())
+        written += [out / f"{name}.tex", out / f"{name}.csv"]
+    return written
+
+
+def _md_table(summary: dict[str, Any], name: str, paper: dict[str, Any]) -> list[str]:
+    title, getter, digits = TABLES[name]
+    tasks = summary["tasks"]
+    algos = _rows(summary, name)
+    if not algos:
+        return []
+    same_protocol = summary["uncertainty"] == paper["uncertainty"]
+    normalised = name.startswith("normalised")
+    head = ["algorithm", *[TASK_NAMES.get(t, t) for t in tasks]] + (
+        ["Average", "IQM [95% CI]"] if normalised else []
+    )
+    lines = [f"### {title}", "", "| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
+    for algo in algos:
+        row = [NAMES.get(algo, algo)]
+        for task in tasks:
+            text = _pm(_cell(summary, task, algo, getter), digits)
+            pub = _paper_cell(paper, name, algo, task) if same_protocol else None
+            if pub is not None:
+                pub_text = (
+                    f"{_fmt(pub[0])} ± {_fmt(pub[1])}" if isinstance(pub, list) else _fmt(pub)
+                )
+                text += f" (paper {pub_text})"
+            row.append(text)
+        if normalised:
+            agg = summary["aggregate"].get(algo, {}).get(f"normalised_{getter[2:]}", {})
+            row.append(_pm({"mean": agg.get("mean_over_tasks"), "std": agg.get("std_over_tasks")}))
+            ci = agg.get("ci95")
+            row.append(
+                f"{_fmt(agg.get('iqm'))} [{_fmt(ci[0])}, {_fmt(ci[1])}]"
+                if ci
+                else _fmt(agg.get("iqm"))
+            )
+        lines.append("| " + " | ".join(row) + " |")
+    return [*lines, ""]
+
+
+def make_report(root: str | Path, plots: bool = True) -> Path:
+    """Write ``root/report/`` (summary.json, report.md, tables/, figures) from the store."""
+    from rrls._io import atomic_write_bytes, atomic_write_json
+
+    root = Path(root)
+    summary = summarise(root)
+    paper = paper_results()
+    out = root / "report"
+    out.mkdir(parents=True, exist_ok=True)
+    atomic_write_json(out / "summary.json", summary)
+    write_tables(summary, out / "tables", paper)
+    figures: list[tuple[str, Path]] = []
+    if plots:
+        try:
+            from rrls.experiments import plots as plotting
+            from rrls.experiments.store import load_store
+
+            figures = plotting.make_figures(load_store(root), summary, out / "figures")
+        except ImportError as err:  # matplotlib is optional
+            figures = []
+            summary.setdefault("notes", []).append(f"figures skipped: {err}")
+    atomic_write_bytes(out / "report.md", _markdown(summary, paper, figures, out).encode())
+    return out / "report.md"
+
+
+def _markdown(
+    summary: dict[str, Any], paper: dict[str, Any], figures: list[tuple[str, Path]], out: Path
+) -> str:
+    spec = summary.get("benchmark") or {}
+    lines = ["# rrls benchmark report", ""]
+    if spec:
+        lines += [
+            f"- preset `{spec.get('preset')}`: {len(spec['algos'])} algorithms × "
+            f"{len(spec['tasks'])} tasks × {len(spec['seeds'])} seeds, {spec['steps']:,} "
+            f"training steps per run, set `{spec['uncertainty']}`, mesh {spec['mesh']} per "
+            f"dimension × {spec['episodes']} episodes, dynamic evaluation "
+            f"{spec['dynamic_episodes']} episodes",
+        ]
+        reduced = (
+            spec["steps"] < paper["steps"]
+            or spec["uncertainty"] != paper["uncertainty"]
+            or len(spec["seeds"]) < paper["seeds"]
+        )
+        if reduced:
+            lines.append(
+                "- **Reduced budget: not the paper's protocol** (5 M steps, 10 seeds, the 3D "
+                "sets of five tasks). Numbers are not comparable with the paper's."
+            )
+    if summary.get("versions"):
+        lines.append(
+            "- versions: " + ", ".join(f"{k} {'/'.join(v)}" for k, v in summary["versions"].items())
+        )
+    lines.append(
+        "- paper numbers are shown beside a cell only when the set is the paper's (`3d`)"
+        if summary["uncertainty"] != paper["uncertainty"]
+        else "- `(paper ...)`: the paper's published number for the same cell"
+    )
+    lines.append("")
+    if summary["missing"]:
+        lines += ["## Missing cells", ""] + [f"- {m}" for m in summary["missing"]] + [""]
+    no_refs = [
+        t
+        for t in summary["tasks"]
+        if not all(
+            summary["results"][t].get(a, {}).get("worst_case", {}).get("n_seeds")
+            for a in ("td3", "m2td3")
+        )
+    ]
+    if no_refs:
+        lines += [
+            "Normalised scores need finished TD3 and M2TD3 runs on the task (the references); "
+            f"none for: {', '.join(no_refs)}.",
+            "",
+        ]
+    lines += ["## Static evaluation", ""]
+    for name in ("raw_worst_case", "raw_average_case", "normalised_worst_case"):
+        lines += _md_table(summary, name, paper)
+    lines += _md_table(summary, "normalised_average_case", paper)
+    if "nrmdp" in summary["algorithms"] and summary["uncertainty"] == paper["uncertainty"]:
+        lines += [
+            "Known erratum: the paper prints 0.44 for NR-MDP's normalised average case on Ant; "
+            "its own raw numbers give 0.54.",
+            "",
+        ]
+    lines += [
+        "## Dynamic evaluation (paper Table 6)",
+        "",
+        "Raw returns of the protagonist against its own final adversary (`tables/dynamic.tex` "
+        "prints them in the paper's per-task units).",
+        "",
+    ] + _md_table(summary, "dynamic", paper)
+    poi = [
+        (a, v["poi_over_td3_worst_case"])
+        for a, v in summary["aggregate"].items()
+        if "poi_over_td3_worst_case" in v
+    ]
+    if poi:
+        lines += [
+            "## Probability of improvement over TD3 (worst case)",
+            "",
+            "| algorithm | P(better than TD3) | 95% CI | tasks |",
+            "|---|---|---|---|",
+        ]
+        for algo, p in poi:
+            ci = p.get("ci95")
+            ci_text = f"[{_fmt(ci[0])}, {_fmt(ci[1])}]" if ci else "–"
+            lines.append(
+                f"| {NAMES.get(algo, algo)} | {_fmt(p['value'])} | {ci_text} | {p['n_tasks']} |"
+            )
+        lines.append("")
+    if figures:
+        lines += ["## Figures", ""]
+        for caption, path in figures:
+            lines += [f"**{caption}**", "", f"![{caption}]({path.relative_to(out).as_posix()})", ""]
+    lines += ["## Conventions", ""]
+    lines += [f"- **{k}**: {v}" for k, v in summary["conventions"].items()]
+    lines += ["", "Tables for papers: `tables/*.tex` (booktabs) and `tables/*.csv`.", ""]
+    return "\n".join(lines)

@@ -1,0 +1,213 @@
+"""``benchmark()``: check the spec against the directory, run what is not finished, show progress,
+then rebuild the result store and the report from the run directories."""
+
+from __future__ import annotations
+
+import sys
+import time
+from pathlib import Path
+from typing import Any, TextIO
+
+from rrls.experiments.launch import read_progress, run_dir, run_local, run_ray
+from rrls.experiments.spec import RunKey, Spec, estimate, format_duration, reconcile
+
+
+class Display:
+    """One overall bar plus a live table of the running runs (steps, steps/s, ETA) on a
+    terminal; elsewhere (cluster logs) one plain line every ``interval`` seconds and one per
+    finished or failed run."""
+
+    def __init__(
+        self,
+        root: Path,
+        spec: Spec,
+        keys: list[RunKey],
+        done_before: int,
+        slots: int,
+        stream: TextIO | None = None,
+        interval: float = 60.0,
+    ) -> None:
+        self.root, self.spec = root, spec
+        self.stream = stream or sys.stderr
+        self.tty = bool(getattr(self.stream, "isatty", lambda: False)())
+        self.state = {k: "pending" for k in keys}
+        self.total = len(keys) + done_before
+        self.done_before = done_before
+        self.started: dict[RunKey, float] = {}
+        self.durations: list[float] = []
+        self.failures: dict[RunKey, str] = {}
+        self.interval, self._last_line = interval, time.monotonic()
+        self.t0 = time.monotonic()
+        self.slots = max(1, min(slots, len(keys) or 1))
+        self._bar: Any = None
+        self._rows: list[Any] = []
+        if self.tty:
+            from tqdm.auto import tqdm
+
+            self._bar = tqdm(
+                total=self.total, initial=done_before, unit="run", file=self.stream, position=0
+            )
+            self._rows = [
+                tqdm(bar_format="{desc}", file=self.stream, position=i + 1, leave=False)
+                for i in range(self.slots)
+            ]
+
+    def counts(self) -> dict[str, int]:
+        out = {"pending": 0, "running": 0, "done": self.done_before, "failed": 0}
+        for s in self.state.values():
+            out[s] += 1
+        return out
+
+    def event(self, key: RunKey, state: str, detail: str) -> None:
+        self.state[key] = state
+        name = key.name(self.spec.uncertainty)
+        if state == "running":
+            self.started[key] = time.monotonic()
+            return
+        seconds = time.monotonic() - self.started.get(key, time.monotonic())
+        if state == "done":
+            self.durations.append(seconds)
+            line = f"done   {name} ({format_duration(seconds)})"
+        else:
+            self.failures[key] = detail
+            line = f"FAILED {name}: {detail} (see {run_dir(self.root, self.spec, key)}/error.txt)"
+        if self._bar is not None:
+            self._bar.update(1)
+            self._bar.write(line, file=self.stream)
+        else:
+            print(line, file=self.stream, flush=True)
+        self.tick()
+
+    def _row(self, key: RunKey) -> str:
+        name = key.name(self.spec.uncertainty)
+        info = read_progress(run_dir(self.root, self.spec, key)) or {}
+        phase, step, total = info.get("phase", "starting"), info.get("step", 0), info.get("total")
+        sps = info.get("sps") or 0.0
+        if phase == "train" and total:
+            eta = f"ETA {format_duration((total - step) / sps)}" if sps > 0 else "ETA ?"
+            return f"{name:<40} train {step:>9,}/{total:,}  {sps:6.0f} steps/s  {eta}"
+        return f"{name:<40} {phase}"
+
+    def eta(self) -> str:
+        c = self.counts()
+        if not self.durations:
+            return "?"
+        left = (c["pending"] + c["running"] / 2) * sum(self.durations) / len(self.durations)
+        return format_duration(left / self.slots)
+
+    def tick(self) -> None:
+        c = self.counts()
+        running = [k for k, s in self.state.items() if s == "running"]
+        if self._bar is not None:
+            self._bar.set_postfix_str(
+                f"pending {c['pending']} running {c['running']} done {c['done']} "
+                f"failed {c['failed']} ETA {self.eta()}",
+                refresh=False,
+            )
+            self._bar.refresh()
+            for i, row in enumerate(self._rows):
+                row.set_description_str(self._row(running[i]) if i < len(running) else "")
+            return
+        now = time.monotonic()
+        if now - self._last_line >= self.interval:
+            self._last_line = now
+            rows = "; ".join(" ".join(self._row(k).split()) for k in running)
+            print(
+                f"[{time.strftime('%H:%M:%S')}] {c['done']}/{self.total} done, "
+                f"{c['running']} running, {c['failed']} failed, {c['pending']} pending; "
+                f"elapsed {format_duration(now - self.t0)}, ETA {self.eta()}"
+                + (f" | {rows}" if rows else ""),
+                file=self.stream,
+                flush=True,
+            )
+
+    def close(self) -> None:
+        for row in self._rows:
+            row.close()
+        if self._bar is not None:
+            self._bar.close()
+
+
+def pending_runs(root: Path, spec: Spec) -> tuple[list[RunKey], int]:
+    """(runs without ``result.json``, number of finished runs)."""
+    keys = spec.runs()
+    todo = [k for k in keys if not (run_dir(root, spec, k) / "result.json").exists()]
+    return todo, len(keys) - len(todo)
+
+
+def plan(root: Path, spec: Spec, todo: int, finished: int, jobs: int, backend: str) -> str:
+    """What is about to run, and the compute estimate (printed before anything starts)."""
+    est = estimate(spec, jobs or 1)
+    return (
+        f"rrls benchmark {root}: preset {spec.preset}, {len(spec.algos)} algorithms x "
+        f"{len(spec.tasks)} tasks x {len(spec.seeds)} seeds = {est['runs']} runs "
+        f"({finished} finished, {todo} to run), {spec.steps:,} steps each, set "
+        f"{spec.uncertainty}, mesh {spec.mesh} x {spec.episodes} episodes; {backend} backend"
+        + (f", {jobs} jobs" if jobs else "")
+        + "\nestimate for the whole grid (from measured single-thread speeds on a 2-core CPU; "
+        f"an estimate, +-30 %): {format_duration(est['cpu_s'])} of compute (training "
+        f"{format_duration(est['train_s'])}, evaluation <= {format_duration(est['eval_s'])})"
+        + (
+            f", about {format_duration(est['wall_s'])} wall time with {jobs} parallel runs"
+            if jobs
+            else ", divided among the cluster's CPUs"
+        )
+    )
+
+
+def benchmark(
+    out: str | Path,
+    spec: Spec,
+    jobs: int,
+    backend: str = "local",
+    ray_address: str | None = None,
+    stream: TextIO | None = None,
+    interval: float = 60.0,
+    report: bool = True,
+) -> int:
+    """Run ``spec`` in ``out`` (resuming), then build the store and the report.
+
+    Returns 0 when every run finished, 1 when some failed (the others still ran), 130 when
+    interrupted (finished work is kept: the same command resumes).
+    """
+    from rrls._io import atomic_write_json
+
+    stream = stream or sys.stderr
+    root = Path(out)
+    stored = reconcile(root, spec)  # refuses another protocol; the grid may grow
+    root.mkdir(parents=True, exist_ok=True)
+    atomic_write_json(root / "benchmark.json", stored.to_json())
+    todo, finished = pending_runs(root, spec)  # this command's grid only
+    print(plan(root, spec, len(todo), finished, jobs, backend), file=stream, flush=True)
+    display = Display(root, spec, todo, finished, jobs or len(todo), stream, interval)
+    code = 0
+    try:
+        if backend == "ray":
+            run_ray(root, spec, todo, jobs, ray_address, display.event, display.tick)
+        else:
+            run_local(root, spec, todo, jobs, display.event, display.tick)
+    except KeyboardInterrupt:
+        code = 130
+    finally:
+        display.close()
+    if code == 130:
+        print(
+            "interrupted: finished runs and checkpoints are kept; re-run the same command to "
+            "resume",
+            file=stream,
+        )
+        return code
+    from rrls.experiments.store import build_store
+
+    build_store(root)
+    if report:
+        from rrls.experiments.report import make_report
+
+        path = make_report(root)
+        print(f"report: {path}", file=stream)
+    if display.failures:
+        print(f"{len(display.failures)} run(s) failed:", file=stream)
+        for key, detail in sorted(display.failures.items()):
+            print(f"  {key.name(spec.uncertainty)}: {detail}", file=stream)
+        return 1
+    return 0

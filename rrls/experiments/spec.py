@@ -1,0 +1,319 @@
+"""What a benchmark is: a grid of runs (algorithm × task × seed) sharing one protocol.
+
+A ``Spec`` is written to ``DIR/benchmark.json``. Re-running over the same directory must use the
+same *protocol* (steps, mesh, episodes, set, hyper-parameters): anything else would mix numbers
+that are not comparable, so it is refused with the fields that differ. The *grid* (algorithms,
+tasks, seeds) may grow: the stored spec becomes the union and only the new runs are trained.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+from dataclasses import asdict, dataclass, fields, replace
+from pathlib import Path
+from typing import Any
+
+ALGOS = ("td3", "dr", "rarl", "nrmdp", "m2td3")  # rrls.agents.ALGOS (not imported: no torch)
+PAPER_TASKS = ("ant", "halfcheetah", "hopper", "humanoidstandup", "walker")
+GRID = ("algos", "tasks", "seeds")  # may grow between invocations
+LABELS = ("preset", "device")  # do not change the numbers' meaning (device: see README)
+
+
+class SpecError(ValueError):
+    """A benchmark specification that cannot run (the CLI prints it on one line, exit 2)."""
+
+
+@dataclass(frozen=True)
+class Spec:
+    """One benchmark: every run trains, evaluates over the mesh, and (RARL, NR-MDP) plays its
+    own adversary. ``uncertainty`` is the evaluation set and the training set of DR and M2TD3;
+    RARL trains against its force adversary (the paper's), TD3 and NR-MDP ignore it."""
+
+    algos: tuple[str, ...] = ALGOS
+    tasks: tuple[str, ...] = PAPER_TASKS
+    uncertainty: str = "3d"
+    seeds: tuple[int, ...] = tuple(range(10))
+    steps: int = 5_000_000
+    learning_starts: int = 25_000
+    eval_every: int = 50_000  # periodic nominal evaluation during training (curves)
+    eval_episodes: int = 5
+    eval_mesh: int = 0  # >0: periodic evaluations also over a coarse mesh (eval/worst_case)
+    mesh: int = 10
+    episodes: int = 5
+    dynamic_episodes: int = 10
+    learning_rate: float | None = None  # None: the paper's 3e-4
+    normalize_omega: bool = False
+    hidden: tuple[int, ...] = (256, 256)
+    batch_size: int | None = None  # None: the paper's (TD3 256, M2TD3 100)
+    checkpoint_every: int = 50_000
+    eval_seed: int = 0
+    preset: str = "paper"
+    device: str = "cpu"
+
+    def runs(self) -> list[RunKey]:
+        """Every (algorithm, task, seed) of the grid, in a stable order."""
+        return [RunKey(a, t, s) for t in self.tasks for a in self.algos for s in self.seeds]
+
+    def train_set(self, algo: str) -> str:
+        """The set a run trains on: ``uncertainty`` for every algorithm (paper §5 trains every
+        baseline on the 3D set; RARL's adversary then picks the parameters every step)."""
+        return self.uncertainty
+
+    def hyperparameters(self, algo: str) -> dict[str, Any]:
+        """The preset's overrides of ``algo``'s paper hyper-parameters (``TrainConfig.hyper``)."""
+        hyper: dict[str, Any] = {
+            "learning_starts": min(self.learning_starts, self.steps),
+            "hidden": tuple(self.hidden),
+        }
+        if self.learning_rate is not None:
+            hyper["learning_rate"] = self.learning_rate
+        if self.batch_size is not None:
+            hyper["batch_size"] = self.batch_size
+        if algo == "m2td3":
+            hyper["normalize_omega"] = self.normalize_omega
+        return hyper
+
+    def protocol(self) -> dict[str, Any]:
+        """The fields two invocations over one directory must agree on."""
+        return {k: v for k, v in self.to_json().items() if k not in GRID + LABELS}
+
+    def to_json(self) -> dict[str, Any]:
+        return {k: list(v) if isinstance(v, tuple) else v for k, v in asdict(self).items()}
+
+    @classmethod
+    def from_json(cls, data: dict[str, Any]) -> Spec:
+        known = {f.name for f in fields(cls)}
+        kw = {k: tuple(v) if isinstance(v, list) else v for k, v in data.items() if k in known}
+        return cls(**kw)
+
+
+@dataclass(frozen=True, order=True)
+class RunKey:
+    """One run of the grid; ``name`` is its directory under ``DIR/runs``."""
+
+    algo: str
+    task: str
+    seed: int
+
+    def name(self, uncertainty: str) -> str:
+        return f"{self.algo}-{self.task}-{uncertainty}-seed{self.seed}"
+
+
+PRESETS: dict[str, dict[str, Any]] = {
+    # Seconds, for tests: every code path (5 algorithms, curves, mesh, dynamic evaluation).
+    "smoke": dict(
+        algos=ALGOS,
+        tasks=("invertedpendulum",),
+        uncertainty="1d",
+        seeds=(0,),
+        steps=300,
+        learning_starts=100,
+        eval_every=150,
+        eval_episodes=1,
+        mesh=2,
+        episodes=1,
+        dynamic_episodes=1,
+        learning_rate=1e-3,
+        normalize_omega=True,
+        hidden=(16, 16),
+        batch_size=32,
+        checkpoint_every=100,
+    ),
+    # ~10 minutes on 2 cores (reduced budget, NOT the paper's protocol): InvertedPendulum is the
+    # one task where anything learns in 20 k steps, with Adam at 1e-3 (README "Small budgets").
+    "quick": dict(
+        algos=ALGOS,
+        tasks=("invertedpendulum",),
+        uncertainty="1d",
+        seeds=(0, 1),
+        steps=20_000,
+        learning_starts=1_000,
+        eval_every=2_000,
+        eval_episodes=5,
+        eval_mesh=3,  # curves of the worst case too (3 pole masses, 1 episode each)
+        mesh=10,
+        episodes=5,
+        dynamic_episodes=10,
+        learning_rate=1e-3,
+        normalize_omega=True,
+        checkpoint_every=5_000,
+    ),
+    # The paper's protocol (§5): 5 algorithms × 5 tasks × 10 seeds, 5 M steps, 3D set, mesh 10.
+    "paper": dict(
+        algos=ALGOS,
+        tasks=PAPER_TASKS,
+        uncertainty="3d",
+        seeds=tuple(range(10)),
+        steps=5_000_000,
+        learning_starts=25_000,
+        eval_every=50_000,
+        eval_episodes=5,
+        mesh=10,
+        episodes=5,
+        dynamic_episodes=10,
+    ),
+}
+
+
+def _csv(value: str, what: str) -> tuple[str, ...]:
+    items = tuple(dict.fromkeys(v.strip().lower() for v in value.split(",") if v.strip()))
+    if not items:
+        raise SpecError(f"--{what} is empty")
+    return items
+
+
+def make_spec(preset: str = "paper", **overrides: Any) -> Spec:
+    """The preset with explicit options on top (``None`` means "not given"), validated.
+
+    ``algos``/``tasks`` may be comma-separated strings; ``seeds`` is a count (seeds 0..N-1).
+    """
+    if preset not in PRESETS:
+        raise SpecError(f"unknown preset {preset!r}; valid: {', '.join(PRESETS)}")
+    values: dict[str, Any] = {**PRESETS[preset], "preset": preset}
+    given = {k: v for k, v in overrides.items() if v is not None}
+    if isinstance(given.get("algos"), str):
+        given["algos"] = _csv(given["algos"], "algos")
+    if isinstance(given.get("tasks"), str):
+        given["tasks"] = _csv(given["tasks"], "tasks")
+    if "seeds" in given:
+        n, first = given.pop("seeds"), given.pop("first_seed", 0) or 0
+        if isinstance(n, int):
+            if n < 1:
+                raise SpecError(f"--seeds must be >= 1, got {n}")
+            given["seeds"] = tuple(range(first, first + n))
+        else:
+            given["seeds"] = tuple(n)
+    elif given.get("first_seed"):
+        first = given.pop("first_seed")
+        given["seeds"] = tuple(first + s for s in values["seeds"])
+    given.pop("first_seed", None)
+    if "steps" in given and "learning_starts" not in given:  # a short run still learns
+        given["learning_starts"] = min(values["learning_starts"], given["steps"] // 5)
+    values.update(given)
+    values["tasks"] = tuple(dict.fromkeys(_task_key(t) for t in values["tasks"]))
+    spec = Spec(**values)
+    validate(spec)
+    return spec
+
+
+def _task_key(task: str) -> str:
+    from rrls.tasks import get_task
+
+    try:
+        return get_task(task).key
+    except ValueError as err:
+        raise SpecError(str(err)) from None
+
+
+def validate(spec: Spec) -> None:
+    """Raise ``SpecError`` for anything that cannot run (before any process starts)."""
+    from rrls.envs import get_uncertainty_set
+
+    bad = [a for a in spec.algos if a not in ALGOS]
+    if bad:
+        raise SpecError(f"unknown algorithm {bad[0]!r}; valid: {', '.join(ALGOS)}")
+    if not spec.algos or not spec.tasks:
+        raise SpecError("a benchmark needs at least one algorithm and one task")
+    for task in spec.tasks:
+        key = _task_key(task)
+        for name in {spec.uncertainty, *(spec.train_set(a) for a in spec.algos)}:
+            try:
+                get_uncertainty_set(key, name)
+            except ValueError as err:
+                raise SpecError(str(err)) from None
+    for name in ("steps", "mesh", "episodes", "dynamic_episodes", "eval_episodes"):
+        if getattr(spec, name) < 1:
+            raise SpecError(f"--{name.replace('_', '-')} must be >= 1, got {getattr(spec, name)}")
+    for name in ("learning_starts", "eval_every", "eval_mesh"):
+        if getattr(spec, name) < 0:
+            raise SpecError(f"--{name.replace('_', '-')} must be >= 0, got {getattr(spec, name)}")
+    if not spec.seeds or min(spec.seeds) < 0:
+        raise SpecError("--seeds must be >= 1")
+    if spec.checkpoint_every < 1:
+        raise SpecError("checkpoint_every must be >= 1")
+
+
+def reconcile(out: Path, spec: Spec) -> Spec:
+    """The spec to store in ``out``: ``spec`` itself, or the union with the stored one.
+
+    Refuses (``SpecError``) a directory whose stored protocol differs, naming the fields.
+    """
+    path = Path(out) / "benchmark.json"
+    if not path.exists():
+        return spec
+    try:
+        stored = Spec.from_json(json.loads(path.read_text()))
+    except (ValueError, TypeError) as err:
+        raise SpecError(f"{path} is not a benchmark spec ({err})") from None
+    old, new = stored.protocol(), spec.protocol()
+    diff = [k for k in sorted(set(old) | set(new)) if old.get(k) != new.get(k)]
+    if diff:
+        detail = "; ".join(f"{k}: {old.get(k)!r} there, {new.get(k)!r} now" for k in diff)
+        raise SpecError(
+            f"{out} holds a benchmark with another protocol ({detail}); use another --out or "
+            "the same options (adding algorithms, tasks or seeds is allowed)"
+        )
+    return replace(
+        stored,
+        algos=tuple(dict.fromkeys(stored.algos + spec.algos)),
+        tasks=tuple(dict.fromkeys(stored.tasks + spec.tasks)),
+        seeds=tuple(sorted(set(stored.seeds) | set(spec.seeds))),
+        device=spec.device,
+    )
+
+
+# --- compute estimate ------------------------------------------------------------------------
+# Measured on the 2-core development machine (docs: /work/shared/MEASURED.md): training steps/s
+# of one run (TD3 ~330, M2TD3 similar; RARL updates one player per step (phases) and NR-MDP one
+# critic and one policy per step, so about TD3's, less the second actor's forward when acting),
+# and env steps/s of each task's `env.step` (the evaluation's cost, policy calls excluded).
+TRAIN_STEPS_PER_S = {"td3": 330.0, "dr": 330.0, "m2td3": 330.0, "rarl": 300.0, "nrmdp": 300.0}
+STARTUP_S = 5.0  # per run: a fresh process importing torch, building envs (measured 4-6 s)
+ENV_STEPS_PER_S = {
+    "ant": 3_600.0,
+    "halfcheetah": 21_800.0,
+    "hopper": 5_600.0,
+    "humanoidstandup": 2_100.0,
+    "invertedpendulum": 34_000.0,
+    "walker": 6_000.0,
+}
+
+
+def estimate(spec: Spec, jobs: int, max_episode_steps: int = 1000) -> dict[str, float]:
+    """Seconds of compute (one core) and wall time with ``jobs`` parallel runs — an estimate
+    from measured speeds (±30 %; evaluation episodes counted at full length: an upper bound)."""
+    from rrls.envs import get_uncertainty_set
+
+    train = evals = 0.0
+    for key in spec.runs():
+        train += STARTUP_S + spec.steps / TRAIN_STEPS_PER_S[key.algo]
+        dims = len(get_uncertainty_set(key.task, spec.uncertainty).names)
+        env_sps = ENV_STEPS_PER_S.get(key.task, 5_000.0)
+        n_periodic = spec.steps // spec.eval_every if spec.eval_every else 0
+        periodic = n_periodic * (spec.eval_episodes + spec.eval_mesh**dims)
+        final = spec.mesh**dims * spec.episodes
+        dynamic = spec.dynamic_episodes if key.algo in ("rarl", "nrmdp") else 0
+        evals += (periodic + final + dynamic) * max_episode_steps / env_sps
+    runs = len(spec.runs())
+    total = train + evals
+    # whole runs are scheduled, so the wall time is at least the longest run
+    wall = max(total / max(1, min(jobs, runs)), total / runs if runs else 0.0)
+    return {"runs": runs, "train_s": train, "eval_s": evals, "cpu_s": total, "wall_s": wall}
+
+
+def default_jobs() -> int:
+    try:
+        return len(os.sched_getaffinity(0))
+    except AttributeError:
+        return os.cpu_count() or 1
+
+
+def format_duration(seconds: float) -> str:
+    if seconds < 120:
+        return f"{seconds:.0f} s"
+    if seconds < 7200:
+        return f"{seconds / 60:.0f} min"
+    if seconds < 3 * 86400:
+        return f"{seconds / 3600:.1f} h"
+    return f"{seconds / 86400:.1f} days"

@@ -1,0 +1,127 @@
+"""The result store: tidy tables under ``DIR/results/``, rebuilt from the run directories only.
+
+- ``evaluations``: one row per (run, mesh point, episode) of the final mesh evaluation;
+- ``curves``: one row per (run, step) of training returns and periodic evaluations
+  (from ``scalars.csv``);
+- ``dynamic``: one row per episode of the protagonist against its own adversary (RARL, NR-MDP);
+- ``runs``: one row per finished run (worst / average case, dynamic mean).
+
+Every row carries algorithm, task, uncertainty set, seed, steps and the rrls / gymnasium /
+mujoco versions. Parquet with pyarrow, CSV without. Rows are sorted, so the same run directories
+always give the same files.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Any
+
+TABLES = ("evaluations", "curves", "dynamic", "runs")
+KEY = ["algorithm", "task", "uncertainty", "seed"]
+
+
+def _parquet() -> bool:
+    try:
+        import pyarrow  # noqa: F401
+    except ImportError:
+        return False
+    return True
+
+
+def _columns(result: dict[str, Any]) -> dict[str, Any]:
+    versions = result.get("versions", {})
+    return {
+        "algorithm": result["algorithm"],
+        "task": result["task"],
+        "uncertainty": result["uncertainty"],
+        "train_set": result.get("train_set", result["uncertainty"]),
+        "seed": int(result["seed"]),
+        "steps": int(result["steps"]),
+        "rrls_version": versions.get("rrls", ""),
+        "gymnasium_version": versions.get("gymnasium", ""),
+        "mujoco_version": versions.get("mujoco", ""),
+    }
+
+
+def _read_table(base: Path) -> Any:
+    import pandas as pd
+
+    if base.with_suffix(".parquet").exists():
+        return pd.read_parquet(base.with_suffix(".parquet"))
+    return pd.read_csv(base.with_suffix(".csv"))
+
+
+def _curves(run: Path) -> Any:
+    """``scalars.csv`` (step, metric, value) pivoted to one row per step."""
+    import pandas as pd
+
+    path = run / "scalars.csv"
+    if not path.exists():
+        return pd.DataFrame({"step": []})
+    long = pd.read_csv(path)
+    long["metric"] = long["metric"].str.replace("/", "_", regex=False)
+    long["metric"] = long["metric"].str.removeprefix("charts_")
+    wide = long.pivot_table(index="step", columns="metric", values="value", aggfunc="last")
+    wide.columns.name = None
+    return wide.reset_index()
+
+
+def build_store(root: str | Path) -> Path:
+    """Scan ``root/runs/*/result.json`` and (re)write ``root/results/*``; returns that folder."""
+    import pandas as pd
+
+    from rrls._io import atomic_write_table
+
+    root = Path(root)
+    frames: dict[str, list[Any]] = {name: [] for name in TABLES}
+    for done in sorted((root / "runs").glob("*/result.json")):
+        run = done.parent
+        result = json.loads(done.read_text())
+        cols = _columns(result)
+        episodes = _read_table(run / "eval" / "episodes").rename(columns={"seed": "episode_seed"})
+        frames["evaluations"].append(episodes.assign(**cols))
+        frames["curves"].append(_curves(run).assign(**cols))
+        if (run / "dynamic.csv").exists():
+            dynamic = pd.read_csv(run / "dynamic.csv").rename(columns={"seed": "episode_seed"})
+            frames["dynamic"].append(dynamic.assign(**cols))
+        frames["runs"].append(
+            pd.DataFrame(
+                [
+                    {
+                        **cols,
+                        "worst_case": result["worst_case"],
+                        "average_case": result["average_case"],
+                        "dynamic_mean": result.get("dynamic_mean"),
+                        "run_dir": run.name,
+                    }
+                ]
+            )
+        )
+    out = root / "results"
+    out.mkdir(parents=True, exist_ok=True)
+    suffix = ".parquet" if _parquet() else ".csv"
+    order = {"evaluations": ["point", "episode"], "curves": ["step"], "dynamic": ["episode"]}
+    for name, parts in frames.items():
+        frame = pd.concat(parts, ignore_index=True) if parts else pd.DataFrame(columns=KEY)
+        keys = ["task", "algorithm", "uncertainty", "seed", *order.get(name, [])]
+        if len(frame):
+            frame = frame.sort_values(keys, kind="stable").reset_index(drop=True)
+        front = [c for c in keys + ["train_set", "steps"] if c in frame.columns]
+        frame = frame[front + [c for c in frame.columns if c not in front]]
+        for other in (".parquet", ".csv"):
+            if other != suffix:
+                (out / f"{name}{other}").unlink(missing_ok=True)
+        atomic_write_table(out / f"{name}{suffix}", frame)
+    return out
+
+
+def load_store(root: str | Path) -> dict[str, Any]:
+    """The store's tables as DataFrames (``{name: DataFrame}``), reading Parquet or CSV."""
+    results = Path(root) / "results"
+    if not any((results / f"runs{s}").exists() for s in (".parquet", ".csv")):
+        raise FileNotFoundError(
+            f"{root} holds no result store (results/runs.parquet or .csv): run `rrls benchmark "
+            f"--out {root}` first"
+        )
+    return {name: _read_table(results / name) for name in TABLES}

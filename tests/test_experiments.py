@@ -1,0 +1,382 @@
+"""rrls benchmark / rrls report: the smoke preset end to end (local pool and Ray), resume after
+a killed driver, spec checks, and the paper's Tables 4-5 recomputed from its raw tables."""
+
+from __future__ import annotations
+
+import importlib.util
+import io
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from rrls.cli import main
+from rrls.experiments import stats
+from rrls.experiments.report import make_report, paper_results, summarise
+from rrls.experiments.runner import Display, plan
+from rrls.experiments.spec import Spec, SpecError, estimate, make_spec, reconcile
+
+needs_torch = pytest.mark.skipif(
+    importlib.util.find_spec("torch") is None, reason="training needs torch (rrls[train])"
+)
+REPO = Path(__file__).resolve().parents[1]
+SMOKE = ["benchmark", "--preset", "smoke", "--jobs", "2"]
+
+
+@pytest.fixture(scope="module")
+def smoke(tmp_path_factory) -> Path:
+    """One uninterrupted smoke benchmark (5 algorithms, InvertedPendulum 1d, 1 seed)."""
+    out = tmp_path_factory.mktemp("smoke")
+    assert main([*SMOKE, "--out", str(out)]) == 0
+    return out
+
+
+@needs_torch
+def test_smoke_benchmark_writes_store_and_report(smoke):
+    runs = sorted(p.parent.name for p in smoke.glob("runs/*/result.json"))
+    assert len(runs) == 5
+    ev = pd.read_parquet(smoke / "results" / "evaluations.parquet")
+    # one row per (run, mesh point, episode), each carrying the run's identity and versions
+    assert len(ev) == 5 * 2 * 1
+    for col in (
+        "algorithm",
+        "task",
+        "uncertainty",
+        "seed",
+        "steps",
+        "point",
+        "episode",
+        "return",
+        "rrls_version",
+        "gymnasium_version",
+        "mujoco_version",
+        "polemass",
+    ):
+        assert col in ev, col
+    curves = pd.read_parquet(smoke / "results" / "curves.parquet")
+    assert {"step", "episode_return", "eval_nominal_return"} <= set(curves.columns)
+    assert not curves.duplicated(["algorithm", "seed", "step"]).any()  # one row per (run, step)
+    dyn = pd.read_parquet(smoke / "results" / "dynamic.parquet")
+    assert sorted(dyn["algorithm"].unique()) == ["nrmdp", "rarl"]  # the two-player runs only
+    summary = json.loads((smoke / "report" / "summary.json").read_text())
+    cell = summary["results"]["invertedpendulum"]["rarl"]
+    assert set(cell["worst_case"]) == {"mean", "std", "iqm", "ci95", "n_seeds"}
+    assert cell["worst_case"]["n_seeds"] == 1 and cell["dynamic"]["episodes"] == 1
+    assert summary["results"]["invertedpendulum"]["td3"]["normalised"]["worst_case"]["mean"] == 0
+    for name in ("raw_worst_case", "normalised_worst_case", "normalised_average_case", "dynamic"):
+        tex = (smoke / "report" / "tables" / f"{name}.tex").read_text()
+        assert "\\toprule" in tex and "\\bottomrule" in tex
+        assert (smoke / "report" / "tables" / f"{name}.csv").exists()
+    md = (smoke / "report" / "report.md").read_text()
+    assert "Reduced budget" in md and "figures/curves_episode_return.png" in md
+    assert (smoke / "report" / "figures" / "curves_episode_return.png").stat().st_size > 5_000
+
+
+@needs_torch
+def test_rerun_skips_finished_runs_and_gives_the_same_summary(smoke, capsys):
+    before = (smoke / "report" / "summary.json").read_bytes()
+    start = time.perf_counter()
+    assert main([*SMOKE, "--out", str(smoke)]) == 0
+    assert time.perf_counter() - start < 15  # nothing trained again
+    assert "(5 finished, 0 to run)" in capsys.readouterr().err
+    assert (smoke / "report" / "summary.json").read_bytes() == before
+
+
+@needs_torch
+def test_other_protocol_is_refused_naming_the_difference(smoke, capsys):
+    assert main([*SMOKE, "--out", str(smoke), "--steps", "400", "--mesh", "3"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "steps" in err and "mesh" in err
+
+
+@needs_torch
+def test_adding_seeds_extends_the_benchmark(smoke, tmp_path):
+    stored = Spec.from_json(json.loads((smoke / "benchmark.json").read_text()))
+    grown = reconcile(smoke, make_spec("smoke", algos="td3,dr", seeds=3))
+    assert grown.seeds == (0, 1, 2) and grown.algos == stored.algos
+    with pytest.raises(SpecError, match="episodes"):
+        reconcile(smoke, make_spec("smoke", episodes=4))
+
+
+def _children(pid: int) -> list[int]:
+    out = []
+    for stat in Path("/proc").glob("[0-9]*/stat"):
+        try:
+            fields = stat.read_text().rsplit(")", 1)[1].split()
+        except OSError:
+            continue
+        if int(fields[1]) == pid:
+            out.append(int(stat.parent.name))
+    return out
+
+
+def _alive(pid: int) -> bool:
+    try:
+        state = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0]
+    except OSError:
+        return False
+    return state != "Z"
+
+
+@needs_torch
+@pytest.mark.skipif(not Path("/proc").exists(), reason="needs /proc to find the run processes")
+def test_killed_driver_leaves_no_process_and_rerun_gives_identical_numbers(smoke, tmp_path, capsys):
+    out = tmp_path / "killed"
+    env = {**os.environ, "PYTHONPATH": str(REPO)}
+    algos = ["--algos", "td3,rarl,m2td3,dr"]  # a smaller grid than the fixture's: test time
+    broken = out / "runs" / "dr-invertedpendulum-1d-seed0"
+    broken.mkdir(parents=True)
+    (broken / "checkpoint.pt").write_bytes(b"not a checkpoint")  # this run must fail alone
+    driver = subprocess.Popen(
+        [sys.executable, "-m", "rrls", *SMOKE, "--out", str(out), *algos],
+        cwd=REPO,
+        env=env,
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.DEVNULL,
+    )
+    deadline = time.monotonic() + 60
+    children: list[int] = []
+    while time.monotonic() < deadline:  # kill it while runs are in flight, one already done
+        children = _children(driver.pid) or children
+        in_flight = [p for p in out.glob("runs/*/checkpoint.pt") if p.parent != broken]
+        if list(out.glob("runs/*/result.json")) and in_flight:
+            break
+        time.sleep(0.05)
+    children = _children(driver.pid) or children
+    driver.send_signal(signal.SIGKILL)
+    driver.wait()
+    assert children
+    deadline = time.monotonic() + 10
+    while any(_alive(p) for p in children) and time.monotonic() < deadline:
+        time.sleep(0.1)
+    assert not any(_alive(p) for p in children), "run processes outlived the driver"
+    assert len(list(out.glob("runs/*/result.json"))) < 3  # it was really interrupted
+    capsys.readouterr()
+    assert main([*SMOKE, "--out", str(out), *algos]) == 1  # dr failed, the others went on
+    err = capsys.readouterr().err
+    assert "FAILED dr-invertedpendulum-1d-seed0" in err and "1 run(s) failed" in err
+    assert (broken / "error.txt").exists() and not (broken / "result.json").exists()
+    resumed = json.loads((out / "report" / "summary.json").read_text())["results"]
+    whole = json.loads((smoke / "report" / "summary.json").read_text())["results"]
+    for algo in ("td3", "rarl", "m2td3"):  # every number, normalised scores and CIs included
+        assert resumed["invertedpendulum"][algo] == whole["invertedpendulum"][algo]
+
+
+@needs_torch
+def test_ray_backend_runs_the_same_function(smoke, tmp_path):
+    ray = pytest.importorskip("ray", reason="the Ray backend needs `pip install rrls[ray]`")
+    # the workers import this checkout's rrls (as the driver does), with no network beyond here
+    env = {"PYTHONPATH": os.pathsep.join([str(REPO), os.environ.get("PYTHONPATH", "")])}
+    ray.init(
+        num_cpus=2, include_dashboard=False, log_to_driver=False, runtime_env={"env_vars": env}
+    )
+    try:
+        out = tmp_path / "ray"
+        code = main([*SMOKE, "--out", str(out), "--backend", "ray", "--algos", "td3,rarl"])
+    finally:
+        ray.shutdown()
+    assert code == 0
+    local = json.loads((smoke / "report" / "summary.json").read_text())["results"]
+    remote = json.loads((out / "report" / "summary.json").read_text())["results"]
+    for algo in ("td3", "rarl"):  # same numbers as the local pool (no M2TD3: no normalised)
+        for metric in ("worst_case", "average_case", "dynamic"):
+            mine = remote["invertedpendulum"][algo].get(metric)
+            assert mine == local["invertedpendulum"][algo].get(metric)
+
+
+@pytest.mark.parametrize(
+    "extra, needle",
+    [
+        (["--algos", "td3,sac"], "unknown algorithm 'sac'"),
+        (["--tasks", "pong"], "unknown task 'pong'"),
+        (["--tasks", "invertedpendulum", "--uncertainty", "3d"], "no uncertainty set '3d'"),
+        (["--seeds", "0"], "--seeds must be >= 1"),
+        (["--jobs", "0"], "--jobs must be >= 1"),
+        (["--backend", "slurm"], "unknown backend"),
+    ],
+)
+def test_bad_spec_is_one_line_exit_2(tmp_path, capsys, extra, needle):
+    assert main([*SMOKE, "--out", str(tmp_path / "b"), *extra]) == 2
+    err = capsys.readouterr().err
+    assert needle in err and len(err.strip().splitlines()) == 1 and "Traceback" not in err
+    assert not (tmp_path / "b").exists()
+
+
+def test_bad_spec_from_the_command_line_has_no_traceback(tmp_path):
+    proc = subprocess.run(
+        [sys.executable, "-m", "rrls", "benchmark", "--out", str(tmp_path), "--seeds", "0"],
+        cwd=REPO,
+        capture_output=True,
+        text=True,
+        env={**os.environ, "PYTHONPATH": str(REPO)},
+    )
+    assert proc.returncode == 2 and proc.stderr.count("\n") == 1 and "Traceback" not in proc.stderr
+
+
+def test_paper_preset_is_the_protocol_and_prints_an_estimate(tmp_path):
+    spec = make_spec("paper")
+    assert spec.algos == ("td3", "dr", "rarl", "nrmdp", "m2td3")
+    assert spec.tasks == ("ant", "halfcheetah", "hopper", "humanoidstandup", "walker")
+    assert (spec.uncertainty, len(spec.seeds), spec.steps) == ("3d", 10, 5_000_000)
+    assert (spec.mesh, spec.episodes, spec.dynamic_episodes) == (10, 5, 10)
+    assert spec.learning_rate is None and spec.hidden == (256, 256)  # the paper's 3e-4
+    est = estimate(spec, jobs=2)
+    assert est["runs"] == 250 and est["wall_s"] == pytest.approx(est["cpu_s"] / 2)
+    # 3 single-learner algorithms at ~330 steps/s, RARL and NR-MDP at about half
+    assert est["train_s"] == pytest.approx(50 * 5e6 * (3 / 330 + 2 / 165) + 250 * 5.0)
+    text = plan(tmp_path, spec, 250, 0, 2, "local")
+    assert "250 runs" in text and "estimate" in text and "days" in text
+    # explicit options override the preset
+    assert make_spec("paper", tasks="hopper", seeds=3, steps=1000).seeds == (0, 1, 2)
+    assert make_spec("quick", steps=1000).learning_starts == 200
+
+
+# --- the paper's own numbers through the report ---------------------------------------------
+def _paper_store(root: Path, drop: tuple[str, str] | None = None) -> dict:
+    """A store whose per-seed worst/average cases have exactly the paper's means and stds
+    (10 seeds at mean ± std), and dynamic episodes with Table 6's means and stds."""
+    paper = paper_results()
+    signs = np.tile([1.0, -1.0], 5)  # mean 0, std (ddof=0) 1
+    skew = np.array([-1 / 3] * 9 + [3.0])  # also mean 0, std 1
+    ev_rows, dyn_rows, runs = [], [], []
+    for algo, tasks in paper["raw_worst_case"].items():
+        for task, (w, sw) in tasks.items():
+            if (algo, task) == drop:
+                continue
+            a, sa = paper["raw_average_case"][algo][task]
+            # a seed's worst case cannot exceed its average case: pick a pattern that allows it
+            z = next(z for z in (signs, skew, -skew) if np.all(w + sw * z <= a + sa * z))
+            for seed, s in enumerate(z):
+                worst, avg = w + sw * s, a + sa * s
+                other = (3 * avg - worst) / 2  # points (worst, other, other): mean avg, min worst
+                key = dict(algorithm=algo, task=task, uncertainty="3d", seed=seed, steps=5_000_000)
+                for point, ret in enumerate((worst, other, other)):
+                    ev_rows.append({**key, "point": point, "episode": 0, "return": ret})
+                runs.append({**key, "worst_case": worst, "average_case": avg})
+                if algo in paper["dynamic"]:
+                    m, sd = paper["dynamic"][algo][task]
+                    dyn_rows.append({**key, "episode": 0, "return": m + sd * signs[seed]})
+    results = root / "results"
+    results.mkdir(parents=True)
+    pd.DataFrame(ev_rows).to_csv(results / "evaluations.csv", index=False)
+    pd.DataFrame(dyn_rows).to_csv(results / "dynamic.csv", index=False)
+    pd.DataFrame(runs).to_csv(results / "runs.csv", index=False)
+    pd.DataFrame(columns=["algorithm", "task", "seed", "step", "steps"]).to_csv(
+        results / "curves.csv", index=False
+    )
+    return paper
+
+
+def test_report_reproduces_the_papers_normalised_tables(tmp_path, capsys):
+    paper = _paper_store(tmp_path)
+    assert main(["report", str(tmp_path), "--no-plots"]) == 0
+    summary = json.loads((tmp_path / "report" / "summary.json").read_text())
+    res = summary["results"]
+    for algo, tasks in paper["raw_worst_case"].items():
+        for task, (mean, std) in tasks.items():
+            cell = res[task][algo]["worst_case"]
+            assert cell["mean"] == pytest.approx(mean) and cell["std"] == pytest.approx(std)
+            assert cell["n_seeds"] == 10 and cell["ci95"][0] < mean < cell["ci95"][1]
+    for metric in ("worst_case", "average_case"):
+        for algo, tasks in paper[f"normalised_{metric}"].items():
+            for task, printed in tasks.items():
+                ours = res[task][algo]["normalised"][metric]["mean"]
+                if (metric, algo, task) == ("average_case", "nrmdp", "ant"):
+                    # the paper's known typo: it prints 0.44, its raw numbers give 0.54
+                    assert printed == 0.44 and round(ours, 2) == 0.54
+                else:  # the paper rounds (or truncates) to 2 decimals
+                    assert abs(ours - printed) <= 0.01, (metric, algo, task, ours, printed)
+    # Table 6 from its episodes, and the Average column of Table 4 (mean of the task means)
+    for algo, tasks in paper["dynamic"].items():
+        for task, (mean, std) in tasks.items():
+            assert res[task][algo]["dynamic"]["mean"] == pytest.approx(mean)
+            assert res[task][algo]["dynamic"]["std"] == pytest.approx(std)
+    agg = summary["aggregate"]["dr"]["normalised_worst_case"]
+    assert round(agg["mean_over_tasks"], 2) == 0.52 and round(agg["std_over_tasks"], 2) == 1.16
+    tex = (tmp_path / "report" / "tables" / "normalised_worst_case.tex").read_text()
+    assert "DR & $0.06 \\pm 0.16$" in tex and "Average" in tex
+    dyn = (tmp_path / "report" / "tables" / "dynamic.tex").read_text()  # the paper's units
+    assert "HumanoidStandup ($10^4$)" in dyn and "RARL & $2.90 \\pm 0.70$" in dyn
+    md = (tmp_path / "report" / "report.md").read_text()
+    assert "(paper 0.44)" in md and "Known erratum" in md
+    assert not summary["missing"]
+
+
+def test_partial_report_names_the_missing_cells(tmp_path):
+    _paper_store(tmp_path, drop=("rarl", "hopper"))
+    make_report(tmp_path, plots=False)
+    summary = json.loads((tmp_path / "report" / "summary.json").read_text())
+    assert summary["missing"] == ["rarl/hopper: no finished run"]
+    assert summary["results"]["hopper"]["rarl"]["worst_case"]["mean"] is None
+    assert "## Missing cells" in (tmp_path / "report" / "report.md").read_text()
+
+
+def test_bootstrap_cis_are_reproducible_for_a_seed(tmp_path):
+    _paper_store(tmp_path)
+    first, second = summarise(tmp_path), summarise(tmp_path)
+    assert first["aggregate"] == second["aggregate"] and first["results"] == second["results"]
+    x = np.array([3.0, 1.0, 4.0, 1.0, 5.0, 9.0, 2.0, 6.0])
+    a = stats.bootstrap_ci([x], np.mean, np.random.default_rng(7))
+    b = stats.bootstrap_ci([x], np.mean, np.random.default_rng(7))
+    c = stats.bootstrap_ci([x], np.mean, np.random.default_rng(8))
+    assert a == b and a != c and a[0] < x.mean() < a[1]
+    assert stats.iqm([1, 2, 3, 4, 100, -100, 5, 6]) == pytest.approx(3.5)
+    assert stats.improvement_probability(np.array([2.0, 3.0]), np.array([1.0, 3.0])) == 0.625
+    poi = summarise(tmp_path)["aggregate"]["m2td3"]["poi_over_td3_worst_case"]
+    assert 0.5 < poi["value"] <= 1 and poi["ci95"][0] <= poi["value"] <= poi["ci95"][1]
+
+
+class _Terminal(io.StringIO):
+    def isatty(self) -> bool:
+        return True
+
+
+@pytest.mark.parametrize("stream_type", [io.StringIO, _Terminal])
+def test_progress_shows_counts_running_runs_and_failures(tmp_path, stream_type):
+    spec = make_spec("smoke", algos="td3,dr,m2td3")
+    keys = spec.runs()
+    run = tmp_path / "runs" / keys[0].name(spec.uncertainty)
+    run.mkdir(parents=True)
+    (run / "progress.json").write_text(
+        json.dumps({"phase": "train", "step": 150, "total": 300, "sps": 50.0})
+    )
+    stream = stream_type()
+    display = Display(tmp_path, spec, keys, done_before=0, slots=2, stream=stream, interval=0)
+    display.event(keys[0], "running", "")
+    display.event(keys[1], "running", "")
+    display.tick()
+    display.event(keys[1], "failed", "ValueError: boom")
+    display.close()
+    text = stream.getvalue()
+    assert "td3-invertedpendulum-1d-seed0" in text and "150/300" in text and "50 steps/s" in text
+    assert "ETA 3 s" in text  # (300 - 150) / 50
+    assert "FAILED dr-invertedpendulum-1d-seed0: ValueError: boom" in text
+    if stream_type is io.StringIO:  # logs: plain lines with the counts
+        assert "0/3 done, 2 running, 0 failed, 1 pending" in text
+    else:
+        assert "pending 1 running 2 done 0 failed 0" in text
+
+
+@needs_torch
+def test_quickstart_is_the_quick_preset(tmp_path, capsys, monkeypatch):
+    from rrls.experiments import spec as spec_module
+
+    quick = spec_module.PRESETS["quick"]
+    assert quick["tasks"] == ("invertedpendulum",) and quick["uncertainty"] == "1d"
+    assert len(quick["algos"]) == 5 and quick["learning_rate"] == 1e-3
+    # the real pipeline on a smoke-sized "quick" preset (the real one takes ~10 minutes)
+    small = {**spec_module.PRESETS["smoke"], "algos": ("td3", "m2td3")}
+    monkeypatch.setitem(spec_module.PRESETS, "quick", small)
+    assert main(["quickstart", "--out", str(tmp_path), "--steps", "200"]) == 0
+    out = capsys.readouterr().out
+    assert "worst case" in out and "\ninvertedpendulum   td3 " in out
+    assert json.loads((tmp_path / "benchmark.json").read_text())["preset"] == "quick"
+    assert (tmp_path / "quickstart.png").stat().st_size > 10_000
+    assert (tmp_path / "report" / "report.md").exists()
