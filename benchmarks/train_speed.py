@@ -28,6 +28,7 @@ updates (default 3 000: enough for dead units' Adam moments to reach the denorma
 real training).
 
     python benchmarks/train_speed.py [--task hopper] [--steps 600] [--warmup 3000] [--rounds 3]
+                                     [--wall] [--no-shared]
 """
 
 from __future__ import annotations
@@ -40,6 +41,7 @@ import statistics
 import tempfile
 import time
 import warnings
+from pathlib import Path
 
 import gymnasium as gym
 import numpy as np
@@ -312,6 +314,32 @@ def _measure(name: str, task: str, steps: int, warmup: int) -> float:
     return rrls_algo(name, task, steps, warmup)
 
 
+def wall_times(task: str, steps: int = 22_000, random_steps: int = 1_000) -> dict[str, float]:
+    """Wall seconds of ``steps`` env steps (``random_steps`` random, then one update per step),
+    start-up included, each a fresh process: CleanRL's loop (row (a)) and ``rrls train`` with
+    its defaults (issue 11's target: rrls >= 1.5x)."""
+    import subprocess
+    import sys
+
+    here, updates = str(Path(__file__).parent), steps - random_steps
+    cleanrl_cmd = (
+        f"import sys, warnings; warnings.simplefilter('ignore'); sys.path.insert(0, {here!r});"
+        f"import train_speed; train_speed.cleanrl({task!r}, {updates}, 0)"
+    )
+    times = {}
+    with tempfile.TemporaryDirectory() as out:
+        rrls_cmd = [
+            *(sys.executable, "-m", "rrls", "train", "--algo", "td3", "--task", task),
+            *("--steps", str(steps), "--learning-starts", str(random_steps)),
+            *("--eval-every", "0", "--out", out, "--overwrite"),
+        ]
+        for name, cmd in (("cleanrl", [sys.executable, "-c", cleanrl_cmd]), ("rrls", rrls_cmd)):
+            start = time.perf_counter()
+            subprocess.run(cmd, check=True, capture_output=True)
+            times[name] = time.perf_counter() - start
+    return times
+
+
 ROWS = {
     "cleanrl": "(a) CleanRL's loop as published (SB3 replay, vector env)",
     "straightforward": "(a') the same update, lean loop",
@@ -327,6 +355,11 @@ def main() -> None:
     parser.add_argument("--steps", type=int, default=600)
     parser.add_argument("--warmup", type=int, default=3000)
     parser.add_argument("--rounds", type=int, default=3)
+    parser.add_argument(
+        "--wall",
+        action="store_true",
+        help="also time 22 000 steps end to end, CleanRL's loop vs rrls train (~5 min)",
+    )
     parser.add_argument(
         "--no-shared",
         dest="shared",
@@ -372,6 +405,13 @@ def main() -> None:
     for name, value in med.items():
         ratios = " | ".join(f"{value / med[k]:.2f}x" for k in refs)
         print(f"| {ROWS[name]} | {value:.0f} | {ratios} |")
+    if args.wall and "cleanrl" in med:
+        wall = wall_times(args.task)
+        print(
+            f"\nWall time, 22 000 steps (1 000 random), start-up included: CleanRL's loop "
+            f"{wall['cleanrl']:.1f} s, rrls train (defaults) {wall['rrls']:.1f} s: "
+            f"{wall['cleanrl'] / wall['rrls']:.2f}x (target >= 1.5x)"
+        )
     if not shared:
         return
     sm = {k: statistics.median(v) for k, v in shared.items()}
