@@ -10,19 +10,12 @@ from __future__ import annotations
 from rrls.agents.common import ALGOS, Interrupted, TrainConfig, benchmark_set
 from rrls.agents.loop import algorithm, hyperparameters, train
 
-
-def default_uncertainty(algo: str, task: str) -> str:
-    """The set a run of ``algo`` on ``task`` trains on by default: the paper's benchmark set."""
-    return benchmark_set(task)
-
-
 __all__ = [
     "ALGOS",
     "Interrupted",
     "TrainConfig",
     "algorithm",
     "benchmark_set",
-    "default_uncertainty",
     "hyperparameters",
     "train",
 ]
