@@ -12,6 +12,8 @@ from __future__ import annotations
 import io
 import json
 import time
+from collections.abc import Iterator
+from contextlib import contextmanager
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
@@ -60,7 +62,9 @@ class TrainConfig:
     eval_mesh: int = hp(
         0, "periodic evaluation also over a mesh of N points per dimension (0: nominal only)"
     )
-    checkpoint_every: int = hp(50_000, "checkpoint at the first episode end after every N steps")
+    checkpoint_every: int = hp(
+        50_000, "checkpoint every N steps (an episode in progress is replayed on resume)"
+    )
     max_episode_steps: int = hp(1000, "time limit: episodes are truncated here")
     progress: bool | None = None  # progress bar (None: when stderr is a terminal)
     overwrite: bool = hp(False, "replace a finished run in --out")
@@ -150,7 +154,10 @@ class Run:
     """The run directory: TensorBoard logs, progress bar, checkpoints, evaluation, final policy."""
 
     def __init__(
-        self, config: TrainConfig, resume: bool = False, hyper: TD3Config | None = None
+        self,
+        config: TrainConfig,
+        resume: bool = False,
+        hyper: TD3Config | None = None,
     ) -> None:
         from rrls.tasks import get_task
 
@@ -163,6 +170,9 @@ class Run:
         self.step = 0
         self.episodes = 0
         self.finished = False
+        self._bar: Any = None
+        self._writer: Any = None
+        self._scalars: Any = None
         done = _finished_steps(self.dir)
         if config.overwrite:
             _remove_run_files(self.dir)
@@ -192,15 +202,6 @@ class Run:
         self.resumed = resume and self.checkpoint_path.exists()
         if not self.resumed:  # a fresh start: curves and logs of a run killed before its
             _remove_run_files(self.dir)  # first checkpoint would otherwise be appended to
-        # Dead ReLU units get zero gradients, so their Adam moments decay through the denormal
-        # range, where x86 arithmetic is ~100x slower: measured, each Adam step took 5x longer.
-        # Flush them to zero, as TensorFlow does on CPU (threads started later inherit it);
-        # ``close`` puts the process back as it was.
-        self._flushed_before = _flush_denormal_enabled()
-        torch.set_flush_denormal(True)
-        from rrls.agents.threads import AdaptiveThreads
-
-        self.threads = AdaptiveThreads(config.threads)
         self.scalars_path = self.dir / "scalars.csv"
         self._scalars: Any = None
         self._last_checkpoint = 0
@@ -275,6 +276,9 @@ class Run:
             self._scalars.flush()
         atomic_write_bytes(self.checkpoint_path, buf.getvalue())
         self._last_checkpoint = self.step
+
+    def check_stop(self) -> None:
+        """``stop_at`` (a test aid): stop as if killed, right after a checkpoint."""
         stop = self.config.stop_at
         if stop is not None and self.step >= stop:
             raise Interrupted(f"stopped at step {self.step} (stop_at={stop})")
@@ -309,7 +313,7 @@ class Run:
             f"{self.step},{key},{float(value)!r}\n" for key, value in values.items()
         )
 
-    def progress(self) -> Any:
+    def progress(self, group: int = 1) -> Any:
         import sys
 
         from tqdm.auto import tqdm
@@ -318,10 +322,10 @@ class Run:
             not sys.stderr.isatty() if self.config.progress is None else not self.config.progress
         )
         self._bar = tqdm(
-            total=self.config.steps,
-            initial=self.step,
+            total=self.config.steps * group,
+            initial=self.step * group,
             unit="step",
-            desc=f"{self.config.algo} {self.task}",
+            desc=f"{self.config.algo} {self.task}" + (f" ({group} runs)" if group > 1 else ""),
             disable=disable,
             smoothing=0.05,
         )
@@ -340,7 +344,6 @@ class Run:
                 **extra,
             }
         )
-        self.threads.poll()
         if self._bar is not None:
             self._bar.set_postfix(ret=f"{episode_return:.1f}", refresh=False)
 
@@ -349,12 +352,12 @@ class Run:
         every = self.config.eval_every
         return every > 0 and self.step - self._last_eval >= every
 
-    def evaluate(self, actor: Any, metadata: dict[str, Any]) -> dict[str, float]:
-        """Nominal return (and the coarse-mesh worst/average case) through the evaluation engine."""
+    def evaluate(self, policy: Any) -> dict[str, float]:
+        """Nominal return (and the coarse-mesh worst/average case) of ``policy`` (the run's
+        ``MLPPolicy``) through the evaluation engine."""
         from rrls.evaluation import evaluate
 
         self._last_eval = self.step
-        policy = actor.to_mlp_policy(metadata)
         cfg = self.config
         nominal = evaluate(
             policy,
@@ -391,14 +394,14 @@ class Run:
             return benchmark_set(self.task)
         return self.uncertainty
 
-    def metadata(self, env: Any, learner: Any) -> dict[str, Any]:
+    def metadata(self, env: Any, learner: Any, k: int = 0) -> dict[str, Any]:
         """What the saved policies record (``rrls evaluate RUN_DIR`` reads task and set)."""
         return {
             "algorithm": self.config.algo,
             "task": self.task,
             "uncertainty": self.uncertainty,
             "obs_dim": env.observation_space.shape[0],
-            "act_dim": learner.actor.layers[-1].out_features,
+            "act_dim": learner.actor.act_dim,
             "hidden": list(self.hyper.hidden),
             "seed": self.config.seed,
             "run_dir": str(self.dir),
@@ -409,23 +412,21 @@ class Run:
     # -- the end ----------------------------------------------------------------------------
     def finish(
         self,
-        actor: Any,
+        policy: Any,
+        actor_state: dict[str, torch.Tensor],
         metadata: dict[str, Any],
         summary: dict[str, Any],
         adversary: Any = None,
-        adversary_metadata: dict[str, Any] | None = None,
     ) -> Path:
-        """Save the final policy (``policy.npz``, ``actor.pt``: tensors only) and ``run.json``;
-        for two-player runs also the final adversary (``adversary.npz``, same safe format, its
-        metadata saying which game and set it plays), for the dynamic evaluation (Table 6)."""
+        """Save the final policy (``policy.npz``, an ``MLPPolicy``; ``actor.pt``: the run's actor
+        tensors only) and ``run.json``; for two-player runs also the final adversary
+        (``adversary.npz``, same safe format, its metadata saying which game and set it plays),
+        for the dynamic evaluation (Table 6)."""
         if adversary is not None:
-            meta = {**metadata, "act_dim": adversary.layers[-1].out_features}
-            adversary.to_mlp_policy({**meta, **(adversary_metadata or {})}).save(
-                self.dir / "adversary.npz"
-            )
-        actor.to_mlp_policy(metadata).save(self.dir / "policy.npz")
+            adversary.save(self.dir / "adversary.npz")
+        policy.save(self.dir / "policy.npz")
         buf = io.BytesIO()
-        torch.save({k: v.cpu() for k, v in actor.state_dict().items()}, buf)
+        torch.save(actor_state, buf)
         atomic_write_bytes(self.dir / "actor.pt", buf.getvalue())
         atomic_write_json(
             self.dir / "run.json",
@@ -440,16 +441,36 @@ class Run:
         return self.dir
 
     def close(self) -> None:
-        """Close logs and give the process back its thread count and denormal mode."""
+        """Close the logs and the progress bar."""
         if self._bar is not None:
             self._bar.close()
         if self._writer is not None:
             self._writer.close()
+            self._writer = None
         if self._scalars is not None:
             self._scalars.close()
             self._scalars = None
-        self.threads.restore()
-        torch.set_flush_denormal(self._flushed_before)
+
+
+@contextmanager
+def process_settings(threads: int | None) -> Iterator[Any]:
+    """The process as training wants it, put back as it was afterwards.
+
+    Threads: ``AdaptiveThreads`` (the cores other processes leave idle, or ``threads``). Dead
+    ReLU units get zero gradients, so their Adam moments decay through the denormal range, where
+    x86 arithmetic is ~100x slower: measured, each Adam step took 5x longer. Flush them to zero,
+    as TensorFlow does on CPU (threads started later inherit it).
+    """
+    from rrls.agents.threads import AdaptiveThreads
+
+    flushed = _flush_denormal_enabled()
+    torch.set_flush_denormal(True)
+    adaptive = AdaptiveThreads(threads)
+    try:
+        yield adaptive
+    finally:
+        adaptive.restore()
+        torch.set_flush_denormal(flushed)
 
 
 def _flush_denormal_enabled() -> bool:

@@ -1,4 +1,5 @@
-"""The TD3 core shared by every baseline (Fujimoto et al. 2018; CleanRL's update, made fast).
+"""The TD3 core shared by every baseline (Fujimoto et al. 2018; CleanRL's update, made fast),
+for a group of ``K`` independent runs updated together (a run alone is a group of one).
 
 Same mathematics as CleanRL's ``td3_continuous_action.py``: twin critics regressed on
 ``r + γ (1 - terminated) min(Q1', Q2')(s', clip(π'(s') + clip(ε), low, high))``, a delayed actor
@@ -10,6 +11,12 @@ the fused Adam kernel called without ``torch.optim``'s per-step Python; one ``_f
 for Polyak averaging; a preallocated tensor replay.
 
 Critics may be conditioned on extra inputs (M2TD3's uncertainty parameters ω): pass ``cond``.
+
+Groups: every tensor carries the runs as its leading dimension (``(K, B, ·)`` batches, ``(K,)``
+losses). Each run keeps its own seeded generators (initialisation, target-smoothing noise), drawn
+on the CPU and moved to the device in one copy, so a run's numbers are the same alone or in any
+group, on any device count of runs (``tests/test_group.py``), and the device-side update is a pure
+function of its inputs (what a CUDA graph captures).
 """
 
 from __future__ import annotations
@@ -65,8 +72,66 @@ class TD3Config:
             raise ValueError(f"hidden layer sizes must be >= 1, got {list(self.hidden)}")
 
 
-class TD3:
-    """Actor, twin critic, their targets and optimisers; ``update_critic`` / ``update_actor``."""
+class Adam:
+    """Adam over stacked parameters, straight into PyTorch's fused kernel.
+
+    The same arithmetic as ``torch.optim.Adam(fused=True)`` (same kernel; a test compares
+    them), without its ~100 µs of per-step Python (grouping tensors by device and dtype, hooks).
+    Every slice of a stacked parameter is one run's; elementwise, so each run steps as alone. The
+    step count is shared: a group's runs always step together. Gradients are written into
+    ``grads`` by the explicit back-propagation.
+    """
+
+    def __init__(self, params: list[torch.Tensor], lr: float, betas=(0.9, 0.999), eps=1e-8):  # noqa: ANN001
+        self.params = list(params)
+        self.lr, self.betas, self.eps = float(lr), betas, eps
+        self.grads = [torch.zeros_like(p) for p in self.params]
+        self.exp_avg = [torch.zeros_like(p) for p in self.params]
+        self.exp_avg_sq = [torch.zeros_like(p) for p in self.params]
+        self.step_count = torch.zeros((), dtype=torch.float32, device=self.params[0].device)
+        self._steps = [self.step_count] * len(self.params)
+
+    @torch.no_grad()
+    def step(self) -> None:
+        self.step_count.add_(1)
+        torch._fused_adam_(
+            self.params,
+            self.grads,
+            self.exp_avg,
+            self.exp_avg_sq,
+            [],
+            self._steps,
+            amsgrad=False,
+            lr=self.lr,
+            beta1=self.betas[0],
+            beta2=self.betas[1],
+            weight_decay=0.0,
+            eps=self.eps,
+            maximize=False,
+            grad_scale=None,
+            found_inf=None,
+        )
+
+    def stacked(self, prefix: str) -> dict[str, torch.Tensor]:
+        return {
+            **{f"{prefix}.exp_avg.{i}": t for i, t in enumerate(self.exp_avg)},
+            **{f"{prefix}.exp_avg_sq.{i}": t for i, t in enumerate(self.exp_avg_sq)},
+        }
+
+
+def stacked_tensors(prefix: str, part: torch.nn.Module | Adam) -> dict[str, torch.Tensor]:
+    """The tensors of ``part`` with a leading run dimension, by name (per-run checkpoints)."""
+    if isinstance(part, Adam):
+        return part.stacked(prefix)
+    return {f"{prefix}.{name}": p for name, p in part.named_parameters()}
+
+
+class Player:
+    """``K`` deterministic policies with their target networks and Adam.
+
+    TD3's actor; NR-MDP's adversary (which learns on the protagonist's critic) is another one.
+    ``generators`` are the runs' seeded initialisation generators (one per run).
+    """
 
     def __init__(
         self,
@@ -75,63 +140,120 @@ class TD3:
         action_low: np.ndarray,
         action_high: np.ndarray,
         config: TD3Config,
-        seed: int = 0,
+        generators: list[torch.Generator],
+        device: torch.device,
+    ) -> None:
+        self.device = device
+        self.actor = Actor(obs_dim, act_dim, config.hidden, action_low, action_high, generators).to(
+            device
+        )
+        self.target = copy.deepcopy(self.actor).requires_grad_(False)
+        self.opt = Adam(list(self.actor.parameters()), config.learning_rate)
+        self.grads = self.opt.grads
+        self._box = (np.asarray(action_low, np.float32), np.asarray(action_high, np.float32))
+        self._sigma = self.actor.action_scale.cpu().numpy() * config.exploration_noise
+
+    def deterministic(self, obs: np.ndarray) -> np.ndarray:
+        """π(s) of every run for its own observation: ``(K, obs_dim) -> (K, act_dim)``.
+
+        On a CPU each run in numpy (~10 µs against ~60 for a batch-1 torch call); on a GPU all
+        runs in one call, one copy each way.
+        """
+        if self.device.type == "cpu":
+            return np.stack([self.actor.act_one(k, o) for k, o in enumerate(obs)])
+        with torch.inference_mode():
+            x = torch.as_tensor(np.asarray(obs), dtype=torch.float32).to(self.device)
+            return self.actor(x.unsqueeze(1)).squeeze(1).cpu().numpy()
+
+    def explore(self, obs: np.ndarray, rngs: list[np.random.Generator]) -> np.ndarray:
+        """``π(s) + N(0, σ·scale)`` per run (each run's own generator), clipped to the box."""
+        mean = self.deterministic(obs)
+        noise = np.stack([rng.normal(0.0, self._sigma) for rng in rngs])
+        return np.clip(mean + noise, *self._box).astype(np.float32)
+
+    def stacked(self, prefix: str) -> dict[str, torch.Tensor]:
+        return {
+            **stacked_tensors(f"{prefix}.actor", self.actor),
+            **stacked_tensors(f"{prefix}.target", self.target),
+            **stacked_tensors(f"{prefix}.opt", self.opt),
+        }
+
+    def shared(self, prefix: str) -> dict[str, torch.Tensor]:
+        return {f"{prefix}.opt.step": self.opt.step_count}
+
+
+class TD3:
+    """``K`` runs' actors, twin critics, targets and optimisers; one update steps them all."""
+
+    def __init__(
+        self,
+        obs_dim: int,
+        act_dim: int,
+        action_low: np.ndarray,
+        action_high: np.ndarray,
+        config: TD3Config,
+        seeds: list[int] | int = 0,
         device: str | torch.device = "cpu",
         cond_dim: int = 0,
-        critic_lr: float | None = None,
     ) -> None:
-        self.config = config
+        seeds = [seeds] if isinstance(seeds, int) else list(seeds)
+        self.config, self.group = config, len(seeds)
         self.device = torch.device(device)
-        # seeded initialisation without touching torch's global generator
-        with torch.random.fork_rng(devices=[]):
-            torch.manual_seed(seed)
-            player = Player(obs_dim, act_dim, action_low, action_high, config, self.device)
-            self.critic = TwinCritic(obs_dim + act_dim + cond_dim, config.hidden).to(self.device)
+        gens = [torch.Generator().manual_seed(s) for s in seeds]  # actor, then critic
+        player = Player(obs_dim, act_dim, action_low, action_high, config, gens, self.device)
+        self.critic = TwinCritic(obs_dim + act_dim + cond_dim, config.hidden, 2, gens).to(
+            self.device
+        )
         self.player = player
         self.actor, self.actor_target, self.actor_opt = player.actor, player.target, player.opt
         self.critic_target = copy.deepcopy(self.critic).requires_grad_(False)
-        self.critic_opt = torch.optim.Adam(
-            self.critic.parameters(), lr=critic_lr or config.learning_rate, fused=True
-        )
-        self.noise = torch.Generator(device=self.device).manual_seed(seed + 1)
+        self.critic_opt = Adam(list(self.critic.parameters()), config.learning_rate)
+        self.noise = [torch.Generator().manual_seed(s + 1) for s in seeds]
         self.low = torch.as_tensor(action_low, dtype=torch.float32, device=self.device)
         self.high = torch.as_tensor(action_high, dtype=torch.float32, device=self.device)
-        self._critic_grads = [torch.zeros_like(p) for p in self.critic.parameters()]
-        self.obs_dim = obs_dim
+        self.obs_dim, self.act_dim = obs_dim, act_dim
         self._sources = [*self.actor.parameters(), *self.critic.parameters()]
         self._targets = [*self.actor_target.parameters(), *self.critic_target.parameters()]
         self._action_columns = slice(obs_dim, obs_dim + act_dim)
-        self.act_dim = act_dim
 
     # -- acting -----------------------------------------------------------------------------
     def act(self, obs: np.ndarray) -> np.ndarray:
-        """Deterministic actions for a batch of observations."""
-        return self.player.act(obs)
+        """Each run's deterministic action for its observation, ``(K, obs_dim)``."""
+        return self.player.deterministic(obs)
 
-    def explore(self, obs: np.ndarray, rng: np.random.Generator) -> np.ndarray:
-        """``π(s) + N(0, σ·scale)``, clipped to the action box (one observation)."""
-        return self.player.explore(obs, rng)
+    def explore(self, obs: np.ndarray, rngs: list[np.random.Generator]) -> np.ndarray:
+        """``π(s) + N(0, σ·scale)`` per run, clipped to the action box."""
+        return self.player.explore(obs, rngs)
 
-    # -- learning ---------------------------------------------------------------------------
-    def target_action(self, actor_target: Actor, next_obs: torch.Tensor) -> torch.Tensor:
-        """TD3's smoothed target action ``clip(π'(s') + clip(ε), low, high)``."""
+    # -- random inputs (drawn per run on the CPU, one copy to the device) -------------------
+    def draw(self, batch: int, width: int | None = None) -> torch.Tensor:
+        """Standard normal ``(K, batch, width)`` from each run's noise generator."""
+        width = self.act_dim if width is None else width
+        eps = torch.stack([torch.randn((batch, width), generator=g) for g in self.noise])
+        return eps.to(self.device, non_blocking=True)
+
+    # -- learning (pure functions of their tensor inputs) -----------------------------------
+    def target_action(
+        self, actor_target: Actor, next_obs: torch.Tensor, eps: torch.Tensor
+    ) -> torch.Tensor:
+        """TD3's smoothed target action ``clip(π'(s') + clip(σε, ±c)·scale, low, high)``."""
         cfg = self.config
-        eps = torch.randn((len(next_obs), self.act_dim), generator=self.noise, device=self.device)
-        eps.mul_(cfg.policy_noise).clamp_(-cfg.noise_clip, cfg.noise_clip)
+        eps = (eps * cfg.policy_noise).clamp_(-cfg.noise_clip, cfg.noise_clip)
         next_action = actor_target.forward_saved(next_obs)[0]
         return next_action.addcmul_(eps, actor_target.action_scale).clamp_(self.low, self.high)
 
     def target_q(
         self, next_obs: torch.Tensor, next_action: torch.Tensor, next_cond: torch.Tensor | None
     ) -> torch.Tensor:
-        """``min_i Q_i'(s', a')``: the twin target critics' pessimistic value."""
-        return self.critic_target.forward_saved(_cat(next_obs, next_action, next_cond))[0].amin(0)
+        """``min_i Q_i'(s', a')``: the twin target critics' pessimistic value, ``(K, B)``."""
+        return self.critic_target.forward_saved(_cat(next_obs, next_action, next_cond))[0].amin(1)
 
     def td_target(
         self,
         reward: torch.Tensor,
         next_obs: torch.Tensor,
         terminated: torch.Tensor,
+        eps: torch.Tensor,
         next_cond: torch.Tensor | None = None,
     ) -> torch.Tensor:
         """``r + γ (1 - terminated) min_i Q_i'(s', ã')`` with target policy smoothing.
@@ -139,7 +261,7 @@ class TD3:
         Truncated transitions are stored with ``terminated = 0``: they bootstrap.
         """
         with torch.no_grad():
-            next_action = self.target_action(self.actor_target, next_obs)
+            next_action = self.target_action(self.actor_target, next_obs, eps)
             return self.bootstrap(
                 reward, terminated, self.target_q(next_obs, next_action, next_cond)
             )
@@ -159,12 +281,13 @@ class TD3:
         target: torch.Tensor,
         cond: torch.Tensor | None = None,
     ) -> torch.Tensor:
-        """One Adam step on ``Σ_i mean((Q_i(s, a) - y)²)`` (CleanRL's ``qf1_loss + qf2_loss``)."""
+        """One Adam step on ``Σ_i mean((Q_i(s, a) - y)²)`` per run (CleanRL's
+        ``qf1_loss + qf2_loss``); returns the ``(K,)`` losses."""
         q, saved = self.critic.forward_saved(_cat(obs, action, cond))
-        diff = q - target
-        loss = diff.square().mean(1).sum()
-        self.critic.backward_saved(saved, diff.mul_(2.0 / len(target)), self._critic_grads)
-        adam_step(self.critic_opt, self._critic_grads)
+        diff = q - target.unsqueeze(1)
+        loss = diff.square().mean(2).sum(1)
+        self.critic.backward_saved(saved, diff.mul_(2.0 / target.shape[-1]), self.critic_opt.grads)
+        self.critic_opt.step()
         return loss
 
     @torch.no_grad()
@@ -189,20 +312,20 @@ class TD3:
         TD3: ``share=1``, no ``other``, ascending. NR-MDP (Tessler et al. 2019): the protagonist
         ascends and the adversary descends the critic of the *mixed* action, ``share`` being its
         part ((1-α) or α) and ``other`` the other player's part (fixed). PR-MDP: ``weight``
-        (1-α) or α, no mix. Gradients reach ``player``'s actor only.
+        (1-α) or α, no mix. Gradients reach ``player``'s actor only. Returns ``(K,)`` losses.
         """
         action, saved_actor = player.actor.forward_saved(obs)
         x = action if other is None else torch.add(other, action, alpha=share)
         q1, saved_q1 = self.critic.forward_saved(_cat(obs, x, cond), n=1)
         sign = weight if descend else -weight
-        loss = q1.mean() * sign
+        loss = q1.mean((1, 2)) * sign
         grad_x = self.critic.backward_saved(
-            saved_q1, torch.full_like(q1, sign / q1.shape[1]), input_columns=self._action_columns
-        )[0]
+            saved_q1, torch.full_like(q1, sign / q1.shape[2]), input_columns=self._action_columns
+        )
         player.actor.backward_saved(
             saved_actor, grad_x if share == 1.0 else grad_x * share, player.grads
         )
-        adam_step(player.opt, player.grads)
+        player.opt.step()
         return loss
 
     @torch.no_grad()
@@ -210,145 +333,34 @@ class TD3:
         """Polyak averaging ``θ' ← θ' + τ (θ - θ')`` of both targets, in one fused call."""
         torch._foreach_lerp_(self._targets, self._sources, self.config.tau)
 
-    def update(self, batch: dict[str, torch.Tensor], update_actor: bool) -> dict[str, float]:
+    def update(
+        self, batch: dict[str, torch.Tensor], eps: torch.Tensor, update_actor: bool
+    ) -> dict[str, torch.Tensor]:
         """A full TD3 step on a replay batch (the actor and targets every ``policy_frequency``)."""
-        y = self.td_target(batch["reward"], batch["next_obs"], batch["terminated"])
+        y = self.td_target(batch["reward"], batch["next_obs"], batch["terminated"], eps)
         losses = {"critic_loss": self.update_critic(batch["obs"], batch["action"], y)}
         if update_actor:
             losses["actor_loss"] = self.update_actor(batch["obs"])
             self.update_targets()
         return losses
 
-    # -- checkpoints ------------------------------------------------------------------------
-    def state_dict(self) -> dict[str, object]:
+    # -- per-run checkpoints ----------------------------------------------------------------
+    def stacked(self, prefix: str) -> dict[str, torch.Tensor]:
         return {
-            "actor": self.actor.state_dict(),
-            "critic": self.critic.state_dict(),
-            "actor_target": self.actor_target.state_dict(),
-            "critic_target": self.critic_target.state_dict(),
-            "actor_opt": self.actor_opt.state_dict(),
-            "critic_opt": self.critic_opt.state_dict(),
-            "noise": self.noise.get_state(),
+            **self.player.stacked(prefix),
+            **stacked_tensors(f"{prefix}.critic", self.critic),
+            **stacked_tensors(f"{prefix}.critic_target", self.critic_target),
+            **stacked_tensors(f"{prefix}.critic_opt", self.critic_opt),
         }
 
-    def load_state_dict(self, state: dict[str, object]) -> None:
-        for name in ("actor", "critic", "actor_target", "critic_target", "actor_opt", "critic_opt"):
-            getattr(self, name).load_state_dict(state[name])
-        self.noise.set_state(state["noise"])
-
-
-class Player:
-    """A deterministic policy with its target network, fused Adam and gradient buffers.
-
-    TD3's actor; NR-MDP's adversary (which learns on the protagonist's critic) is another one.
-    Created under the caller's seeded generator.
-    """
-
-    def __init__(
-        self,
-        obs_dim: int,
-        act_dim: int,
-        action_low: np.ndarray,
-        action_high: np.ndarray,
-        config: TD3Config,
-        device: torch.device,
-    ) -> None:
-        self.device = device
-        self.actor = Actor(obs_dim, act_dim, config.hidden, action_low, action_high).to(device)
-        self.target = copy.deepcopy(self.actor).requires_grad_(False)
-        self.opt = torch.optim.Adam(self.actor.parameters(), lr=config.learning_rate, fused=True)
-        self.grads = [torch.zeros_like(p) for p in self.actor.parameters()]
-        self._box = (np.asarray(action_low, np.float32), np.asarray(action_high, np.float32))
-        self._sigma = self.actor.action_scale.cpu().numpy() * config.exploration_noise
-
-    @torch.inference_mode()
-    def act(self, obs: np.ndarray) -> np.ndarray:
-        """Deterministic actions for a batch of observations."""
-        x = torch.as_tensor(obs, dtype=torch.float32, device=self.device)
-        return self.actor(x).cpu().numpy()
-
-    def act_one(self, obs: np.ndarray) -> np.ndarray:
-        """π(s) for one observation (numpy on the weights on CPU: ~10 µs instead of ~60)."""
-        if self.device.type == "cpu":
-            return self.actor.act_one(obs)
-        return self.act(obs[None])[0]
-
-    def explore(self, obs: np.ndarray, rng: np.random.Generator) -> np.ndarray:
-        """``π(s) + N(0, σ·scale)``, clipped to the action box (one observation)."""
-        noise = rng.normal(0.0, self._sigma)
-        return np.clip(self.act_one(obs) + noise, *self._box).astype(np.float32)
-
-    def state_dict(self) -> dict[str, object]:
+    def shared(self, prefix: str) -> dict[str, torch.Tensor]:
         return {
-            "actor": self.actor.state_dict(),
-            "actor_target": self.target.state_dict(),
-            "actor_opt": self.opt.state_dict(),
+            **self.player.shared(prefix),
+            f"{prefix}.critic_opt.step": self.critic_opt.step_count,
         }
 
-    def load_state_dict(self, state: dict[str, object]) -> None:
-        self.actor.load_state_dict(state["actor"])
-        self.target.load_state_dict(state["actor_target"])
-        self.opt.load_state_dict(state["actor_opt"])
-
-
-def adam_step(opt: torch.optim.Adam, grads: list[torch.Tensor]) -> None:
-    """``opt.step()`` with ``grads`` as the gradients, straight into the fused Adam kernel.
-
-    Bit-identical to ``torch.optim.Adam(fused=True).step()`` (same kernel, same state, so
-    checkpoints and ``opt.state_dict()`` are unchanged), without its ~100 µs of per-call Python
-    (grouping tensors by device and dtype, hooks, ...). One parameter group, no AMSGrad.
-    """
-    cache = getattr(opt, "_rrls_fused", None)
-    if cache is None or cache[0] is not opt.state:  # first step, or state loaded since
-        cache = opt._rrls_fused = _fused_adam_state(opt)
-    _, params, exp_avgs, exp_avg_sqs, steps, step_counts = cache
-    step_counts.add_(1)  # every parameter's step counter at once (they are views of it)
-    group = opt.param_groups[0]
-    beta1, beta2 = group["betas"]
-    torch._fused_adam_(
-        params,
-        grads,
-        exp_avgs,
-        exp_avg_sqs,
-        [],
-        steps,
-        amsgrad=False,
-        lr=group["lr"],
-        beta1=beta1,
-        beta2=beta2,
-        weight_decay=group["weight_decay"],
-        eps=group["eps"],
-        maximize=False,
-        grad_scale=None,
-        found_inf=None,
-    )
-
-
-def _fused_adam_state(opt: torch.optim.Adam) -> tuple:
-    """The tensor lists ``adam_step`` feeds the kernel, made once per ``opt.state``.
-
-    Creates the state ``Adam(fused=True)`` creates on its first step, then re-seats the per-
-    parameter ``step`` counters as 0-d views of one vector (same values, same ``state_dict``), so
-    one ``add_`` advances them all: ``_foreach_add_`` over six 0-d tensors cost ~24 µs.
-    """
-    params = opt.param_groups[0]["params"]
-    states = [opt.state[p] for p in params]
-    for p, state in zip(params, states):
-        if not state:
-            state["step"] = torch.zeros((), dtype=torch.float32, device=p.device)
-            state["exp_avg"] = torch.zeros_like(p, memory_format=torch.preserve_format)
-            state["exp_avg_sq"] = torch.zeros_like(p, memory_format=torch.preserve_format)
-    step_counts = torch.stack([state["step"] for state in states])
-    for i, state in enumerate(states):
-        state["step"] = step_counts[i]
-    return (
-        opt.state,
-        list(params),
-        [state["exp_avg"] for state in states],
-        [state["exp_avg_sq"] for state in states],
-        [state["step"] for state in states],
-        step_counts,
-    )
+    def generators(self, prefix: str) -> dict[str, list[torch.Generator]]:
+        return {f"{prefix}.noise": self.noise}
 
 
 def _cat(obs: torch.Tensor, action: torch.Tensor, cond: torch.Tensor | None) -> torch.Tensor:

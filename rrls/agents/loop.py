@@ -15,6 +15,7 @@ acts, what it stores and how it updates.
 from __future__ import annotations
 
 import importlib
+import json
 from collections.abc import Callable
 from pathlib import Path
 from types import ModuleType
@@ -23,58 +24,111 @@ from typing import Any
 import numpy as np
 import torch
 
-from rrls.agents.common import ALGOS, Run, TrainConfig, rng_state, set_rng_state
+from rrls.agents.common import (
+    ALGOS,
+    Run,
+    TrainConfig,
+    process_settings,
+    rng_state,
+    set_rng_state,
+)
 from rrls.agents.core import TD3Config
 
 
 class Learner:
-    """What an algorithm plugs into the loop (defaults for what most algorithms do not need).
+    """What an algorithm plugs into the loop, for a group of ``K`` runs (a run alone: ``K = 1``).
 
-    ``actor`` is the policy that is evaluated and exported as ``policy.npz``; ``adversary``, if
-    any, is exported as ``adversary.npz`` with ``game`` in its metadata.
+    ``actor`` holds the runs' policies (evaluated and exported as each run's ``policy.npz``);
+    ``adversary``, if any, is exported as ``adversary.npz`` with ``game`` in its metadata.
+    Observations, rewards and flags come as arrays with the runs first; actions as one env
+    action per run. A run's checkpoint is its slice of every stacked tensor (``stacked``), the
+    group's common counters (``shared``), its own generators and replay rows.
     """
 
     actor: Any
     adversary: Any = None
     game: dict[str, Any] | None = None
 
-    def act(self, obs: np.ndarray, rng: np.random.Generator, warmup: bool) -> Any:
-        """The env action for ``obs``: uniformly random while ``warmup``, else explore."""
+    def act(self, obs: np.ndarray, rngs: list[np.random.Generator], warmup: bool) -> list[Any]:
+        """Each run's env action: uniformly random while ``warmup``, else explore."""
         raise NotImplementedError
 
     def store(
         self,
         obs: np.ndarray,
-        action: Any,
-        reward: float,
+        actions: list[Any],
+        rewards: np.ndarray,
         next_obs: np.ndarray,
-        terminated: bool,
-        info: dict[str, Any],
+        terminated: np.ndarray,
+        infos: list[dict[str, Any]],
     ) -> None:
-        """Write the transition to the replay buffer(s); ``terminated`` only, never truncation."""
+        """Write the step's transitions to the replay buffer(s); ``terminated`` only, never
+        truncation."""
         raise NotImplementedError
 
     def update(self, step: int, update_actor: bool) -> dict[str, torch.Tensor]:
-        """The gradient steps of one env step; returns losses (logged every 1 000 steps)."""
+        """The gradient steps of one env step, for every run; returns ``(K,)`` losses (logged
+        every 1 000 steps)."""
         raise NotImplementedError
 
-    def episode_options(self, step: int, rng: np.random.Generator) -> dict[str, Any] | None:
-        """``reset(options=...)`` for the next episode (M2TD3 picks its parameters here)."""
+    def episode_options(self, k: int, step: int, rng: np.random.Generator) -> dict | None:
+        """``reset(options=...)`` for run ``k``'s next episode (M2TD3 picks its parameters)."""
         return None
 
-    def episode_end(self, episode_return: float, length: int) -> dict[str, float]:
-        """Called at every episode end, before the checkpoint; returns extra scalars to log."""
+    def episode_end(self, k: int, episode_return: float, length: int) -> dict[str, float]:
+        """Called at each of run ``k``'s episode ends; returns extra scalars to log."""
         return {}
 
-    def summary(self) -> dict[str, Any]:
-        """Extra entries of ``run.json``."""
+    def summary(self, k: int) -> dict[str, Any]:
+        """Extra entries of run ``k``'s ``run.json``."""
         return {}
 
-    def state_dict(self) -> dict[str, Any]:
-        raise NotImplementedError
+    # -- per-run checkpoints ----------------------------------------------------------------
+    def stacked(self) -> dict[str, torch.Tensor]:
+        """Every tensor whose leading dimension is the run, by name."""
+        return {}
 
-    def load_state_dict(self, state: dict[str, Any]) -> None:
-        raise NotImplementedError
+    def shared(self) -> dict[str, torch.Tensor]:
+        """Tensors common to the group's runs (optimiser step counts)."""
+        return {}
+
+    def generators(self) -> dict[str, list[torch.Generator]]:
+        """Each run's torch generators, by name."""
+        return {}
+
+    def buffers(self) -> list[Any]:
+        return []
+
+    def extra_state(self, k: int) -> dict[str, Any]:
+        """Run ``k``'s other state (plain values and tensors)."""
+        return {}
+
+    def load_extra_state(self, k: int, state: dict[str, Any]) -> None:
+        pass
+
+    def state_dict(self, k: int) -> dict[str, Any]:
+        """Run ``k``'s whole learner state: the same whatever group it was trained in."""
+        return {
+            "stacked": {n: t[k].detach().cpu().clone() for n, t in self.stacked().items()},
+            "shared": {n: t.detach().cpu().clone() for n, t in self.shared().items()},
+            "generators": {n: g[k].get_state() for n, g in self.generators().items()},
+            "buffers": [b.state(k) for b in self.buffers()],
+            "extra": self.extra_state(k),
+        }
+
+    @torch.no_grad()
+    def load_state_dict(self, k: int, state: dict[str, Any]) -> None:
+        for name, tensor in self.stacked().items():
+            tensor[k].copy_(state["stacked"][name])
+        for name, tensor in self.shared().items():
+            if k and not torch.equal(tensor.cpu(), state["shared"][name]):
+                raise ValueError("the runs of a group must resume from the same step")
+            tensor.copy_(state["shared"][name])
+        for name, gens in self.generators().items():
+            gens[k].set_state(state["generators"][name])
+        for buffer, saved in zip(self.buffers(), state["buffers"]):
+            buffer.load(k, saved)
+        self.load_extra_state(k, state["extra"])
 
 
 def algorithm(name: str) -> ModuleType:
@@ -108,69 +162,222 @@ def train(
     start; a finished run with as many steps: returned as it is). ``on_episode(step, return)``
     is called at every episode end (progress displays of a driver running many runs).
     """
-    algo = algorithm(config.algo)
-    hyper = hyperparameters(config)
-    run = Run(config, resume, hyper)
-    if run.finished:
-        return run.dir
-    env = algo.make_env(run.task, run.uncertainty, hyper)
-    rng = np.random.default_rng(config.seed)  # warm-up actions, exploration noise, M2TD3's draws
-    learner: Learner = algo.Learner(env, hyper, config, rng)
-    meta = run.metadata(env, learner)
+    hook = None if on_episode is None else (lambda k, step, ret: on_episode(step, ret))
+    return train_group([config], resume, hook)[0]
 
-    state = run.load()
-    if state is not None:  # restore everything, then redo the reset the checkpoint preceded
-        learner.load_state_dict(state["learner"])
-        set_rng_state(rng, state["rng"])
-        set_rng_state(env.unwrapped.np_random, state["env_rng"])
-    obs, _ = env.reset(
-        seed=config.seed if state is None else None,
-        options=learner.episode_options(run.step, rng),
-    )
 
-    bar = run.progress()
-    episode_return, episode_length = 0.0, 0
+def train_group(
+    configs: list[TrainConfig],
+    resume: bool = False,
+    on_episode: Callable[[int, int, float], None] | None = None,
+) -> list[Path]:
+    """Train several runs of one algorithm on one task together; returns their directories.
+
+    The runs (typically different seeds) differ only in ``seed`` and ``out``; they are stacked
+    (``K`` agents, one update call) and their envs step in lockstep. Each run keeps its own
+    directory, checkpoint, logs and policy, and its numbers are those it has when trained alone
+    (``tests/test_group.py``). Resumed runs that stopped at different steps are continued in
+    groups of equal step. ``on_episode(k, step, return)`` is called at run ``k``'s episode ends.
+    """
+    if not configs:
+        return []
+    hyper = hyperparameters(configs[0])
+    _check_group(configs, hyper)
+    runs = [Run(c, resume, hyper) for c in configs]
     try:
-        while run.step < config.steps:
-            action = learner.act(obs, rng, warmup=run.step < hyper.learning_starts)
-            next_obs, reward, terminated, _, info = env.step(action)
-            run.step += 1
-            episode_return += reward
-            episode_length += 1
-            truncated = episode_length >= config.max_episode_steps
+        pending = [k for k, run in enumerate(runs) if not run.finished]
+        states = {k: runs[k].load() for k in pending}
+        by_step: dict[int, list[int]] = {}
+        for k in pending:
+            by_step.setdefault(runs[k].step, []).append(k)
+        for step in sorted(by_step):
+            members = by_step[step]
+            hook = None
+            if on_episode is not None:
+                hook = (lambda ks: lambda i, s, r: on_episode(ks[i], s, r))(members)
+            with process_settings(configs[0].threads) as threads:
+                _train_together(
+                    hyper, [runs[k] for k in members], [states[k] for k in members], hook, threads
+                )
+    finally:
+        for run in reversed(runs):
+            run.close()
+    return [run.dir for run in runs]
+
+
+def _check_group(configs: list[TrainConfig], hyper: TD3Config) -> None:
+    """The runs of a group must differ only in seed and directory."""
+    first = configs[0]
+    same = ("steps", "device", "eval_every", "eval_episodes", "eval_mesh", "checkpoint_every")
+    for config in configs[1:]:
+        diff = [
+            k
+            for k, v in first.identity(hyper).items()
+            if k != "seed" and config.identity(hyperparameters(config))[k] != v
+        ] + [name for name in same if getattr(config, name) != getattr(first, name)]
+        if diff:
+            raise ValueError(
+                f"runs trained together must differ only in seed and out; these differ: "
+                f"{', '.join(sorted(set(diff)))}"
+            )
+    outs = [str(Path(c.out).resolve()) for c in configs]
+    if len(set(outs)) != len(outs):
+        raise ValueError("runs trained together need one directory each (--out)")
+
+
+class _Episode:
+    """How run ``k``'s current episode began and what it did: a checkpoint taken mid-episode
+    replays it (same generator, same reset, same actions: the same physics) on resume."""
+
+    def __init__(self, env_rng: str, seed: int | None, options: dict | None) -> None:
+        self.env_rng, self.seed, self.options = env_rng, seed, options
+        self.actions: list[Any] = []
+        self.ret, self.length = 0.0, 0
+
+    def state(self, obs: np.ndarray) -> dict[str, Any]:
+        parts: list[torch.Tensor] = []
+        if self.actions:
+            first = self.actions[0]
+            if isinstance(first, tuple):
+                parts = [
+                    torch.as_tensor(np.stack([a[i] for a in self.actions]))
+                    for i in range(len(first))
+                ]
+            else:
+                parts = [torch.as_tensor(np.stack(self.actions))]
+        return {
+            "env_rng": self.env_rng,
+            "seed": self.seed,
+            "options": json.dumps(self.options),
+            "tuple": bool(self.actions) and isinstance(self.actions[0], tuple),
+            "actions": parts,
+            "obs": torch.as_tensor(np.asarray(obs)),
+        }
+
+
+def _begin(env: Any, seed: int | None, options: dict | None) -> tuple[np.ndarray, _Episode]:
+    episode = _Episode(rng_state(env.unwrapped.np_random), seed, options)
+    obs, _ = env.reset(seed=seed, options=options)
+    return obs, episode
+
+
+def _replay(env: Any, saved: dict[str, Any], path: Path) -> tuple[np.ndarray, _Episode]:
+    """Re-run the episode a checkpoint was taken in, up to the checkpoint."""
+    set_rng_state(env.unwrapped.np_random, saved["env_rng"])
+    obs, episode = _begin(env, saved["seed"], json.loads(saved["options"]))
+    parts = [p.numpy() for p in saved["actions"]]
+    for i in range(len(parts[0]) if parts else 0):
+        action = tuple(p[i] for p in parts) if saved["tuple"] else parts[0][i]
+        obs, reward, *_ = env.step(action)
+        episode.actions.append(action)
+        episode.ret += reward
+        episode.length += 1
+    if not np.array_equal(obs, saved["obs"].numpy()):
+        raise RuntimeError(
+            f"cannot resume from {path}: replaying the episode in progress did not reproduce "
+            "its state (the physics differs from the machine that wrote the checkpoint)"
+        )
+    return obs, episode
+
+
+def _train_together(
+    hyper: TD3Config,
+    runs: list[Run],
+    states: list[dict[str, Any] | None],
+    on_episode: Callable[[int, int, float], None] | None,
+    threads: Any,
+) -> None:
+    """The collection loop of one group of runs at the same step."""
+    first = runs[0].config
+    algo = algorithm(first.algo)
+    configs = [run.config for run in runs]
+    envs = [algo.make_env(run.task, run.uncertainty, hyper) for run in runs]
+    # warm-up actions, exploration noise, M2TD3's draws: each run's own generator
+    rngs = [np.random.default_rng(c.seed) for c in configs]
+    learner: Learner = algo.Learner(envs[0], hyper, configs, rngs)
+    metas = [run.metadata(envs[0], learner, k) for k, run in enumerate(runs)]
+
+    observations, episodes = [], []
+    for k, (run, env, state) in enumerate(zip(runs, envs, states)):
+        if state is None:
+            obs, episode = _begin(env, run.config.seed, learner.episode_options(k, 0, rngs[k]))
+        else:  # restore everything, then replay the episode in progress
+            learner.load_state_dict(k, state["learner"])
+            set_rng_state(rngs[k], state["rng"])
+            obs, episode = _replay(env, state["episode"], run.checkpoint_path)
+        observations.append(obs)
+        episodes.append(episode)
+    obs = np.stack(observations)
+
+    step, steps, group = runs[0].step, first.steps, len(runs)
+    bar = runs[0].progress(group)
+    try:
+        while step < steps:
+            actions = learner.act(obs, rngs, warmup=step < hyper.learning_starts)
+            results = [env.step(a) for env, a in zip(envs, actions)]
+            next_obs = np.stack([r[0] for r in results])
+            rewards = np.array([r[1] for r in results], dtype=np.float64)
+            terminated = np.array([r[2] for r in results], dtype=bool)
+            step += 1
+            for run in runs:
+                run.step = step
             # a truncated transition keeps terminated=0: its target bootstraps from next_obs
-            learner.store(obs, action, reward, next_obs, terminated, info)
+            learner.store(obs, actions, rewards, next_obs, terminated, [r[4] for r in results])
+
+            if step > hyper.learning_starts:
+                losses = learner.update(step, step % hyper.policy_frequency == 0)
+                if step % 1000 == 0:
+                    values = {name: v.cpu().tolist() for name, v in losses.items()}
+                    for k, run in enumerate(runs):
+                        run.log({f"losses/{n}": v[k] for n, v in values.items()})
+            if runs[0].eval_due():
+                for k, run in enumerate(runs):
+                    run.evaluate(learner.actor.to_mlp_policy(k, metas[k]))
+
+            for k, episode in enumerate(episodes):
+                episode.actions.append(actions[k])
+                episode.ret += rewards[k]
+                episode.length += 1
+                if terminated[k] or episode.length >= first.max_episode_steps:
+                    # no transition crosses this reset
+                    extra = learner.episode_end(k, episode.ret, episode.length)
+                    runs[k].episode_end(episode.ret, episode.length, **extra)
+                    if on_episode is not None:
+                        on_episode(k, step, episode.ret)
+                    options = learner.episode_options(k, step, rngs[k])
+                    next_obs[k], episodes[k] = _begin(envs[k], None, options)
+                    threads.poll()
             obs = next_obs
 
-            if run.step > hyper.learning_starts:
-                losses = learner.update(run.step, run.step % hyper.policy_frequency == 0)
-                if run.step % 1000 == 0:
-                    run.log({f"losses/{k}": v.item() for k, v in losses.items()})
-            if run.eval_due():
-                run.evaluate(learner.actor, meta)
-
-            if terminated or truncated:  # no transition crosses this reset
-                extra = learner.episode_end(episode_return, episode_length)
-                run.episode_end(episode_return, episode_length, **extra)
-                if on_episode is not None:
-                    on_episode(run.step, episode_return)
-                episode_return, episode_length = 0.0, 0
-                if run.checkpoint_due():
+            if runs[0].checkpoint_due():
+                for k, run in enumerate(runs):
                     run.save(
                         {
-                            "learner": learner.state_dict(),
-                            "rng": rng_state(rng),
-                            "env_rng": rng_state(env.unwrapped.np_random),
+                            "learner": learner.state_dict(k),
+                            "rng": rng_state(rngs[k]),
+                            "episode": episodes[k].state(obs[k]),
                         }
                     )
-                obs, _ = env.reset(options=learner.episode_options(run.step, rng))
-            bar.update(1)
+                runs[0].check_stop()
+            bar.update(group)
     finally:
-        run.close()
-    return run.finish(
-        learner.actor,
-        meta,
-        {"steps": run.step, "episodes": run.episodes, **learner.summary()},
-        adversary=learner.adversary,
-        adversary_metadata={"role": "adversary"},
-    )
+        bar.close()
+    for k, run in enumerate(runs):
+        run.finish(
+            learner.actor.to_mlp_policy(k, metas[k]),
+            {n: t[k].detach().cpu().clone() for n, t in learner.actor.named_parameters()},
+            metas[k],
+            {"steps": run.step, "episodes": run.episodes, **learner.summary(k)},
+            adversary=(
+                None
+                if learner.adversary is None
+                else learner.adversary.to_mlp_policy(
+                    k,
+                    {
+                        **metas[k],
+                        "act_dim": learner.adversary.act_dim,
+                        "role": "adversary",
+                    },
+                )
+            ),
+        )

@@ -1,13 +1,21 @@
-"""Actor and twin critic of the paper (Appendix, "Actor/Critic architecture"): 256-256 MLPs.
+"""Actor and twin critic of the paper (Appendix, "Actor/Critic architecture"): 256-256 MLPs,
+held for a *group* of ``K`` independent runs at once.
 
-The two critics live in one module with stacked weights, so each layer of both is a single
-batched matmul (``torch.baddbmm``) instead of two small ones — the same mathematics as two
-separate ``nn.Linear`` stacks, initialised the same way (PyTorch's Linear default).
+Every parameter has a leading group dimension ``K`` (one slice per run; a run alone is a group
+of one), and every layer of all ``K`` runs is one batched matmul (``torch.baddbmm``). Why: many
+small runs in one process pay the per-operation dispatch once instead of ``K`` times, share the
+cores without oversubscribing them, and on a GPU fill it. Each slice is computed by the same
+matmul kernel as a lone ``addmm`` (PyTorch's CPU ``bmm`` calls the GEMM once per batch entry;
+``tests/test_group.py`` checks it), so a run's numbers do not depend on its group.
 
-Both networks also offer explicit back-propagation (``forward_saved`` / ``backward_saved``): the
-TD3 update calls these instead of autograd, because at these sizes (256-256, batch 256, on a
-CPU) autograd's per-operation bookkeeping cost ~20 % of an update. The gradients are
-autograd's (tests compare them); ``forward`` stays the differentiable path for everything else.
+The two critics of a run are two more slices (``K·2`` batch entries per layer). Both networks
+offer explicit back-propagation (``forward_saved`` / ``backward_saved``): the TD3 update calls
+these instead of autograd, because at these sizes (256-256, batch 256, on a CPU) autograd's
+per-operation bookkeeping cost ~20 % of an update. The gradients are autograd's (tests compare
+them); ``forward`` stays the differentiable path for everything else.
+
+Initialisation is PyTorch's ``nn.Linear`` default, drawn per run from the run's own seeded
+generator, so a run's initial weights do not depend on the group either.
 """
 
 from __future__ import annotations
@@ -27,6 +35,27 @@ def _relu_backward_(grad: torch.Tensor, output: torch.Tensor) -> torch.Tensor:
     ~1 % of an update saved by not allocating (and first-touching) another activation-sized block.
     """
     return torch.ops.aten.threshold_backward.grad_input(grad, output, 0, grad_input=grad)
+
+
+def _linear(b: torch.Tensor, h: torch.Tensor, w: torch.Tensor, w_t: torch.Tensor) -> torch.Tensor:
+    """``b + h @ w`` for every batch entry. A layer of one output unit is a multiply-and-sum:
+    MKL computes a lone one-column product (a group of one run) with another kernel than a
+    batch of them, which rounds differently; the sum does not depend on the batch (measured in
+    ``tests/test_group.py``)."""
+    if w.shape[-1] == 1:
+        return torch.add(b, (h * w_t).sum(-1, keepdim=True))
+    return torch.baddbmm(b, h, w)
+
+
+def _bmm(x: torch.Tensor, w: torch.Tensor) -> torch.Tensor:
+    """``x @ w`` per batch entry; one output column as a multiply-and-sum (see ``_linear``)."""
+    if w.shape[-1] == 1:
+        return (x * w.transpose(1, 2)).sum(-1, keepdim=True)
+    return torch.bmm(x, w)
+
+
+def _uniform(shape: tuple[int, ...], bound: float, gen: torch.Generator) -> torch.Tensor:
+    return torch.empty(shape).uniform_(-bound, bound, generator=gen)
 
 
 class _ViewCache:
@@ -61,7 +90,11 @@ class _ViewCache:
 
 
 class Actor(_ViewCache, nn.Module):
-    """Deterministic policy: ReLU hidden layers, tanh output scaled to the action box."""
+    """``K`` deterministic policies: ReLU hidden layers, tanh output scaled to the action box.
+
+    ``weights[i]`` is ``(K, fan_in, fan_out)`` (already transposed for ``x @ W``), ``biases[i]``
+    ``(K, 1, fan_out)``. Inputs are ``(K, B, obs_dim)``.
+    """
 
     def __init__(
         self,
@@ -70,78 +103,97 @@ class Actor(_ViewCache, nn.Module):
         hidden: Sequence[int] = (256, 256),
         action_low: np.ndarray | float = -1.0,
         action_high: np.ndarray | float = 1.0,
+        generators: Sequence[torch.Generator] | None = None,
     ) -> None:
         super().__init__()
+        gens = list(generators) if generators is not None else [torch.default_generator]
         sizes = [obs_dim, *hidden, act_dim]
-        self.layers = nn.ModuleList(nn.Linear(a, b) for a, b in zip(sizes[:-1], sizes[1:]))
+        per_run = [
+            [
+                (_uniform((b, a), 1 / math.sqrt(a), g).t(), _uniform((1, b), 1 / math.sqrt(a), g))
+                for a, b in zip(sizes[:-1], sizes[1:])
+            ]
+            for g in gens
+        ]
+        self.weights = nn.ParameterList(
+            nn.Parameter(torch.stack([run[i][0] for run in per_run]).contiguous())
+            for i in range(len(sizes) - 1)
+        )
+        self.biases = nn.ParameterList(
+            nn.Parameter(torch.stack([run[i][1] for run in per_run])) for i in range(len(sizes) - 1)
+        )
         low = torch.tensor(np.broadcast_to(action_low, (act_dim,)), dtype=torch.float32)
         high = torch.tensor(np.broadcast_to(action_high, (act_dim,)), dtype=torch.float32)
         self.register_buffer("action_scale", (high - low) / 2)
         self.register_buffer("action_bias", (high + low) / 2)
-
-    def forward(self, obs: torch.Tensor) -> torch.Tensor:
-        h = obs
-        for layer in self.layers[:-1]:
-            h = torch.relu(layer(h))
-        return torch.tanh(self.layers[-1](h)) * self.action_scale + self.action_bias
+        self.group, self.obs_dim, self.act_dim = len(gens), obs_dim, act_dim
 
     def _layers(self) -> list[tuple[torch.Tensor, torch.Tensor, torch.Tensor]]:
-        """``(weight, bias, weight.T)`` per layer, cached (``_ViewCache``)."""
+        """``(weights, biases, weights transposed)`` per layer, cached (``_ViewCache``)."""
         return self._views(
             "layers",
-            lambda: [(m.weight, m.bias, m.weight.t()) for m in self.layers],
+            lambda: [
+                (w, b, w.transpose(1, 2))
+                for w, b in zip(self.weights._parameters.values(), self.biases._parameters.values())
+            ],
         )
 
-    def act_one(self, obs: np.ndarray) -> np.ndarray:
-        """π(s) for one observation, in numpy on views of the (CPU) weights.
-
-        Why: training acts once per env step, and a batch-1 torch forward costs ~60 µs of
-        dispatch there against ~10 µs here. Equal to ``forward`` up to float32 rounding.
-        """
-        h = np.asarray(obs, dtype=np.float32)
-        *hidden, (w_out, b_out), scale, bias = self._views("numpy", self._numpy_views)
-        for w, b in hidden:
-            h = np.maximum(w @ h + b, 0.0)
-        return np.tanh(w_out @ h + b_out) * scale + bias
-
-    def _numpy_views(self) -> list:
-        views: list = [(w.detach().numpy(), b.detach().numpy()) for w, b, _ in self._layers()]
-        return views + [self.action_scale.numpy(), self.action_bias.numpy()]
+    def forward(self, obs: torch.Tensor) -> torch.Tensor:
+        """``(K, B, obs_dim) -> (K, B, act_dim)``, differentiable."""
+        return self.forward_saved(obs)[0]
 
     def forward_saved(self, obs: torch.Tensor) -> tuple[torch.Tensor, list[torch.Tensor]]:
-        """``forward`` without a graph, keeping the activations ``backward_saved`` needs."""
-        *hidden, (_, b_out, w_out_t) = self._layers()
+        """``forward`` keeping the activations ``backward_saved`` needs."""
+        *hidden, (w_out, b_out, layers_out_t) = self._layers()
         saved = [obs]
         h = obs
-        for _, b, w_t in hidden:
-            h = torch.addmm(b, h, w_t).relu_()
+        for w, b, w_t in hidden:
+            h = _linear(b, h, w, w_t).relu_()
             saved.append(h)
-        t = torch.addmm(b_out, h, w_out_t).tanh_()
+        t = _linear(b_out, h, w_out, layers_out_t).tanh_()
         saved.append(t)
         return torch.addcmul(self.action_bias, t, self.action_scale), saved
 
     def backward_saved(
         self, saved: list[torch.Tensor], grad_action: torch.Tensor, grads: list[torch.Tensor]
     ) -> None:
-        """Write ``d(Σ grad_action · π(s)) / dθ`` into ``grads`` (ordered as ``parameters()``)."""
+        """Write ``d(Σ grad_action · π(s)) / dθ`` into ``grads`` (ordered as ``parameters()``:
+        weights, then biases)."""
         *inputs, t = saved
         layers = self._layers()
+        depth = len(layers)
         d = grad_action * self.action_scale * (1.0 - t * t)  # through scale · tanh
-        for i in reversed(range(len(layers))):
-            torch.mm(d.t(), inputs[i], out=grads[2 * i])
-            torch.sum(d, 0, out=grads[2 * i + 1])
+        for i in reversed(range(depth)):
+            torch.bmm(inputs[i].transpose(1, 2), d, out=grads[i])
+            torch.sum(d, 1, keepdim=True, out=grads[depth + i])
             if i:
-                d = _relu_backward_(torch.mm(d, layers[i][0]), inputs[i])
+                d = _relu_backward_(_bmm(d, layers[i][2]), inputs[i])
 
-    def to_mlp_policy(self, metadata: dict | None = None):  # noqa: ANN201 - avoids a cycle
-        """The same actor as a numpy ``MLPPolicy`` (the safe ``.npz`` read by ``rrls evaluate``)."""
+    def act_one(self, k: int, obs: np.ndarray) -> np.ndarray:
+        """Run ``k``'s π(s) for one observation, in numpy on views of the (CPU) weights.
+
+        Why: training acts once per env step, and a batch-1 torch call costs ~60 µs of dispatch
+        there against ~10 µs here. Equal to ``forward`` up to float32 rounding.
+        """
+        h = np.asarray(obs, dtype=np.float32)
+        *hidden, (w_out, b_out), scale, bias = self._views(("numpy", k), lambda: self._numpy(k))
+        for w, b in hidden:
+            h = np.maximum(h @ w + b, 0.0)
+        return np.tanh(h @ w_out + b_out) * scale + bias
+
+    def _numpy(self, k: int) -> list:
+        views: list = [
+            (w[k].detach().numpy(), b[k, 0].detach().numpy()) for w, b, _ in self._layers()
+        ]
+        return views + [self.action_scale.numpy(), self.action_bias.numpy()]
+
+    def to_mlp_policy(self, k: int = 0, metadata: dict | None = None):  # noqa: ANN201
+        """Run ``k``'s actor as a numpy ``MLPPolicy`` (the safe ``.npz`` that evaluation reads)."""
         from rrls.evaluation.policies import MLPPolicy
 
-        weights = [layer.weight.detach().cpu().numpy().T for layer in self.layers]
-        biases = [layer.bias.detach().cpu().numpy() for layer in self.layers]
         return MLPPolicy(
-            weights,
-            biases,
+            [w[k].detach().cpu().numpy() for w in self.weights],
+            [b[k, 0].detach().cpu().numpy() for b in self.biases],
             self.action_scale.cpu().numpy(),
             self.action_bias.cpu().numpy(),
             metadata=metadata,
@@ -149,53 +201,76 @@ class Actor(_ViewCache, nn.Module):
 
 
 class TwinCritic(_ViewCache, nn.Module):
-    """``n`` Q-networks Q(x) over the same input, evaluated together: output ``(n, B)``."""
+    """``n`` Q-networks per run over the same input, for ``K`` runs: output ``(K, n, B)``.
 
-    def __init__(self, in_dim: int, hidden: Sequence[int] = (256, 256), n: int = 2) -> None:
+    ``weights[i]`` is ``(K·n, fan_in, fan_out)``: run ``k``'s critic ``j`` is entry ``k·n + j``.
+    """
+
+    def __init__(
+        self,
+        in_dim: int,
+        hidden: Sequence[int] = (256, 256),
+        n: int = 2,
+        generators: Sequence[torch.Generator] | None = None,
+    ) -> None:
         super().__init__()
+        gens = list(generators) if generators is not None else [torch.default_generator]
         sizes = [in_dim, *hidden, 1]
-        self.weights = nn.ParameterList()
-        self.biases = nn.ParameterList()
-        for fan_in, fan_out in zip(sizes[:-1], sizes[1:]):
-            bound = 1 / math.sqrt(fan_in)  # nn.Linear's default init, per critic
-            self.weights.append(
-                nn.Parameter(torch.empty(n, fan_in, fan_out).uniform_(-bound, bound))
-            )
-            self.biases.append(nn.Parameter(torch.empty(n, 1, fan_out).uniform_(-bound, bound)))
-        self.n = n
+        per_run = [
+            [
+                (
+                    _uniform((n, a, b), 1 / math.sqrt(a), g),  # nn.Linear's default, per critic
+                    _uniform((n, 1, b), 1 / math.sqrt(a), g),
+                )
+                for a, b in zip(sizes[:-1], sizes[1:])
+            ]
+            for g in gens
+        ]
+        self.weights = nn.ParameterList(
+            nn.Parameter(torch.cat([run[i][0] for run in per_run])) for i in range(len(sizes) - 1)
+        )
+        self.biases = nn.ParameterList(
+            nn.Parameter(torch.cat([run[i][1] for run in per_run])) for i in range(len(sizes) - 1)
+        )
+        self.n, self.group = n, len(gens)
 
-    def _layers(self, n: int | None = None) -> list[tuple[torch.Tensor, ...]]:
-        """``(weights, biases, weights transposed)`` of the first ``n`` critics per layer, cached
-        (``_ViewCache``): no ``ParameterList`` indexing, slicing or transposing per call."""
-        n = self.n if n is None else n
+    def _layers(self, n: int) -> list[tuple[torch.Tensor, ...]]:
+        """``(weights, biases, weights transposed)`` of each run's first ``n`` critics per layer,
+        cached (``_ViewCache``): strided views, no copies."""
 
         def make() -> list[tuple[torch.Tensor, ...]]:
+            out = []
             pairs = zip(self.weights._parameters.values(), self.biases._parameters.values())
-            if n == self.n:
-                return [(w, b, w.transpose(1, 2)) for w, b in pairs]
-            return [(w[:n], b[:n], w[:n].transpose(1, 2)) for w, b in pairs]
+            for w, b in pairs:
+                if n != self.n:
+                    k = self.group
+                    w = w.view(k, self.n, *w.shape[1:])[:, :n].flatten(0, 1)
+                    b = b.view(k, self.n, *b.shape[1:])[:, :n].flatten(0, 1)
+                out.append((w, b, w.transpose(1, 2)))
+            return out
 
         return self._views(("layers", n), make)
 
-    def forward(self, x: torch.Tensor) -> torch.Tensor:
-        # the same ops as forward_saved (in-place ReLUs are fine for autograd: baddbmm's
-        # backward does not need its output)
-        return self.forward_saved(x)[0]
+    def forward(self, x: torch.Tensor, n: int | None = None) -> torch.Tensor:
+        """``(K, B, in_dim) -> (K, n, B)``, differentiable."""
+        return self.forward_saved(x, n)[0]
 
     def forward_saved(
         self, x: torch.Tensor, n: int | None = None
     ) -> tuple[torch.Tensor, list[torch.Tensor]]:
-        """The first ``n`` critics' ``(n, B)`` values without a graph, keeping the activations."""
+        """Each run's first ``n`` critics, ``(K, n, B)``, keeping the activations."""
+        n = self.n if n is None else n
         layers = self._layers(n)
-        h = x.expand(len(layers[0][0]), *x.shape)
+        k, batch = x.shape[0], x.shape[1]
+        h = x if n == 1 else x.unsqueeze(1).expand(k, n, *x.shape[1:]).flatten(0, 1)
         saved = [h]
         last = len(layers) - 1
-        for i, (w, b, _) in enumerate(layers):
-            h = torch.baddbmm(b, h, w)
+        for i, (w, b, w_t) in enumerate(layers):
+            h = _linear(b, h, w, w_t)
             if i < last:
                 h = h.relu_()
                 saved.append(h)
-        return h.squeeze(-1), saved
+        return h.view(k, n, batch), saved
 
     def backward_saved(
         self,
@@ -204,16 +279,17 @@ class TwinCritic(_ViewCache, nn.Module):
         grads: list[torch.Tensor] | None = None,
         input_columns: slice | None = None,
     ) -> torch.Tensor | None:
-        """Back-propagate ``grad_q`` (``(n, B)``, ``n`` as in ``forward_saved``).
+        """Back-propagate ``grad_q`` (``(K, n, B)``, ``n`` as in ``forward_saved``).
 
         Writes the parameter gradients into ``grads`` (ordered as ``parameters()``: weights,
-        then biases) unless it is ``None``; returns ``d/dx[..., input_columns]`` if asked (the
-        actor loss needs the gradient with respect to the action columns only).
+        then biases; only for ``n`` = all critics) unless it is ``None``; returns
+        ``d/dx[..., input_columns]`` summed over the ``n`` critics, ``(K, B, columns)``, if asked
+        (the actor loss needs the gradient with respect to the action columns only).
         """
-        n = grad_q.shape[0]
+        k, n, batch = grad_q.shape
         layers = self._layers(n)
         depth = len(layers)
-        d = grad_q.unsqueeze(-1)
+        d = grad_q.reshape(k * n, batch, 1)
         for i in reversed(range(depth)):
             if grads is not None:
                 torch.bmm(saved[i].transpose(1, 2), d, out=grads[i])
@@ -221,7 +297,7 @@ class TwinCritic(_ViewCache, nn.Module):
             if i:
                 w_t = layers[i][2]
                 # the output layer has one unit: its backward is a broadcast product, not a matmul
-                dh = d * w_t if i == depth - 1 else torch.bmm(d, w_t)
+                dh = d * w_t if i == depth - 1 else _bmm(d, w_t)
                 d = _relu_backward_(dh, saved[i])
         if input_columns is None:
             return None
@@ -229,14 +305,5 @@ class TwinCritic(_ViewCache, nn.Module):
         w_in_t = self._views(
             ("input columns", n, cols), lambda: layers[0][0][:, input_columns].transpose(1, 2)
         )
-        return torch.bmm(d, w_in_t)
-
-    def q1(self, x: torch.Tensor) -> torch.Tensor:
-        """The first critic only (TD3's actor loss): half the work of ``forward``."""
-        h = x
-        last = len(self.weights) - 1
-        for i, (w, b) in enumerate(zip(self.weights, self.biases)):
-            h = torch.addmm(b[0], h, w[0])
-            if i < last:
-                h = torch.relu(h)
-        return h.squeeze(-1)
+        dx = _bmm(d, w_in_t)
+        return dx if n == 1 else dx.view(k, n, batch, -1).sum(1)

@@ -4,7 +4,8 @@ The paper's non-robust baseline: TD3 trained on the nominal task. Its learner ac
 ``π(s) + N(0, σ)`` (uniformly at random during the warm-up), stores each transition once, and
 takes one TD3 step per env step (``rrls.agents.core.TD3``: the critics every step, the actor and
 the targets every ``policy_frequency``). Domain Randomization is this learner on a randomised
-environment. The loop around it is ``rrls.agents.loop``.
+environment. The loop around it is ``rrls.agents.loop``; the learner holds a group of runs
+(different seeds) trained together.
 """
 
 from __future__ import annotations
@@ -28,42 +29,51 @@ def make_env(task: str, uncertainty: str, config: TD3Config) -> Any:
 
 
 class Learner(_Learner):
-    """One TD3 agent and its replay buffer."""
+    """TD3 agents and their replay buffers, one per run."""
 
     def __init__(
-        self, env: Any, config: TD3Config, run: TrainConfig, rng: np.random.Generator
+        self,
+        env: Any,
+        config: TD3Config,
+        runs: list[TrainConfig],
+        rngs: list[np.random.Generator],
     ) -> None:
         obs_dim = env.observation_space.shape[0]
         self.low, self.high = env.action_space.low, env.action_space.high
         act_dim = len(self.low)
         self.config = config
-        self.agent = TD3(
-            obs_dim, act_dim, self.low, self.high, config, seed=run.seed, device=run.device
-        )
+        seeds, device = [r.seed for r in runs], runs[0].device
+        self.agent = TD3(obs_dim, act_dim, self.low, self.high, config, seeds, device)
         self.actor = self.agent.actor
         self.buffer = ReplayBuffer(
-            min(config.buffer_size, run.steps),
+            min(config.buffer_size, runs[0].steps),
             transition_fields(obs_dim, (act_dim,)),
-            device=run.device,
-            seed=run.seed + 2,
+            device,
+            [s + 2 for s in seeds],
         )
 
-    def act(self, obs: np.ndarray, rng: np.random.Generator, warmup: bool) -> np.ndarray:
+    def act(self, obs: np.ndarray, rngs: list[np.random.Generator], warmup: bool) -> list[Any]:
         if warmup:
-            return rng.uniform(self.low, self.high).astype(np.float32)
-        return self.agent.explore(obs, rng)
+            return [rng.uniform(self.low, self.high).astype(np.float32) for rng in rngs]
+        return list(self.agent.explore(obs, rngs))
 
-    def store(self, obs, action, reward, next_obs, terminated, info) -> None:  # noqa: ANN001
+    def store(self, obs, actions, rewards, next_obs, terminated, infos) -> None:  # noqa: ANN001
         self.buffer.add(
-            obs=obs, action=action, reward=reward, next_obs=next_obs, terminated=float(terminated)
+            obs=obs, action=actions, reward=rewards, next_obs=next_obs, terminated=terminated
         )
 
     def update(self, step: int, update_actor: bool) -> dict[str, torch.Tensor]:
-        return self.agent.update(self.buffer.sample(self.config.batch_size), update_actor)
+        batch = self.buffer.sample(self.config.batch_size)
+        return self.agent.update(batch, self.agent.draw(self.config.batch_size), update_actor)
 
-    def state_dict(self) -> dict[str, Any]:
-        return {"agent": self.agent.state_dict(), "buffer": self.buffer.state_dict()}
+    def stacked(self) -> dict[str, torch.Tensor]:
+        return self.agent.stacked("agent")
 
-    def load_state_dict(self, state: dict[str, Any]) -> None:
-        self.agent.load_state_dict(state["agent"])
-        self.buffer.load_state_dict(state["buffer"])
+    def shared(self) -> dict[str, torch.Tensor]:
+        return self.agent.shared("agent")
+
+    def generators(self) -> dict[str, list[torch.Generator]]:
+        return self.agent.generators("agent")
+
+    def buffers(self) -> list[Any]:
+        return [self.buffer]
