@@ -112,17 +112,29 @@ class Adam:
             found_inf=None,
         )
 
-    def stacked(self, prefix: str) -> dict[str, torch.Tensor]:
+    def stacked(self, prefix: str, group: int) -> dict[str, torch.Tensor]:
+        """The moments as ``(group, ...)`` views (a twin critic's ``K·2`` entries as ``K, 2``)."""
+
+        def runs(t: torch.Tensor) -> torch.Tensor:
+            return t.view(group, -1, *t.shape[1:])
+
         return {
-            **{f"{prefix}.exp_avg.{i}": t for i, t in enumerate(self.exp_avg)},
-            **{f"{prefix}.exp_avg_sq.{i}": t for i, t in enumerate(self.exp_avg_sq)},
+            **{f"{prefix}.exp_avg.{i}": runs(t) for i, t in enumerate(self.exp_avg)},
+            **{f"{prefix}.exp_avg_sq.{i}": runs(t) for i, t in enumerate(self.exp_avg_sq)},
         }
 
 
-def stacked_tensors(prefix: str, part: torch.nn.Module | Adam) -> dict[str, torch.Tensor]:
+def stacked_tensors(
+    prefix: str, part: torch.nn.Module | Adam, group: int
+) -> dict[str, torch.Tensor]:
     """The tensors of ``part`` with a leading run dimension, by name (per-run checkpoints)."""
     if isinstance(part, Adam):
-        return part.stacked(prefix)
+        return part.stacked(prefix, group)
+    if isinstance(part, TwinCritic):  # entries k·n + j: view them as (K, n, ...)
+        return {
+            f"{prefix}.{name}": p.view(part.group, part.n, *p.shape[1:])
+            for name, p in part.named_parameters()
+        }
     return {f"{prefix}.{name}": p for name, p in part.named_parameters()}
 
 
@@ -173,9 +185,9 @@ class Player:
 
     def stacked(self, prefix: str) -> dict[str, torch.Tensor]:
         return {
-            **stacked_tensors(f"{prefix}.actor", self.actor),
-            **stacked_tensors(f"{prefix}.target", self.target),
-            **stacked_tensors(f"{prefix}.opt", self.opt),
+            **stacked_tensors(f"{prefix}.actor", self.actor, self.actor.group),
+            **stacked_tensors(f"{prefix}.target", self.target, self.actor.group),
+            **stacked_tensors(f"{prefix}.opt", self.opt, self.actor.group),
         }
 
     def shared(self, prefix: str) -> dict[str, torch.Tensor]:
@@ -348,9 +360,9 @@ class TD3:
     def stacked(self, prefix: str) -> dict[str, torch.Tensor]:
         return {
             **self.player.stacked(prefix),
-            **stacked_tensors(f"{prefix}.critic", self.critic),
-            **stacked_tensors(f"{prefix}.critic_target", self.critic_target),
-            **stacked_tensors(f"{prefix}.critic_opt", self.critic_opt),
+            **stacked_tensors(f"{prefix}.critic", self.critic, self.group),
+            **stacked_tensors(f"{prefix}.critic_target", self.critic_target, self.group),
+            **stacked_tensors(f"{prefix}.critic_opt", self.critic_opt, self.group),
         }
 
     def shared(self, prefix: str) -> dict[str, torch.Tensor]:

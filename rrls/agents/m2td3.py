@@ -45,6 +45,7 @@ from rrls.agents import td3
 from rrls.agents.common import TrainConfig, task_env
 from rrls.agents.core import TD3, TD3Config, hp
 from rrls.agents.loop import Learner as _Learner
+from rrls.agents.networks import per_run
 from rrls.agents.replay import ReplayBuffer, transition_fields
 
 
@@ -73,92 +74,113 @@ class Config(TD3Config):
             raise ValueError(f"hatomega_learning_rate must be a positive number, got {lr}")
 
 
-class Candidates(torch.nn.Module):
-    """The N candidate worst-case parameters ω̂, always inside ``[low, high]``."""
+class Candidates:
+    """Each run's ``N`` candidate worst-case parameters ω̂, always inside ``[low, high]``.
+
+    Stacked for the group: logits ``(K, N, dim)``, each candidate with its own Adam state (as the
+    authors' one optimiser per ω̂; restarted with it), selection probabilities ``(K, N)``.
+    """
 
     def __init__(
         self,
         low: np.ndarray,
         high: np.ndarray,
-        rng: np.random.Generator,
-        n: int = 5,
-        learning_rate: float = 3e-4,
-        distance: float = 0.1,
-        min_probability: float = 0.05,
+        rngs: list[np.random.Generator],
+        config: Config,
+        device: torch.device,
     ) -> None:
-        super().__init__()
-        self.n, self.learning_rate = n, learning_rate
-        self.distance, self.min_probability = distance, min_probability
-        self.register_buffer("low", torch.tensor(np.array(low), dtype=torch.float32))
-        self.register_buffer("high", torch.tensor(np.array(high), dtype=torch.float32))
-        self.logits = torch.nn.ParameterList(
-            torch.nn.Parameter(torch.zeros(len(low))) for _ in range(self.n)
-        )
-        self.optimizers = [torch.optim.Adam([p], lr=self.learning_rate) for p in self.logits]
-        self.probabilities = np.full(self.n, 1.0 / self.n)
-        for k in range(self.n):
-            self.reinitialise(k, rng, probability=False)
-
-    def value(self, k: int) -> torch.Tensor:
-        return self.low + torch.sigmoid(self.logits[k]) * (self.high - self.low)
+        self.n, self.learning_rate = config.hatomega_number, config.hatomega_learning_rate
+        self.distance = config.hatomega_parameter_distance
+        self.min_probability = config.minimum_probability
+        self.low_np, self.high_np = np.asarray(low, np.float64), np.asarray(high, np.float64)
+        self.low = torch.tensor(self.low_np, dtype=torch.float32, device=device)
+        self.high = torch.tensor(self.high_np, dtype=torch.float32, device=device)
+        shape = (len(rngs), self.n, len(low))
+        self.logits = torch.zeros(shape, device=device)
+        self.exp_avg = torch.zeros(shape, device=device)
+        self.exp_avg_sq = torch.zeros(shape, device=device)
+        # β^t as running products (exact multiplications; a tensor ``pow`` is transcendental)
+        self.beta_powers = torch.ones((*shape[:2], 2), device=device)
+        self.probabilities = torch.full(shape[:2], 1.0 / self.n, dtype=torch.float64, device=device)
+        for k, rng in enumerate(rngs):
+            for j in range(self.n):
+                self.reinitialise(k, j, rng, probability=False)
 
     def values(self) -> torch.Tensor:
-        """All candidates as an ``(N, dim)`` tensor (no gradient)."""
-        with torch.no_grad():
-            return torch.stack([self.value(k) for k in range(self.n)])
+        """All candidates, ``(K, N, dim)``."""
+        return self.low + per_run(torch.sigmoid, self.logits) * (self.high - self.low)
 
-    def reinitialise(self, k: int, rng: np.random.Generator, probability: bool = True) -> None:
+    def reinitialise(
+        self, k: int, j: int, rng: np.random.Generator, probability: bool = True
+    ) -> None:
         """A fresh uniform point and a fresh Adam; its probability = the mean of the others."""
-        low, high = self.low.cpu().numpy(), self.high.cpu().numpy()
+        low, high = self.low_np, self.high_np
         y = (rng.uniform(low, high) - low) / np.maximum(high - low, 1e-5)
         y = np.clip(y, 1e-5, 1 - 1e-5)
-        with torch.no_grad():
-            self.logits[k].copy_(torch.as_tensor(np.log(y / (1 - y)), dtype=torch.float32))
-        self.optimizers[k] = torch.optim.Adam([self.logits[k]], lr=self.learning_rate)
+        self.logits[k, j] = torch.as_tensor(np.log(y / (1 - y)), dtype=torch.float32)
+        self.exp_avg[k, j] = 0.0
+        self.exp_avg_sq[k, j] = 0.0
+        self.beta_powers[k, j] = 1.0
         if probability:
-            self.probabilities[k] = 0.0
-            self.probabilities[k] = self.probabilities.sum() / (self.n - 1)
+            p = self.probabilities[k]
+            p[j] = 0.0
+            p[j] = p.sum() / (self.n - 1)
 
-    def restart(self, rng: np.random.Generator) -> list[int]:
-        """Re-initialise candidates that collapsed onto another or are rarely the worst."""
-        values = self.values().cpu().numpy()
+    def restart(self, k: int, rng: np.random.Generator) -> list[int]:
+        """Re-initialise run ``k``'s candidates that collapsed onto another or are rarely the
+        worst."""
+        values = self.values()[k].cpu().numpy()
         close = {
             i
             for i, j in combinations(range(self.n), 2)
             if np.abs(values[i] - values[j]).sum() <= self.distance
         }
-        for k in sorted(close):
-            self.reinitialise(k, rng)
-        rare = [k for k in range(self.n) if self.probabilities[k] < self.min_probability]
-        for k in rare:
-            self.reinitialise(k, rng)
+        for j in sorted(close):
+            self.reinitialise(k, j, rng)
+        probabilities = self.probabilities[k].cpu().numpy()
+        rare = [j for j in range(self.n) if probabilities[j] < self.min_probability]
+        for j in rare:
+            self.reinitialise(k, j, rng)
         return sorted(close | set(rare))
 
-    def select(self, rng: np.random.Generator) -> int:
-        self.probabilities = self.probabilities / self.probabilities.sum()
-        return int(rng.choice(self.n, p=self.probabilities))
+    def select(self, k: int, rng: np.random.Generator) -> int:
+        p = self.probabilities[k]
+        p /= p.sum()
+        return int(rng.choice(self.n, p=p.cpu().numpy()))
 
-    def mark_worst(self, k: int, episode_length: int) -> None:
-        """``p ← (1 - 1/L) p + (1/L) e_k``: a decaying average of which candidate is worst."""
-        coeff = 1.0 / max(1, episode_length)
-        self.probabilities *= 1.0 - coeff
-        self.probabilities[k] += coeff
+    @torch.no_grad()
+    def step(self, chosen: torch.Tensor, grad_logits: torch.Tensor) -> None:
+        """One Adam step (``torch.optim.Adam``'s arithmetic) of each run's chosen candidate."""
+        beta1, beta2, eps = 0.9, 0.999, 1e-8
+        index = chosen.view(-1, 1, 1).expand(-1, 1, self.logits.shape[2])
+        index2 = chosen.view(-1, 1, 1).expand(-1, 1, 2)
+        powers = self.beta_powers.gather(1, index2).squeeze(1)  # (K, 2)
+        powers.mul_(torch.tensor([beta1, beta2], device=powers.device))
+        m = self.exp_avg.gather(1, index).squeeze(1).lerp_(grad_logits, 1 - beta1)
+        v = self.exp_avg_sq.gather(1, index).squeeze(1).mul_(beta2)
+        v.addcmul_(grad_logits, grad_logits, value=1 - beta2)
+        bias1, bias2 = 1 - powers[:, :1], 1 - powers[:, 1:]
+        denom = (v.sqrt() / bias2.sqrt()).add_(eps)
+        logits = self.logits.gather(1, index).squeeze(1)
+        logits.addcdiv_(m, denom * bias1 / self.learning_rate, value=-1.0)
+        self.beta_powers.scatter_(1, index2, powers.unsqueeze(1))
+        self.exp_avg.scatter_(1, index, m.unsqueeze(1))
+        self.exp_avg_sq.scatter_(1, index, v.unsqueeze(1))
+        self.logits.scatter_(1, index, logits.unsqueeze(1))
 
-    def state(self) -> dict[str, object]:
+    def mark_worst(self, chosen: torch.Tensor, coeff: torch.Tensor) -> None:
+        """``p ← (1 - 1/L) p + (1/L) e_k`` per run: a decaying average of which is worst."""
+        self.probabilities.mul_(1.0 - coeff.unsqueeze(1))
+        self.probabilities.scatter_add_(1, chosen.view(-1, 1), coeff.unsqueeze(1))
+
+    def stacked(self) -> dict[str, torch.Tensor]:
         return {
-            "logits": torch.stack([p.detach() for p in self.logits]),
-            "optimizers": [opt.state_dict() for opt in self.optimizers],
-            "probabilities": torch.as_tensor(self.probabilities),
+            "hatomega.logits": self.logits,
+            "hatomega.exp_avg": self.exp_avg,
+            "hatomega.exp_avg_sq": self.exp_avg_sq,
+            "hatomega.beta_powers": self.beta_powers,
+            "hatomega.probabilities": self.probabilities,
         }
-
-    def restore(self, state: dict[str, object]) -> None:
-        with torch.no_grad():
-            for k, p in enumerate(self.logits):
-                p.copy_(state["logits"][k])
-        for k, opt_state in enumerate(state["optimizers"]):
-            self.optimizers[k] = torch.optim.Adam([self.logits[k]], lr=self.learning_rate)
-            self.optimizers[k].load_state_dict(opt_state)
-        self.probabilities = state["probabilities"].numpy().astype(np.float64).copy()
 
 
 def make_env(task: str, uncertainty: str, config: Config) -> Any:
@@ -167,44 +189,32 @@ def make_env(task: str, uncertainty: str, config: Config) -> Any:
 
 
 class Learner(_Learner):
-    """TD3 with ω-conditioned critics, the candidates ω̂ and the episode's ω."""
+    """TD3 with ω-conditioned critics, the candidates ω̂ and each run's episode ω."""
 
     def __init__(
-        self, env: Any, config: Config, run: TrainConfig, rng: np.random.Generator
+        self,
+        env: Any,
+        config: Config,
+        runs: list[TrainConfig],
+        rngs: list[np.random.Generator],
     ) -> None:
-        self.box = box = task_env(run.task, run.uncertainty)[1]
+        self.box = box = task_env(runs[0].task, runs[0].uncertainty)[1]
         obs_dim = env.observation_space.shape[0]
         self.low, self.high = env.action_space.low, env.action_space.high
         act_dim, dim = len(self.low), box.dim
         half = (box.high - box.low) / 2
-        self.config, self.max_episode_steps = config, run.max_episode_steps
-        device = run.device
-        self.agent = TD3(
-            obs_dim,
-            act_dim,
-            self.low,
-            self.high,
-            config,
-            seed=run.seed,
-            device=device,
-            cond_dim=dim,
-        )
+        self.config = config
+        seeds, device = [r.seed for r in runs], runs[0].device
+        self.agent = TD3(obs_dim, act_dim, self.low, self.high, config, seeds, device, cond_dim=dim)
         self.actor = self.agent.actor
         self.buffer = ReplayBuffer(
-            min(config.buffer_size, run.steps),
+            min(config.buffer_size, runs[0].steps),
             transition_fields(obs_dim, (act_dim,), omega=(dim,)),
-            device=device,
-            seed=run.seed + 2,
+            device,
+            [s + 2 for s in seeds],
         )
-        self.candidates = Candidates(
-            box.low,
-            box.high,
-            rng,
-            config.hatomega_number,
-            config.hatomega_learning_rate,
-            config.hatomega_parameter_distance,
-            config.minimum_probability,
-        ).to(device)
+        device = self.agent.device
+        self.candidates = Candidates(box.low, box.high, rngs, config, device)
         self.omega_std = config.omega_std_rate * half
 
         def tensor(x: np.ndarray) -> torch.Tensor:
@@ -213,8 +223,15 @@ class Learner(_Learner):
         self.omega_low, self.omega_high = tensor(box.low), tensor(box.high)
         self.noise_scale = tensor(config.policy_noise_rate * half)
         self.noise_clip = tensor(config.noise_clip_omega_rate * half)
-        self.last_length = run.max_episode_steps
-        self.omega = np.zeros(dim)
+        self.last_length = [runs[0].max_episode_steps] * len(runs)
+        self.coeff = torch.full(
+            (len(runs),),
+            1.0 / max(1, runs[0].max_episode_steps),
+            dtype=torch.float64,
+            device=device,
+        )
+        self.omega = np.zeros((len(runs), dim))
+        self._omega_columns = slice(obs_dim + act_dim, obs_dim + act_dim + dim)
 
     def critic_omega(self, w: torch.Tensor) -> torch.Tensor:
         """The critics' view of ω: raw (the authors) or rescaled to [-1, 1] (opt-in)."""
@@ -222,41 +239,45 @@ class Learner(_Learner):
             return w
         return (w - self.omega_low) / (self.omega_high - self.omega_low) * 2.0 - 1.0
 
-    def episode_options(self, step: int, rng: np.random.Generator) -> dict[str, Any]:
-        """ω for the next episode: uniform at first, then around a selected candidate."""
+    def episode_options(self, k: int, step: int, rng: np.random.Generator) -> dict[str, Any]:
+        """Run ``k``'s ω for its next episode: uniform at first, then around a candidate."""
         box = self.box
         if step < self.config.learning_starts:
-            self.omega = rng.uniform(box.low, box.high)
+            self.omega[k] = rng.uniform(box.low, box.high)
         else:
-            self.candidates.restart(rng)
-            k = self.candidates.select(rng)
-            centre = self.candidates.value(k).detach().cpu().numpy()
-            self.omega = np.clip(centre + rng.normal(0, self.omega_std), box.low, box.high)
-        return dict(zip(box.names, self.omega.tolist()))
+            self.candidates.restart(k, rng)
+            j = self.candidates.select(k, rng)
+            centre = self.candidates.values()[k, j].cpu().numpy().astype(np.float64)
+            self.omega[k] = np.clip(centre + rng.normal(0, self.omega_std), box.low, box.high)
+        return dict(zip(box.names, self.omega[k].tolist()))
 
     act = td3.Learner.act  # acts as TD3: uniform during the warm-up, then π(s) + noise
 
-    def store(self, obs, action, reward, next_obs, terminated, info) -> None:  # noqa: ANN001
+    def store(self, obs, actions, rewards, next_obs, terminated, infos) -> None:  # noqa: ANN001
         self.buffer.add(
             obs=obs,
-            action=action,
-            reward=reward,
+            action=actions,
+            reward=rewards,
             next_obs=next_obs,
-            terminated=float(terminated),
+            terminated=terminated,
             omega=self.omega,
         )
 
     def update(self, step: int, update_actor: bool) -> dict[str, torch.Tensor]:
         agent, candidates, cw = self.agent, self.candidates, self.critic_omega
-        batch = self.buffer.sample(self.config.batch_size)
+        size = self.config.batch_size
+        batch = self.buffer.sample(size)
         # critic: TD3's target with smoothing noise on the next action *and* on ω
-        eps = torch.randn(batch["omega"].shape, generator=agent.noise, device=agent.device)
-        eps = torch.maximum(
-            torch.minimum(eps * self.noise_scale, self.noise_clip), -self.noise_clip
+        eps_omega = agent.draw(size, self.box.dim)
+        eps = agent.draw(size)
+        noise = torch.maximum(
+            torch.minimum(eps_omega * self.noise_scale, self.noise_clip), -self.noise_clip
         )
-        next_w = torch.maximum(torch.minimum(batch["omega"] + eps, self.omega_high), self.omega_low)
+        next_w = torch.maximum(
+            torch.minimum(batch["omega"] + noise, self.omega_high), self.omega_low
+        )
         y = agent.td_target(
-            batch["reward"], batch["next_obs"], batch["terminated"], next_cond=cw(next_w)
+            batch["reward"], batch["next_obs"], batch["terminated"], eps, next_cond=cw(next_w)
         )
         losses = {
             "critic_loss": agent.update_critic(
@@ -265,58 +286,78 @@ class Learner(_Learner):
         }
         if not update_actor:
             return losses
-        # the worst candidate: the lowest mean Q1(s, π(s), ω̂ₖ)
-        s = batch["obs"]
         with torch.no_grad():
-            a = agent.actor(s)
-            w = candidates.values().to(agent.device)
-            n, b = len(w), len(s)
-            x = torch.cat((s.repeat(n, 1), a.repeat(n, 1), cw(w).repeat_interleave(b, 0)), dim=1)
-            q = agent.critic.q1(x).view(n, b).mean(1)
-        k = int(n - 1 - torch.argmin(q.flip(0)))  # ties: the last, as the authors
-        worst = w[k].expand(b, -1)
-        # ω̂ₖ descends Q1(s, π(s), ω̂ₖ)
-        omega_loss = agent.critic.q1(
-            torch.cat((s, a, cw(candidates.value(k)).expand(b, -1)), dim=1)
-        ).mean()
-        candidates.optimizers[k].zero_grad(set_to_none=True)
-        omega_loss.backward(inputs=[candidates.logits[k]])
-        candidates.optimizers[k].step()
+            # the worst candidate of each run: the lowest mean Q1(s, π(s), ω̂ₖ)
+            s = batch["obs"]
+            a = agent.actor.forward_saved(s)[0]
+            w = candidates.values()
+            k, n, b = w.shape[0], w.shape[1], s.shape[1]
+            x = torch.cat(
+                (s.repeat(1, n, 1), a.repeat(1, n, 1), cw(w).repeat_interleave(b, 1)), dim=2
+            )
+            q = agent.critic.forward_saved(x, n=1)[0].view(k, n, b).mean(2)
+            chosen = n - 1 - torch.argmin(q.flip(1), dim=1)  # ties: the last, as the authors
+            worst = w.gather(1, chosen.view(-1, 1, 1).expand(-1, 1, w.shape[2]))
+            worst = worst.expand(-1, b, -1)
+            # ω̂ₖ descends Q1(s, π(s), ω̂ₖ): dQ1/dω through the critic, then through cw and the
+            # sigmoid to the logits
+            q1, saved = agent.critic.forward_saved(torch.cat((s, a, cw(worst)), dim=2), n=1)
+            grad_w = agent.critic.backward_saved(
+                saved, torch.full_like(q1, 1.0 / b), input_columns=self._omega_columns
+            ).sum(1)
+            span = self.omega_high - self.omega_low
+            if self.config.normalize_omega:
+                grad_w = grad_w * (2.0 / span)
+            sig = per_run(
+                torch.sigmoid,
+                candidates.logits.gather(
+                    1, chosen.view(-1, 1, 1).expand(-1, 1, w.shape[2])
+                ).squeeze(1),
+            )
+            candidates.step(chosen, grad_w * span * sig * (1.0 - sig))
         losses["actor_loss"] = agent.update_actor(s, cond=cw(worst))
         agent.update_targets()
-        candidates.mark_worst(k, self.last_length)
-        losses["omega_loss"] = omega_loss.detach()
+        candidates.mark_worst(chosen, self.coeff)
+        losses["omega_loss"] = q1.mean((1, 2))
         return losses
 
-    def episode_end(self, episode_return: float, length: int) -> dict[str, float]:
-        self.last_length = length
-        values = self.candidates.values().cpu().numpy()
-        extra = {f"m2td3/probability_{k}": p for k, p in enumerate(self.candidates.probabilities)}
+    def episode_end(self, k: int, episode_return: float, length: int) -> dict[str, float]:
+        self.last_length[k] = length
+        self.coeff[k] = 1.0 / max(1, length)
+        values = self.candidates.values()[k].cpu().numpy()
+        probabilities = self.candidates.probabilities[k].cpu().numpy()
+        extra = {f"m2td3/probability_{j}": p for j, p in enumerate(probabilities)}
         extra.update(
             {
-                f"m2td3/hatomega_{k}_{name}": values[k, i]
-                for k in range(len(values))
+                f"m2td3/hatomega_{j}_{name}": values[j, i]
+                for j in range(len(values))
                 for i, name in enumerate(self.box.names)
             }
         )
         return extra
 
-    def summary(self) -> dict[str, Any]:
+    def summary(self, k: int) -> dict[str, Any]:
         return {
-            "hatomega": self.candidates.values().tolist(),
-            "probabilities": self.candidates.probabilities.tolist(),
+            "hatomega": self.candidates.values()[k].tolist(),
+            "probabilities": self.candidates.probabilities[k].tolist(),
         }
 
-    def state_dict(self) -> dict[str, Any]:
-        return {
-            "agent": self.agent.state_dict(),
-            "buffer": self.buffer.state_dict(),
-            "candidates": self.candidates.state(),
-            "last_length": self.last_length,
-        }
+    def stacked(self) -> dict[str, torch.Tensor]:
+        return {**self.agent.stacked("agent"), **self.candidates.stacked()}
 
-    def load_state_dict(self, state: dict[str, Any]) -> None:
-        self.agent.load_state_dict(state["agent"])
-        self.buffer.load_state_dict(state["buffer"])
-        self.candidates.restore(state["candidates"])
-        self.last_length = int(state["last_length"])
+    def shared(self) -> dict[str, torch.Tensor]:
+        return self.agent.shared("agent")
+
+    def generators(self) -> dict[str, list[torch.Generator]]:
+        return self.agent.generators("agent")
+
+    def buffers(self) -> list[Any]:
+        return [self.buffer]
+
+    def extra_state(self, k: int) -> dict[str, Any]:
+        return {"last_length": self.last_length[k], "omega": torch.as_tensor(self.omega[k])}
+
+    def load_extra_state(self, k: int, state: dict[str, Any]) -> None:
+        self.last_length[k] = int(state["last_length"])
+        self.coeff[k] = 1.0 / max(1, self.last_length[k])
+        self.omega[k] = state["omega"].numpy()

@@ -47,6 +47,30 @@ def _linear(b: torch.Tensor, h: torch.Tensor, w: torch.Tensor, w_t: torch.Tensor
     return torch.baddbmm(b, h, w)
 
 
+_ALIGN = 64  # elements: a multiple of any SIMD width times PyTorch's loop unrolling
+_GRAIN = 32_768  # PyTorch's elementwise grain size: larger tensors are split over threads
+
+
+def per_run(fn, x: torch.Tensor) -> torch.Tensor:  # noqa: ANN001
+    """``fn(x)`` for a transcendental ``fn`` (tanh, sigmoid), the same for a run in any group.
+
+    Why: PyTorch's CPU kernels compute an element with SIMD code or, at the end of a block,
+    with scalar code, and the two round transcendental functions differently; which element
+    falls where depends on its offset in the whole tensor, hence on the other runs (measured: a
+    sigmoid 1 ulp apart). Each run's slice is laid out from a multiple of ``_ALIGN`` and the
+    calls stay within one thread's block, so every run's elements get the same treatment.
+    """
+    k, m = x.shape[0], x[0].numel()
+    width = -(-m // _ALIGN) * _ALIGN
+    if x.device.type != "cpu" or (width == m and k * m <= _GRAIN and x.is_contiguous()):
+        return fn(x)
+    padded = x.new_zeros((k, width))
+    padded[:, :m] = x.reshape(k, m)
+    per_call = max(1, _GRAIN // width)
+    out = torch.cat([fn(padded[i : i + per_call]) for i in range(0, k, per_call)])
+    return out[:, :m].reshape(x.shape)
+
+
 def _bmm(x: torch.Tensor, w: torch.Tensor) -> torch.Tensor:
     """``x @ w`` per batch entry; one output column as a multiply-and-sum (see ``_linear``)."""
     if w.shape[-1] == 1:
@@ -150,7 +174,7 @@ class Actor(_ViewCache, nn.Module):
         for w, b, w_t in hidden:
             h = _linear(b, h, w, w_t).relu_()
             saved.append(h)
-        t = _linear(b_out, h, w_out, layers_out_t).tanh_()
+        t = per_run(torch.tanh, _linear(b_out, h, w_out, layers_out_t))
         saved.append(t)
         return torch.addcmul(self.action_bias, t, self.action_scale), saved
 

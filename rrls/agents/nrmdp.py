@@ -69,28 +69,31 @@ def make_env(task: str, uncertainty: str, config: Config) -> Any:
 
 
 class Learner(_Learner):
-    """The protagonist's TD3 (whose critic both players use) and the adversary's policy."""
+    """The protagonists' TD3 (whose critics both players use) and the adversaries' policies."""
 
     def __init__(
-        self, env: Any, config: Config, run: TrainConfig, rng: np.random.Generator
+        self,
+        env: Any,
+        config: Config,
+        runs: list[TrainConfig],
+        rngs: list[np.random.Generator],
     ) -> None:
         obs_dim = env.observation_space.shape[0]
         space = env.action_space.spaces[0]
         self.low, self.high = space.low, space.high
         self.config, self.alpha = config, config.alpha
-        self.agent = TD3(
-            obs_dim, len(self.low), self.low, self.high, config, seed=run.seed, device=run.device
+        seeds, device = [r.seed for r in runs], runs[0].device
+        act_dim = len(self.low)
+        self.agent = TD3(obs_dim, act_dim, self.low, self.high, config, seeds, device)
+        gens = [torch.Generator().manual_seed(s + 1000) for s in seeds]
+        self.opponent = Player(
+            obs_dim, act_dim, self.low, self.high, config, gens, self.agent.device
         )
-        with torch.random.fork_rng(devices=[]):
-            torch.manual_seed(run.seed + 1000)
-            self.opponent = Player(
-                obs_dim, len(self.low), self.low, self.high, config, self.agent.device
-            )
         self.buffer = ReplayBuffer(
-            min(config.buffer_size, run.steps),
-            transition_fields(obs_dim, (len(self.low),)),
-            device=run.device,
-            seed=run.seed + 2,
+            min(config.buffer_size, runs[0].steps),
+            transition_fields(obs_dim, (act_dim,)),
+            device,
+            [s + 2 for s in seeds],
         )
         self.actor, self.adversary = self.agent.actor, self.opponent.actor
         self.game = {"game": config.mode, "alpha": config.alpha}
@@ -98,26 +101,33 @@ class Learner(_Learner):
         self._sources = list(self.opponent.actor.parameters())
         self._targets = list(self.opponent.target.parameters())
 
-    def act(self, obs: np.ndarray, rng: np.random.Generator, warmup: bool) -> tuple:
+    def act(self, obs: np.ndarray, rngs: list[np.random.Generator], warmup: bool) -> list[Any]:
         if warmup:
-            return tuple(rng.uniform(self.low, self.high).astype(np.float32) for _ in range(2))
-        return self.agent.explore(obs, rng), self.opponent.act_one(obs).astype(np.float32)
+            return [
+                tuple(rng.uniform(self.low, self.high).astype(np.float32) for _ in range(2))
+                for rng in rngs
+            ]
+        mine = self.agent.explore(obs, rngs)
+        theirs = self.opponent.deterministic(obs).astype(np.float32)
+        return list(zip(mine, theirs))
 
-    def store(self, obs, action, reward, next_obs, terminated, info) -> None:  # noqa: ANN001
+    def store(self, obs, actions, rewards, next_obs, terminated, infos) -> None:  # noqa: ANN001
         self.buffer.add(
             obs=obs,
-            action=info["executed_action"],
-            reward=reward,
+            action=np.stack([info["executed_action"] for info in infos]),
+            reward=rewards,
             next_obs=next_obs,
-            terminated=float(terminated),
+            terminated=terminated,
         )
 
     @torch.no_grad()
-    def target(self, batch: dict[str, torch.Tensor]) -> torch.Tensor:
+    def target(
+        self, batch: dict[str, torch.Tensor], eps: tuple[torch.Tensor, torch.Tensor]
+    ) -> torch.Tensor:
         """The critic's target: NR-MDP on the mixed target action, PR-MDP on the mixture."""
         agent, alpha, next_obs = self.agent, self.alpha, batch["next_obs"]
-        mine = agent.target_action(agent.actor_target, next_obs)
-        theirs = agent.target_action(self.opponent.target, next_obs)
+        mine = agent.target_action(agent.actor_target, next_obs, eps[0])
+        theirs = agent.target_action(self.opponent.target, next_obs, eps[1])
         if self.config.mode == "nr":
             q = agent.target_q(next_obs, torch.lerp(mine, theirs, alpha), None)
         else:
@@ -129,8 +139,9 @@ class Learner(_Learner):
     def update(self, step: int, update_actor: bool) -> dict[str, torch.Tensor]:
         agent, alpha, nr = self.agent, self.alpha, self.config.mode == "nr"
         batch = self.buffer.sample(self.config.batch_size)
+        eps = (agent.draw(self.config.batch_size), agent.draw(self.config.batch_size))
         s = batch["obs"]
-        losses = {"critic_loss": agent.update_critic(s, batch["action"], self.target(batch))}
+        losses = {"critic_loss": agent.update_critic(s, batch["action"], self.target(batch, eps))}
         if not update_actor:
             return losses
         self.policy_steps += 1
@@ -152,19 +163,23 @@ class Learner(_Learner):
         torch._foreach_lerp_(self._targets, self._sources, self.config.tau)
         return losses
 
-    def episode_end(self, episode_return: float, length: int) -> dict[str, float]:
+    def episode_end(self, k: int, episode_return: float, length: int) -> dict[str, float]:
         return {"charts/adversary_return": -episode_return}
 
-    def state_dict(self) -> dict[str, Any]:
-        return {
-            "agent": self.agent.state_dict(),
-            "adversary": self.opponent.state_dict(),
-            "buffer": self.buffer.state_dict(),
-            "policy_steps": self.policy_steps,
-        }
+    def stacked(self) -> dict[str, torch.Tensor]:
+        return {**self.agent.stacked("agent"), **self.opponent.stacked("adversary")}
 
-    def load_state_dict(self, state: dict[str, Any]) -> None:
-        self.agent.load_state_dict(state["agent"])
-        self.opponent.load_state_dict(state["adversary"])
-        self.buffer.load_state_dict(state["buffer"])
+    def shared(self) -> dict[str, torch.Tensor]:
+        return {**self.agent.shared("agent"), **self.opponent.shared("adversary")}
+
+    def generators(self) -> dict[str, list[torch.Generator]]:
+        return self.agent.generators("agent")
+
+    def buffers(self) -> list[Any]:
+        return [self.buffer]
+
+    def extra_state(self, k: int) -> dict[str, Any]:
+        return {"policy_steps": self.policy_steps}
+
+    def load_extra_state(self, k: int, state: dict[str, Any]) -> None:
         self.policy_steps = int(state["policy_steps"])

@@ -51,52 +51,53 @@ def make_env(task: str, uncertainty: str, config: Config) -> Any:
 
 
 class Learner(_Learner):
-    """Two TD3 learners, one replay buffer each (the adversary's rewards negated)."""
+    """Two TD3 learners, one replay buffer each (the adversary's rewards negated), per run."""
 
     def __init__(
-        self, env: Any, config: Config, run: TrainConfig, rng: np.random.Generator
+        self,
+        env: Any,
+        config: Config,
+        runs: list[TrainConfig],
+        rngs: list[np.random.Generator],
     ) -> None:
         obs_dim = env.observation_space.shape[0]
         self.spaces = env.action_space.spaces
         self.config = config
-        self.players, self.buffers = [], []
+        seeds, device = [r.seed for r in runs], runs[0].device
+        self.players, self.buffer_list = [], []
         for i, space in enumerate(self.spaces):
+            own = [s + 1000 * i for s in seeds]
             self.players.append(
-                TD3(
-                    obs_dim,
-                    space.shape[0],
-                    space.low,
-                    space.high,
-                    config,
-                    seed=run.seed + 1000 * i,
-                    device=run.device,
-                )
+                TD3(obs_dim, space.shape[0], space.low, space.high, config, own, device)
             )
-            self.buffers.append(
+            self.buffer_list.append(
                 ReplayBuffer(
-                    min(config.buffer_size, run.steps),
+                    min(config.buffer_size, runs[0].steps),
                     transition_fields(obs_dim, space.shape),
-                    device=run.device,
-                    seed=run.seed + 2 + 1000 * i,
+                    device,
+                    [s + 2 for s in own],
                 )
             )
         self.actor, self.adversary = (p.actor for p in self.players)
-        self.game = {"game": "adversarial", "uncertainty": run.uncertainty}
+        self.game = {"game": "adversarial", "uncertainty": runs[0].uncertainty}
 
-    def act(self, obs: np.ndarray, rng: np.random.Generator, warmup: bool) -> tuple:
+    def act(self, obs: np.ndarray, rngs: list[np.random.Generator], warmup: bool) -> list[Any]:
         if warmup:
-            return tuple(rng.uniform(s.low, s.high).astype(np.float32) for s in self.spaces)
-        return tuple(player.explore(obs, rng) for player in self.players)
+            return [
+                tuple(rng.uniform(s.low, s.high).astype(np.float32) for s in self.spaces)
+                for rng in rngs
+            ]
+        return list(zip(*(player.explore(obs, rngs) for player in self.players)))
 
-    def store(self, obs, action, reward, next_obs, terminated, info) -> None:  # noqa: ANN001
+    def store(self, obs, actions, rewards, next_obs, terminated, infos) -> None:  # noqa: ANN001
         # zero-sum: the adversary learns from -reward; truncation bootstraps for both
-        for buffer, own, sign in zip(self.buffers, action, (1.0, -1.0)):
+        for i, (buffer, sign) in enumerate(zip(self.buffer_list, (1.0, -1.0))):
             buffer.add(
                 obs=obs,
-                action=own,
-                reward=sign * reward,
+                action=np.stack([a[i] for a in actions]),
+                reward=sign * rewards,
                 next_obs=next_obs,
-                terminated=float(terminated),
+                terminated=terminated,
             )
 
     def learning(self, step: int) -> int:
@@ -106,24 +107,23 @@ class Learner(_Learner):
 
     def update(self, step: int, update_actor: bool) -> dict[str, torch.Tensor]:
         i = self.learning(step)
-        losses = self.players[i].update(
-            self.buffers[i].sample(self.config.batch_size), update_actor
-        )
+        player, batch_size = self.players[i], self.config.batch_size
+        batch = self.buffer_list[i].sample(batch_size)
+        losses = player.update(batch, player.draw(batch_size), update_actor)
         name = ("protagonist", "adversary")[i]
         return {f"{name}_{k}": v for k, v in losses.items()}
 
-    def episode_end(self, episode_return: float, length: int) -> dict[str, float]:
+    def episode_end(self, k: int, episode_return: float, length: int) -> dict[str, float]:
         return {"charts/adversary_return": -episode_return}
 
-    def state_dict(self) -> dict[str, Any]:
-        return {
-            "agents": [p.state_dict() for p in self.players],
-            "buffers": [b.state_dict() for b in self.buffers],
-        }
+    def stacked(self) -> dict[str, torch.Tensor]:
+        return {k: v for i, p in enumerate(self.players) for k, v in p.stacked(f"p{i}").items()}
 
-    def load_state_dict(self, state: dict[str, Any]) -> None:
-        for player, buffer, saved, saved_buffer in zip(
-            self.players, self.buffers, state["agents"], state["buffers"]
-        ):
-            player.load_state_dict(saved)
-            buffer.load_state_dict(saved_buffer)
+    def shared(self) -> dict[str, torch.Tensor]:
+        return {k: v for i, p in enumerate(self.players) for k, v in p.shared(f"p{i}").items()}
+
+    def generators(self) -> dict[str, list[torch.Generator]]:
+        return {k: v for i, p in enumerate(self.players) for k, v in p.generators(f"p{i}").items()}
+
+    def buffers(self) -> list[Any]:
+        return self.buffer_list
