@@ -28,7 +28,7 @@ from typing import Any
 import numpy as np
 import torch
 
-from rrls.agents.networks import Actor, TwinCritic
+from rrls.agents.networks import Actor, TwinCritic, padded, rows
 
 
 def hp(default: Any, help: str, **extra: Any) -> Any:  # noqa: A002 - argparse's word
@@ -85,9 +85,12 @@ class Adam:
     def __init__(self, params: list[torch.Tensor], lr: float, betas=(0.9, 0.999), eps=1e-8):  # noqa: ANN001
         self.params = list(params)
         self.lr, self.betas, self.eps = float(lr), betas, eps
-        self.grads = [torch.zeros_like(p) for p in self.params]
-        self.exp_avg = [torch.zeros_like(p) for p in self.params]
-        self.exp_avg_sq = [torch.zeros_like(p) for p in self.params]
+        # the kernel runs over the runs' padded rows (see ``networks.padded``)
+        self.grads = [padded(torch.zeros_like(p)) for p in self.params]
+        self._rows = [rows(p) for p in self.params]
+        self._grad_rows = [rows(g) for g in self.grads]
+        self.exp_avg = [torch.zeros_like(r) for r in self._rows]
+        self.exp_avg_sq = [torch.zeros_like(r) for r in self._rows]
         self.step_count = torch.zeros((), dtype=torch.float32, device=self.params[0].device)
         self._steps = [self.step_count] * len(self.params)
 
@@ -95,8 +98,8 @@ class Adam:
     def step(self) -> None:
         self.step_count.add_(1)
         torch._fused_adam_(
-            self.params,
-            self.grads,
+            self._rows,
+            self._grad_rows,
             self.exp_avg,
             self.exp_avg_sq,
             [],
@@ -115,12 +118,19 @@ class Adam:
     def stacked(self, prefix: str, group: int) -> dict[str, torch.Tensor]:
         """The moments as ``(group, ...)`` views (a twin critic's ``K·2`` entries as ``K, 2``)."""
 
-        def runs(t: torch.Tensor) -> torch.Tensor:
-            return t.view(group, -1, *t.shape[1:])
+        def runs(t: torch.Tensor, p: torch.Tensor) -> torch.Tensor:
+            entries = t[:, : p[0].numel()]  # drop the padding
+            return entries.view(group, -1, *p.shape[1:])
 
         return {
-            **{f"{prefix}.exp_avg.{i}": runs(t) for i, t in enumerate(self.exp_avg)},
-            **{f"{prefix}.exp_avg_sq.{i}": runs(t) for i, t in enumerate(self.exp_avg_sq)},
+            **{
+                f"{prefix}.exp_avg.{i}": runs(t, p)
+                for i, (t, p) in enumerate(zip(self.exp_avg, self.params))
+            },
+            **{
+                f"{prefix}.exp_avg_sq.{i}": runs(t, p)
+                for i, (t, p) in enumerate(zip(self.exp_avg_sq, self.params))
+            },
         }
 
 
@@ -224,8 +234,11 @@ class TD3:
         self.low = torch.as_tensor(action_low, dtype=torch.float32, device=self.device)
         self.high = torch.as_tensor(action_high, dtype=torch.float32, device=self.device)
         self.obs_dim, self.act_dim = obs_dim, act_dim
-        self._sources = [*self.actor.parameters(), *self.critic.parameters()]
-        self._targets = [*self.actor_target.parameters(), *self.critic_target.parameters()]
+        # Polyak averaging over the padded rows (see ``networks.padded``)
+        self._sources = [rows(p) for p in (*self.actor.parameters(), *self.critic.parameters())]
+        self._targets = [
+            rows(p) for p in (*self.actor_target.parameters(), *self.critic_target.parameters())
+        ]
         self._action_columns = slice(obs_dim, obs_dim + act_dim)
 
     # -- acting -----------------------------------------------------------------------------

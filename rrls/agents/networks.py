@@ -20,6 +20,7 @@ generator, so a run's initial weights do not depend on the group either.
 
 from __future__ import annotations
 
+import copy
 import math
 from collections.abc import Sequence
 
@@ -71,11 +72,71 @@ def per_run(fn, x: torch.Tensor) -> torch.Tensor:  # noqa: ANN001
     return out[:, :m].reshape(x.shape)
 
 
+def padded(values: torch.Tensor) -> torch.Tensor:
+    """``values`` (runs first) copied into the rows of a zero ``(K, P)`` buffer, ``P`` a multiple
+    of ``_ALIGN``; the buffer is the result's ``_rows`` attribute (see ``rows``).
+
+    Why: each run's slice then starts at the same SIMD phase, so elementwise kernels run over the
+    rows (fused Adam, Polyak averaging) treat every run alike; over a compact tensor, a run's
+    3 output biases were measured 1 ulp apart depending on the group. On a GPU layouts do not
+    matter and the tensor stays compact.
+    """
+    k, m = values.shape[0], values[0].numel()
+    width = -(-m // _ALIGN) * _ALIGN
+    if values.device.type != "cpu" or width == m:
+        return values.detach().clone().contiguous()
+    store = values.new_zeros((k, width))
+    view = store[:, :m].view(values.shape)
+    view.copy_(values)
+    view._rows = store
+    return view
+
+
+def rows(t: torch.Tensor) -> torch.Tensor:
+    """The ``(K, P)`` rows behind a ``padded`` tensor (padding included), else ``(K, numel)``."""
+    store = getattr(t, "_rows", None)
+    return store if store is not None else t.view(t.shape[0], -1)
+
+
+class _Padded:
+    """Modules whose parameters are ``padded`` (re-done after a deep copy, which compacts them)."""
+
+    def pad_(self) -> _Padded:
+        with torch.no_grad():
+            for plist in (self.weights, self.biases):
+                for i, p in enumerate(plist):
+                    data = padded(p.data)
+                    param = nn.Parameter(data, requires_grad=p.requires_grad)
+                    param._rows = getattr(data, "_rows", None)
+                    plist[i] = param
+        self.__dict__.pop("_view_cache", None)
+        return self
+
+    def __deepcopy__(self, memo: dict) -> _Padded:
+        clone = copy.copy(self)
+        clone.__dict__ = {k: copy.deepcopy(v, memo) for k, v in self.__dict__.items()}
+        clone.__dict__.pop("_view_cache", None)
+        return clone.pad_()
+
+
 def _bmm(x: torch.Tensor, w: torch.Tensor) -> torch.Tensor:
     """``x @ w`` per batch entry; one output column as a multiply-and-sum (see ``_linear``)."""
     if w.shape[-1] == 1:
         return (x * w.transpose(1, 2)).sum(-1, keepdim=True)
     return torch.bmm(x, w)
+
+
+def _weight_grad(x: torch.Tensor, d: torch.Tensor, out: torch.Tensor) -> None:
+    """``out = xᵀ d`` per batch entry, with the wider of the two as the product's rows.
+
+    Why: for one batch entry MKL splits a product with few rows (an input layer of 5 or 11
+    observations) over threads, summing in another order than for a batch; with many rows it
+    does not (measured over the paper's layer shapes, ``tests/test_group.py``).
+    """
+    if x.shape[-1] < d.shape[-1]:
+        out.copy_(torch.bmm(d.transpose(1, 2), x).transpose(1, 2))
+    else:
+        torch.bmm(x.transpose(1, 2), d, out=out)
 
 
 def _uniform(shape: tuple[int, ...], bound: float, gen: torch.Generator) -> torch.Tensor:
@@ -113,7 +174,7 @@ class _ViewCache:
         return state
 
 
-class Actor(_ViewCache, nn.Module):
+class Actor(_Padded, _ViewCache, nn.Module):
     """``K`` deterministic policies: ReLU hidden layers, tanh output scaled to the action box.
 
     ``weights[i]`` is ``(K, fan_in, fan_out)`` (already transposed for ``x @ W``), ``biases[i]``
@@ -151,6 +212,7 @@ class Actor(_ViewCache, nn.Module):
         self.register_buffer("action_scale", (high - low) / 2)
         self.register_buffer("action_bias", (high + low) / 2)
         self.group, self.obs_dim, self.act_dim = len(gens), obs_dim, act_dim
+        self.pad_()
 
     def _layers(self) -> list[tuple[torch.Tensor, torch.Tensor, torch.Tensor]]:
         """``(weights, biases, weights transposed)`` per layer, cached (``_ViewCache``)."""
@@ -188,7 +250,7 @@ class Actor(_ViewCache, nn.Module):
         depth = len(layers)
         d = grad_action * self.action_scale * (1.0 - t * t)  # through scale · tanh
         for i in reversed(range(depth)):
-            torch.bmm(inputs[i].transpose(1, 2), d, out=grads[i])
+            _weight_grad(inputs[i], d, grads[i])
             torch.sum(d, 1, keepdim=True, out=grads[depth + i])
             if i:
                 d = _relu_backward_(_bmm(d, layers[i][2]), inputs[i])
@@ -224,7 +286,7 @@ class Actor(_ViewCache, nn.Module):
         )
 
 
-class TwinCritic(_ViewCache, nn.Module):
+class TwinCritic(_Padded, _ViewCache, nn.Module):
     """``n`` Q-networks per run over the same input, for ``K`` runs: output ``(K, n, B)``.
 
     ``weights[i]`` is ``(K·n, fan_in, fan_out)``: run ``k``'s critic ``j`` is entry ``k·n + j``.
@@ -257,6 +319,7 @@ class TwinCritic(_ViewCache, nn.Module):
             nn.Parameter(torch.cat([run[i][1] for run in per_run])) for i in range(len(sizes) - 1)
         )
         self.n, self.group = n, len(gens)
+        self.pad_()
 
     def _layers(self, n: int) -> list[tuple[torch.Tensor, ...]]:
         """``(weights, biases, weights transposed)`` of each run's first ``n`` critics per layer,

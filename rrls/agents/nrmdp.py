@@ -36,6 +36,7 @@ import torch
 from rrls.agents.common import TrainConfig, task_env
 from rrls.agents.core import TD3, Player, TD3Config, hp
 from rrls.agents.loop import Learner as _Learner
+from rrls.agents.networks import rows
 from rrls.agents.replay import ReplayBuffer, transition_fields
 
 
@@ -98,8 +99,8 @@ class Learner(_Learner):
         self.actor, self.adversary = self.agent.actor, self.opponent.actor
         self.game = {"game": config.mode, "alpha": config.alpha}
         self.policy_steps = 0
-        self._sources = list(self.opponent.actor.parameters())
-        self._targets = list(self.opponent.target.parameters())
+        self._sources = [rows(p) for p in self.opponent.actor.parameters()]
+        self._targets = [rows(p) for p in self.opponent.target.parameters()]
 
     def act(self, obs: np.ndarray, rngs: list[np.random.Generator], warmup: bool) -> list[Any]:
         if warmup:
