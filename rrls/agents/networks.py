@@ -74,48 +74,53 @@ def per_run(fn, x: torch.Tensor) -> torch.Tensor:  # noqa: ANN001
 
 def padded(values: torch.Tensor) -> torch.Tensor:
     """``values`` (runs first) copied into the rows of a zero ``(K, P)`` buffer, ``P`` a multiple
-    of ``_ALIGN``; the buffer is the result's ``_rows`` attribute (see ``rows``).
+    of ``_ALIGN`` (``rows`` gives it back).
 
     Why: each run's slice then starts at the same SIMD phase, so elementwise kernels run over the
     rows (fused Adam, Polyak averaging) treat every run alike; over a compact tensor, a run's
     3 output biases were measured 1 ulp apart depending on the group. On a GPU layouts do not
     matter and the tensor stays compact.
     """
-    k, m = values.shape[0], values[0].numel()
-    width = -(-m // _ALIGN) * _ALIGN
-    if values.device.type != "cpu" or width == m:
-        return values.detach().clone().contiguous()
+    k, width = values.shape[0], _row_width(values)
     store = values.new_zeros((k, width))
-    view = store[:, :m].view(values.shape)
-    view.copy_(values)
-    view._rows = store
-    return view
+    store[:, : values[0].numel()] = values.reshape(k, -1)
+    return store.as_strided(values.shape, _row_strides(values.shape, width))
 
 
 def rows(t: torch.Tensor) -> torch.Tensor:
-    """The ``(K, P)`` rows behind a ``padded`` tensor (padding included), else ``(K, numel)``."""
-    store = getattr(t, "_rows", None)
-    return store if store is not None else t.view(t.shape[0], -1)
+    """The ``(K, P)`` rows behind a ``padded`` tensor, padding included."""
+    width = _row_width(t)
+    return t.as_strided((t.shape[0], width), (width, 1))
+
+
+def _row_width(t: torch.Tensor) -> int:
+    m = t[0].numel()
+    return -(-m // _ALIGN) * _ALIGN if t.device.type == "cpu" else m
+
+
+def _row_strides(shape: torch.Size, width: int) -> tuple[int, ...]:
+    inner = [1]
+    for size in reversed(shape[2:]):
+        inner.insert(0, inner[0] * size)
+    return (width, *inner) if len(shape) > 1 else (width,)
 
 
 class _Padded:
     """Modules whose parameters are ``padded`` (re-done after a deep copy, which compacts them)."""
 
     def pad_(self) -> _Padded:
-        with torch.no_grad():
-            for plist in (self.weights, self.biases):
-                for i, p in enumerate(plist):
-                    data = padded(p.data)
-                    param = nn.Parameter(data, requires_grad=p.requires_grad)
-                    param._rows = getattr(data, "_rows", None)
-                    plist[i] = param
+        # not under no_grad: a view made there may not be used where autograd records
+        for plist in (self.weights, self.biases):
+            for i, p in enumerate(plist):
+                plist[i] = nn.Parameter(padded(p.data), requires_grad=p.requires_grad)
         self.__dict__.pop("_view_cache", None)
         return self
 
     def __deepcopy__(self, memo: dict) -> _Padded:
         clone = copy.copy(self)
-        clone.__dict__ = {k: copy.deepcopy(v, memo) for k, v in self.__dict__.items()}
-        clone.__dict__.pop("_view_cache", None)
+        clone.__dict__ = {
+            k: copy.deepcopy(v, memo) for k, v in self.__dict__.items() if k != "_view_cache"
+        }
         return clone.pad_()
 
 
@@ -379,7 +384,7 @@ class TwinCritic(_Padded, _ViewCache, nn.Module):
         d = grad_q.reshape(k * n, batch, 1)
         for i in reversed(range(depth)):
             if grads is not None:
-                torch.bmm(saved[i].transpose(1, 2), d, out=grads[i])
+                _weight_grad(saved[i], d, grads[i])
                 torch.sum(d, 1, keepdim=True, out=grads[depth + i])
             if i:
                 w_t = layers[i][2]
