@@ -54,9 +54,23 @@ def test_every_algorithm_option_reaches_its_learner(tmp_path, capsys):
     assert run["uncertainty"] == "2d"  # the benchmark's set by default, not the force set
     args = ("--uncertainty", "1d", "--hatomega-learning-rate", "0.01", "--learning-rate", "0.002")
     assert _cli(tmp_path / "m2", "m2td3", 200, *args) == 0
-    state = torch.load(tmp_path / "m2" / "checkpoint.pt", weights_only=True)["learner"]
-    assert state["candidates"]["optimizers"][0]["param_groups"][0]["lr"] == 0.01
-    assert state["agent"]["actor_opt"]["param_groups"][0]["lr"] == 0.002
+    run = json.loads((tmp_path / "m2" / "run.json").read_text())["hyperparameters"]
+    assert run["hatomega_learning_rate"] == 0.01 and run["learning_rate"] == 0.002
+    # and the learner's optimisers use them
+    from rrls.agents import hyperparameters
+    from rrls.agents.loop import algorithm
+
+    config = TrainConfig(
+        algo="m2td3",
+        task="invertedpendulum",
+        uncertainty="1d",
+        hyper={"hatomega_learning_rate": 0.01, "learning_rate": 0.002, "hidden": (4,)},
+    )
+    hyper = hyperparameters(config)
+    env = algorithm("m2td3").make_env(config.task, config.uncertainty, hyper)
+    learner = algorithm("m2td3").Learner(env, hyper, [config], [np.random.default_rng(0)])
+    assert learner.candidates.learning_rate == 0.01
+    assert learner.agent.actor_opt.lr == learner.agent.critic_opt.lr == 0.002
     capsys.readouterr()
     assert _cli(tmp_path / "bad", "td3", 200, "--alpha", "0.2") == 2
     assert "--alpha does not apply to td3 (only to nrmdp)" in capsys.readouterr().err
@@ -157,11 +171,11 @@ def _nrmdp_learner(mode: str, alpha: float = 0.3):
         alpha=alpha, mode=mode, hidden=(5,), policy_noise=0.0, batch_size=4, ratio=1, tau=0.5
     )
     env = nrmdp.make_env("invertedpendulum", "2d", hyper)
-    return nrmdp.Learner(env, hyper, config, np.random.default_rng(0)), hyper
+    return nrmdp.Learner(env, hyper, [config], [np.random.default_rng(0)]), hyper
 
 
 def _q1(agent, obs, action):
-    return agent.critic.q1(torch.cat([obs, action], 1))
+    return agent.critic(torch.cat([obs, action], 2), n=1)[:, 0]
 
 
 @pytest.mark.parametrize("mode", ["nr", "pr"])
@@ -169,24 +183,25 @@ def test_action_robust_target_is_the_references(mode):
     learner, hyper = _nrmdp_learner(mode)
     agent, alpha = learner.agent, hyper.alpha
     g = torch.Generator().manual_seed(0)
-    batch = {
-        "next_obs": torch.randn(4, 4, generator=g),
-        "reward": torch.randn(4, generator=g),
-        "terminated": torch.tensor([0.0, 1.0, 0.0, 0.0]),
+    batch = {  # a group of one run: (1, batch, ...)
+        "next_obs": torch.randn(1, 4, 4, generator=g),
+        "reward": torch.randn(1, 4, generator=g),
+        "terminated": torch.tensor([[0.0, 1.0, 0.0, 0.0]]),
     }
     s2 = batch["next_obs"]
     with torch.no_grad():
         mine, theirs = agent.actor_target(s2), learner.opponent.target(s2)
 
         def q(a):
-            return agent.critic_target(torch.cat([s2, a], 1)).amin(0)
+            return agent.critic_target(torch.cat([s2, a], 2)).amin(1)
 
         if mode == "nr":  # one critic on the mixed target action
             value = q((1 - alpha) * mine + alpha * theirs)
         else:  # the mixture of the two players' values
             value = (1 - alpha) * q(mine) + alpha * q(theirs)
         expected = batch["reward"] + hyper.gamma * (1 - batch["terminated"]) * value
-    torch.testing.assert_close(learner.target(batch), expected)
+    eps = (torch.zeros(1, 4, 1), torch.zeros(1, 4, 1))  # policy_noise is 0
+    torch.testing.assert_close(learner.target(batch, eps), expected)
 
 
 @pytest.mark.parametrize("mode", ["nr", "pr"])
@@ -194,7 +209,14 @@ def test_action_robust_policy_steps_match_autograd_and_the_adversary_lowers_q(mo
     learner, hyper = _nrmdp_learner(mode)
     agent, opponent, alpha = learner.agent, learner.opponent, hyper.alpha
     reference = copy.deepcopy(learner)
-    obs = torch.randn(4, 4, generator=torch.Generator().manual_seed(1))
+    optimisers = {  # torch.optim's Adam: the reference of the fused fast path
+        moves: torch.optim.Adam(
+            (reference.opponent if moves else reference.agent.player).actor.parameters(),
+            lr=hyper.learning_rate,
+        )
+        for moves in (True, False)
+    }
+    obs = torch.randn(1, 4, 4, generator=torch.Generator().manual_seed(1))
 
     def objective(ref, adversary_moves: bool):
         a, o = ref.agent, ref.opponent
@@ -213,9 +235,9 @@ def test_action_robust_policy_steps_match_autograd_and_the_adversary_lowers_q(mo
         # plain autograd + torch.optim on a copy: the reference the fast path must equal
         ref = reference.opponent if adversary_moves else reference.agent.player
         loss = objective(reference, adversary_moves) * (1.0 if adversary_moves else -1.0)
-        ref.opt.zero_grad()
+        optimisers[adversary_moves].zero_grad()
         loss.backward(inputs=list(ref.actor.parameters()))
-        ref.opt.step()
+        optimisers[adversary_moves].step()
         if adversary_moves:
             got = agent.policy_step(
                 opponent,
@@ -233,7 +255,7 @@ def test_action_robust_policy_steps_match_autograd_and_the_adversary_lowers_q(mo
                 other=alpha * opponent.target(obs).detach() if mode == "nr" else None,
                 weight=1.0 if mode == "nr" else 1 - alpha,
             )
-        torch.testing.assert_close(got, loss.detach())
+        torch.testing.assert_close(got, loss.detach()[None])
         moved = opponent.actor if adversary_moves else agent.actor
         ref_moved = ref.actor
         for p, r in zip(moved.parameters(), ref_moved.parameters()):
@@ -247,7 +269,12 @@ def test_the_update_schedule_gives_the_adversary_one_policy_step_in_ratio_plus_o
     learner, hyper = _nrmdp_learner("nr")  # ratio 1: alternate
     for i in range(4):
         learner.store(
-            np.zeros(4), None, 1.0, np.ones(4), False, {"executed_action": np.array([0.1 * i])}
+            np.zeros((1, 4)),
+            [None],
+            np.ones(1),
+            np.ones((1, 4)),
+            np.zeros(1, bool),
+            [{"executed_action": np.array([0.1 * i])}],
         )
     kinds = [sorted(learner.update(step, True)) for step in range(4)]
     assert kinds == [
@@ -262,31 +289,34 @@ def test_the_update_schedule_gives_the_adversary_one_policy_step_in_ratio_plus_o
 def test_td3_update_matches_a_plain_autograd_reference():
     # the whole fast update (target, critic, actor, Polyak) against autograd + torch.optim
     cfg = TD3Config(hidden=(6,), policy_noise=0.0, tau=0.1, batch_size=5)
-    agent = TD3(3, 2, np.array([-1.0, -2.0]), np.array([1.0, 2.0]), cfg, seed=0)
+    agent = TD3(3, 2, np.array([-1.0, -2.0]), np.array([1.0, 2.0]), cfg, seeds=[0, 7])
     ref = copy.deepcopy(agent)
+    critic_opt = torch.optim.Adam(ref.critic.parameters(), lr=cfg.learning_rate)
+    actor_opt = torch.optim.Adam(ref.actor.parameters(), lr=cfg.learning_rate)
     g = torch.Generator().manual_seed(3)
     for step in range(4):
-        batch = {
-            "obs": torch.randn(5, 3, generator=g),
-            "action": torch.rand(5, 2, generator=g),
-            "reward": torch.randn(5, generator=g),
-            "next_obs": torch.randn(5, 3, generator=g),
-            "terminated": (torch.rand(5, generator=g) < 0.3).float(),
+        batch = {  # a group of two runs
+            "obs": torch.randn(2, 5, 3, generator=g),
+            "action": torch.rand(2, 5, 2, generator=g),
+            "reward": torch.randn(2, 5, generator=g),
+            "next_obs": torch.randn(2, 5, 3, generator=g),
+            "terminated": (torch.rand(2, 5, generator=g) < 0.3).float(),
         }
-        agent.update(batch, update_actor=step % 2 == 1)
+        agent.update(batch, torch.zeros(2, 5, 2), update_actor=step % 2 == 1)
         with torch.no_grad():
             a2 = ref.actor_target(batch["next_obs"])
-            q2 = ref.critic_target(torch.cat([batch["next_obs"], a2], 1)).amin(0)
+            q2 = ref.critic_target(torch.cat([batch["next_obs"], a2], 2)).amin(1)
             y = batch["reward"] + cfg.gamma * (1 - batch["terminated"]) * q2
-        q = ref.critic(torch.cat([batch["obs"], batch["action"]], 1))
-        ref.critic_opt.zero_grad()
-        ((q - y) ** 2).mean(1).sum().backward()
-        ref.critic_opt.step()
+        q = ref.critic(torch.cat([batch["obs"], batch["action"]], 2))
+        critic_opt.zero_grad()
+        ((q - y[:, None]) ** 2).mean(2).sum().backward()
+        critic_opt.step()
         if step % 2 == 1:
-            loss = -ref.critic.q1(torch.cat([batch["obs"], ref.actor(batch["obs"])], 1)).mean()
-            ref.actor_opt.zero_grad()
+            x = torch.cat([batch["obs"], ref.actor(batch["obs"])], 2)
+            loss = -ref.critic(x, n=1).mean(2).sum()  # each run's own mean
+            actor_opt.zero_grad()
             loss.backward(inputs=list(ref.actor.parameters()))
-            ref.actor_opt.step()
+            actor_opt.step()
             with torch.no_grad():
                 for net in ("actor", "critic"):
                     src, dst = getattr(ref, net), getattr(ref, f"{net}_target")

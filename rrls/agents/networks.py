@@ -90,7 +90,7 @@ def padded(values: torch.Tensor) -> torch.Tensor:
 def rows(t: torch.Tensor) -> torch.Tensor:
     """The ``(K, P)`` rows behind a ``padded`` tensor, padding included."""
     width = _row_width(t)
-    return t.as_strided((t.shape[0], width), (width, 1))
+    return t.detach().as_strided((t.shape[0], width), (width, 1))
 
 
 def _row_width(t: torch.Tensor) -> int:
