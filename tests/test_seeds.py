@@ -119,3 +119,20 @@ def test_packed_benchmark_gives_the_numbers_of_unpacked_runs(tmp_path):
     keys = [("td3", "invertedpendulum", 0), ("td3", "invertedpendulum", 1)]
     execute_group(str(resumed), spec.to_json(), keys)
     assert _results(resumed) == _results(alone)
+
+
+def test_a_bad_run_fails_alone_in_its_group(tmp_path):
+    from rrls.experiments.launch import GroupFailed, execute_group
+    from rrls.experiments.spec import make_spec
+
+    spec = make_spec("smoke", algos="td3", seeds=2)
+    broken = tmp_path / "runs" / "td3-invertedpendulum-1d-seed1"
+    broken.mkdir(parents=True)
+    (broken / "checkpoint.pt").write_bytes(b"not a checkpoint")
+    keys = [("td3", "invertedpendulum", 0), ("td3", "invertedpendulum", 1)]
+    with pytest.raises(GroupFailed, match="1 of 2"):
+        execute_group(str(tmp_path), spec.to_json(), keys)
+    good = tmp_path / "runs" / "td3-invertedpendulum-1d-seed0"
+    assert (good / "result.json").exists() and not (good / "error.txt").exists()
+    assert not (broken / "result.json").exists()
+    assert "checkpoint" in (broken / "error.txt").read_text().strip().splitlines()[-1]

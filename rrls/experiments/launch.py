@@ -127,17 +127,24 @@ def _group_stages(spec: Spec, runs: list[RunKey], outs: list[Path]) -> dict[int,
     if untrained:
         for i in untrained:
             progress[i].write("train", 0)
-        try:
-            _train(
-                spec,
-                [runs[i] for i in untrained],
-                [outs[i] for i in untrained],
-                [progress[i] for i in untrained],
-            )
-        except Exception as err:
+
+        def train(part: list[int]) -> BaseException | None:
+            try:
+                parts = ([runs[i] for i in part], [outs[i] for i in part])
+                _train(spec, *parts, [progress[i] for i in part])
+            except Exception as err:
+                if len(part) == 1:  # a group's failure is retried run by run
+                    _write_error(outs[part[0]])
+                return err
+            return None
+
+        # together; if that fails, each alone (from its checkpoint), so that one bad run (a
+        # corrupt checkpoint, say) fails alone, as it does unpacked
+        if len(untrained) == 1 or train(untrained) is not None:
             for i in untrained:
-                _write_error(outs[i])
-                errors[i] = err
+                err = train([i])
+                if err is not None:
+                    errors[i] = err
     for i in todo:
         if i in errors:
             continue

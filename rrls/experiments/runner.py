@@ -153,7 +153,7 @@ def plan(
         f"({finished} finished, {todo} to run), {spec.steps:,} steps each, set "
         f"{spec.uncertainty}, mesh {spec.mesh} x {spec.episodes} episodes; {backend} backend"
         + (f", {jobs} jobs" if jobs else "")
-        + (f", up to {pack} seeds trained together per job" if pack > 1 else "")
+        + (f", up to {pack} seeds of a cell trained together per process" if pack > 1 else "")
         + "\nestimate for the whole grid (from measured single-thread speeds on a 2-core CPU; "
         f"an estimate, +-30 %): {format_duration(est['cpu_s'])} of compute (training "
         f"{format_duration(est['train_s'])}, evaluation <= {format_duration(est['eval_s'])})"
