@@ -136,3 +136,9 @@ def test_a_bad_run_fails_alone_in_its_group(tmp_path):
     assert (good / "result.json").exists() and not (good / "error.txt").exists()
     assert not (broken / "result.json").exists()
     assert "checkpoint" in (broken / "error.txt").read_text().strip().splitlines()[-1]
+
+
+def test_bad_pack_is_one_line_exit_2(capsys):
+    assert main(["benchmark", "--preset", "smoke", "--out", "bench", "--pack", "0"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "--pack must be >= 1" in err
