@@ -305,15 +305,29 @@ def _default_set(task: str, meta: dict) -> str:
 
 
 def _train(args: argparse.Namespace) -> int:
-    from rrls.agents import Interrupted, train
-    from rrls.agents.options import config_from_args
+    from rrls.agents import Interrupted, train, train_group
+    from rrls.agents.options import configs_from_args
 
-    config, resume = config_from_args(args)  # bad options: ValueError, one line from main()
+    configs, resume = configs_from_args(args)  # bad options: ValueError, one line from main()
     try:
-        run_dir = train(config, resume=resume)
+        if args.seeds is None:
+            run_dirs = [train(configs[0], resume=resume)]
+        else:  # one process, the seeds stacked (same numbers as each alone)
+            run_dirs = train_group(configs, resume=resume)
     except Interrupted as stop:
         print(f"{stop}; continue with --resume")
         return 3
+    config = configs[0]
+    if args.seeds is not None:
+        seeds = ", ".join(str(c.seed) for c in configs)
+        print(f"trained {config.algo} on {config.task}/{config.uncertainty}, seeds {seeds}:")
+        for run_dir in run_dirs:
+            print(f"  {run_dir}/policy.npz")
+        print("evaluate each with: rrls evaluate DIR")
+        if (run_dirs[0] / "adversary.npz").exists():
+            print("against its own adversary (paper Table 6): rrls evaluate-dynamic DIR")
+        return 0
+    run_dir = run_dirs[0]
     print(
         f"trained {config.algo} on {config.task}/{config.uncertainty}: {run_dir}/policy.npz "
         f"(evaluate with: rrls evaluate {run_dir})"

@@ -8,7 +8,7 @@ reference, its hyper-parameters (``Config``, the paper's values) and its learner
 from __future__ import annotations
 
 from rrls.agents.common import ALGOS, Interrupted, TrainConfig, benchmark_set
-from rrls.agents.loop import algorithm, hyperparameters, train
+from rrls.agents.loop import algorithm, hyperparameters, train, train_group
 
 __all__ = [
     "ALGOS",
@@ -18,4 +18,5 @@ __all__ = [
     "benchmark_set",
     "hyperparameters",
     "train",
+    "train_group",
 ]

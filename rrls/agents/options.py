@@ -10,7 +10,8 @@ from __future__ import annotations
 
 import argparse
 import typing
-from dataclasses import fields
+from dataclasses import fields, replace
+from pathlib import Path
 from typing import Any
 
 from rrls.agents.common import ALGOS, TrainConfig
@@ -86,6 +87,17 @@ def add_train_arguments(parser: argparse.ArgumentParser) -> None:
             continue
         _add(run, f.name, _kind(hints[f.name]), **kwargs)
     run.add_argument("--resume", action="store_true", help="continue the run in --out exactly")
+    run.add_argument(
+        "--seeds",
+        metavar="SEEDS",
+        default=None,
+        help="train several seeds together in one process instead of --seed: 0-7, 0,2,5 or 3. "
+        "The runs are stacked into one batched agent whose envs step in lockstep, and each run "
+        "gets exactly the numbers it gets trained alone; faster on a GPU, which updates every "
+        "seed at once (on a CPU the runs share the process's cores, so each gets a share). "
+        "Each run's directory: the default per-seed name, or --out DIR/seed<S>. --resume and "
+        "--overwrite apply to every run",
+    )
     run.add_argument("--stop-at", type=int, default=None, help=argparse.SUPPRESS)
 
     hyper = parser.add_argument_group(
@@ -102,6 +114,52 @@ def add_train_arguments(parser: argparse.ArgumentParser) -> None:
         if entry["choices"]:
             kwargs["choices"] = entry["choices"]
         _add(hyper, name, entry["kind"], **kwargs)
+
+
+def parse_seeds(text: str) -> list[int]:
+    """The seeds of ``--seeds``: comma-separated integers and inclusive ranges (``0-3,7``).
+
+    Refused with a ``ValueError`` (one line, exit 2): empty, not an integer, negative, a
+    decreasing range or a seed given twice (two runs into one directory).
+    """
+    seeds: list[int] = []
+    for part in text.split(","):
+        part = part.strip()
+        if not part:
+            raise ValueError(f"--seeds {text!r}: empty item (use 0-7, 0,2,5 or 3)")
+        first, dash, last = part.partition("-")
+        try:
+            low = int(first)
+            high = int(last) if dash else low
+        except ValueError:
+            raise ValueError(
+                f"--seeds {text!r}: {part!r} is not a seed or a range of seeds (use 0-7, 0,2,5 "
+                "or 3; seeds are integers >= 0)"
+            ) from None
+        if high < low:
+            raise ValueError(f"--seeds {text!r}: the range {part!r} is empty (write low-high)")
+        seeds.extend(range(low, high + 1))
+    repeated = sorted({s for s in seeds if seeds.count(s) > 1})
+    if repeated:
+        raise ValueError(f"--seeds {text!r} gives seed {', '.join(map(str, repeated))} twice")
+    return seeds
+
+
+def configs_from_args(args: argparse.Namespace) -> tuple[list[TrainConfig], bool]:
+    """The runs (and ``--resume``) the parsed options describe: one per seed of ``--seeds``
+    (each in its default directory, or ``--out``/seed<S>), else the one run of ``--seed``."""
+    if getattr(args, "seeds", None) is None:
+        config, resume = config_from_args(args)
+        return [config], resume
+    if args.seed is not None:
+        raise ValueError("--seed and --seeds are exclusive: give one seed or a set of seeds")
+    seeds = parse_seeds(args.seeds)
+    base, resume = config_from_args(args)
+    configs = [
+        replace(base, seed=s, out=None if args.out is None else str(Path(args.out) / f"seed{s}"))
+        for s in seeds
+    ]
+    return configs, resume
 
 
 def config_from_args(args: argparse.Namespace) -> tuple[TrainConfig, bool]:

@@ -50,7 +50,16 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:
     b.add_argument(
         "--ray-address", metavar="ADDR", help="Ray cluster address (default: RAY_ADDRESS or local)"
     )
-    b.add_argument("--device", help="cpu (default) or cuda (Ray: a quarter GPU per run)")
+    b.add_argument("--device", help="cpu (default) or cuda (Ray: a quarter GPU per process)")
+    b.add_argument(
+        "--pack",
+        type=int,
+        metavar="N",
+        help="train up to N seeds of one algorithm and task together in one process (stacked "
+        "agents, the same numbers as alone): the GPU then updates many seeds at once; on a CPU "
+        "the runs of a process share its one thread. Default: every seed of a cell with "
+        "--device cuda, 1 on cpu",
+    )
 
     r = sub.add_parser(
         "report",
@@ -92,6 +101,8 @@ def _spec_from(args: argparse.Namespace) -> tuple:
         raise SpecError(f"unknown backend {args.backend!r}; valid: local, ray")
     if args.jobs is not None and args.jobs < 1:
         raise SpecError(f"--jobs must be >= 1, got {args.jobs}")
+    if getattr(args, "pack", None) is not None and args.pack < 1:
+        raise SpecError(f"--pack must be >= 1, got {args.pack}")
     if args.device is not None and not (args.device == "cpu" or args.device.startswith("cuda")):
         raise SpecError(f"unknown device {args.device!r}; valid: cpu, cuda")
     spec = make_spec(
@@ -126,7 +137,7 @@ def _benchmark(args: argparse.Namespace) -> int:
 
     from rrls.experiments.runner import benchmark
 
-    code = benchmark(args.out, spec, jobs or 0, args.backend, args.ray_address)
+    code = benchmark(args.out, spec, jobs or 0, args.backend, args.ray_address, pack=args.pack)
     if code in (0, 1) and (Path(args.out) / "report" / "summary.json").exists():
         print(_table(args.out))
     return code

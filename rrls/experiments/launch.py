@@ -1,4 +1,9 @@
-"""Run a benchmark's grid: one process per run (local pool) or one Ray task per run.
+"""Run a benchmark's grid: one process per group of runs (local pool) or one Ray task per group.
+
+A group is runs that share algorithm, task and set and differ only in seed; its runs are trained
+together by ``rrls.agents.loop.train_group`` (one stacked agent: on a GPU, many seeds at once;
+each run's numbers are those it has alone). By default a group is one run on CPU and all the
+seeds of a cell on CUDA (``pack``).
 
 A run = train (``rrls.agents.train``, resumed from its checkpoint if one exists), then the final
 mesh evaluation (resumable chunks under ``eval/``), then for RARL/NR-MDP the protagonist against
@@ -18,7 +23,7 @@ import sys
 import time
 import traceback
 from collections.abc import Callable, Iterator
-from contextlib import contextmanager
+from contextlib import ExitStack, contextmanager
 from pathlib import Path
 from typing import Any
 
@@ -37,48 +42,137 @@ def run_dir(root: Path, spec: Spec, key: RunKey) -> Path:
     return Path(root) / "runs" / key.name(spec.uncertainty)
 
 
-# --- one run (executes in a worker process or a Ray worker) ------------------------------------
+def groups(keys: list[RunKey], pack: int) -> list[tuple[RunKey, ...]]:
+    """``keys`` packed into groups of at most ``pack`` runs of one (algorithm, task) cell, in
+    order (``pack=1``: one run per group, the pool's behaviour before packing)."""
+    cells: dict[tuple[str, str], list[RunKey]] = {}
+    for key in keys:
+        cells.setdefault((key.algo, key.task), []).append(key)
+    out: list[tuple[RunKey, ...]] = []
+    for members in cells.values():
+        out.extend(tuple(members[i : i + pack]) for i in range(0, len(members), pack))
+    return out
+
+
+def default_pack(spec: Spec, pack: int | None) -> int:
+    """Runs per group: ``pack`` if given, else every seed of a cell on CUDA (the GPU updates
+    them at once) and 1 on CPU (a process per run already uses every core)."""
+    if pack is not None:
+        return pack
+    return len(spec.seeds) if spec.device.startswith("cuda") else 1
+
+
+# --- one group (executes in a worker process or a Ray worker) ----------------------------------
 def execute_run(root: str, spec_json: dict[str, Any], key: tuple[str, str, int]) -> dict[str, Any]:
     """Train, evaluate and (RARL/NR-MDP) play the adversary; returns ``result.json``'s content.
 
     Each stage is skipped when its output exists, and resumes from its own files otherwise.
     """
+    return execute_group(root, spec_json, [key])[0]
+
+
+def execute_group(
+    root: str, spec_json: dict[str, Any], keys: list[tuple[str, str, int]]
+) -> list[dict[str, Any]]:
+    """``execute_run`` for runs of one cell, trained together; returns each ``result.json``.
+
+    Runs already finished are skipped; the others are trained in one ``train_group`` call (a
+    run whose training finished is left out; runs resumed at different steps are fine), then
+    each is evaluated on its own. A failing stage of one run writes its ``error.txt`` and the
+    others go on; ``GroupFailed`` is raised at the end.
+    """
     os.environ.update(THREAD_ENV)  # before numpy/torch load here (a no-op if already loaded)
     from threadpoolctl import threadpool_limits
 
-    spec, run = Spec.from_json(spec_json), RunKey(*key)
-    out = run_dir(Path(root), spec, run)
-    done = out / "result.json"
-    if done.exists():
-        return json.loads(done.read_text())
-    out.mkdir(parents=True, exist_ok=True)
-    with _exclusive(out), threadpool_limits(1):
-        return _stages(spec, run, out, done)
+    spec = Spec.from_json(spec_json)
+    runs = [RunKey(*key) for key in keys]
+    outs = [run_dir(Path(root), spec, run) for run in runs]
+    results: dict[int, dict[str, Any]] = {}
+    for i, out in enumerate(outs):
+        if (out / "result.json").exists():
+            results[i] = json.loads((out / "result.json").read_text())
+    todo = [i for i in range(len(runs)) if i not in results]
+    if not todo:
+        return [results[i] for i in range(len(runs))]
+    for i in todo:
+        outs[i].mkdir(parents=True, exist_ok=True)
+    with ExitStack() as stack:
+        for i in todo:
+            stack.enter_context(_exclusive(outs[i]))
+        stack.enter_context(threadpool_limits(1))
+        errors = _group_stages(spec, [runs[i] for i in todo], [outs[i] for i in todo])
+        for i in todo:
+            if i not in errors:
+                results[i] = json.loads((outs[i] / "result.json").read_text())
+    if errors:
+        first = next(iter(errors.values()))
+        lines = str(first).strip().splitlines() or [type(first).__name__]
+        raise GroupFailed(f"{len(errors)} of {len(todo)} run(s) failed: {lines[-1]}") from first
+    return [results[i] for i in range(len(runs))]
 
 
-def _stages(spec: Spec, run: RunKey, out: Path, done: Path) -> dict[str, Any]:
+def _group_stages(spec: Spec, runs: list[RunKey], outs: list[Path]) -> dict[int, BaseException]:
+    """The stages of ``runs`` (training shared, the rest per run); returns each failed run's
+    error (its traceback is in its ``error.txt``)."""
     from rrls._io import atomic_write_json
 
-    if done.exists():  # finished by another process while this one waited to start
-        return json.loads(done.read_text())
-    (out / "error.txt").unlink(missing_ok=True)
-    progress = _ProgressFile(out / "progress.json", spec.steps)
     start = time.time()
-    if not (out / "run.json").exists():
-        progress.write("train", 0)
-        _train(spec, run, out, progress)
-    progress.write("evaluate", spec.steps)
-    result = _evaluate(spec, run, out)
-    if run.algo in DYNAMIC_ALGOS:
-        progress.write("dynamic", spec.steps)
-        result.update(_dynamic(spec, out))
-    result["seconds"] = time.time() - start  # this execution's (a resumed run: since resuming)
-    atomic_write_json(done, result)
-    progress.write("done", spec.steps)
-    # The checkpoint only serves to resume training (its replay buffer is up to ~250 MB at
-    # 5 M steps: 60 GB for the paper's grid); a finished run keeps its policies, curves, logs.
-    (out / "checkpoint.pt").unlink(missing_ok=True)
-    return result
+    errors: dict[int, BaseException] = {}
+    todo = [i for i, out in enumerate(outs) if not (out / "result.json").exists()]
+    # (a run finished by another process while this one waited to start is left alone)
+    progress = {i: _ProgressFile(outs[i] / "progress.json", spec.steps) for i in todo}
+    for i in todo:
+        (outs[i] / "error.txt").unlink(missing_ok=True)
+    untrained = [i for i in todo if not (outs[i] / "run.json").exists()]
+    if untrained:
+        for i in untrained:
+            progress[i].write("train", 0)
+
+        def train(part: list[int]) -> BaseException | None:
+            try:
+                parts = ([runs[i] for i in part], [outs[i] for i in part])
+                _train(spec, *parts, [progress[i] for i in part])
+            except Exception as err:
+                if len(part) == 1:  # a group's failure is retried run by run
+                    _write_error(outs[part[0]])
+                return err
+            return None
+
+        # together; if that fails, each alone (from its checkpoint), so that one bad run (a
+        # corrupt checkpoint, say) fails alone, as it does unpacked
+        if len(untrained) == 1 or train(untrained) is not None:
+            for i in untrained:
+                err = train([i])
+                if err is not None:
+                    errors[i] = err
+    for i in todo:
+        if i in errors:
+            continue
+        run, out = runs[i], outs[i]
+        try:
+            progress[i].write("evaluate", spec.steps)
+            result = _evaluate(spec, run, out)
+            if run.algo in DYNAMIC_ALGOS:
+                progress[i].write("dynamic", spec.steps)
+                result.update(_dynamic(spec, out))
+            # this execution's (a resumed run: since resuming; a group: since the group began)
+            result["seconds"] = time.time() - start
+            atomic_write_json(out / "result.json", result)
+            progress[i].write("done", spec.steps)
+            # The checkpoint only serves to resume training (its replay buffer is up to ~250 MB
+            # at 5 M steps: 60 GB for the paper's grid); a finished run keeps its policies,
+            # curves, logs.
+            (out / "checkpoint.pt").unlink(missing_ok=True)
+        except Exception as err:
+            _write_error(out)
+            errors[i] = err
+    return errors
+
+
+def _write_error(out: Path) -> None:
+    """The current exception's traceback in ``out/error.txt`` (shown by the driver)."""
+    out.mkdir(parents=True, exist_ok=True)
+    (out / "error.txt").write_text(traceback.format_exc())
 
 
 @contextmanager
@@ -101,26 +195,32 @@ def _exclusive(out: Path) -> Iterator[None]:
             fcntl.flock(handle, fcntl.LOCK_UN)
 
 
-def _train(spec: Spec, run: RunKey, out: Path, progress: _ProgressFile) -> None:
-    from rrls.agents import TrainConfig, train
+def _train(spec: Spec, runs: list[RunKey], outs: list[Path], progress: list[_ProgressFile]) -> None:
+    """Train ``runs`` (one cell) together, resuming each from its checkpoint."""
+    from rrls.agents import TrainConfig, train_group
 
-    config = TrainConfig(
-        algo=run.algo,
-        task=run.task,
-        uncertainty=spec.train_set(run.algo),
-        steps=spec.steps,
-        eval_every=spec.eval_every,
-        eval_mesh=spec.eval_mesh,
-        eval_episodes=spec.eval_episodes,
-        seed=run.seed,
-        out=str(out),
-        device=spec.device,
-        checkpoint_every=spec.checkpoint_every,
-        threads=1,
-        progress=False,
-        hyper=spec.hyperparameters(run.algo),
+    configs = [
+        TrainConfig(
+            algo=run.algo,
+            task=run.task,
+            uncertainty=spec.train_set(run.algo),
+            steps=spec.steps,
+            eval_every=spec.eval_every,
+            eval_mesh=spec.eval_mesh,
+            eval_episodes=spec.eval_episodes,
+            seed=run.seed,
+            out=str(out),
+            device=spec.device,
+            checkpoint_every=spec.checkpoint_every,
+            threads=1,
+            progress=False,
+            hyper=spec.hyperparameters(run.algo),
+        )
+        for run, out in zip(runs, outs)
+    ]
+    train_group(
+        configs, resume=True, on_episode=lambda k, step, _: progress[k].write("train", step, False)
     )
-    train(config, resume=True, on_episode=lambda step, _: progress.write("train", step, False))
 
 
 def _evaluate(spec: Spec, run: RunKey, out: Path) -> dict[str, Any]:
@@ -200,18 +300,36 @@ def read_progress(path: Path) -> dict[str, Any] | None:
         return None
 
 
-# --- local backend: one spawned process per run ------------------------------------------------
-def _process_main(root: str, spec_json: dict[str, Any], key: tuple[str, str, int]) -> None:
-    """Entry point of a run's process: dies with the driver, writes error.txt on failure."""
+# --- local backend: one spawned process per group ----------------------------------------------
+class GroupFailed(RuntimeError):
+    """Some runs of a group failed; each one's traceback is already in its ``error.txt``."""
+
+
+def _group_main(root: str, spec_json: dict[str, Any], keys: list[tuple[str, str, int]]) -> None:
+    """Entry point of a group's process: dies with the driver, writes error.txt on failure."""
     _die_with_parent()
     try:
-        execute_run(root, spec_json, key)
+        _execute_recorded(root, spec_json, keys)
+    except BaseException:
+        sys.exit(1)
+
+
+def _execute_recorded(
+    root: str, spec_json: dict[str, Any], keys: list[tuple[str, str, int]]
+) -> list[dict[str, Any]]:
+    """``execute_group``, and a failure outside the runs' stages (a held lock, an interrupt)
+    written to the ``error.txt`` of each run left unfinished."""
+    try:
+        return execute_group(root, spec_json, keys)
+    except GroupFailed:
+        raise
     except BaseException:
         spec = Spec.from_json(spec_json)
-        out = run_dir(Path(root), spec, RunKey(*key))
-        out.mkdir(parents=True, exist_ok=True)
-        (out / "error.txt").write_text(traceback.format_exc())
-        sys.exit(1)
+        for key in keys:
+            out = run_dir(Path(root), spec, RunKey(*key))
+            if not (out / "result.json").exists():
+                _write_error(out)
+        raise
 
 
 def _die_with_parent() -> None:
@@ -257,33 +375,45 @@ Status = Callable[[RunKey, str, str], None]  # (run, "running" | "done" | "faile
 
 
 def run_local(
-    root: Path, spec: Spec, keys: list[RunKey], jobs: int, on_event: Status, tick: Callable
+    root: Path,
+    spec: Spec,
+    keys: list[RunKey],
+    jobs: int,
+    on_event: Status,
+    tick: Callable,
+    pack: int = 1,
 ) -> None:
-    """At most ``jobs`` run processes at a time; ``tick()`` refreshes the display (~2/s)."""
+    """At most ``jobs`` group processes at a time (``groups(keys, pack)``); ``tick()``
+    refreshes the display (~2/s)."""
     import multiprocessing as mp
 
     ctx = mp.get_context("spawn")
-    pending, running = list(keys), {}
+    pending, running = groups(keys, pack), {}
     spec_json = spec.to_json()
     with single_thread_env():
         try:
             while pending or running:
                 while pending and len(running) < jobs:
-                    key = pending.pop(0)
+                    group = pending.pop(0)
+                    name = group[0].name(spec.uncertainty)
+                    if len(group) > 1:
+                        name += "-" + "-".join(str(key.seed) for key in group[1:])
                     proc = ctx.Process(
-                        target=_process_main,
-                        args=(str(root), spec_json, (key.algo, key.task, key.seed)),
-                        name=f"rrls-run-{key.name(spec.uncertainty)}",
+                        target=_group_main,
+                        args=(str(root), spec_json, [(k.algo, k.task, k.seed) for k in group]),
+                        name=f"rrls-run-{name}",
                     )
                     proc.start()
-                    running[key] = proc
-                    on_event(key, "running", "")
-                for key, proc in list(running.items()):
+                    running[group] = proc
+                    for key in group:
+                        on_event(key, "running", "")
+                for group, proc in list(running.items()):
                     if proc.is_alive():
                         continue
                     proc.join()
-                    del running[key]
-                    _finish(root, spec, key, proc.exitcode == 0, on_event)
+                    del running[group]
+                    for key in group:
+                        _finish(root, spec, key, _ok(root, spec, key, proc.exitcode == 0), on_event)
                 tick()
                 time.sleep(0.5)
         finally:
@@ -294,6 +424,12 @@ def run_local(
                 if proc.is_alive():
                     proc.kill()
                     proc.join()
+
+
+def _ok(root: Path, spec: Spec, key: RunKey, group_ok: bool) -> bool:
+    """Whether ``key`` ended well: its group did, or it wrote no error (a failed group may
+    still have finished some of its runs)."""
+    return group_ok or not (run_dir(root, spec, key) / "error.txt").exists()
 
 
 def _finish(
@@ -317,10 +453,12 @@ def run_ray(
     address: str | None,
     on_event: Status,
     tick: Callable,
+    pack: int = 1,
 ) -> None:
-    """One Ray task per run (one CPU; a quarter GPU with ``device="cuda"``). Connects to
-    ``address`` (or ``RAY_ADDRESS``), else to the instance this process already started, else
-    starts a local one. The run directories must be on a filesystem every node sees."""
+    """One Ray task per group of ``groups(keys, pack)`` (one CPU; a quarter GPU with
+    ``device="cuda"``). Connects to ``address`` (or ``RAY_ADDRESS``), else to the instance this
+    process already started, else starts a local one. The run directories must be on a
+    filesystem every node sees."""
     import ray
 
     started = False
@@ -330,24 +468,26 @@ def run_ray(
     gpus = 0.25 if spec.device.startswith("cuda") else 0
     task = ray.remote(num_cpus=1, num_gpus=gpus, max_retries=0)(_ray_run)
     spec_json = spec.to_json()
-    limit = jobs or len(keys)
-    pending, inflight = list(keys), {}
+    pending, inflight = groups(keys, pack), {}
+    limit = jobs or len(pending)
     try:
         while pending or inflight:
             while pending and len(inflight) < limit:
-                key = pending.pop(0)
-                ref = task.remote(str(root), spec_json, (key.algo, key.task, key.seed))
-                inflight[ref] = key
-                on_event(key, "running", "")
+                group = pending.pop(0)
+                ref = task.remote(str(root), spec_json, [(k.algo, k.task, k.seed) for k in group])
+                inflight[ref] = group
+                for key in group:
+                    on_event(key, "running", "")
             ready, _ = ray.wait(list(inflight), num_returns=1, timeout=0.5)
             for ref in ready:
-                key = inflight.pop(ref)
+                group = inflight.pop(ref)
                 try:
                     ray.get(ref)
                     ok, detail = True, ""
                 except Exception as err:  # the task's traceback is also in error.txt
                     ok, detail = False, (str(err).strip().splitlines() or ["failed"])[-1]
-                _finish(root, spec, key, ok, on_event, detail)
+                for key in group:
+                    _finish(root, spec, key, _ok(root, spec, key, ok), on_event, detail)
             tick()
     finally:
         for ref in inflight:
@@ -356,11 +496,7 @@ def run_ray(
             ray.shutdown()
 
 
-def _ray_run(root: str, spec_json: dict[str, Any], key: tuple[str, str, int]) -> dict[str, Any]:
-    try:
-        return execute_run(root, spec_json, key)
-    except BaseException:
-        out = run_dir(Path(root), Spec.from_json(spec_json), RunKey(*key))
-        out.mkdir(parents=True, exist_ok=True)
-        (out / "error.txt").write_text(traceback.format_exc())
-        raise
+def _ray_run(
+    root: str, spec_json: dict[str, Any], keys: list[tuple[str, str, int]]
+) -> list[dict[str, Any]]:
+    return _execute_recorded(root, spec_json, keys)

@@ -8,7 +8,14 @@ import time
 from pathlib import Path
 from typing import Any, TextIO
 
-from rrls.experiments.launch import read_progress, run_dir, run_local, run_ray
+from rrls.experiments.launch import (
+    default_pack,
+    groups,
+    read_progress,
+    run_dir,
+    run_local,
+    run_ray,
+)
 from rrls.experiments.spec import RunKey, Spec, estimate, format_duration, reconcile
 
 
@@ -135,7 +142,9 @@ def pending_runs(root: Path, spec: Spec) -> tuple[list[RunKey], int]:
     return todo, len(keys) - len(todo)
 
 
-def plan(root: Path, spec: Spec, todo: int, finished: int, jobs: int, backend: str) -> str:
+def plan(
+    root: Path, spec: Spec, todo: int, finished: int, jobs: int, backend: str, pack: int = 1
+) -> str:
     """What is about to run, and the compute estimate (printed before anything starts)."""
     est = estimate(spec, jobs or 1)
     return (
@@ -144,6 +153,7 @@ def plan(root: Path, spec: Spec, todo: int, finished: int, jobs: int, backend: s
         f"({finished} finished, {todo} to run), {spec.steps:,} steps each, set "
         f"{spec.uncertainty}, mesh {spec.mesh} x {spec.episodes} episodes; {backend} backend"
         + (f", {jobs} jobs" if jobs else "")
+        + (f", up to {pack} seeds of a cell trained together per process" if pack > 1 else "")
         + "\nestimate for the whole grid (from measured single-thread speeds on a 2-core CPU; "
         f"an estimate, +-30 %): {format_duration(est['cpu_s'])} of compute (training "
         f"{format_duration(est['train_s'])}, evaluation <= {format_duration(est['eval_s'])})"
@@ -164,11 +174,15 @@ def benchmark(
     stream: TextIO | None = None,
     interval: float = 60.0,
     report: bool = True,
+    pack: int | None = None,
 ) -> int:
     """Run ``spec`` in ``out`` (resuming), then build the store and the report.
 
-    Returns 0 when every run finished, 1 when some failed (the others still ran), 130 when
-    interrupted (finished work is kept: the same command resumes).
+    ``pack``: at most that many seeds of one (algorithm, task) cell are trained together in
+    one process (``train_group``; same numbers as alone); default every seed of a cell on
+    CUDA, 1 on CPU (``launch.default_pack``). Returns 0 when every run finished, 1 when some
+    failed (the others still ran), 130 when interrupted (finished work is kept: the same
+    command resumes).
     """
     from rrls._io import atomic_write_json
 
@@ -178,14 +192,16 @@ def benchmark(
     root.mkdir(parents=True, exist_ok=True)
     atomic_write_json(root / "benchmark.json", stored.to_json())
     todo, finished = pending_runs(root, spec)  # this command's grid only
-    print(plan(root, spec, len(todo), finished, jobs, backend), file=stream, flush=True)
-    display = Display(root, spec, todo, finished, jobs or len(todo), stream, interval)
+    pack = default_pack(spec, pack)
+    print(plan(root, spec, len(todo), finished, jobs, backend, pack), file=stream, flush=True)
+    slots = min(len(todo), (jobs or len(groups(todo, pack))) * pack)  # runs at once
+    display = Display(root, spec, todo, finished, slots, stream, interval)
     code = 0
     try:
         if backend == "ray":
-            run_ray(root, spec, todo, jobs, ray_address, display.event, display.tick)
+            run_ray(root, spec, todo, jobs, ray_address, display.event, display.tick, pack)
         else:
-            run_local(root, spec, todo, jobs, display.event, display.tick)
+            run_local(root, spec, todo, jobs, display.event, display.tick, pack)
     except KeyboardInterrupt:
         code = 130
     finally:
