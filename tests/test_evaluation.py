@@ -103,15 +103,16 @@ def test_plan_work_gives_every_worker_a_balanced_share(n, workers):
         runner.plan_work(n, 0)
 
 
-def _simulate(lengths, workers, lanes=runner.LANES, late=0):
+def _simulate(lengths, workers, lanes=runner.LANES, late=0, max_steps=1000):
     """Lockstep rounds of ``take_row``: worker ``w`` starts ``w * late`` rounds late.
 
-    Returns each worker's rows and the rounds it ran; checks that a worker never runs fewer than
-    half its lanes while rows remain and that every row runs exactly once.
+    Returns each worker's rows and the rounds it ran; checks that every row runs exactly once and
+    that a worker is refused a row only when none is left or its owner will start it soon.
     """
     plan = runner.plan_work(len(lengths), workers, lanes)
-    bounds = [i for share in plan.shares for i in share]
-    live = [[] for _ in range(plan.workers)]  # remaining steps of each live lane
+    bounds = runner.shared_bounds(plan, max_steps)
+    horizon = runner.steal_horizon(max_steps)
+    live = [[] for _ in range(plan.workers)]  # (steps left, steps done) of each live lane
     rows = [[] for _ in range(plan.workers)]
     busy = [0] * plan.workers
     t = 0
@@ -119,17 +120,18 @@ def _simulate(lengths, workers, lanes=runner.LANES, late=0):
         for w in range(plan.workers):
             if t < w * late:
                 continue
-            live[w] = [k - 1 for k in live[w] if k > 1]  # one lockstep step
+            live[w] = [(k - 1, d + 1) for k, d in live[w] if k > 1]  # one lockstep step
             while len(live[w]) < plan.lanes:
-                r = runner.take_row(bounds, w, len(live[w]), plan.lanes)
-                if r < 0:  # refused: nothing left, or others will start theirs soon enough
-                    left = [bounds[i + 1] - bounds[i] for i in range(0, len(bounds), 2)]
-                    assert max(left) <= 0 or (
-                        live[w] and 2 * len(live[w]) >= plan.lanes and max(left) <= plan.lanes
-                    )
+                r = runner.take_row(bounds, w, len(live[w]), horizon)
+                if r < 0:
+                    for v in range(plan.workers):
+                        left = bounds[3 * v + 1] - bounds[3 * v]
+                        assert left <= 0 or (live[w] and bounds[3 * v + 2] <= horizon)
                     break
                 rows[w].append(r)
-                live[w].append(lengths[r])
+                live[w].append((lengths[r], 0))
+            full = len(live[w]) == plan.lanes
+            bounds[3 * w + 2] = max_steps - max(d for _, d in live[w]) if full else 0
             busy[w] += bool(live[w])
         t += 1
         if not any(live) and t > plan.workers * late:
@@ -140,8 +142,8 @@ def _simulate(lengths, workers, lanes=runner.LANES, late=0):
 
 def test_work_stealing_keeps_every_worker_busy_and_balanced():
     """A simulation of 16 workers (no 16 cores needed): equal shares, then single-row stealing."""
-    # equal lengths (HalfCheetah): 5000 rows on 16 x 64 lanes; a shared counter handed the last
-    # wave's 904 rows as 14 x 64 + 8 + 0, now every worker runs 312 or 313 rows
+    # equal lengths (HalfCheetah): 5000 rows on 16 x 64 lanes; a shared counter (or greedy
+    # stealing) handed the last wave's 904 rows as 14 x 64 + 8 + 0, now every worker runs 312-313
     rows, busy = _simulate([1000] * 5000, 16)
     counts = [len(r) for r in rows]
     assert max(counts) - min(counts) <= 1

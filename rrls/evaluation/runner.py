@@ -12,8 +12,9 @@ Why this shape:
   next episode; workers are processes (one per core), each with its own envs.
 * **Balanced.** The unit of work is one episode, not one chunk: :func:`plan_work` gives every
   worker an equal contiguous share of the rows to run (sizes differ by at most one), and a worker
-  whose share is used up steals single rows from the end of the largest remaining share
-  (:func:`take_row`). So no worker idles while episodes remain, whatever ``workers`` and ``n``.
+  whose share is used up steals single rows from the end of the largest share whose owner cannot
+  start them soon (:func:`take_row`). So no worker idles while episodes remain, whatever
+  ``workers`` and ``n``, and the last episodes are spread over every worker.
 * **Nothing lost.** Episodes are saved in fixed chunks of ``CHUNK`` rows (independent of the
   number of workers and of the work split); each finished chunk is written atomically to
   ``out_dir/chunks/``, and a re-run with the same arguments loads them instead of running them.
@@ -113,12 +114,14 @@ def run_rows(
     on_finished: Callable[[Finished], None],
     lanes: int = LANES,
     fast: bool = True,
+    on_step: Callable[[int], None] | None = None,
 ) -> None:
     """Roll out episodes in lockstep until no lane is live and ``next_row(live)`` returns -1.
 
     Whenever episodes end, idle lanes ask for rows (``live``: the lanes still running) until one
     is refused, so the batch stays full while rows remain; ``on_finished`` receives the rows
-    finished at each step.
+    finished at each step; ``on_step`` the steps within which a lane will surely be free (0 if
+    one is already), for work stealing.
     """
     from rrls.evaluation.kernels import make_stepper
 
@@ -155,7 +158,19 @@ def run_rows(
 
     with _quiet_mujoco():
         fill()
-        _loop(spec, policy, stepper, fill, on_finished, obs, lane_row, returns, lengths, act_dim)
+        _loop(
+            spec,
+            policy,
+            stepper,
+            fill,
+            on_finished,
+            on_step,
+            obs,
+            lane_row,
+            returns,
+            lengths,
+            act_dim,
+        )
 
 
 @contextmanager
@@ -180,6 +195,7 @@ def _loop(
     stepper: Any,
     fill: Callable[[], None],
     on_finished: Callable[[Finished], None],
+    on_step: Callable[[int], None] | None,
     obs: np.ndarray,
     lane_row: np.ndarray,
     returns: np.ndarray,
@@ -210,6 +226,9 @@ def _loop(
             on_finished(finished)
             lane_row[live[done]] = -1
             fill()
+        if on_step is not None:
+            busy = lane_row >= 0
+            on_step(int(spec.max_episode_steps - lengths.max()) if busy.all() else 0)
 
 
 def _check_actions(
@@ -278,29 +297,42 @@ def plan_work(n: int, workers: int, lanes: int = LANES) -> WorkPlan:
     return WorkPlan(tuple(shares), max(1, min(lanes, -(-n // workers))))
 
 
-def take_row(bounds: Any, w: int, live: int = 0, lanes: int = LANES) -> int:
-    """Next row offset for worker ``w`` (running ``live`` of its ``lanes``), or -1: none for it.
+def take_row(bounds: Any, w: int, live: int = 0, horizon: int = 0) -> int:
+    """Next row offset for worker ``w`` (running ``live`` lanes), or -1: none for it now.
 
-    ``bounds`` is ``[next_0, stop_0, next_1, stop_1, ...]`` (a shared array, under its lock).
-    A worker takes the front of its own share; then it steals the last row of the largest
-    remaining share, but only while that share holds more than a full set of lanes or the thief
-    runs fewer than half its lanes: greedy stealing would give the last wave to whoever asks first
-    (64 rows to some workers, none to others) and slow those down, as a step costs more with more
-    live lanes. A worker with no live lane always gets a row while any is left.
+    ``bounds`` is ``[next_0, stop_0, soon_0, next_1, ...]`` (a shared array, under its lock):
+    worker ``v``'s unstarted rows are ``next_v:stop_v``, and within ``soon_v`` steps one of its
+    lanes will surely be free (all its lanes are busy while it has rows; an episode ends at
+    ``max_episode_steps`` at the latest). A worker takes the front of its own share, then steals
+    the last row of the largest share whose owner cannot start it within ``horizon`` steps.
+    Why not steal greedily: with equal episode lengths all workers reach the last wave together,
+    and whoever asks first would take a full set of lanes from the others' shares (5000 rows on
+    16 x 64 lanes: 14 workers with 64, one with 8, one with none), which makes those workers'
+    steps slower. A worker with no live lane takes any row left, so none idles while rows remain.
     """
-    if bounds[2 * w] < bounds[2 * w + 1]:
-        i = bounds[2 * w]
-        bounds[2 * w] = i + 1
+    if bounds[3 * w] < bounds[3 * w + 1]:
+        i = bounds[3 * w]
+        bounds[3 * w] = i + 1
         return int(i)
     victim, most = -1, 0
-    for v in range(len(bounds) // 2):
-        left = bounds[2 * v + 1] - bounds[2 * v]
-        if left > most:
+    for v in range(len(bounds) // 3):
+        left = bounds[3 * v + 1] - bounds[3 * v]
+        if left > most and (live == 0 or bounds[3 * v + 2] > horizon):
             victim, most = v, left
-    if victim < 0 or (most <= lanes and 2 * live >= lanes and live > 0):
+    if victim < 0:
         return -1
-    bounds[2 * victim + 1] -= 1
-    return int(bounds[2 * victim + 1])
+    bounds[3 * victim + 1] -= 1
+    return int(bounds[3 * victim + 1])
+
+
+def shared_bounds(plan: WorkPlan, max_episode_steps: int) -> list[int]:
+    """The initial ``bounds`` of :func:`take_row`: each share, and "not started" as far away."""
+    return [i for a, b in plan.shares for i in (a, b, max_episode_steps)]
+
+
+def steal_horizon(max_episode_steps: int) -> int:
+    """Rows whose owner frees a lane within 5 % of an episode are left to it (see take_row)."""
+    return max(1, max_episode_steps // 20)
 
 
 def _worker_main(
@@ -326,14 +358,23 @@ def _worker_main(
         if "torch" in sys.modules:
             sys.modules["torch"].set_num_threads(1)
 
+        horizon = steal_horizon(spec.max_episode_steps)
+
         def next_row(live: int) -> int:
             with bounds.get_lock():
-                i = take_row(bounds, w, live, lanes)
+                i = take_row(bounds, w, live, horizon)
             return int(rows[i]) if i >= 0 else -1
+
+        far = [True]  # as published: "no lane of mine frees within the horizon"
+
+        def on_step(soon: int) -> None:
+            if (soon > horizon) != far[0]:  # take_row only compares with the horizon
+                far[0] = soon > horizon
+                bounds[3 * w + 2] = soon
 
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")  # MuJoCo model warnings: the parent reported them
-            run_rows(spec, policy, next_row, results.put, lanes, fast)
+            run_rows(spec, policy, next_row, results.put, lanes, fast, on_step)
         results.put(None)
     except BaseException as err:  # noqa: BLE001 - forwarded to the parent, which re-raises
         results.put(_Failure(err))
@@ -506,7 +547,7 @@ def _run_processes(
     # fork shares the policy with the workers without pickling it (lambdas and closures work);
     # spawn (other platforms) pickles it.
     ctx = mp.get_context("fork" if "fork" in mp.get_all_start_methods() else "spawn")
-    bounds = ctx.Array("q", [i for share in plan.shares for i in share])
+    bounds = ctx.Array("q", shared_bounds(plan, spec.max_episode_steps))
     results = ctx.Queue()
     procs = [
         ctx.Process(
