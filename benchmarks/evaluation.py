@@ -6,16 +6,26 @@ fixed random weights, in env steps per second:
 (a) plain loop: ``gym.make(...)``, ``set_params``, ``reset(seed)``, ``policy(obs[None])[0]`` per
     step, one episode at a time — with our batch-invariant ``MLPPolicy`` (what the engine's rows
     equal) and with the same MLP called without blocks (the fastest naive loop);
-(b) ``rrls.evaluation.evaluate`` with 1 and 2 workers;
+(b) ``rrls.evaluation.evaluate`` with 1 worker and with every core;
 (c) the physics bound: ``mj_step(model, data, nstep=frame_skip)`` alone, replaying (a)'s episodes
     (same models, initial states and controls: the same physics), one process, times the cores.
 
 All four run the same episodes: every mesh point, the engine's seed for episode 0.
 
-Targets: (b, 2 workers) >= 3x (a) and >= 75 % of (c). Each measurement is repeated (``--rounds``)
+Targets: (b, every core) >= 3x (a) and >= 75 % of (c). Each measurement is repeated (``--rounds``)
 in alternation and the median is reported.
 
+Scaling (``--workers 1 4 16``, ``--episodes 5 --mesh 10`` for the paper's mesh): for each worker
+count W, the engine's rate with its fixed start-up (same call with 1-step episodes: env building,
+process start, policy checks) reported apart, and two bounds: one process's physics rate times W
+(what the issue's percentages used) and W processes replaying at once (measured: shared cores,
+SMT siblings, lower all-core clocks and shared caches count there; both replay episode 0 of each
+point: a rate). On a machine whose "cores" are SMT siblings, only the second is reachable. Give
+runs long enough that start-up is small: at ``--mesh 8 --episodes 1`` Hopper's random-policy
+episodes are ~126 steps, 65 000 env steps in all, about half a second on 16 cores.
+
     python benchmarks/evaluation.py [--tasks halfcheetah hopper] [--mesh 5] [--rounds 3]
+        [--workers 1 2] [--episodes 1]
 """
 
 from __future__ import annotations
@@ -78,7 +88,35 @@ def physics_bound(task: str, episodes) -> float:
     return total / elapsed
 
 
-def engine(task: str, policy, mesh: int, episodes: int, workers: int) -> float:
+def parallel_bound(task: str, episodes, workers: int) -> float:
+    """Physics env steps per second of ``workers`` processes replaying at once (sum of rates).
+
+    Each process replays every ``workers``-th episode after a common barrier, so they overlap.
+    """
+    import multiprocessing as mp
+
+    if workers == 1:
+        return physics_bound(task, episodes)
+    ctx = mp.get_context("fork")
+    barrier, rates = ctx.Barrier(workers), ctx.Queue()
+
+    def replay(w: int) -> None:
+        barrier.wait()
+        rates.put(physics_bound(task, episodes[w::workers] or episodes[:1]))
+
+    procs = [ctx.Process(target=replay, args=(w,)) for w in range(workers)]
+    for proc in procs:
+        proc.start()
+    total = sum(rates.get() for _ in procs)
+    for proc in procs:
+        proc.join()
+    return total
+
+
+def engine(
+    task: str, policy, mesh: int, episodes: int, workers: int, max_steps: int = 1000
+) -> tuple[float, float]:
+    """Wall seconds of one ``evaluate`` call and the env steps it ran."""
     start = time.perf_counter()
     result = evaluate(
         policy,
@@ -89,8 +127,14 @@ def engine(task: str, policy, mesh: int, episodes: int, workers: int) -> float:
         seed=0,
         workers=workers,
         progress=False,
+        max_episode_steps=max_steps,
     )
-    return int(result.episodes["length"].sum()) / (time.perf_counter() - start)
+    return time.perf_counter() - start, int(result.episodes["length"].sum())
+
+
+def engine_rate(task: str, policy, mesh: int, episodes: int, workers: int) -> float:
+    wall, steps = engine(task, policy, mesh, episodes, workers)
+    return steps / wall
 
 
 def main() -> None:
@@ -98,9 +142,14 @@ def main() -> None:
     parser.add_argument("--tasks", nargs="+", default=["halfcheetah", "hopper"])
     parser.add_argument("--mesh", type=int, default=5)
     parser.add_argument("--rounds", type=int, default=3)
+    parser.add_argument(
+        "--workers", type=int, nargs="+", default=None, help="scaling table (default: 1, cores)"
+    )
+    parser.add_argument("--episodes", type=int, default=1, help="per mesh point, scaling table")
     args = parser.parse_args()
     warnings.simplefilter("ignore")
     cores = len(os.sched_getaffinity(0))
+    worker_counts = args.workers or sorted({1, cores})
 
     rows = []
     for task in args.tasks:
@@ -113,13 +162,21 @@ def main() -> None:
         points = box.mesh(args.mesh)
         seeds = episode_seeds(0, len(points), 1)  # the engine's seeds for episode 0
         runs: dict[str, list[float]] = {k: [] for k in ("plain", "naive", "w1", "w2", "raw")}
+        for w in worker_counts:
+            runs.update({f"wall{w}": [], f"steps{w}": [], f"start{w}": [], f"par{w}": []})
         for _ in range(args.rounds):
             rate, episodes = plain_loop(task, policy, points, box.names, seeds)
             runs["plain"].append(rate)
             runs["naive"].append(plain_loop(task, naive, points, box.names, seeds)[0])
-            runs["w1"].append(engine(task, policy, args.mesh, 1, 1))
-            runs["w2"].append(engine(task, policy, args.mesh, 1, cores))
+            runs["w1"].append(engine_rate(task, policy, args.mesh, 1, 1))
+            runs["w2"].append(engine_rate(task, policy, args.mesh, 1, cores))
             runs["raw"].append(physics_bound(task, episodes))
+            for w in worker_counts:
+                wall, steps = engine(task, policy, args.mesh, args.episodes, w)
+                runs[f"wall{w}"].append(wall)
+                runs[f"steps{w}"].append(steps)
+                runs[f"start{w}"].append(engine(task, policy, args.mesh, args.episodes, w, 1)[0])
+                runs[f"par{w}"].append(parallel_bound(task, episodes, w))
         med = {k: statistics.median(v) for k, v in runs.items()}
         bound = med["raw"] * cores
         rows.append((task, med, bound))
@@ -140,6 +197,25 @@ def main() -> None:
             f"{med['w2']:,.0f} | {bound:,.0f} | {med['w2'] / med['plain']:.2f}x | "
             f"{med['w2'] / med['naive']:.2f}x | {med['w2'] / bound:.0%} |"
         )
+
+    print(
+        f"\nscaling: mesh {args.mesh}^3 x {args.episodes} episodes; start-up = the same call "
+        "with 1-step episodes; bounds: 1 process x W, and W processes at once\n"
+    )
+    print(
+        "| task | workers | engine steps/s | start-up s | excl. start-up | bound 1xW | "
+        "bound W procs | % of 1xW | % of W procs | % of W procs excl. start-up |"
+    )
+    print("|---|---|---|---|---|---|---|---|---|---|")
+    for task, med, _ in rows:
+        for w in worker_counts:
+            wall, steps, start = med[f"wall{w}"], med[f"steps{w}"], med[f"start{w}"]
+            rate, net = steps / wall, steps / max(wall - start, 1e-9)
+            naive_bound, par = med["raw"] * w, med[f"par{w}"]
+            print(
+                f"| {task} | {w} | {rate:,.0f} | {start:.2f} | {net:,.0f} | {naive_bound:,.0f} | "
+                f"{par:,.0f} | {rate / naive_bound:.0%} | {rate / par:.0%} | {net / par:.0%} |"
+            )
 
 
 if __name__ == "__main__":

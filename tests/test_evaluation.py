@@ -18,6 +18,8 @@ from rrls.evaluation import (
     PolicyError,
     evaluate,
     load_policy,
+    resolve_uncertainty,
+    runner,
 )
 from rrls.evaluation.runner import episode_seeds
 from rrls.uncertainty import UncertaintySet
@@ -86,6 +88,93 @@ def test_results_do_not_depend_on_workers_or_batch_size():
     ]
     for other in runs[1:]:
         pd.testing.assert_frame_equal(runs[0], other, check_exact=True)
+
+
+@pytest.mark.parametrize(("n", "workers"), [(512, 16), (5000, 16), (125, 2), (3, 8), (50, 16)])
+def test_plan_work_gives_every_worker_a_balanced_share(n, workers):
+    """Fixed 50-row units gave 512 rows to only 11 of 16 workers; shares now differ by <= 1."""
+    plan = runner.plan_work(n, workers)
+    assert plan.workers == min(n, workers)
+    sizes = [stop - start for start, stop in plan.shares]
+    assert min(sizes) >= 1 and max(sizes) - min(sizes) <= 1 and sum(sizes) == n
+    assert [s[0] for s in plan.shares[1:]] == [s[1] for s in plan.shares[:-1]]  # contiguous
+    assert plan.lanes == min(runner.LANES, max(sizes))  # no lane without an episode
+    with pytest.raises(ValueError, match="workers must be >= 1"):
+        runner.plan_work(n, 0)
+
+
+def _simulate(lengths, workers, lanes=runner.LANES, late=0, max_steps=1000):
+    """Lockstep rounds of ``take_row``: worker ``w`` starts ``w * late`` rounds late.
+
+    Returns each worker's rows and the rounds it ran; checks that every row runs exactly once and
+    that a worker is refused a row only when none is left or its owner will start it soon.
+    """
+    plan = runner.plan_work(len(lengths), workers, lanes)
+    bounds = runner.shared_bounds(plan, max_steps)
+    horizon = runner.steal_horizon(max_steps)
+    live = [[] for _ in range(plan.workers)]  # (steps left, steps done) of each live lane
+    rows = [[] for _ in range(plan.workers)]
+    busy = [0] * plan.workers
+    t = 0
+    while t < 10 * sum(lengths) + 100:
+        for w in range(plan.workers):
+            if t < w * late:
+                continue
+            live[w] = [(k - 1, d + 1) for k, d in live[w] if k > 1]  # one lockstep step
+            while len(live[w]) < plan.lanes:
+                r = runner.take_row(bounds, w, len(live[w]), horizon)
+                if r < 0:
+                    for v in range(plan.workers):
+                        left = bounds[3 * v + 1] - bounds[3 * v]
+                        assert left <= 0 or (live[w] and bounds[3 * v + 2] <= horizon)
+                    break
+                rows[w].append(r)
+                live[w].append((lengths[r], 0))
+            full = len(live[w]) == plan.lanes
+            bounds[3 * w + 2] = max_steps - max(d for _, d in live[w]) if full else 0
+            busy[w] += bool(live[w])
+        t += 1
+        if not any(live) and t > plan.workers * late:
+            break
+    assert sorted(r for rs in rows for r in rs) == list(range(len(lengths)))
+    return rows, busy
+
+
+def test_work_stealing_keeps_every_worker_busy_and_balanced():
+    """A simulation of 16 workers (no 16 cores needed): equal shares, then single-row stealing."""
+    # equal lengths (HalfCheetah): 5000 rows on 16 x 64 lanes; a shared counter (or greedy
+    # stealing) handed the last wave's 904 rows as 14 x 64 + 8 + 0, now every worker runs 312-313
+    rows, busy = _simulate([1000] * 5000, 16)
+    counts = [len(r) for r in rows]
+    assert max(counts) - min(counts) <= 1
+    assert max(busy) == 5000  # 5 waves of 1000 steps, the least possible
+    # 512 rows on 16 workers: 32 each, 32 lanes each (a 50-row unit left 5 workers idle)
+    rows, _ = _simulate([100] * 512, 16)
+    assert [len(r) for r in rows] == [32] * 16
+    # varied lengths and late starters: early workers steal, everyone finishes close together
+    rng = np.random.default_rng(0)
+    lengths = rng.integers(20, 1000, size=2000).tolist()
+    rows, busy = _simulate(lengths, 16, late=30)
+    ends = [w * 30 + b for w, b in enumerate(busy)]
+    assert max(ends) - min(ends) <= 1000  # at most one episode apart
+    assert len(rows[0]) > len(rows[15])  # the first to start stole from the last
+
+
+def test_results_do_not_depend_on_the_work_split_or_chunk_size(tmp_path):
+    """Rows depend only on their seed: any workers, lanes or saving chunk give the same columns."""
+    policy = _policy("hopper")
+    box = resolve_uncertainty("hopper", "2d")
+    points = box.mesh(3)
+    spec = runner.RolloutSpec(
+        "hopper", "robust", box.names, points, episode_seeds(4, len(points), 3), 200
+    )
+    runs = [
+        runner.run(spec, policy, workers=w, lanes=b, chunk=c, chunk_dir=tmp_path / f"{w}{b}{c}")
+        for w, b, c in [(1, 64, 50), (2, 3, 50), (3, 2, 7), (2, 64, 5)]
+    ]
+    for other in runs[1:]:
+        for k, v in runs[0].items():
+            np.testing.assert_array_equal(v, other[k])
 
 
 def test_table_columns_seeds_and_scores():

@@ -9,10 +9,15 @@ Why this shape:
   (``rrls.evaluation.policies.BatchInvariant``; our own policy types are). So results do not
   depend on the number of workers or the batch size.
 * **Fast.** The policy runs once per step on all live lanes of a worker; finished lanes take the
-  next episode of their chunk; workers are processes (one per core), each with its own envs.
-* **Nothing lost.** Episodes are grouped in fixed chunks (independent of the number of workers);
-  each finished chunk is written atomically to ``out_dir/chunks/``, and a re-run with the same
-  arguments loads them instead of running them again.
+  next episode; workers are processes (one per core), each with its own envs.
+* **Balanced.** The unit of work is one episode, not one chunk: :func:`plan_work` gives every
+  worker an equal contiguous share of the rows to run (sizes differ by at most one), and a worker
+  whose share is used up steals single rows from the end of the largest share whose owner cannot
+  start them soon (:func:`take_row`). So no worker idles while episodes remain, whatever
+  ``workers`` and ``n``, and the last episodes are spread over every worker.
+* **Nothing lost.** Episodes are saved in fixed chunks of ``CHUNK`` rows (independent of the
+  number of workers and of the work split); each finished chunk is written atomically to
+  ``out_dir/chunks/``, and a re-run with the same arguments loads them instead of running them.
 """
 
 from __future__ import annotations
@@ -29,7 +34,7 @@ from typing import Any
 
 import numpy as np
 
-CHUNK = 50  # episodes per chunk: the unit of resumption and of work sharing
+CHUNK = 50  # episodes per saved chunk: the unit of saving and resuming (not of work sharing)
 LANES = 64  # live episodes per worker (one policy block)
 
 
@@ -105,15 +110,18 @@ Finished = list[tuple[int, float, int, bool, bool]]  # (row, return, length, ter
 def run_rows(
     spec: RolloutSpec,
     policy: Callable[[np.ndarray], Any],
-    next_row: Callable[[], int],
+    next_row: Callable[[int], int],
     on_finished: Callable[[Finished], None],
     lanes: int = LANES,
     fast: bool = True,
+    on_step: Callable[[int], None] | None = None,
 ) -> None:
-    """Roll out episodes in lockstep until ``next_row()`` returns -1.
+    """Roll out episodes in lockstep until no lane is live and ``next_row(live)`` returns -1.
 
-    Each lane takes the next row as soon as its episode ends, so the batch stays full until the
-    very end; ``on_finished`` receives the rows finished at each step.
+    Whenever episodes end, idle lanes ask for rows (``live``: the lanes still running) until one
+    is refused, so the batch stays full while rows remain; ``on_finished`` receives the rows
+    finished at each step; ``on_step`` the steps within which a lane will surely be free (0 if
+    one is already), for work stealing.
     """
     from rrls.evaluation.kernels import make_stepper
 
@@ -128,11 +136,8 @@ def run_rows(
     returns = np.zeros(n_lanes)
     lengths = np.zeros(n_lanes, dtype=np.int64)
 
-    def start(lane: int) -> None:
-        row = next_row()
+    def start(lane: int, row: int) -> None:
         lane_row[lane] = row
-        if row < 0:
-            return
         p, e = spec.row(row)
         env = envs[lane]
         env.reset_params()
@@ -143,10 +148,29 @@ def run_rows(
         lengths[lane] = 0
         stepper.reset(lane, obs[lane])
 
+    def fill() -> None:
+        """Give idle lanes new rows while ``next_row`` hands some out."""
+        for lane in np.flatnonzero(lane_row < 0).tolist():
+            row = next_row(int(np.count_nonzero(lane_row >= 0)))
+            if row < 0:
+                return
+            start(lane, row)
+
     with _quiet_mujoco():
-        for lane in range(n_lanes):
-            start(lane)
-        _loop(spec, policy, stepper, start, on_finished, obs, lane_row, returns, lengths, act_dim)
+        fill()
+        _loop(
+            spec,
+            policy,
+            stepper,
+            fill,
+            on_finished,
+            on_step,
+            obs,
+            lane_row,
+            returns,
+            lengths,
+            act_dim,
+        )
 
 
 @contextmanager
@@ -169,8 +193,9 @@ def _loop(
     spec: RolloutSpec,
     policy: Callable[[np.ndarray], Any],
     stepper: Any,
-    start: Callable[[int], None],
+    fill: Callable[[], None],
     on_finished: Callable[[Finished], None],
+    on_step: Callable[[int], None] | None,
     obs: np.ndarray,
     lane_row: np.ndarray,
     returns: np.ndarray,
@@ -199,8 +224,11 @@ def _loop(
                 for j in done
             ]
             on_finished(finished)
-            for j in done:
-                start(live[j])
+            lane_row[live[done]] = -1
+            fill()
+        if on_step is not None:
+            busy = lane_row >= 0
+            on_step(int(spec.max_episode_steps - lengths.max()) if busy.all() else 0)
 
 
 def _check_actions(
@@ -233,17 +261,92 @@ def _check_actions(
         )
 
 
+@dataclass(frozen=True)
+class WorkPlan:
+    """How ``n`` rows are split among workers: ``shares[w]`` = (start, stop) offsets, and lanes.
+
+    Why: the unit of saving (a ``CHUNK``) must not be the unit of work (512 rows = 11 chunks
+    would keep 5 of 16 workers idle), and one shared counter hands the last wave to whoever asks
+    first. Equal shares start every worker with the same load; stealing (:func:`take_row`) evens
+    out episodes of different lengths.
+    """
+
+    shares: tuple[tuple[int, int], ...]
+    lanes: int
+
+    @property
+    def workers(self) -> int:
+        return len(self.shares)
+
+
+def plan_work(n: int, workers: int, lanes: int = LANES) -> WorkPlan:
+    """Split ``n`` rows into ``min(workers, n)`` contiguous shares whose sizes differ by <= 1.
+
+    Each worker runs ``min(lanes, largest share)`` lanes: no lane is built that would never get an
+    episode. The split changes only who runs a row, never its numbers.
+    """
+    if workers < 1:
+        raise ValueError(f"workers must be >= 1, got {workers}")
+    workers = max(1, min(workers, n))
+    base, extra = divmod(n, workers)
+    shares, start = [], 0
+    for w in range(workers):
+        stop = start + base + (w < extra)
+        shares.append((start, stop))
+        start = stop
+    return WorkPlan(tuple(shares), max(1, min(lanes, -(-n // workers))))
+
+
+def take_row(bounds: Any, w: int, live: int = 0, horizon: int = 0) -> int:
+    """Next row offset for worker ``w`` (running ``live`` lanes), or -1: none for it now.
+
+    ``bounds`` is ``[next_0, stop_0, soon_0, next_1, ...]`` (a shared array, under its lock):
+    worker ``v``'s unstarted rows are ``next_v:stop_v``, and within ``soon_v`` steps one of its
+    lanes will surely be free (all its lanes are busy while it has rows; an episode ends at
+    ``max_episode_steps`` at the latest). A worker takes the front of its own share, then steals
+    the last row of the largest share whose owner cannot start it within ``horizon`` steps.
+    Why not steal greedily: with equal episode lengths all workers reach the last wave together,
+    and whoever asks first would take a full set of lanes from the others' shares (5000 rows on
+    16 x 64 lanes: 14 workers with 64, one with 8, one with none), which makes those workers'
+    steps slower. A worker with no live lane takes any row left, so none idles while rows remain.
+    """
+    if bounds[3 * w] < bounds[3 * w + 1]:
+        i = bounds[3 * w]
+        bounds[3 * w] = i + 1
+        return int(i)
+    victim, most = -1, 0
+    for v in range(len(bounds) // 3):
+        left = bounds[3 * v + 1] - bounds[3 * v]
+        if left > most and (live == 0 or bounds[3 * v + 2] > horizon):
+            victim, most = v, left
+    if victim < 0:
+        return -1
+    bounds[3 * victim + 1] -= 1
+    return int(bounds[3 * victim + 1])
+
+
+def shared_bounds(plan: WorkPlan, max_episode_steps: int) -> list[int]:
+    """The initial ``bounds`` of :func:`take_row`: each share, and "not started" as far away."""
+    return [i for a, b in plan.shares for i in (a, b, max_episode_steps)]
+
+
+def steal_horizon(max_episode_steps: int) -> int:
+    """Rows whose owner frees a lane within 5 % of an episode are left to it (see take_row)."""
+    return max(1, max_episode_steps // 20)
+
+
 def _worker_main(
     spec: RolloutSpec,
     policy: Callable,
     rows: np.ndarray,
-    counter: Any,
+    bounds: Any,
+    w: int,
     results: Any,
     lanes: int,
     fast: bool,
     parent: int,
 ) -> None:
-    """A worker process: pull rows from the shared counter, send finished episodes back."""
+    """A worker process: take rows (own share, then stolen ones), send finished episodes back."""
     _exit_with_parent(parent)
     try:
         try:  # one BLAS thread per process: the processes already use every core
@@ -255,15 +358,23 @@ def _worker_main(
         if "torch" in sys.modules:
             sys.modules["torch"].set_num_threads(1)
 
-        def next_row() -> int:
-            with counter.get_lock():
-                i = counter.value
-                counter.value = i + 1
-            return int(rows[i]) if i < len(rows) else -1
+        horizon = steal_horizon(spec.max_episode_steps)
+
+        def next_row(live: int) -> int:
+            with bounds.get_lock():
+                i = take_row(bounds, w, live, horizon)
+            return int(rows[i]) if i >= 0 else -1
+
+        far = [True]  # as published: "no lane of mine frees within the horizon"
+
+        def on_step(soon: int) -> None:
+            if (soon > horizon) != far[0]:  # take_row only compares with the horizon
+                far[0] = soon > horizon
+                bounds[3 * w + 2] = soon
 
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")  # MuJoCo model warnings: the parent reported them
-            run_rows(spec, policy, next_row, results.put, lanes, fast)
+            run_rows(spec, policy, next_row, results.put, lanes, fast, on_step)
         results.put(None)
     except BaseException as err:  # noqa: BLE001 - forwarded to the parent, which re-raises
         results.put(_Failure(err))
@@ -369,10 +480,8 @@ def run(
         or [np.zeros(0, dtype=np.int64)]
     )
     workers = default_workers() if workers is None else int(workers)
-    if workers < 1:
-        raise ValueError(f"workers must be >= 1, got {workers}")
-    workers = max(1, min(workers, len(todo)))
-    lanes = max(1, min(lanes, -(-len(todo) // workers)))
+    plan = plan_work(len(todo), workers, lanes)
+    lanes = plan.lanes
 
     if len(todo):
         _envs(spec, lanes)  # built once here: forked workers inherit them
@@ -393,11 +502,11 @@ def run(
         bar.update(len(finished))
 
     try:
-        if len(todo) and workers == 1:
+        if len(todo) and plan.workers == 1:
             it = iter(todo.tolist())
-            run_rows(spec, policy, lambda: next(it, -1), on_finished, lanes, fast)
+            run_rows(spec, policy, lambda live: next(it, -1), on_finished, lanes, fast)
         elif len(todo):
-            _run_processes(spec, policy, todo, workers, lanes, fast, on_finished)
+            _run_processes(spec, policy, todo, plan, fast, on_finished)
     finally:
         bar.close()
     return cols
@@ -429,8 +538,7 @@ def _run_processes(
     spec: RolloutSpec,
     policy: Callable,
     todo: np.ndarray,
-    workers: int,
-    lanes: int,
+    plan: WorkPlan,
     fast: bool,
     on_finished: Callable[[Finished], None],
 ) -> None:
@@ -439,21 +547,21 @@ def _run_processes(
     # fork shares the policy with the workers without pickling it (lambdas and closures work);
     # spawn (other platforms) pickles it.
     ctx = mp.get_context("fork" if "fork" in mp.get_all_start_methods() else "spawn")
-    counter = ctx.Value("q", 0)
+    bounds = ctx.Array("q", shared_bounds(plan, spec.max_episode_steps))
     results = ctx.Queue()
     procs = [
         ctx.Process(
             target=_worker_main,
-            args=(spec, policy, todo, counter, results, lanes, fast, os.getpid()),
+            args=(spec, policy, todo, bounds, w, results, plan.lanes, fast, os.getpid()),
             daemon=True,
         )
-        for _ in range(workers)
+        for w in range(plan.workers)
     ]
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", DeprecationWarning)  # fork with threads (3.12+)
         for proc in procs:
             proc.start()
-    running = workers
+    running = plan.workers
     try:
         while running:
             try:
