@@ -108,7 +108,9 @@ def test_killed_and_resumed_run_ends_bit_identical(tmp_path, algo):
     assert all(torch.equal(sa["stacked"][k], sb["stacked"][k]) for k in sa["stacked"])
     assert all(torch.equal(sa["shared"][k], sb["shared"][k]) for k in sa["shared"])
     for ba, bb in zip(sa["buffers"], sb["buffers"]):
-        assert torch.equal(ba["table"], bb["table"]) and torch.equal(ba["generator"], bb["generator"])
+        assert torch.equal(ba["table"], bb["table"]) and torch.equal(
+            ba["generator"], bb["generator"]
+        )
     if algo in ("rarl", "nrmdp"):  # the saved adversaries are equal too
         adversaries = [np.load(d / "adversary.npz") for d in (tmp_path / "whole", tmp_path / "cut")]
         weights = [k for k in adversaries[0].files if k != "header"]  # the header names the dir
