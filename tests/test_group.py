@@ -133,3 +133,30 @@ def test_stacked_layers_give_each_run_the_numbers_it_has_alone(threads):
             assert all(torch.equal(g[1], h[0]) for g, h in zip(grads_group, grads_alone))
     finally:
         torch.set_num_threads(previous)
+
+
+@pytest.mark.skipif(not torch.cuda.is_available(), reason="needs a CUDA device")
+@pytest.mark.parametrize("algo", ALGOS)
+def test_cuda_graphs_replay_what_the_eager_update_computes(tmp_path, algo):
+    runs = {}
+    for graphs in (False, True):
+        configs = [
+            _config(tmp_path, algo, s, f"graphs{graphs}", device="cuda", cuda_graphs=graphs)
+            for s in (0, 1)
+        ]
+        runs[graphs] = train_group(configs)
+    for eager, graphed in zip(runs[False], runs[True]):
+        x, y = _arrays(eager), _arrays(graphed)
+        assert x.keys() == y.keys()
+        for key in x:  # the same kernels replayed: equal up to the GPU's own nondeterminism
+            np.testing.assert_allclose(x[key], y[key], rtol=1e-4, atol=1e-5)
+
+
+def test_update_runs_the_function_directly_without_a_gpu():
+    from rrls.agents.core import Update
+
+    calls = []
+    update = Update(lambda variant, x: calls.append((variant, x["a"])) or {"y": x["a"] + 1}, "cpu")
+    out = update("v", {"a": torch.ones(2)})
+    assert torch.equal(out["y"], torch.full((2,), 2.0)) and calls[0][0] == "v"
+    assert not update.graphs  # CUDA graphs only on a CUDA device

@@ -57,6 +57,11 @@ class TrainConfig:
         "torch threads (default: the cores other processes leave idle, re-checked every few "
         "seconds, so runs sharing a machine never oversubscribe it)",
     )
+    cuda_graphs: bool = hp(
+        True,
+        "on cuda: replay each update from a captured CUDA graph (one launch instead of "
+        "hundreds of small kernels; --no-cuda-graphs runs them eagerly)",
+    )
     eval_every: int = hp(50_000, "evaluate every N steps (0: never)")
     eval_episodes: int = hp(5, "episodes per point of the periodic evaluation")
     eval_mesh: int = hp(

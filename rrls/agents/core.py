@@ -252,10 +252,10 @@ class TD3:
 
     # -- random inputs (drawn per run on the CPU, one copy to the device) -------------------
     def draw(self, batch: int, width: int | None = None) -> torch.Tensor:
-        """Standard normal ``(K, batch, width)`` from each run's noise generator."""
+        """Standard normal ``(K, batch, width)`` from each run's noise generator (on the CPU;
+        ``Update`` moves an update's inputs to the device in one go)."""
         width = self.act_dim if width is None else width
-        eps = torch.stack([torch.randn((batch, width), generator=g) for g in self.noise])
-        return eps.to(self.device, non_blocking=True)
+        return torch.stack([torch.randn((batch, width), generator=g) for g in self.noise])
 
     # -- learning (pure functions of their tensor inputs) -----------------------------------
     def target_action(
@@ -386,6 +386,66 @@ class TD3:
 
     def generators(self, prefix: str) -> dict[str, list[torch.Generator]]:
         return {f"{prefix}.noise": self.noise}
+
+
+class Update:
+    """A learner's update: a pure function of its random inputs, run eagerly or as a CUDA graph.
+
+    ``fn(variant, inputs)`` does the device work of one update (``variant`` says which: actor
+    step or not, whose turn); ``inputs`` are the update's random draws, made on the CPU from each
+    run's generators. On a CPU ``fn`` runs directly. On a GPU an update of small networks is
+    hundreds of tiny kernel launches, so each variant is captured once in a CUDA graph (after a
+    few eager warm-up calls on a side stream, as PyTorch requires) and then replayed: one launch
+    per update, the inputs copied into the graph's static tensors (one copy per input for all
+    runs). The replay computes what the eager call computes. If capture fails the update stays
+    eager, with a warning.
+    """
+
+    def __init__(self, fn, device: torch.device, graphs: bool = True, warmup: int = 3) -> None:  # noqa: ANN001
+        self.fn, self.device, self.warmup = fn, torch.device(device), warmup
+        self.graphs = graphs and self.device.type == "cuda"
+        self._entries: dict[Any, dict[str, Any]] = {}
+        self._pool: Any = None
+
+    def __call__(self, variant: Any, inputs: dict[str, torch.Tensor]) -> dict[str, torch.Tensor]:
+        if not self.graphs:
+            return self.fn(
+                variant, {k: v.to(self.device, non_blocking=True) for k, v in inputs.items()}
+            )
+        entry = self._entries.get(variant)
+        if entry is None:
+            static = {
+                k: torch.empty(v.shape, dtype=v.dtype, device=self.device)
+                for k, v in inputs.items()
+            }
+            entry = self._entries[variant] = {"inputs": static, "calls": 0, "graph": None}
+        for name, value in inputs.items():
+            entry["inputs"][name].copy_(value, non_blocking=True)
+        if entry["graph"] is not None:
+            entry["graph"].replay()
+            return entry["outputs"]
+        if entry["calls"] < self.warmup:
+            entry["calls"] += 1
+            side = torch.cuda.Stream(self.device)
+            side.wait_stream(torch.cuda.current_stream(self.device))
+            with torch.cuda.stream(side):
+                out = self.fn(variant, entry["inputs"])
+            torch.cuda.current_stream(self.device).wait_stream(side)
+            return out
+        graph = torch.cuda.CUDAGraph()
+        try:
+            with torch.cuda.graph(graph, pool=self._pool):
+                outputs = self.fn(variant, entry["inputs"])
+        except Exception as err:  # noqa: BLE001 - any capture failure: stay eager
+            import warnings
+
+            warnings.warn(f"CUDA graph capture failed ({err}); updates run eagerly", stacklevel=2)
+            self.graphs = False
+            return self.fn(variant, entry["inputs"])
+        self._pool = graph.pool()
+        entry["graph"], entry["outputs"] = graph, outputs
+        graph.replay()
+        return outputs
 
 
 def _cat(obs: torch.Tensor, action: torch.Tensor, cond: torch.Tensor | None) -> torch.Tensor:

@@ -43,7 +43,7 @@ import torch
 
 from rrls.agents import td3
 from rrls.agents.common import TrainConfig, task_env
-from rrls.agents.core import TD3, TD3Config, hp
+from rrls.agents.core import TD3, TD3Config, Update, hp
 from rrls.agents.loop import Learner as _Learner
 from rrls.agents.networks import per_run
 from rrls.agents.replay import ReplayBuffer, transition_fields
@@ -101,6 +101,7 @@ class Candidates:
         self.exp_avg_sq = torch.zeros(shape, device=device)
         # β^t as running products (exact multiplications; a tensor ``pow`` is transcendental)
         self.beta_powers = torch.ones((*shape[:2], 2), device=device)
+        self._betas = torch.tensor([0.9, 0.999], device=device)
         self.probabilities = torch.full(shape[:2], 1.0 / self.n, dtype=torch.float64, device=device)
         for k, rng in enumerate(rngs):
             for j in range(self.n):
@@ -155,7 +156,7 @@ class Candidates:
         index = chosen.view(-1, 1, 1).expand(-1, 1, self.logits.shape[2])
         index2 = chosen.view(-1, 1, 1).expand(-1, 1, 2)
         powers = self.beta_powers.gather(1, index2).squeeze(1)  # (K, 2)
-        powers.mul_(torch.tensor([beta1, beta2], device=powers.device))
+        powers.mul_(self._betas)
         m = self.exp_avg.gather(1, index).squeeze(1).lerp_(grad_logits, 1 - beta1)
         v = self.exp_avg_sq.gather(1, index).squeeze(1).mul_(beta2)
         v.addcmul_(grad_logits, grad_logits, value=1 - beta2)
@@ -232,6 +233,7 @@ class Learner(_Learner):
         )
         self.omega = np.zeros((len(runs), dim))
         self._omega_columns = slice(obs_dim + act_dim, obs_dim + act_dim + dim)
+        self._update = Update(self._compute, device, runs[0].cuda_graphs)
 
     def critic_omega(self, w: torch.Tensor) -> torch.Tensor:
         """The critics' view of ω: raw (the authors) or rescaled to [-1, 1] (opt-in)."""
@@ -264,12 +266,17 @@ class Learner(_Learner):
         )
 
     def update(self, step: int, update_actor: bool) -> dict[str, torch.Tensor]:
+        size, agent = self.config.batch_size, self.agent
+        draws = {"idx": self.buffer.draw(size)}
+        draws["eps_omega"] = agent.draw(size, self.box.dim)  # ω's smoothing noise, then a's
+        draws["eps"] = agent.draw(size)
+        return self._update(update_actor, draws)
+
+    def _compute(self, update_actor: bool, x: dict[str, torch.Tensor]) -> dict:
+        """The device work of an update (``core.Update`` may capture it in a CUDA graph)."""
         agent, candidates, cw = self.agent, self.candidates, self.critic_omega
-        size = self.config.batch_size
-        batch = self.buffer.sample(size)
+        batch, eps_omega, eps = self.buffer.gather(x["idx"]), x["eps_omega"], x["eps"]
         # critic: TD3's target with smoothing noise on the next action *and* on ω
-        eps_omega = agent.draw(size, self.box.dim)
-        eps = agent.draw(size)
         noise = torch.maximum(
             torch.minimum(eps_omega * self.noise_scale, self.noise_clip), -self.noise_clip
         )

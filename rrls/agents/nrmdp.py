@@ -34,7 +34,7 @@ import numpy as np
 import torch
 
 from rrls.agents.common import TrainConfig, task_env
-from rrls.agents.core import TD3, Player, TD3Config, hp
+from rrls.agents.core import TD3, Player, TD3Config, Update, hp
 from rrls.agents.loop import Learner as _Learner
 from rrls.agents.networks import rows
 from rrls.agents.replay import ReplayBuffer, transition_fields
@@ -99,6 +99,7 @@ class Learner(_Learner):
         self.actor, self.adversary = self.agent.actor, self.opponent.actor
         self.game = {"game": config.mode, "alpha": config.alpha}
         self.policy_steps = 0
+        self._update = Update(self._compute, self.agent.device, runs[0].cuda_graphs)
         self._sources = [rows(p) for p in self.opponent.actor.parameters()]
         self._targets = [rows(p) for p in self.opponent.target.parameters()]
 
@@ -138,15 +139,24 @@ class Learner(_Learner):
         return agent.bootstrap(batch["reward"], batch["terminated"], q)
 
     def update(self, step: int, update_actor: bool) -> dict[str, torch.Tensor]:
+        size, turn = self.config.batch_size, None
+        if update_actor:
+            self.policy_steps += 1
+            turn = "adversary" if self.policy_steps % (self.config.ratio + 1) == 0 else "actor"
+        draws = {"idx": self.buffer.draw(size)}
+        draws.update({"mine": self.agent.draw(size), "theirs": self.agent.draw(size)})
+        return self._update(turn, draws)
+
+    def _compute(self, turn: str | None, x: dict[str, torch.Tensor]) -> dict:
+        """The device work of an update: the shared critic, then ``turn``'s policy step."""
         agent, alpha, nr = self.agent, self.alpha, self.config.mode == "nr"
-        batch = self.buffer.sample(self.config.batch_size)
-        eps = (agent.draw(self.config.batch_size), agent.draw(self.config.batch_size))
+        batch = self.buffer.gather(x["idx"])
         s = batch["obs"]
-        losses = {"critic_loss": agent.update_critic(s, batch["action"], self.target(batch, eps))}
-        if not update_actor:
+        target = self.target(batch, (x["mine"], x["theirs"]))
+        losses = {"critic_loss": agent.update_critic(s, batch["action"], target)}
+        if turn is None:
             return losses
-        self.policy_steps += 1
-        if self.policy_steps % (self.config.ratio + 1) == 0:  # the adversary's turn
+        if turn == "adversary":
             if nr:
                 other = agent.actor_target.forward_saved(s)[0].mul_(1.0 - alpha)
                 loss = agent.policy_step(self.opponent, s, share=alpha, other=other, descend=True)

@@ -82,7 +82,10 @@ def add_train_arguments(parser: argparse.ArgumentParser) -> None:
             kwargs["help"] += f" (default {f.default})"
         if isinstance(f.default, bool):
             run.add_argument(
-                "--" + f.name.replace("_", "-"), action="store_true", help=kwargs["help"]
+                "--" + f.name.replace("_", "-"),
+                action=argparse.BooleanOptionalAction if f.default else "store_true",
+                default=None if f.default else False,
+                help=kwargs["help"],
             )
             continue
         _add(run, f.name, _kind(hints[f.name]), **kwargs)

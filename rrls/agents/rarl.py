@@ -26,7 +26,7 @@ import numpy as np
 import torch
 
 from rrls.agents.common import TrainConfig, task_env
-from rrls.agents.core import TD3, TD3Config, hp
+from rrls.agents.core import TD3, TD3Config, Update, hp
 from rrls.agents.loop import Learner as _Learner
 from rrls.agents.replay import ReplayBuffer, transition_fields
 
@@ -79,6 +79,7 @@ class Learner(_Learner):
                 )
             )
         self.actor, self.adversary = (p.actor for p in self.players)
+        self._update = Update(self._compute, self.players[0].device, runs[0].cuda_graphs)
         self.game = {"game": "adversarial", "uncertainty": runs[0].uncertainty}
 
     def act(self, obs: np.ndarray, rngs: list[np.random.Generator], warmup: bool) -> list[Any]:
@@ -106,12 +107,17 @@ class Learner(_Learner):
         return (step - self.config.learning_starts - 1) // self.config.phase_steps % 2
 
     def update(self, step: int, update_actor: bool) -> dict[str, torch.Tensor]:
-        i = self.learning(step)
-        player, batch_size = self.players[i], self.config.batch_size
-        batch = self.buffer_list[i].sample(batch_size)
-        losses = player.update(batch, player.draw(batch_size), update_actor)
+        i, size = self.learning(step), self.config.batch_size
+        inputs = {"idx": self.buffer_list[i].draw(size), "eps": self.players[i].draw(size)}
+        losses = self._update((i, update_actor), inputs)
         name = ("protagonist", "adversary")[i]
         return {f"{name}_{k}": v for k, v in losses.items()}
+
+    def _compute(self, variant: tuple[int, bool], x: dict[str, torch.Tensor]) -> dict:
+        """The device work of an update: the learning player's TD3 step."""
+        i, update_actor = variant
+        batch = self.buffer_list[i].gather(x["idx"])
+        return self.players[i].update(batch, x["eps"], update_actor)
 
     def episode_end(self, k: int, episode_return: float, length: int) -> dict[str, float]:
         return {"charts/adversary_return": -episode_return}

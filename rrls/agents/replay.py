@@ -74,12 +74,11 @@ class ReplayBuffer:
         self.pos = (self.pos + 1) % self.capacity
         self.size = min(self.size + 1, self.capacity)
 
-    def indices(self, batch_size: int) -> torch.Tensor:
-        """Each run's batch indices from its own generator, ``(K, batch)``, on the device."""
-        idx = torch.stack(
+    def draw(self, batch_size: int) -> torch.Tensor:
+        """Each run's batch indices from its own generator, ``(K, batch)``, on the CPU."""
+        return torch.stack(
             [torch.randint(0, self.size, (batch_size,), generator=g) for g in self.generators]
         )
-        return idx.to(self.device, non_blocking=True)
 
     def gather(self, idx: torch.Tensor) -> dict[str, torch.Tensor]:
         """The rows ``idx`` (``(K, batch)``) of each run's buffer, as one view per field."""
@@ -91,7 +90,7 @@ class ReplayBuffer:
         return fields
 
     def sample(self, batch_size: int) -> dict[str, torch.Tensor]:
-        return self.gather(self.indices(batch_size))
+        return self.gather(self.draw(batch_size).to(self.device))
 
     def __len__(self) -> int:
         return self.size

@@ -16,7 +16,7 @@ import numpy as np
 import torch
 
 from rrls.agents.common import TrainConfig, task_env
-from rrls.agents.core import TD3, TD3Config
+from rrls.agents.core import TD3, TD3Config, Update
 from rrls.agents.loop import Learner as _Learner
 from rrls.agents.replay import ReplayBuffer, transition_fields
 
@@ -51,6 +51,7 @@ class Learner(_Learner):
             device,
             [s + 2 for s in seeds],
         )
+        self._update = Update(self._compute, self.agent.device, runs[0].cuda_graphs)
 
     def act(self, obs: np.ndarray, rngs: list[np.random.Generator], warmup: bool) -> list[Any]:
         if warmup:
@@ -63,8 +64,14 @@ class Learner(_Learner):
         )
 
     def update(self, step: int, update_actor: bool) -> dict[str, torch.Tensor]:
-        batch = self.buffer.sample(self.config.batch_size)
-        return self.agent.update(batch, self.agent.draw(self.config.batch_size), update_actor)
+        size = self.config.batch_size
+        return self._update(
+            update_actor, {"idx": self.buffer.draw(size), "eps": self.agent.draw(size)}
+        )
+
+    def _compute(self, update_actor: bool, x: dict[str, torch.Tensor]) -> dict[str, torch.Tensor]:
+        """The device work of an update (``core.Update`` may capture it in a CUDA graph)."""
+        return self.agent.update(self.buffer.gather(x["idx"]), x["eps"], update_actor)
 
     def stacked(self) -> dict[str, torch.Tensor]:
         return self.agent.stacked("agent")
