@@ -160,3 +160,11 @@ def test_update_runs_the_function_directly_without_a_gpu():
     out = update("v", {"a": torch.ones(2)})
     assert torch.equal(out["y"], torch.full((2,), 2.0)) and calls[0][0] == "v"
     assert not update.graphs  # CUDA graphs only on a CUDA device
+
+
+@pytest.mark.parametrize("algo", ["nrmdp", "m2td3"])
+def test_env_worker_processes_change_no_number(tmp_path, algo):
+    # NR-MDP reads its transitions from the envs' infos, M2TD3 resets them with options
+    local = train_group([_config(tmp_path, algo, s, "local") for s in (0, 1, 2)])
+    spread = train_group([_config(tmp_path, algo, s, "spread", env_workers=2) for s in (0, 1, 2)])
+    assert all(_same_run(a, b) for a, b in zip(local, spread))

@@ -62,6 +62,11 @@ class TrainConfig:
         "on cuda: replay each update from a captured CUDA graph (one launch instead of "
         "hundreds of small kernels; --no-cuda-graphs runs them eagerly)",
     )
+    env_workers: int | None = hp(
+        None,
+        "processes stepping the envs of runs trained together (0: this process; default: "
+        "0 on a CPU, on a GPU one per 8 envs of a group of 16 or more)",
+    )
     eval_every: int = hp(50_000, "evaluate every N steps (0: never)")
     eval_episodes: int = hp(5, "episodes per point of the periodic evaluation")
     eval_mesh: int = hp(
@@ -101,6 +106,7 @@ class TrainConfig:
             "checkpoint_every": self.checkpoint_every >= 1,
             "max_episode_steps": self.max_episode_steps >= 1,
             "threads": self.threads is None or self.threads >= 1,
+            "env_workers": self.env_workers is None or self.env_workers >= 0,
         }
         for name, ok in checks.items():
             if not ok:

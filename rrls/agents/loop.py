@@ -17,6 +17,7 @@ from __future__ import annotations
 import importlib
 import json
 from collections.abc import Callable
+from functools import partial
 from pathlib import Path
 from types import ModuleType
 from typing import Any
@@ -33,6 +34,7 @@ from rrls.agents.common import (
     set_rng_state,
 )
 from rrls.agents.core import TD3Config
+from rrls.agents.envs import make_envs
 
 
 class Learner:
@@ -255,20 +257,21 @@ class _Episode:
         }
 
 
-def _begin(env: Any, seed: int | None, options: dict | None) -> tuple[np.ndarray, _Episode]:
-    episode = _Episode(rng_state(env.unwrapped.np_random), seed, options)
-    obs, _ = env.reset(seed=seed, options=options)
-    return obs, episode
+def _begin(
+    envs: Any, k: int, seed: int | None, options: dict | None
+) -> tuple[np.ndarray, _Episode]:
+    episode = _Episode(envs.rng_state(k), seed, options)
+    return envs.reset(k, seed, options), episode
 
 
-def _replay(env: Any, saved: dict[str, Any], path: Path) -> tuple[np.ndarray, _Episode]:
+def _replay(envs: Any, k: int, saved: dict[str, Any], path: Path) -> tuple[np.ndarray, _Episode]:
     """Re-run the episode a checkpoint was taken in, up to the checkpoint."""
-    set_rng_state(env.unwrapped.np_random, saved["env_rng"])
-    obs, episode = _begin(env, saved["seed"], json.loads(saved["options"]))
+    envs.set_rng_state(k, saved["env_rng"])
+    obs, episode = _begin(envs, k, saved["seed"], json.loads(saved["options"]))
     parts = [p.numpy() for p in saved["actions"]]
     for i in range(len(parts[0]) if parts else 0):
         action = tuple(p[i] for p in parts) if saved["tuple"] else parts[0][i]
-        obs, reward, *_ = env.step(action)
+        obs, reward, *_ = envs.step_one(k, action)
         episode.actions.append(action)
         episode.ret += reward
         episode.length += 1
@@ -290,21 +293,53 @@ def _train_together(
     """The collection loop of one group of runs at the same step."""
     first = runs[0].config
     algo = algorithm(first.algo)
+    make = partial(algo.make_env, first.task, first.uncertainty, hyper)
+    template = make()  # spaces and metadata; the group's envs may live in worker processes
+    envs = make_envs(make, len(runs), env_workers(first, len(runs)))
+    try:
+        _collect(algo, hyper, runs, states, on_episode, threads, template, envs)
+    finally:
+        envs.close()
+
+
+def env_workers(config: TrainConfig, group: int) -> int:
+    """``--env-workers``, or by default: none on a CPU (the update dominates), on a GPU one per
+    8 envs of a group of 16 or more, within the cores."""
+    if config.env_workers is not None:
+        return config.env_workers
+    if not config.device.startswith("cuda") or group < 16:
+        return 0
+    import os
+
+    return max(0, min(group // 8, (os.cpu_count() or 1) - 1))
+
+
+def _collect(
+    algo: ModuleType,
+    hyper: TD3Config,
+    runs: list[Run],
+    states: list[dict[str, Any] | None],
+    on_episode: Callable[[int, int, float], None] | None,
+    threads: Any,
+    template: Any,
+    envs: Any,
+) -> None:
+    first = runs[0].config
     configs = [run.config for run in runs]
-    envs = [algo.make_env(run.task, run.uncertainty, hyper) for run in runs]
     # warm-up actions, exploration noise, M2TD3's draws: each run's own generator
     rngs = [np.random.default_rng(c.seed) for c in configs]
-    learner: Learner = algo.Learner(envs[0], hyper, configs, rngs)
-    metas = [run.metadata(envs[0], learner, k) for k, run in enumerate(runs)]
+    learner: Learner = algo.Learner(template, hyper, configs, rngs)
+    metas = [run.metadata(template, learner, k) for k, run in enumerate(runs)]
 
     observations, episodes = [], []
-    for k, (run, env, state) in enumerate(zip(runs, envs, states)):
+    for k, (run, state) in enumerate(zip(runs, states)):
         if state is None:
-            obs, episode = _begin(env, run.config.seed, learner.episode_options(k, 0, rngs[k]))
+            options = learner.episode_options(k, 0, rngs[k])
+            obs, episode = _begin(envs, k, run.config.seed, options)
         else:  # restore everything, then replay the episode in progress
             learner.load_state_dict(k, state["learner"])
             set_rng_state(rngs[k], state["rng"])
-            obs, episode = _replay(env, state["episode"], run.checkpoint_path)
+            obs, episode = _replay(envs, k, state["episode"], run.checkpoint_path)
         observations.append(obs)
         episodes.append(episode)
     obs = np.stack(observations)
@@ -314,7 +349,7 @@ def _train_together(
     try:
         while step < steps:
             actions = learner.act(obs, rngs, warmup=step < hyper.learning_starts)
-            results = [env.step(a) for env, a in zip(envs, actions)]
+            results = envs.step(actions)
             next_obs = np.stack([r[0] for r in results])
             rewards = np.array([r[1] for r in results], dtype=np.float64)
             terminated = np.array([r[2] for r in results], dtype=bool)
@@ -322,7 +357,7 @@ def _train_together(
             for run in runs:
                 run.step = step
             # a truncated transition keeps terminated=0: its target bootstraps from next_obs
-            learner.store(obs, actions, rewards, next_obs, terminated, [r[4] for r in results])
+            learner.store(obs, actions, rewards, next_obs, terminated, [r[3] for r in results])
 
             if step > hyper.learning_starts:
                 losses = learner.update(step, step % hyper.policy_frequency == 0)
@@ -345,7 +380,7 @@ def _train_together(
                     if on_episode is not None:
                         on_episode(k, step, episode.ret)
                     options = learner.episode_options(k, step, rngs[k])
-                    next_obs[k], episodes[k] = _begin(envs[k], None, options)
+                    next_obs[k], episodes[k] = _begin(envs, k, None, options)
                     threads.poll()
             obs = next_obs
 
