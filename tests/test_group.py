@@ -168,3 +168,13 @@ def test_env_worker_processes_change_no_number(tmp_path, algo):
     local = train_group([_config(tmp_path, algo, s, "local") for s in (0, 1, 2)])
     spread = train_group([_config(tmp_path, algo, s, "spread", env_workers=2) for s in (0, 1, 2)])
     assert all(_same_run(a, b) for a, b in zip(local, spread))
+
+
+@pytest.mark.parametrize("algo", ["nrmdp", "m2td3"])
+def test_a_group_split_into_several_stacks_changes_no_number(tmp_path, monkeypatch, algo):
+    import rrls.agents.loop as loop
+
+    whole = train_group([_config(tmp_path, algo, s, "one") for s in (0, 1, 2)])
+    monkeypatch.setattr(loop, "CPU_STACK", 2)  # stacks of 2 and 1, updated in turn
+    split = train_group([_config(tmp_path, algo, s, "split") for s in (0, 1, 2)])
+    assert all(_same_run(a, b) for a, b in zip(whole, split))
