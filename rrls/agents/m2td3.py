@@ -44,7 +44,6 @@ import torch
 from rrls.agents import td3
 from rrls.agents.common import TrainConfig, task_env
 from rrls.agents.core import TD3, TD3Config, Update, hp
-from rrls.agents.loop import Learner as _Learner
 from rrls.agents.networks import per_run
 from rrls.agents.replay import ReplayBuffer, transition_fields
 
@@ -189,8 +188,9 @@ def make_env(task: str, uncertainty: str, config: Config) -> Any:
     return task_env(task, uncertainty)[0]
 
 
-class Learner(_Learner):
-    """TD3 with ω-conditioned critics, the candidates ω̂ and each run's episode ω."""
+class Learner(td3.Learner):
+    """TD3 with ω-conditioned critics, the candidates ω̂ and each run's episode ω (acting,
+    checkpointed generators and buffers as TD3's learner)."""
 
     def __init__(
         self,
@@ -252,8 +252,6 @@ class Learner(_Learner):
             centre = self.candidates.values()[k, j].cpu().numpy().astype(np.float64)
             self.omega[k] = np.clip(centre + rng.normal(0, self.omega_std), box.low, box.high)
         return dict(zip(box.names, self.omega[k].tolist()))
-
-    act = td3.Learner.act  # acts as TD3: uniform during the warm-up, then π(s) + noise
 
     def store(self, obs, actions, rewards, next_obs, terminated, infos) -> None:  # noqa: ANN001
         self.buffer.add(
@@ -350,16 +348,7 @@ class Learner(_Learner):
         }
 
     def stacked(self) -> dict[str, torch.Tensor]:
-        return {**self.agent.stacked("agent"), **self.candidates.stacked()}
-
-    def shared(self) -> dict[str, torch.Tensor]:
-        return self.agent.shared("agent")
-
-    def generators(self) -> dict[str, list[torch.Generator]]:
-        return self.agent.generators("agent")
-
-    def buffers(self) -> list[Any]:
-        return [self.buffer]
+        return {**super().stacked(), **self.candidates.stacked()}
 
     def extra_state(self, k: int) -> dict[str, Any]:
         return {"last_length": self.last_length[k], "omega": torch.as_tensor(self.omega[k])}
