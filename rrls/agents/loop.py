@@ -287,14 +287,12 @@ def train_group(
 
 def _check_group(configs: list[TrainConfig], hyper: TD3Config) -> None:
     """The runs of a group must differ only in seed and directory."""
-    first = configs[0]
+    first, reference = configs[0], configs[0].identity(hyper)
     same = ("steps", "device", "eval_every", "eval_episodes", "eval_mesh", "checkpoint_every")
     for config in configs[1:]:
-        diff = [
-            k
-            for k, v in first.identity(hyper).items()
-            if k != "seed" and config.identity(hyperparameters(config))[k] != v
-        ] + [name for name in same if getattr(config, name) != getattr(first, name)]
+        identity = config.identity(hyperparameters(config))  # once per run, not per field
+        diff = [k for k, v in reference.items() if k != "seed" and identity[k] != v]
+        diff += [name for name in same if getattr(config, name) != getattr(first, name)]
         if diff:
             raise ValueError(
                 f"runs trained together must differ only in seed and out; these differ: "
