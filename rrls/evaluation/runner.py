@@ -469,6 +469,7 @@ def run(
     if chunk_dir is not None:
         chunk_dir = Path(chunk_dir)
         chunk_dir.mkdir(parents=True, exist_ok=True)
+        remove_leftovers(chunk_dir)
         for c in range(n_chunks):
             path = chunk_dir / f"{c:06d}.npz"
             if path.exists() and _load_chunk(
@@ -510,6 +511,17 @@ def run(
     finally:
         bar.close()
     return cols
+
+
+def remove_leftovers(chunk_dir: Path) -> list[Path]:
+    """Delete the temporary files of chunk writes killed half-way (``.000003.npz.XXXX.tmp``).
+
+    ``evaluate`` holds the directory's lock, so no live writer owns them.
+    """
+    leftovers = sorted(chunk_dir.glob(".*.tmp"))
+    for path in leftovers:
+        path.unlink(missing_ok=True)
+    return leftovers
 
 
 def _load_chunk(path: Path, cols: dict[str, np.ndarray], block: slice) -> bool:

@@ -2,7 +2,11 @@
 
 from __future__ import annotations
 
+from typing import Any
+
 import gymnasium as gym
+
+from rrls.wrappers._checks import check_finite_action
 
 
 class ParamsForwarding(gym.Wrapper):
@@ -25,6 +29,8 @@ class ParamsForwarding(gym.Wrapper):
 class ParamsAccess(ParamsForwarding, gym.utils.RecordConstructorArgs):
     """Outermost wrapper of every registered rrls id: ``gym.make(...)`` has ``set_params``.
 
+    It also refuses NaN/inf actions before they reach MuJoCo (a one-line error naming the step).
+
     >>> import gymnasium as gym
     >>> env = gym.make("rrls/robust-walker-v0")
     >>> env.set_params(worldfriction=0.3)
@@ -35,3 +41,13 @@ class ParamsAccess(ParamsForwarding, gym.utils.RecordConstructorArgs):
     def __init__(self, env: gym.Env) -> None:
         gym.utils.RecordConstructorArgs.__init__(self)
         super().__init__(env)
+        self._step = 0
+
+    def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
+        self._step = 0
+        return self.env.reset(seed=seed, options=options)
+
+    def step(self, action: Any):
+        self._step += 1
+        check_finite_action(action, self._step)
+        return self.env.step(action)

@@ -49,9 +49,15 @@ class ProbabilisticActionRobust(ParamsForwarding, gym.utils.RecordConstructorArg
         self.alpha = float(alpha)
         self.mode = mode
         self.action_space = spaces.Tuple((env.action_space, env.action_space))
+        self._step = 0
+
+    def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
+        self._step = 0
+        return self.env.reset(seed=seed, options=options)
 
     def step(self, action: Any):
-        agent, adversary = split_pair(action, self.action_space)
+        self._step += 1
+        agent, adversary = split_pair(action, self.action_space, self._step)
         if self.mode == "nr":
             executed = (1.0 - self.alpha) * agent + self.alpha * adversary
         else:

@@ -10,7 +10,7 @@ import numpy as np
 from gymnasium.utils import seeding
 
 from rrls.uncertainty import UncertaintySet
-from rrls.wrappers._checks import check_names
+from rrls.wrappers._checks import check_finite_action, check_names, refuse_empty
 from rrls.wrappers.access import ParamsForwarding
 
 RandomizeFn = Callable[[UncertaintySet, np.random.Generator], Mapping[str, float]]
@@ -23,7 +23,8 @@ class DomainRandomization(ParamsForwarding, gym.utils.RecordConstructorArgs):
     first, so a seed fixes the whole sequence of episodes: parameters and initial states.
     ``randomize_fn(uncertainty_set, rng) -> {name: value}`` replaces the uniform draw.
     Parameters given in ``reset(options=...)`` win over the draw. ``info["randomized_params"]``
-    holds the episode's draw.
+    holds the episode's draw. An empty set (nothing to randomise) and NaN/inf actions are
+    refused with a one-line error.
 
     >>> import gymnasium as gym
     >>> from rrls.envs import RobustHopper, HopperParamsBound
@@ -45,7 +46,14 @@ class DomainRandomization(ParamsForwarding, gym.utils.RecordConstructorArgs):
         self.uncertainty_set = UncertaintySet.from_bounds(params_bound)
         self.params_bound = self.uncertainty_set.as_bounds()
         self.randomize_fn = randomize_fn
+        refuse_empty(self.uncertainty_set, "DomainRandomization", self.env)
         check_names(self.env, self.uncertainty_set)
+        self._step = 0
+
+    def step(self, action: Any):
+        self._step += 1
+        check_finite_action(action, self._step)
+        return self.env.step(action)
 
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
         if options is not None and not isinstance(options, dict):
@@ -68,4 +76,5 @@ class DomainRandomization(ParamsForwarding, gym.utils.RecordConstructorArgs):
                 self.env.np_random = previous
             raise
         info["randomized_params"] = params
+        self._step = 0
         return obs, info
