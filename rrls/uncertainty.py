@@ -24,6 +24,7 @@ from __future__ import annotations
 import itertools
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -229,3 +230,141 @@ class UncertaintySet:
         )
         label = f"{self.label!r}, " if self.label else ""
         return f"UncertaintySet({label}{rows})"
+
+
+@dataclass(frozen=True, eq=False)
+class Split:
+    """A train/test split of a set, declared as data (CARL's generalisation protocol).
+
+    ``region`` is a box inside ``box`` (same names). ``kind="interpolation"``: the region is a
+    held-out interior, so training covers the set minus the region and testing the region;
+    ``kind="extrapolation"``: training covers the region (an inner box) and testing the outer
+    shell. "In distribution" means "in the training part"; the region is closed, and every point
+    is exactly one of in-distribution or out-of-distribution (the two masks partition any mesh).
+
+    >>> from rrls.uncertainty import Split, UncertaintySet
+    >>> box = UncertaintySet.from_bounds({"torsomass": (1.0, 5.0)})
+    >>> split = Split.extrapolation(box, inner=0.5)  # train on [2, 4], test outside it
+    >>> split.region.as_bounds()
+    {'torsomass': [2.0, 4.0]}
+    >>> split.in_distribution(box.mesh(5)).tolist()
+    [False, True, True, True, False]
+    """
+
+    kind: str
+    box: UncertaintySet
+    region: UncertaintySet
+
+    KINDS = ("interpolation", "extrapolation")
+
+    def __post_init__(self) -> None:
+        if self.kind not in self.KINDS:
+            raise ValueError(
+                f"split kind must be one of {', '.join(self.KINDS)}, got {self.kind!r}"
+            )
+        if self.region.names != self.box.names:
+            raise ValueError(
+                f"the split's region must name the set's parameters {list(self.box.names)}, "
+                f"got {list(self.region.names)}"
+            )
+        if self.box.dim == 0:
+            raise ValueError("an empty set cannot be split")
+        outside = [
+            n
+            for n, lo, hi, rlo, rhi in zip(
+                self.box.names, self.box.low, self.box.high, self.region.low, self.region.high
+            )
+            if rlo < lo or rhi > hi
+        ]
+        if outside:
+            raise ValueError(f"the split's region leaves the set along {outside}")
+
+    @classmethod
+    def _region(cls, box: UncertaintySet, inner: float | Mapping[str, Sequence[float]]) -> Any:
+        if isinstance(inner, Mapping):
+            region = UncertaintySet.from_bounds(inner)
+            if set(region.names) != set(box.names):
+                raise ValueError(
+                    f"the region must give bounds for exactly {list(box.names)}, "
+                    f"got {list(region.names)}"
+                )
+            return UncertaintySet(
+                box.names,
+                [region.as_bounds()[n][0] for n in box.names],
+                [region.as_bounds()[n][1] for n in box.names],
+            )
+        if (
+            isinstance(inner, bool)
+            or not isinstance(inner, (int, float, np.integer, np.floating))
+            or not 0.0 < float(inner) < 1.0
+        ):
+            raise ValueError(
+                f"the region's size must be a fraction of each axis in (0, 1) or a "
+                f"{{name: [low, high]}} mapping, got {inner!r}"
+            )
+        centre, half = (box.low + box.high) / 2, (box.high - box.low) * float(inner) / 2
+        return UncertaintySet(box.names, centre - half, centre + half)
+
+    @classmethod
+    def interpolation(
+        cls, box: UncertaintySet, hold_out: float | Mapping[str, Sequence[float]] = 0.5
+    ) -> Split:
+        """Hold out an interior region (``hold_out``: a centred fraction of each axis, or bounds)
+        for testing; train on the rest of the set."""
+        return cls("interpolation", box, cls._region(box, hold_out))
+
+    @classmethod
+    def extrapolation(
+        cls, box: UncertaintySet, inner: float | Mapping[str, Sequence[float]] = 0.5
+    ) -> Split:
+        """Train on an inner box (``inner``: a centred fraction of each axis, or bounds); test on
+        the outer shell of the set."""
+        return cls("extrapolation", box, cls._region(box, inner))
+
+    def in_distribution(self, points: Point) -> np.ndarray | bool:
+        """Whether the point(s) lie in the training part of the split."""
+        inside = np.asarray(self.region.contains(self.box.to_array(points)), dtype=bool)
+        out = np.logical_not(inside) if self.kind == "interpolation" else inside
+        return bool(out) if out.ndim == 0 else out
+
+    def out_of_distribution(self, points: Point) -> np.ndarray | bool:
+        """Whether the point(s) lie in the test part: exactly the complement."""
+        out = np.logical_not(self.in_distribution(points))
+        return bool(out) if np.ndim(out) == 0 else out
+
+    @property
+    def train_set(self) -> UncertaintySet | None:
+        """The training part as a box (extrapolation), None where it is not one."""
+        return self.region if self.kind == "extrapolation" else None
+
+    def sample_train(self, box: UncertaintySet, rng: np.random.Generator) -> dict[str, float]:
+        """One uniform draw from the training part; a ``DomainRandomization`` ``randomize_fn``:
+        ``DomainRandomization(env, split.box, randomize_fn=split.sample_train)``."""
+        if self.kind == "extrapolation":
+            return self.region.sample(rng)
+        while True:  # rejection: the held-out interior is a strict part of the set
+            x = rng.uniform(self.box.low, self.box.high)
+            if self.in_distribution(x):
+                return self.box.to_dict(x)
+
+    def to_json(self) -> dict[str, Any]:
+        return {
+            "kind": self.kind,
+            "names": list(self.box.names),
+            "low": self.box.low.tolist(),
+            "high": self.box.high.tolist(),
+            "region_low": self.region.low.tolist(),
+            "region_high": self.region.high.tolist(),
+        }
+
+    @classmethod
+    def from_json(cls, data: Mapping[str, Any]) -> Split:
+        names = tuple(data["names"])
+        return cls(
+            data["kind"],
+            UncertaintySet(names, data["low"], data["high"]),
+            UncertaintySet(names, data["region_low"], data["region_high"]),
+        )
+
+    def __repr__(self) -> str:
+        return f"Split({self.kind}, region={self.region!r} of {self.box!r})"

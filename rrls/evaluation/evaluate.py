@@ -15,14 +15,14 @@ from __future__ import annotations
 import json
 import platform
 import warnings
-from collections.abc import Callable
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from rrls.uncertainty import UncertaintySet
+from rrls.uncertainty import Split, UncertaintySet
 
 EPISODE_COLUMNS = ("point", "episode", "seed", "return", "length", "terminated", "diverged")
 
@@ -46,8 +46,11 @@ class EvaluationResult:
 
     @property
     def per_point(self) -> Any:
-        """One row per mesh point: its parameters and the mean/std/min return over its episodes."""
+        """One row per mesh point: its parameters and the mean/std/min return over its episodes
+        (and ``in_distribution`` when the evaluation was given a split)."""
         cols = ["point", *self.param_names]
+        if "in_distribution" in self.episodes:
+            cols.append("in_distribution")
         grouped = self.episodes.groupby(cols, sort=True)["return"]
         table = grouped.agg(["mean", "std", "min", "count"]).reset_index()
         return table.rename(
@@ -78,6 +81,20 @@ class EvaluationResult:
     def n_diverged(self) -> int:
         return int(self.episodes["diverged"].sum())
 
+    def split_scores(self) -> dict[str, float | int | None]:
+        """Worst and average case over the in-distribution (training part) and the
+        out-of-distribution (test part) mesh points separately; empty without a split."""
+        if "in_distribution" not in self.episodes:
+            return {}
+        table = self.per_point
+        out: dict[str, float | int | None] = {}
+        for tag, mask in (("id", table["in_distribution"]), ("ood", ~table["in_distribution"])):
+            means = table.loc[mask, "mean_return"]
+            out[f"worst_case_{tag}"] = float(means.min()) if len(means) else None
+            out[f"average_case_{tag}"] = float(means.mean()) if len(means) else None
+            out[f"points_{tag}"] = int(mask.sum())
+        return out
+
     def summary(self) -> dict[str, Any]:
         """What ``summary.json`` holds."""
         return {
@@ -89,6 +106,7 @@ class EvaluationResult:
             "points": int(self.episodes["point"].nunique()),
             "episodes_total": len(self.episodes),
             "diverged": self.n_diverged,
+            **self.split_scores(),
             **{k: v for k, v in self.config.items() if k not in ("uncertainty",)},
         }
 
@@ -127,10 +145,22 @@ class EvaluationResult:
 
     def __repr__(self) -> str:
         label = self.uncertainty.label if self.uncertainty is not None else f"{self.task}/nominal"
+        split = self.split_scores()
+        extra = (
+            f", ID worst/average={_fmt(split['worst_case_id'])}/{_fmt(split['average_case_id'])}"
+            f", OOD worst/average={_fmt(split['worst_case_ood'])}/"
+            f"{_fmt(split['average_case_ood'])}"
+            if split
+            else ""
+        )
         return (
             f"EvaluationResult({label}: worst_case={self.worst_case:.2f}, "
-            f"average_case={self.average_case:.2f}, {len(self.episodes)} episodes)"
+            f"average_case={self.average_case:.2f}{extra}, {len(self.episodes)} episodes)"
         )
+
+
+def _fmt(value: float | None) -> str:
+    return "-" if value is None else f"{value:.2f}"
 
 
 _DERIVED = {
@@ -142,6 +172,7 @@ _DERIVED = {
     "points",
     "episodes_total",
     "diverged",
+    *(f"{m}_{t}" for m in ("worst_case", "average_case", "points") for t in ("id", "ood")),
 }
 
 
@@ -207,6 +238,10 @@ def evaluate(
     batch_size: int | None = None,
     progress: bool | None = None,
     max_episode_steps: int = 1000,
+    disruptors: Mapping[str, float | Sequence[float]] | None = None,
+    schedule: Any = None,
+    context: bool = False,
+    split: Split | None = None,
 ) -> EvaluationResult:
     """Evaluate ``policy`` over a uniform mesh of ``task``'s uncertainty set (paper §4).
 
@@ -216,11 +251,25 @@ def evaluate(
     ``workers`` defaults to every core; results do not depend on it nor on ``batch_size`` (live
     episodes per worker). With ``out_dir``, finished chunks are kept there and a re-run with the
     same arguments resumes; ``summary.json`` and the episode table are written at the end.
+
+    Beyond static dynamics (see the README's "Disruptors, schedules, context, splits"):
+
+    * a set may name disruptor strengths (``obsnoise``, ``actiondelay``...: see
+      :mod:`rrls.wrappers.disruptors`) alone or with physical parameters; ``disruptors`` adds
+      some: ``{"obsnoise": 0.05}`` a fixed strength, ``{"obsnoise": (0, 0.1)}`` a meshed axis;
+    * ``schedule``: a :class:`~rrls.wrappers.ScheduleFamily`; the mesh is then its grid (e.g.
+      drift rate x direction) and the set is where the schedule moves, from its nominal point;
+    * ``context=True`` appends the set's normalised parameters to the observation (a policy
+      trained with :class:`~rrls.wrappers.ContextObservation`);
+    * ``split``: a :class:`~rrls.uncertainty.Split` of the set; rows get ``in_distribution`` and
+      the result the worst/average case in and out of distribution.
+
+    Rows stay equal to the one-episode loop on the same wrapper stack
+    (``env.set_params(**point); env.reset(seed=seed)``).
     """
-    from rrls.envs import resolve
     from rrls.evaluation import runner
 
-    resolved = resolve(task, uncertainty)
+    mesh_box, resolved, stack = _plan(task, uncertainty, disruptors, schedule, context)
     _check_counts(episodes=episodes, nb_mesh_dim=nb_mesh_dim, max_episode_steps=max_episode_steps)
     if workers is not None:
         _check_counts(workers=workers)
@@ -228,10 +277,21 @@ def evaluate(
         _check_counts(batch_size=batch_size)
     if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
         raise ValueError(f"seed must be an integer >= 0, got {seed!r}")
-    points = resolved.box.mesh(nb_mesh_dim, endpoint=endpoint)
+    if schedule is None:
+        points = mesh_box.mesh(nb_mesh_dim, endpoint=endpoint)
+    else:
+        points = _product(
+            schedule.points(), _ranged(mesh_box, schedule).mesh(nb_mesh_dim, endpoint)
+        )
     seeds = runner.episode_seeds(seed, len(points), episodes)
     spec = runner.RolloutSpec(
-        resolved.task, resolved.family, resolved.box.names, points, seeds, max_episode_steps
+        resolved.task,
+        resolved.family,
+        mesh_box.names,
+        points,
+        seeds,
+        max_episode_steps,
+        None if stack.empty else stack,
     )
     settings = {
         "mesh": nb_mesh_dim,
@@ -239,11 +299,149 @@ def evaluate(
         "episodes": episodes,
         "seed": seed,
         "max_episode_steps": max_episode_steps,
+        **stack.to_json(),
     }
+    if schedule is not None:  # what was meshed: the family's grid
+        settings["schedule"] = schedule.to_json()
+    if split is not None:
+        in_dist = _split_mask(split, mesh_box, points, schedule)
+        settings["split"] = split.to_json()
+    else:
+        in_dist = None
     try:  # the engine's env cache lives only as long as this evaluation
-        return _evaluate(policy, resolved, spec, settings, workers, batch_size, out_dir, progress)
+        return _evaluate(
+            policy,
+            resolved,
+            spec,
+            settings,
+            workers,
+            batch_size,
+            out_dir,
+            progress,
+            mesh_box,
+            in_dist,
+        )
     finally:
         runner.clear_env_cache()
+
+
+def _plan(
+    task: str,
+    uncertainty: str | UncertaintySet,
+    disruptors: Mapping[str, float | Sequence[float]] | None,
+    schedule: Any,
+    context: bool,
+) -> tuple[UncertaintySet, Any, Any]:
+    """(the box of the mesh's names, the resolved physical set, the wrapper stack).
+
+    The mesh's names are the set's (physical ones first resolved as usual, disruptor strengths
+    kept) plus the meshed ``disruptors``; under a ``schedule`` the schedule's fields come first.
+    """
+    from rrls.envs import resolve
+    from rrls.evaluation.stack import EnvStack
+    from rrls.wrappers import DISRUPTORS, ScheduleFamily
+
+    fixed: dict[str, float] = {}
+    ranged: dict[str, tuple[float, float]] = {}
+    if isinstance(uncertainty, UncertaintySet) and set(uncertainty.names) & set(DISRUPTORS):
+        box = uncertainty
+        names = [n for n in box.names if n not in DISRUPTORS]
+        for n, lo, hi in zip(box.names, box.low, box.high):
+            if n in DISRUPTORS:
+                ranged[n] = (float(lo), float(hi))
+        physical = (
+            UncertaintySet(
+                tuple(names),
+                [box.low[box.names.index(n)] for n in names],
+                [box.high[box.names.index(n)] for n in names],
+                None if box.nominal is None else [box.nominal[box.names.index(n)] for n in names],
+                box.label,
+                box.family,
+            )
+            if names
+            else "nominal"
+        )
+    else:
+        physical = uncertainty
+    for name, value in dict(disruptors or {}).items():
+        if name not in DISRUPTORS:
+            raise ValueError(f"unknown disruptor {name!r}; valid: {', '.join(DISRUPTORS)}")
+        if name in ranged:
+            raise ValueError(f"{name} is both in the set and in disruptors; give it once")
+        if isinstance(value, (tuple, list, np.ndarray)):
+            if len(value) != 2:
+                raise ValueError(f"disruptor {name} takes a strength or (low, high), got {value!r}")
+            ranged[name] = (float(value[0]), float(value[1]))
+        else:
+            fixed[name] = value
+    for name, (lo, hi) in ranged.items():
+        for v in (lo, hi):
+            problem = DISRUPTORS[name].check_param(name, v)
+            if problem:
+                raise ValueError(problem)
+    for name, v in fixed.items():
+        problem = DISRUPTORS[name].check_param(name, v)
+        if problem:
+            raise ValueError(problem)
+    resolved = resolve(task, physical)
+    extra = UncertaintySet.from_bounds(
+        {n: list(b) for n, b in ranged.items()}, {n: 0.0 for n in ranged}
+    )
+    if schedule is not None:
+        if not isinstance(schedule, ScheduleFamily):
+            raise TypeError(
+                f"schedule must be a ScheduleFamily (the grid to mesh over), got "
+                f"{type(schedule).__name__}"
+            )
+        if resolved.is_nominal:
+            raise ValueError("a schedule needs a set to move in; give a non-empty uncertainty set")
+        grid = schedule.points()
+        head = UncertaintySet(schedule.names, grid.min(axis=0), grid.max(axis=0), grid[0])
+    else:
+        head = resolved.box
+    mesh_box = UncertaintySet(
+        head.names + extra.names,
+        np.r_[head.low, extra.low],
+        np.r_[head.high, extra.high],
+        np.r_[head.nominal, extra.nominal],
+        head.label or resolved.label,
+        resolved.family,
+    )
+    stack = EnvStack(
+        disruptors=tuple(
+            (n, float(fixed.get(n, 0.0))) for n in DISRUPTORS if n in fixed or n in ranged
+        ),
+        schedule=None if schedule is None else schedule.schedule,
+        schedule_set=None if schedule is None else resolved.box,
+        context=(resolved.box if schedule is not None else mesh_box) if context else None,
+    )
+    if context and stack.context.dim == 0:
+        raise ValueError("context=True needs a non-empty set whose parameters to show")
+    return mesh_box, resolved, stack
+
+
+def _ranged(mesh_box: UncertaintySet, schedule: Any) -> UncertaintySet:
+    """The meshed disruptor axes that follow a schedule's fields in ``mesh_box``."""
+    k = len(schedule.names)
+    return UncertaintySet(mesh_box.names[k:], mesh_box.low[k:], mesh_box.high[k:])
+
+
+def _product(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Every row of ``a`` with every row of ``b`` (``a`` varying slowest)."""
+    return np.hstack([np.repeat(a, len(b), axis=0), np.tile(b, (len(a), 1))])
+
+
+def _split_mask(split: Split, mesh_box: UncertaintySet, points: np.ndarray, schedule: Any) -> Any:
+    """``in_distribution`` of each mesh point (the split's names are a part of the mesh's)."""
+    if not isinstance(split, Split):
+        raise TypeError(f"split must be an rrls.uncertainty.Split, got {type(split).__name__}")
+    if schedule is not None:
+        raise ValueError("a split divides a set's mesh; it does not apply to a schedule family")
+    missing = [n for n in split.box.names if n not in mesh_box.names]
+    if missing:
+        raise ValueError(f"the split names {missing}, which the mesh does not vary")
+    cols = [mesh_box.names.index(n) for n in split.box.names]
+    return np.asarray(split.in_distribution(points[:, cols]), dtype=bool).reshape(len(points))
 
 
 def _check_counts(**values: Any) -> None:
@@ -262,12 +460,14 @@ def _evaluate(
     batch_size: int | None,
     out_dir: str | Path | None,
     progress: bool | None,
+    mesh_box: UncertaintySet,
+    in_dist: np.ndarray | None,
 ) -> EvaluationResult:
     from rrls.evaluation import runner
     from rrls.evaluation.policies import as_policy, policy_fingerprint
 
     key, kind = resolved.task, resolved.family
-    box = None if resolved.is_nominal else resolved.box
+    box = None if mesh_box.dim == 0 else mesh_box
     policy = as_policy(policy)
     trained_on = (getattr(policy, "metadata", None) or {}).get("task")
     if trained_on is not None and trained_on != key:
@@ -283,13 +483,13 @@ def _evaluate(
         "policy_fingerprint": policy_fingerprint(policy, obs_dim),
     }
     if out_dir is None:
-        frame = rollout_table(spec, policy, workers, batch_size, None, progress)
+        frame = rollout_table(spec, policy, workers, batch_size, None, progress, in_dist)
         return _finish(key, box, frame, config, policy)
     from rrls._io import DirectoryLock
 
     with DirectoryLock(Path(out_dir)):  # one evaluation at a time per directory
         chunk_dir = _prepare_out_dir(Path(out_dir), config)
-        frame = rollout_table(spec, policy, workers, batch_size, chunk_dir, progress)
+        frame = rollout_table(spec, policy, workers, batch_size, chunk_dir, progress, in_dist)
         result = _finish(key, box, frame, config, policy)
         result.save(out_dir)
     return result
@@ -346,8 +546,10 @@ def rollout_table(
     batch_size: int | None = None,
     chunk_dir: Path | None = None,
     progress: bool | None = False,
+    in_distribution: np.ndarray | None = None,
 ) -> Any:
-    """Run ``spec`` through the engine: one DataFrame row per (point, episode)."""
+    """Run ``spec`` through the engine: one DataFrame row per (point, episode); with
+    ``in_distribution`` (one flag per point), a column of it."""
     import pandas as pd
 
     from rrls.evaluation import runner
@@ -365,6 +567,8 @@ def rollout_table(
     table: dict[str, Any] = {"point": point_idx}
     for i, name in enumerate(spec.names):
         table[name] = spec.points[point_idx, i]
+    if in_distribution is not None:
+        table["in_distribution"] = np.asarray(in_distribution, dtype=bool)[point_idx]
     table.update(episode=episode_idx, seed=spec.seeds.reshape(-1).astype(np.int64), **cols)
     return pd.DataFrame(table)
 

@@ -22,7 +22,7 @@ import numpy as np
 
 
 class GenericStepper:
-    """Steps each lane through its env's own ``step``."""
+    """Steps each lane through its env's own ``step`` (wrappers included: disruptors, schedules)."""
 
     def __init__(self, envs: Sequence[Any]) -> None:
         self.envs = list(envs)
@@ -32,7 +32,7 @@ class GenericStepper:
             mujoco.mjtWarning.mjWARN_BADQVEL,
             mujoco.mjtWarning.mjWARN_BADQACC,
         )
-        self._warnings = [[e.data.warning[w] for w in bad] for e in self.envs]
+        self._warnings = [[e.unwrapped.data.warning[w] for w in bad] for e in self.envs]
 
     def unstable(self, lanes: list[int]) -> np.ndarray:
         """Lanes whose simulation MuJoCo found unstable since their last reset."""

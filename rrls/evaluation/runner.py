@@ -52,6 +52,7 @@ class RolloutSpec:
     points: np.ndarray  # (P, d)
     seeds: np.ndarray  # (P, E) uint32
     max_episode_steps: int = 1000
+    stack: Any = None  # an EnvStack (disruptors, schedule, context) around each bare env
 
     @property
     def n_episodes(self) -> int:
@@ -80,19 +81,20 @@ def episode_seeds(seed: int, n_points: int, episodes: int) -> np.ndarray:
 
 
 # -- one worker ------------------------------------------------------------------------------------
-#: bare envs per (task, family), reused within one evaluation (building is slower than
+#: envs per (task, family, stack), reused within one evaluation (building is slower than
 #: resetting); ``evaluate`` and ``search_worst_case`` empty it when they return
-_ENV_CACHE: dict[tuple[str, str], list[Any]] = {}
+_ENV_CACHE: dict[tuple[str, str, Any], list[Any]] = {}
 
 
 def _envs(spec: RolloutSpec, n: int) -> list[Any]:
-    """Bare envs (no wrappers) of the spec's family; every lane is reset before use."""
+    """Bare envs of the spec's family (in the spec's stack of wrappers, if any); every lane is
+    reset before use."""
     from rrls.envs import FAMILY_ENVS
 
-    envs = _ENV_CACHE.setdefault((spec.task, spec.kind), [])
+    envs = _ENV_CACHE.setdefault((spec.task, spec.kind, spec.stack), [])
     cls = FAMILY_ENVS[spec.kind][spec.task]
     while len(envs) < n:
-        envs.append(cls())
+        envs.append(cls() if spec.stack is None else spec.stack(cls()))
     return envs[:n]
 
 
