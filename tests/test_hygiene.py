@@ -1,4 +1,4 @@
-"""Wrapper input hygiene: empty sets, NaN/inf actions, leftover chunk files; the rate limit."""
+"""Wrapper input hygiene: empty sets, NaN/inf actions, leftover chunk files."""
 
 from __future__ import annotations
 
@@ -67,49 +67,3 @@ def test_leftover_temporary_chunks_are_removed_at_resume(tmp_path):
     assert not leftover.exists()
     assert [p.name for p in chunks.iterdir()] == ["000000.npz"]
     assert again.episodes.equals(first.episodes)
-
-
-# -- the rate-limited adversary (TC-RMDP) ------------------------------------------------------
-@pytest.mark.parametrize("limit", [0.0, 0.05, 0.3])
-def test_rate_limit_holds_at_every_step(limit):
-    box = UncertaintySet.from_bounds(HopperParamsBound.THREE_DIM.value)
-    game = DynamicAdversarial(RobustHopper(), box, rate_limit=limit)
-    rng = np.random.default_rng(0)
-    _, info = game.reset(seed=0)
-    before = box.normalize(box.to_array(game.get_params()))
-    assert np.array_equal(before, info["normalized_params"])
-    moved = 0.0
-    for t in range(200):
-        target = rng.choice([-1.0, 1.0], size=3)  # bang-bang: always far from where it is
-        _, _, term, trunc, info = game.step((np.zeros(3), target))
-        now = box.normalize(box.to_array(game.get_params()))
-        step = np.abs(now - before).max()
-        assert step <= limit + 1e-9, (t, step)
-        assert box.contains(game.get_params())
-        np.testing.assert_allclose(now, info["normalized_params"], atol=1e-9)
-        moved = max(moved, step)
-        before = now
-        if term or trunc:
-            break
-    if limit > 0:
-        assert moved > 0.5 * limit  # the adversary does move
-
-
-def test_an_unbinding_rate_limit_plays_the_unlimited_game():
-    box = HopperParamsBound.TWO_DIM.value
-    free = DynamicAdversarial(RobustHopper(), box)
-    limited = DynamicAdversarial(RobustHopper(), box, rate_limit=2.0)
-    rng = np.random.default_rng(1)
-    free.reset(seed=3)
-    limited.reset(seed=3)
-    for _ in range(50):
-        pair = (rng.uniform(-1, 1, 3), rng.uniform(-1, 1, 2))
-        a, b = free.step(pair), limited.step(pair)
-        assert np.array_equal(a[0], b[0]) and a[1] == b[1]
-        assert free.get_params() == limited.get_params()
-
-
-@pytest.mark.parametrize("bad", [-0.1, np.nan, np.inf, "fast", True])
-def test_bad_rate_limits_are_refused(bad):
-    with pytest.raises(ValueError, match="rate_limit must be a finite number >= 0"):
-        DynamicAdversarial(RobustHopper(), HopperParamsBound.ONE_DIM.value, rate_limit=bad)

@@ -62,11 +62,41 @@ def dynamic_env_id(task: str, game: str = "adversarial", uncertainty: str = "3d"
 
 
 def make_dynamic_env(
-    task: str, game: str = "adversarial", uncertainty: str = "3d", alpha: float = 0.1
+    task: str,
+    game: str = "adversarial",
+    uncertainty: str | Any = "3d",
+    alpha: float = 0.1,
+    rate_limit: float | None = None,
+    context: bool = False,
 ) -> Any:
-    """The two-player env: the registered id, or ``ProbabilisticActionRobust`` with ``alpha``."""
+    """The two-player env: the registered id, or ``ProbabilisticActionRobust`` with ``alpha``.
+
+    For the parameter game, ``rate_limit=L`` is TC-RMDP's rate-limited adversary (the parameters
+    move at most ``L`` per step in the set's normalised units) and ``context=True`` appends the
+    parameters in force, normalised to the set, to the shared observation (TC-RMDP's oracle);
+    ``uncertainty`` may then also be an ``UncertaintySet``. This is the env both training (RARL
+    ``--rate-limit``) and :func:`evaluate_dynamic` play.
+
+    >>> env = make_dynamic_env("hopper", uncertainty="2d", rate_limit=0.05, context=True)
+    >>> env.observation_space.shape, env.get_wrapper_attr("rate_limit")
+    ((13,), 0.05)
+    """
     import gymnasium as gym
 
+    if game != "adversarial" and (rate_limit is not None or context):
+        raise ValueError("rate_limit and context apply to the parameter game (game='adversarial')")
+    if game == "adversarial" and (
+        rate_limit is not None or context or not isinstance(uncertainty, str)
+    ):
+        from rrls.envs import resolve
+        from rrls.wrappers import ContextObservation, DynamicAdversarial
+
+        resolved = resolve(task, uncertainty)
+        if resolved.is_nominal:
+            raise ValueError("the nominal model has no parameters for an adversary to play")
+        base = gym.make(f"rrls/{resolved.family}-{resolved.task}-v0")
+        env = DynamicAdversarial(base, resolved.box, rate_limit=rate_limit)
+        return ContextObservation(env, resolved.box) if context else env
     env_id = dynamic_env_id(task, game, uncertainty)
     if game == "adversarial":
         return gym.make(env_id)
@@ -86,11 +116,14 @@ def evaluate_dynamic(
     seed: int = 0,
     alpha: float = 0.1,
     batch_size: int = 64,
+    rate_limit: float | None = None,
+    context: bool = False,
 ) -> DynamicResult:
     """Mean ± std return of ``protagonist`` while ``adversary`` plays the game every step.
 
     Both are policies ``obs[B, obs_dim] -> actions``: the adversary's actions live in its own
     space (``[-1, 1]^k`` for the parameter game, the agent's action box for NR/PR-MDP).
+    ``rate_limit`` and ``context``: see :func:`make_dynamic_env` (TC-RMDP's game and oracle).
     """
     import pandas as pd
 
@@ -99,11 +132,15 @@ def evaluate_dynamic(
 
     if episodes < 1:
         raise ValueError(f"episodes must be >= 1, got {episodes}")
-    env_id = dynamic_env_id(task, game, uncertainty)
+    extras = {"rate_limit": rate_limit, "context": context}
+    if rate_limit is None and not context and isinstance(uncertainty, str):
+        env_id = dynamic_env_id(task, game, uncertainty)
+    else:
+        env_id = f"{task}-adversarial ({uncertainty}, rate_limit={rate_limit}, context={context})"
     protagonist, adversary = as_policy(protagonist), as_policy(adversary)
     seeds = episode_seeds(seed, 1, episodes)[0]
     n_lanes = max(1, min(batch_size, episodes))
-    envs = [make_dynamic_env(task, game, uncertainty, alpha) for _ in range(n_lanes)]
+    envs = [make_dynamic_env(task, game, uncertainty, alpha, **extras) for _ in range(n_lanes)]
     returns, lengths = np.zeros(episodes), np.zeros(episodes, dtype=np.int64)
     queue = iter(range(episodes))
     lane_ep = np.full(n_lanes, -1)
@@ -146,7 +183,9 @@ def evaluate_run_dynamic(
     """Paper Table 6 for one training run: its protagonist against its own final adversary.
 
     ``run_dir`` is a RARL or NR-/PR-MDP run of ``rrls train``: ``policy.npz`` and
-    ``adversary.npz``, whose metadata name the task, the game and the set (or alpha) it played.
+    ``adversary.npz``, whose metadata name the task, the game and the set (or alpha) it played,
+    and, for a rate-limited adversary (TC-RMDP), ``rate_limit`` (and ``context`` if the policies
+    observed the parameters): it is evaluated in the game it was trained in.
     """
     from rrls.evaluation.policies import MLPPolicy
 
@@ -168,6 +207,8 @@ def evaluate_run_dynamic(
         seed=seed,
         alpha=float(meta.get("alpha", 0.1)),
         batch_size=batch_size,
+        rate_limit=None if meta.get("rate_limit") is None else float(meta["rate_limit"]),
+        context=bool(meta.get("context", False)),
     )
 
 

@@ -1,0 +1,120 @@
+"""The rate-limited adversary of Time-Constrained Robust MDPs, as a wrapper and in evaluation."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+import rrls  # noqa: F401
+from rrls.envs import HopperParamsBound, RobustHopper
+from rrls.evaluation import MLPPolicy, evaluate_dynamic, evaluate_run_dynamic, make_dynamic_env
+from rrls.uncertainty import UncertaintySet
+from rrls.wrappers import DynamicAdversarial
+
+
+@pytest.mark.parametrize("limit", [0.0, 0.05, 0.3])
+def test_rate_limit_holds_at_every_step(limit):
+    box = UncertaintySet.from_bounds(HopperParamsBound.THREE_DIM.value)
+    game = DynamicAdversarial(RobustHopper(), box, rate_limit=limit)
+    rng = np.random.default_rng(0)
+    _, info = game.reset(seed=0)
+    before = box.normalize(box.to_array(game.get_params()))
+    assert np.array_equal(before, info["normalized_params"])
+    moved = 0.0
+    for t in range(200):
+        target = rng.choice([-1.0, 1.0], size=3)  # bang-bang: always far from where it is
+        _, _, term, trunc, info = game.step((np.zeros(3), target))
+        now = box.normalize(box.to_array(game.get_params()))
+        step = np.abs(now - before).max()
+        assert step <= limit + 1e-9, (t, step)
+        assert box.contains(game.get_params())
+        np.testing.assert_allclose(now, info["normalized_params"], atol=1e-9)
+        moved = max(moved, step)
+        before = now
+        if term or trunc:
+            break
+    if limit > 0:
+        assert moved > 0.5 * limit  # the adversary does move
+
+
+def test_an_unbinding_rate_limit_plays_the_unlimited_game():
+    box = HopperParamsBound.TWO_DIM.value
+    free = DynamicAdversarial(RobustHopper(), box)
+    limited = DynamicAdversarial(RobustHopper(), box, rate_limit=2.0)
+    rng = np.random.default_rng(1)
+    free.reset(seed=3)
+    limited.reset(seed=3)
+    for _ in range(50):
+        pair = (rng.uniform(-1, 1, 3), rng.uniform(-1, 1, 2))
+        a, b = free.step(pair), limited.step(pair)
+        assert np.array_equal(a[0], b[0]) and a[1] == b[1]
+        assert free.get_params() == limited.get_params()
+
+
+@pytest.mark.parametrize("bad", [-0.1, np.nan, np.inf, "fast", True])
+def test_bad_rate_limits_are_refused(bad):
+    with pytest.raises(ValueError, match="rate_limit must be a finite number >= 0"):
+        DynamicAdversarial(RobustHopper(), HopperParamsBound.ONE_DIM.value, rate_limit=bad)
+
+
+@pytest.mark.parametrize("context", [False, True])
+def test_dynamic_evaluation_against_a_rate_limited_adversary_equals_the_plain_loop(context):
+    limit = 0.05
+    env = make_dynamic_env("hopper", uncertainty="3d", rate_limit=limit, context=context)
+    obs_dim = env.observation_space.shape[0]
+    assert obs_dim == (14 if context else 11)
+    protagonist = MLPPolicy.random(obs_dim, 3, hidden=(16,), seed=1)
+    adversary = MLPPolicy.random(obs_dim, 3, hidden=(16,), seed=2)
+    result = evaluate_dynamic(
+        protagonist,
+        adversary,
+        "hopper",
+        uncertainty="3d",
+        episodes=3,
+        batch_size=2,
+        rate_limit=limit,
+        context=context,
+    )
+    box = rrls.get_uncertainty_set("hopper", "3d")
+    for row in result.episodes.itertuples(index=False):
+        obs, info = env.reset(seed=row.seed)
+        here = info["normalized_params"]
+        ret, length = 0.0, 0
+        while True:
+            pair = (protagonist(obs[None])[0], adversary(obs[None])[0])
+            obs, reward, terminated, truncated, info = env.step(pair)
+            assert np.abs(info["normalized_params"] - here).max() <= limit + 1e-9
+            here = info["normalized_params"]
+            ret, length = ret + reward, length + 1
+            if terminated or truncated:
+                break
+        assert (row[result.episodes.columns.get_loc("return")], row.length) == (ret, length)
+    assert box.dim == 3
+
+
+def test_a_trained_rate_limited_adversary_is_evaluated_in_its_own_game(tmp_path):
+    protagonist = MLPPolicy.random(11, 3, hidden=(8,), seed=1)
+    protagonist.metadata = {"task": "hopper"}
+    adversary = MLPPolicy.random(11, 2, hidden=(8,), seed=2)
+    # what a rate-limited RARL run writes with its adversary (see the README)
+    adversary.metadata = {
+        "task": "hopper",
+        "game": "adversarial",
+        "uncertainty": "2d",
+        "rate_limit": 0.02,
+    }
+    protagonist.save(tmp_path / "policy.npz")
+    adversary.save(tmp_path / "adversary.npz")
+    from_run = evaluate_run_dynamic(tmp_path, episodes=2)
+    limited = evaluate_dynamic(
+        protagonist, adversary, "hopper", uncertainty="2d", episodes=2, rate_limit=0.02
+    )
+    free = evaluate_dynamic(protagonist, adversary, "hopper", uncertainty="2d", episodes=2)
+    assert from_run.episodes.equals(limited.episodes)
+    assert not limited.episodes["return"].equals(free.episodes["return"])
+    assert "rate_limit=0.02" in from_run.env_id
+
+
+def test_rate_limit_only_for_the_parameter_game():
+    with pytest.raises(ValueError, match="apply to the parameter game"):
+        make_dynamic_env("hopper", "nr", rate_limit=0.1)
