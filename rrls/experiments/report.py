@@ -40,6 +40,36 @@ TASK_NAMES = {
 METRICS = ("worst_case", "average_case")
 
 
+#: with a train/test split (``evaluate(..., split=...)``): in- and out-of-distribution scores
+SPLIT_METRICS = ("worst_case_id", "average_case_id", "worst_case_ood", "average_case_ood")
+
+
+def split_scores(evaluations: Any) -> Any:
+    """One row per (task, algorithm, seed): worst and average case over the in-distribution
+    and the out-of-distribution mesh points separately (rows flagged ``in_distribution``)."""
+    import pandas as pd
+
+    keys = ["task", "algorithm", "seed"]
+    flag = evaluations["in_distribution"].astype(str).str.lower() == "true"  # CSV or Parquet
+    point = (
+        evaluations.assign(in_distribution=flag)
+        .groupby([*keys, "point", "in_distribution"], sort=True)["return"]
+        .mean()
+    )
+    runs = point.reset_index()[keys].drop_duplicates().reset_index(drop=True)
+    table = runs.copy()
+    for value, tag in ((True, "id"), (False, "ood")):
+        part = point[point.index.get_level_values("in_distribution") == value]
+        scores = part.groupby(level=keys).agg(["min", "mean"]).reset_index()
+        scores = scores.rename(columns={"min": f"worst_case_{tag}", "mean": f"average_case_{tag}"})
+        table = (
+            table.merge(scores, on=keys, how="left")
+            if len(scores)
+            else table.assign(**{f"worst_case_{tag}": np.nan, f"average_case_{tag}": np.nan})
+        )
+    return pd.DataFrame(table)
+
+
 def paper_results() -> dict[str, Any]:
     """The paper's published raw, normalised and Table 6 numbers (package data)."""
     text = resources.files("rrls.experiments").joinpath("paper_results.json").read_text()
@@ -74,6 +104,12 @@ def summarise(root: str | Path) -> dict[str, Any]:
         sel = scores[(scores["task"] == task) & (scores["algorithm"] == algo)]
         return sel.sort_values("seed")[metric].to_numpy(dtype=float)
 
+    split = split_scores(ev) if len(ev) and "in_distribution" in ev else None
+
+    def values_split(task: str, algo: str, metric: str) -> np.ndarray:
+        sel = split[(split["task"] == task) & (split["algorithm"] == algo)]
+        return sel.sort_values("seed")[metric].dropna().to_numpy(dtype=float)
+
     dyn = tables["dynamic"]
     out: dict[str, Any] = {}
     missing: list[str] = []
@@ -105,6 +141,11 @@ def summarise(root: str | Path) -> dict[str, Any]:
                     np.asarray(per_seed), stats.rng_for(task, algo, "d")
                 )
                 cell["dynamic"]["episodes"] = len(sel)
+            if split is not None:
+                cell["split"] = {
+                    m: stats.describe(values_split(task, algo, m), stats.rng_for(task, algo, m))
+                    for m in SPLIT_METRICS
+                }
             out[task][algo] = cell
 
     aggregate: dict[str, Any] = {}
@@ -152,6 +193,9 @@ def summarise(root: str | Path) -> dict[str, Any]:
             "'Average' column",
             "poi_over_td3_worst_case": "P(algorithm's worst case > TD3's) for random seeds, "
             "averaged over tasks; stratified bootstrap CI",
+            "split": "with a train/test split of the set: worst/average case over the "
+            "in-distribution (training part) and out-of-distribution (test part) mesh points "
+            "separately, per run; cell: mean/std over seeds",
             "dynamic": "per seed: mean return against the run's own adversary over its episodes; "
             "cell: mean/std over seeds (paper Table 6)",
             "bootstrap": f"scipy.stats.bootstrap, percentile, {stats.N_RESAMPLES} resamples, "
@@ -353,6 +397,28 @@ def make_report(root: str | Path, plots: bool = True) -> Path:
     return out / "report.md"
 
 
+def _split_table(summary: dict[str, Any]) -> list[str]:
+    """In- and out-of-distribution worst/average case, when the evaluations had a split."""
+    cells = [
+        (t, a, summary["results"][t][a]["split"])
+        for t in summary["tasks"]
+        for a in summary["algorithms"]
+        if "split" in summary["results"][t].get(a, {})
+    ]
+    if not cells:
+        return []
+    lines = [
+        "## In and out of distribution (train/test split of the set)",
+        "",
+        "| task | algorithm | worst ID | average ID | worst OOD | average OOD |",
+        "|---|---|---|---|---|---|",
+    ]
+    for task, algo, cell in cells:
+        row = " | ".join(_pm(cell[m]) for m in SPLIT_METRICS)
+        lines.append(f"| {task} | {NAMES.get(algo, algo)} | {row} |")
+    return [*lines, ""]
+
+
 def _markdown(
     summary: dict[str, Any], paper: dict[str, Any], figures: list[tuple[str, Path]], out: Path
 ) -> str:
@@ -412,6 +478,7 @@ def _markdown(
             "its own raw numbers give 0.54.",
             "",
         ]
+    lines += _split_table(summary)
     lines += [
         "## Dynamic evaluation (paper Table 6)",
         "",
