@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from typing import Any
 
 import gymnasium as gym
@@ -59,6 +60,11 @@ def refuse_empty(box: UncertaintySet, who: str, env: gym.Env) -> None:
 
 def check_finite_action(action: Any, step: int, who: str = "action") -> None:
     """Refuse a NaN/inf action before it reaches MuJoCo, naming the episode's step (from 1)."""
+    if type(action) is np.ndarray and action.dtype.kind == "f" and action.ndim == 1:
+        # the common case in one cheap call: a NaN/inf makes the dot product non-finite (an
+        # overflow of huge finite values too, which the exact check below then lets through)
+        if math.isfinite(action.dot(action)):
+            return
     if isinstance(action, (tuple, list)) and action and not np.isscalar(action[0]):
         for part in action:
             check_finite_action(part, step, who)
