@@ -149,3 +149,18 @@ def test_context_follows_the_adversary_and_the_schedule():
     np.testing.assert_allclose(obs[-2:], np.clip(start() + 0.05, -1, 1), atol=1e-12)
     noisy = ContextObservation(disrupt(RobustHopper(), obsnoise=0.1), {"obsnoise": (0, 0.2)})
     assert noisy.reset(seed=0)[0][-1] == 0.0
+
+
+def test_aliases_are_read_through_their_parameter():
+    from rrls.envs import ForceHopper
+
+    alias = {"torsoforce_z": (-2.0, 2.0)}  # on planar tasks _z is an alias of _y (vertical)
+    seen = ContextObservation(ForceHopper(torsoforce_y=1.0), alias)
+    assert seen.reset(seed=0)[0][-1] == 0.5
+    game = DynamicAdversarial(ForceHopper(), alias, rate_limit=0.1)
+    _, info = game.reset(seed=0)
+    assert info["normalized_params"].tolist() == [0.0]
+    drift = ScheduledParams(ForceHopper(), alias, Drift(rate=0.25))
+    drift.reset(seed=0)
+    *_, info = drift.step(np.zeros(3))
+    assert info["scheduled_params"] == {"torsoforce_z": 0.5}

@@ -38,6 +38,14 @@ def check_names(env: gym.Env, box: UncertaintySet) -> None:
                 raise ValueError(f"uncertainty set bound out of range: {problem}")
 
 
+def read_point(env: gym.Env, box: UncertaintySet) -> np.ndarray:
+    """The current values of ``box``'s parameters in ``env`` (aliases read their parameter)."""
+    params = env.get_wrapper_attr("get_params")()
+    specs = getattr(env.unwrapped, "param_specs", ())
+    canonical = {a: s.name for s in specs for a in s.aliases}
+    return np.array([params[canonical.get(n, n)] for n in box.names], dtype=np.float64)
+
+
 def wrapper_param_problem(env: gym.Env, name: str, value: float) -> str | None:
     """Why ``value`` is not acceptable for the wrapper parameter ``name`` (None: it is)."""
     while isinstance(env, gym.Wrapper):

@@ -10,7 +10,7 @@ import numpy as np
 from gymnasium import spaces
 
 from rrls.uncertainty import UncertaintySet
-from rrls.wrappers._checks import check_names, refuse_empty, split_pair
+from rrls.wrappers._checks import check_names, read_point, refuse_empty, split_pair
 from rrls.wrappers.access import ParamsForwarding
 
 
@@ -135,11 +135,11 @@ class DynamicAdversarial(ParamsForwarding, gym.utils.RecordConstructorArgs):
         obs, info = self.env.reset(seed=seed, options=options)
         self._step = 0
         if self.rate_limit is not None:
-            params = self.env.get_wrapper_attr("get_params")()
             box = self.uncertainty_set
-            start = box.clip([params[n] for n in box.names])
+            now = read_point(self.env, box)
+            start = box.clip(now)
             self._current = box.normalize(start)
-            if not np.array_equal(start, [params[n] for n in box.names]):
+            if not np.array_equal(start, now):
                 self._set_params(**box.to_dict(start))
             info["normalized_params"] = self._current.copy()
         return obs, info

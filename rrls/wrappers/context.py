@@ -14,7 +14,7 @@ import numpy as np
 from gymnasium import spaces
 
 from rrls.uncertainty import UncertaintySet
-from rrls.wrappers._checks import check_names, refuse_empty
+from rrls.wrappers._checks import check_names, read_point, refuse_empty
 from rrls.wrappers.access import ParamsForwarding
 
 
@@ -54,13 +54,11 @@ class ContextObservation(ParamsForwarding, gym.utils.RecordConstructorArgs):
             np.concatenate([space.high, np.ones(d)]).astype(space.dtype),
             dtype=space.dtype,
         )
-        self._get_params = self.env.get_wrapper_attr("get_params")
 
     def context(self) -> np.ndarray:
         """The current parameters of the set, normalised to ``[-1, 1]``."""
         box = self.uncertainty_set
-        params = self._get_params()
-        return np.clip(box.normalize([params[n] for n in box.names]), -1.0, 1.0)
+        return np.clip(box.normalize(read_point(self.env, box)), -1.0, 1.0)
 
     def _with_context(self, obs: np.ndarray) -> np.ndarray:
         return np.concatenate([obs, self.context()]).astype(self.observation_space.dtype)

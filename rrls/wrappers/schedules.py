@@ -37,7 +37,7 @@ import gymnasium as gym
 import numpy as np
 
 from rrls.uncertainty import UncertaintySet
-from rrls.wrappers._checks import check_names, refuse_empty
+from rrls.wrappers._checks import check_names, read_point, refuse_empty
 from rrls.wrappers.access import ParamsForwarding
 from rrls.wrappers.disruptors import spawn_generator
 
@@ -271,8 +271,7 @@ class ScheduledParams(ParamsForwarding, gym.utils.RecordConstructorArgs):
                 options = {k: v for k, v in options.items() if k not in mine} or None
         obs, info = self.env.reset(seed=seed, options=options)
         box = self.uncertainty_set
-        params = self.env.get_wrapper_attr("get_params")()
-        self._start_values = box.clip([params[n] for n in box.names])
+        self._start_values = box.clip(read_point(self.env, box))
         self._start = self._x = box.normalize(self._start_values)
         self.rng = spawn_generator(self.env)
         self._t = 0
