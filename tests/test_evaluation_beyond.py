@@ -167,6 +167,8 @@ def test_bad_beyond_arguments():
         evaluate(policy, "hopper", "1d", disruptors={"noise": 0.1}, **kw)
     with pytest.raises(ValueError, match="obsnoise is a standard deviation"):
         evaluate(policy, "hopper", "1d", disruptors={"obsnoise": (-1, 0)}, **kw)
+    with pytest.raises(ValueError, match="the mesh has obsdelay=0.5: .*whole number"):
+        evaluate(policy, "hopper", "1d", disruptors={"obsdelay": (0, 1)}, nb_mesh_dim=3, episodes=1)
     with pytest.raises(TypeError, match="ScheduleFamily"):
         evaluate(policy, "hopper", "1d", schedule=Drift(0.1), **kw)
     with pytest.raises(ValueError, match="a schedule needs a set"):

@@ -283,6 +283,7 @@ def evaluate(
         points = _product(
             schedule.points(), _ranged(mesh_box, schedule).mesh(nb_mesh_dim, endpoint)
         )
+    _check_strengths(mesh_box, points)
     seeds = runner.episode_seeds(seed, len(points), episodes)
     spec = runner.RolloutSpec(
         resolved.task,
@@ -418,6 +419,23 @@ def _plan(
     if context and stack.context.dim == 0:
         raise ValueError("context=True needs a non-empty set whose parameters to show")
     return mesh_box, resolved, stack
+
+
+def _check_strengths(mesh_box: UncertaintySet, points: np.ndarray) -> None:
+    """Refuse, before any episode, a mesh whose disruptor strengths are invalid (a delay of
+    1.5 steps: a mesh over a delay needs points that are whole numbers)."""
+    from rrls.wrappers import DISRUPTORS
+
+    for i, name in enumerate(mesh_box.names):
+        if name not in DISRUPTORS:
+            continue
+        for value in np.unique(points[:, i]).tolist():
+            problem = DISRUPTORS[name].check_param(name, value)
+            if problem:
+                raise ValueError(
+                    f"the mesh has {name}={value:g}: {problem}; choose the bounds and mesh size "
+                    "so every point is valid (e.g. (0, 3) with 4 points for a delay)"
+                )
 
 
 def _ranged(mesh_box: UncertaintySet, schedule: Any) -> UncertaintySet:
