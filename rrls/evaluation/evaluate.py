@@ -252,7 +252,7 @@ def evaluate(
     episodes per worker). With ``out_dir``, finished chunks are kept there and a re-run with the
     same arguments resumes; ``summary.json`` and the episode table are written at the end.
 
-    Beyond static dynamics (see the README's "Disruptors, schedules, context, splits"):
+    Beyond static dynamics (the README section of that name):
 
     * a set may name disruptor strengths (``obsnoise``, ``actiondelay``...: see
       :mod:`rrls.wrappers.disruptors`) alone or with physical parameters; ``disruptors`` adds
