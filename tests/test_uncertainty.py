@@ -106,8 +106,8 @@ def test_compat_enums():
 @pytest.mark.skipif(not TABLES.exists(), reason="../shared/paper/tables.json not beside the repo")
 def test_sets_and_names_match_the_paper_tables():
     tables = json.loads(TABLES.read_text())
-    for key, task in TASKS.items():
-        paper = PAPER_TASK[key]
+    for key, paper in PAPER_TASK.items():  # the paper's tasks (not rrls's own, nor users')
+        task = TASKS[key]
         m2td3 = tables["uncertainty_sets_m2td3"][paper]
         for d in ("1", "2", "3"):
             if d not in m2td3:

@@ -16,10 +16,21 @@ import mujoco
 import numpy as np
 from gymnasium.utils import EzPickle
 
-from rrls.params import ParamSpec
+from rrls.params import SETCONST_FIELDS, ParamSpec
 from rrls.tasks import TaskSpec
 
 _FORCES = "xfrc_applied"
+#: model arrays a parameter may write: saved when the env is built, restored by reset_params
+_SAVED = (
+    "body_mass",
+    "body_inertia",
+    "body_ipos",
+    "geom_friction",
+    "dof_damping",
+    "dof_armature",
+    "dof_frictionloss",
+    "actuator_gear",
+)
 
 
 @contextlib.contextmanager
@@ -56,20 +67,24 @@ class ModifiedParamsMixin:
     def __init__(self, *, scale_inertia: bool = False, **kwargs: Any) -> None:
         params = {k: kwargs.pop(k) for k in list(kwargs) if k in self._names()}
         try:
-            super().__init__(**kwargs)  # the Gymnasium v5 env
+            super().__init__(**{**self.task.env_kwargs, **kwargs})  # the Gymnasium env
         except TypeError as exc:
             raise TypeError(
                 f"{exc}. {type(self).__name__} takes the physical parameters "
-                f"{', '.join(self.param_names())} and the keywords of {self.task.v5_id}"
+                f"{', '.join(self.param_names())} and the keywords of "
+                f"{self.task.v5_id or self.task.base_class().__name__}"
             ) from None
         # EzPickle records *our* constructor arguments, so copies rebuild a robust env.
         EzPickle.__init__(self, scale_inertia=scale_inertia, **params, **kwargs)
         self.scale_inertia = bool(scale_inertia)
         model = self.model
         self._rows = {s.name: (s, s.resolve(model)) for s in self.param_specs}
-        self._mass0 = model.body_mass.copy()
-        self._inertia0 = model.body_inertia.copy()
-        self._friction0 = model.geom_friction.copy()
+        self._saved = {f: getattr(model, f).copy() for f in _SAVED}
+        self._mass0 = self._saved["body_mass"]
+        self._inertia0 = self._saved["body_inertia"]
+        self._ipos0 = self._saved["body_ipos"]
+        self._gravity0 = model.opt.gravity.copy()
+        self._timestep0 = float(model.opt.timestep)
         # mj_setConst uses its MjData as scratch space (it overwrites qpos): never the live one.
         self._scratch = mujoco.MjData(model)
         self._values: dict[str, float] = {s.name: self._read(s) for s in self.param_specs}
@@ -106,12 +121,12 @@ class ModifiedParamsMixin:
         Everything is validated before anything is written, so bad input changes nothing.
         """
         updates = self._validate(params)
-        mass_changed = False
+        set_const = False
         for name, value in updates.items():
             spec, idx = self._rows[name]
             self._write(spec, idx, value)
-            mass_changed |= spec.field == "body_mass"
-        if mass_changed:
+            set_const |= spec.field in SETCONST_FIELDS
+        if set_const:
             mujoco.mj_setConst(self.model, self._scratch)
         self._values.update(updates)
         self._overrides.update(updates)
@@ -123,9 +138,10 @@ class ModifiedParamsMixin:
         foot friction 2.0, which ``worldfriction`` overwrites).
         """
         model = self.model
-        model.body_mass[:] = self._mass0
-        model.body_inertia[:] = self._inertia0
-        model.geom_friction[:] = self._friction0
+        for name, saved in self._saved.items():
+            getattr(model, name)[:] = saved
+        model.opt.gravity[:] = self._gravity0
+        model.opt.timestep = self._timestep0
         self.data.xfrc_applied[:] = 0.0
         mujoco.mj_setConst(model, self._scratch)
         self._values = {s.name: self._read(s) for s in self.param_specs}
@@ -156,22 +172,50 @@ class ModifiedParamsMixin:
 
     def _read(self, spec: ParamSpec) -> float:
         idx = self._rows[spec.name][1]
-        if spec.field == "body_mass":
-            return float(self.model.body_mass[idx[0]])
-        if spec.field == "geom_friction":  # the floor's (first world geom): the paper's reference
-            floor = np.flatnonzero(self.model.geom_bodyid == 0)[0]
-            return float(self.model.geom_friction[floor, 0])
+        model, field = self.model, spec.field
+        if field == "body_mass":
+            return float(model.body_mass[idx[0]])
+        if field == "geom_friction":
+            if spec.target != "*":
+                return float(model.geom_friction[idx[0], 0])
+            # every geom: the floor's (first world geom), the paper's reference
+            floor = np.flatnonzero(model.geom_bodyid == 0)[0]
+            return float(model.geom_friction[floor, 0])
+        if field == "body_friction":
+            return float(model.geom_friction[idx[0], 0])
+        if field == "body_ipos":
+            b, k = idx[0], spec.component
+            return float(model.body_ipos[b, k] - self._ipos0[b, k])
+        if field in ("dof_damping", "dof_armature", "dof_frictionloss"):
+            return float(getattr(model, field)[idx[0]])
+        if field == "actuator_gear":
+            return float(model.actuator_gear[idx[0], 0])
+        if field == "opt_gravity":
+            return float(-model.opt.gravity[2])
+        if field == "opt_timestep":
+            return float(model.opt.timestep)
         return float(self.data.xfrc_applied[idx[0], spec.component])
 
     def _write(self, spec: ParamSpec, idx: np.ndarray, value: float) -> None:
-        model = self.model
-        if spec.field == "body_mass":
+        model, field = self.model, spec.field
+        if field == "body_mass":
             b = idx[0]
             model.body_mass[b] = value
             if self.scale_inertia:
                 model.body_inertia[b] = self._inertia0[b] * (value / self._mass0[b])
-        elif spec.field == "geom_friction":
+        elif field in ("geom_friction", "body_friction"):
             model.geom_friction[idx, 0] = value
+        elif field == "body_ipos":
+            b, k = idx[0], spec.component
+            model.body_ipos[b, k] = self._ipos0[b, k] + value
+        elif field in ("dof_damping", "dof_armature", "dof_frictionloss"):
+            getattr(model, field)[idx[0]] = value
+        elif field == "actuator_gear":
+            model.actuator_gear[idx[0], 0] = value
+        elif field == "opt_gravity":
+            model.opt.gravity[2] = -value
+        elif field == "opt_timestep":
+            model.opt.timestep = value
         else:
             self.data.xfrc_applied[idx[0], spec.component] = value
 

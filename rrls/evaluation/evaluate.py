@@ -206,7 +206,7 @@ def evaluate(
     out_dir: str | Path | None = None,
     batch_size: int | None = None,
     progress: bool | None = None,
-    max_episode_steps: int = 1000,
+    max_episode_steps: int | None = None,
 ) -> EvaluationResult:
     """Evaluate ``policy`` over a uniform mesh of ``task``'s uncertainty set (paper §4).
 
@@ -216,11 +216,15 @@ def evaluate(
     ``workers`` defaults to every core; results do not depend on it nor on ``batch_size`` (live
     episodes per worker). With ``out_dir``, finished chunks are kept there and a re-run with the
     same arguments resumes; ``summary.json`` and the episode table are written at the end.
+    ``max_episode_steps`` defaults to the task's episode length (1000 for the paper's tasks).
     """
     from rrls.envs import resolve
     from rrls.evaluation import runner
+    from rrls.tasks import get_task
 
     resolved = resolve(task, uncertainty)
+    if max_episode_steps is None:
+        max_episode_steps = get_task(resolved.task).max_episode_steps
     _check_counts(episodes=episodes, nb_mesh_dim=nb_mesh_dim, max_episode_steps=max_episode_steps)
     if workers is not None:
         _check_counts(workers=workers)
