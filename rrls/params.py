@@ -37,6 +37,8 @@ Fields understood (``FIELDS`` holds units and valid ranges; the README has the s
     the integration step (s): ``model.opt.timestep``. Gymnasium's ``env.dt`` is
     ``frame_skip * timestep``, so a step of the env spans more or less simulated time; velocities
     in rewards are divided by the new ``dt`` (they stay velocities).
+``opt_viscosity``
+    the viscosity of the medium (Pa·s): ``model.opt.viscosity`` (Swimmer's water).
 ``xfrc_applied``
     a Cartesian force (world frame, N) on the body's centre of mass, component ``component``
     (0: x, 1: y, 2: z). Lives in ``mjData``, so it is re-applied after every reset.
@@ -64,6 +66,7 @@ Field = Literal[
     "actuator_gear",
     "opt_gravity",
     "opt_timestep",
+    "opt_viscosity",
     "xfrc_applied",
 ]
 
@@ -106,6 +109,7 @@ FIELDS: dict[str, FieldInfo] = {
     "actuator_gear": FieldInfo("gear", "actuator_gear[a, 0]", "-", 0.0, True, 1e6, "actuator"),
     "opt_gravity": FieldInfo("gravity", "opt.gravity[2] = -value", "m/s²", 0.0, True, 1e3, "model"),
     "opt_timestep": FieldInfo("timestep", "opt.timestep", "s", 0.0, False, 0.1, "model"),
+    "opt_viscosity": FieldInfo("viscosity", "opt.viscosity", "Pa·s", 0.0, True, 1e3, "model"),
     "xfrc_applied": FieldInfo(
         "force", "xfrc_applied[b, k]", "N", -math.inf, True, math.inf, "body"
     ),
@@ -161,11 +165,23 @@ class ParamSpec:
             if not len(geoms):
                 raise KeyError(f"body {self.target!r} has no geom, so no friction")
             return geoms
+        if field == "body_ipos":
+            b = body_id(model, self.target)
+            if model.body_simple[b]:
+                movable = [
+                    n for n in names_of(model, "body") if not model.body_simple[body_id(model, n)]
+                ]
+                raise KeyError(
+                    f"body {self.target!r} is compiled as 'simple' (its frame is its centre of "
+                    f"mass), so MuJoCo cannot move its centre of mass; bodies that can: "
+                    f"{', '.join(movable)}"
+                )
+            return np.array([b])
         if field in ("dof_damping", "dof_armature", "dof_frictionloss"):
             return np.array([joint_dof(model, self.target)])
         if field == "actuator_gear":
             return np.array([actuator_id(model, self.target)])
-        if field in ("opt_gravity", "opt_timestep"):
+        if field.startswith("opt_"):
             return np.zeros(0, dtype=np.int64)
         return np.array([body_id(model, self.target)])
 
@@ -337,6 +353,7 @@ def gear_params(actuators: dict[str, str]) -> tuple[ParamSpec, ...]:
 
 GRAVITY = ParamSpec("gravity", "opt_gravity")
 TIMESTEP = ParamSpec("timestep", "opt_timestep")
+VISCOSITY = ParamSpec("viscosity", "opt_viscosity")
 
 
 def physics_params(
@@ -344,15 +361,19 @@ def physics_params(
     joints: dict[str, str],
     actuators: dict[str, str] | None = None,
     planar: bool = False,
+    friction: bool = True,
+    com: dict[str, str] | None = None,
 ) -> tuple[ParamSpec, ...]:
-    """Every kind beyond masses, for a task's parts: per-body friction and centre-of-mass
-    offsets, joint damping / armature / dry friction, actuator gear, gravity and timestep.
+    """Every kind beyond masses, for a task's parts: per-body friction (unless ``friction`` is
+    False: a model without contacts) and centre-of-mass offsets, joint damping / armature / dry
+    friction, actuator gear, gravity and timestep.
 
-    ``actuators`` defaults to ``joints`` (each joint driven by one actuator).
+    ``actuators`` defaults to ``joints`` (each joint driven by one actuator); ``com`` (the
+    bodies with centre-of-mass rows) to ``bodies``.
     """
     return (
-        friction_params(bodies)
-        + com_params(bodies, planar)
+        (friction_params(bodies) if friction else ())
+        + com_params(bodies if com is None else com, planar)
         + joint_params(joints)
         + gear_params(joints if actuators is None else actuators)
         + (GRAVITY, TIMESTEP)

@@ -270,3 +270,14 @@ def test_tutorial_add_a_task_runs(capsys, monkeypatch):
     runpy.run_path(str(REPO / "docs" / "tutorials" / "add_a_task.py"), run_name="__main__")
     out = capsys.readouterr().out
     assert "2d set: worst" in out and "search: worst" in out
+
+
+def test_centre_of_mass_rows_on_simple_bodies_are_refused_at_registration():
+    with pytest.raises(ValueError, match="'object' is compiled as 'simple'.*bodies that can: "):
+        rrls.register_task(
+            "badpusher",
+            "Pusher-v5",
+            name="BadPusher",
+            params=(ParamSpec("objectcom_x", "body_ipos", "object"),),
+        )
+    assert "badpusher" not in TASKS

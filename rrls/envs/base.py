@@ -20,6 +20,7 @@ from rrls.params import SETCONST_FIELDS, ParamSpec
 from rrls.tasks import TaskSpec
 
 _FORCES = "xfrc_applied"
+_FRICTION = frozenset({"geom_friction", "body_friction"})
 #: model arrays a parameter may write: saved when the env is built, restored by reset_params
 _SAVED = (
     "body_mass",
@@ -85,8 +86,10 @@ class ModifiedParamsMixin:
         self._ipos0 = self._saved["body_ipos"]
         self._gravity0 = model.opt.gravity.copy()
         self._timestep0 = float(model.opt.timestep)
+        self._viscosity0 = float(model.opt.viscosity)
         # mj_setConst uses its MjData as scratch space (it overwrites qpos): never the live one.
         self._scratch = mujoco.MjData(model)
+        self._friction_rows = [s for s in self.param_specs if s.field in _FRICTION]
         self._values: dict[str, float] = {s.name: self._read(s) for s in self.param_specs}
         self._overrides: dict[str, float] = {}
         self._init_params: dict[str, float] = {}
@@ -119,17 +122,33 @@ class ModifiedParamsMixin:
         """Set some parameters; the others keep their values.
 
         Everything is validated before anything is written, so bad input changes nothing.
+        Values are written in the order given: where two parameters write the same geoms
+        (``worldfriction`` and ``footfriction``), the later one wins for those geoms, and
+        ``get_params`` reports what the model holds.
         """
         updates = self._validate(params)
-        set_const = False
+        set_const = friction = False
         for name, value in updates.items():
             spec, idx = self._rows[name]
             self._write(spec, idx, value)
             set_const |= spec.field in SETCONST_FIELDS
+            friction |= spec.field in _FRICTION
         if set_const:
-            mujoco.mj_setConst(self.model, self._scratch)
+            try:
+                mujoco.mj_setConst(self.model, self._scratch)
+            except mujoco.FatalError as err:  # put the model back: a refused call changes nothing
+                for name in reversed(updates):
+                    spec, idx = self._rows[name]
+                    self._write(spec, idx, self._values[name])
+                mujoco.mj_setConst(self.model, self._scratch)
+                raise ValueError(f"MuJoCo refused {updates}: {err}") from None
         self._values.update(updates)
-        self._overrides.update(updates)
+        if friction:  # rows sharing geoms: report what the model now holds
+            for spec in self._friction_rows:
+                self._values[spec.name] = self._read(spec)
+        for name, value in updates.items():  # latest last, so copies replay in the same order
+            self._overrides.pop(name, None)
+            self._overrides[name] = value
 
     def reset_params(self) -> None:
         """Restore the model exactly as built (nominal, or the constructor's parameters).
@@ -142,6 +161,7 @@ class ModifiedParamsMixin:
             getattr(model, name)[:] = saved
         model.opt.gravity[:] = self._gravity0
         model.opt.timestep = self._timestep0
+        model.opt.viscosity = self._viscosity0
         self.data.xfrc_applied[:] = 0.0
         mujoco.mj_setConst(model, self._scratch)
         self._values = {s.name: self._read(s) for s in self.param_specs}
@@ -194,6 +214,8 @@ class ModifiedParamsMixin:
             return float(-model.opt.gravity[2])
         if field == "opt_timestep":
             return float(model.opt.timestep)
+        if field == "opt_viscosity":
+            return float(model.opt.viscosity)
         return float(self.data.xfrc_applied[idx[0], spec.component])
 
     def _write(self, spec: ParamSpec, idx: np.ndarray, value: float) -> None:
@@ -216,6 +238,8 @@ class ModifiedParamsMixin:
             model.opt.gravity[2] = -value
         elif field == "opt_timestep":
             model.opt.timestep = value
+        elif field == "opt_viscosity":
+            model.opt.viscosity = value
         else:
             self.data.xfrc_applied[idx[0], spec.component] = value
 
