@@ -106,7 +106,9 @@ FIELDS: dict[str, FieldInfo] = {
     "dof_frictionloss": FieldInfo(
         "dry friction", "dof_frictionloss[d]", "N·m (slide: N)", 0.0, True, 1e6, "joint"
     ),
-    "actuator_gear": FieldInfo("gear", "actuator_gear[a, 0]", "-", 0.0, True, 1e6, "actuator"),
+    "actuator_gear": FieldInfo(
+        "gear", "actuator_gear[a, 0]", "N·m per unit control (slide: N)", 0.0, True, 1e6, "actuator"
+    ),
     "opt_gravity": FieldInfo("gravity", "opt.gravity[2] = -value", "m/s²", 0.0, True, 1e3, "model"),
     "opt_timestep": FieldInfo("timestep", "opt.timestep", "s", 0.0, False, 0.1, "model"),
     "opt_viscosity": FieldInfo("viscosity", "opt.viscosity", "Pa·s", 0.0, True, 1e3, "model"),
@@ -196,7 +198,10 @@ class ParamSpec:
         info = FIELDS[self.field]
         if value < info.low or (value == info.low and not info.low_inclusive):
             op = ">=" if info.low_inclusive else ">"
-            return f"{self.name} is a {info.what} and must be {op} {info.low:g}, got {value!r}"
+            article = "an" if info.what[0] in "aeiou" else "a"
+            return (
+                f"{self.name} is {article} {info.what} and must be {op} {info.low:g}, got {value!r}"
+            )
         if value > info.high:
             return f"{self.name} must be <= {info.high:g} ({info.what}), got {value!r}"
         return None

@@ -161,7 +161,7 @@ def test_three_dimensional_tasks_have_three_com_axes_and_planar_two():
     "params, needle",
     [
         ({"thighdamping": -1.0}, "thighdamping is a damping and must be >= 0"),
-        ({"thigharmature": -0.1}, "thigharmature is a armature and must be >= 0"),
+        ({"thigharmature": -0.1}, "thigharmature is an armature and must be >= 0"),
         ({"thighfrictionloss": -0.1}, "must be >= 0"),
         ({"thighgear": -5.0}, "thighgear is a gear and must be >= 0"),
         ({"footfriction": -0.1}, "footfriction is a friction and must be >= 0"),
@@ -214,3 +214,14 @@ def test_field_table_lists_units_and_ranges():
     for name, info in FIELDS.items():
         assert info.units and info.mujoco and info.target, name
         assert info.low < info.high, name
+
+
+def test_readme_documents_every_kind():
+    from pathlib import Path
+
+    readme = (Path(__file__).resolve().parents[1] / "README.md").read_text()
+    table = readme.split("### Parameter kinds", 1)[1].split("\n\n", 2)[1]
+    for name, info in FIELDS.items():
+        field = info.mujoco.split("[")[0].split(" ")[0]
+        assert f"`{field}" in table, (name, field)
+        assert info.units.split(" ")[0] in table, (name, info.units)
