@@ -225,3 +225,18 @@ def test_readme_documents_every_kind():
         field = info.mujoco.split("[")[0].split(" ")[0]
         assert f"`{field}" in table, (name, field)
         assert info.units.split(" ")[0] in table, (name, info.units)
+
+
+def test_info_reports_masses_always_and_other_kinds_once_set():
+    env = RobustHopper()
+    _, info = env.reset(seed=0)
+    assert info["torsomass"] == env.get_params()["torsomass"] and "worldfriction" in info
+    assert "thighdamping" not in info  # every kind in every step's info would cost ~10 %
+    env.set_params(thighdamping=2.5)
+    _, _, _, _, info = env.step(env.action_space.sample())
+    assert info["thighdamping"] == 2.5
+    _, info = env.reset(options={"gravity": 7.0})
+    assert info["gravity"] == 7.0 and info["thighdamping"] == 2.5
+    env.reset_params()
+    _, info = env.reset(seed=1)
+    assert "gravity" not in info
