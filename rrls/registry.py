@@ -73,22 +73,34 @@ class TaskSpec:
     env_kwargs: dict[str, Any] = field(default_factory=dict)
     max_episode_steps: int = MAX_EPISODE_STEPS
     aliases: tuple[str, ...] = ()
+    #: the Gymnasium id of the paper's physics (v4), for ``paper=True``; None: no such physics
+    paper_id: str | None = None
 
     @property
     def env_id(self) -> str | None:
         """The Gymnasium id the task is built on (alias of ``v5_id``)."""
         return self.v5_id
 
-    def base_class(self) -> type:
-        """The Gymnasium env class the robust and force classes extend."""
-        if self.env_class is not None:
+    def base_class(self, paper: bool = False) -> type:
+        """The Gymnasium env class the robust and force classes extend (``paper``: the v4 env
+        the paper's code ran)."""
+        if paper:
+            if self.paper_id is None:
+                raise ValueError(
+                    f"task {self.key!r} has no paper physics (paper=True is for the paper's "
+                    "six tasks: their Gymnasium v4 envs)"
+                )
+            env_id = self.paper_id
+        elif self.env_class is not None:
             return self.env_class
+        else:
+            env_id = self.v5_id
         from gymnasium.envs.registration import load_env_creator
 
-        creator = registry[self.v5_id].entry_point
+        creator = registry[env_id].entry_point
         cls = load_env_creator(creator) if isinstance(creator, str) else creator
         if not isinstance(cls, type):
-            raise TypeError(f"{self.v5_id}'s entry point is not a class: {cls!r}")
+            raise TypeError(f"{env_id}'s entry point is not a class: {cls!r}")
         return cls
 
     def family_of(self, names: tuple[str, ...] | list[str]) -> str:
@@ -184,6 +196,7 @@ def register_task(
     env_kwargs: Mapping[str, Any] | None = None,
     max_episode_steps: int | None = None,
     aliases: Sequence[str] = (),
+    paper_env: str | None = None,
     check: bool = True,
     replace: bool = False,
 ) -> TaskSpec:
@@ -198,7 +211,8 @@ def register_task(
     parameters and forces is refused). ``name``: the class-name stem (default from the id or
     class: ``Swimmer`` -> ``RobustSwimmer``). ``planar``: every joint moves in the world x-z
     plane (``<part>force_y`` is then vertical). ``env_kwargs``: keywords of the env class.
-    ``max_episode_steps``: default from the id, else 1000.
+    ``max_episode_steps``: default from the id, else 1000. ``paper_env``: the Gymnasium id of
+    the same task's older physics that ``paper=True`` builds (the paper's tasks: their v4 ids).
 
     With ``check`` (the default) the model is compiled once and every row's body, geom, joint or
     actuator is looked up in it: a bad declaration raises a ``ValueError`` listing the valid
@@ -214,6 +228,10 @@ def register_task(
     spec = _build_spec(
         key, env, params, sets, forces, name, planar, env_kwargs, max_episode_steps, aliases
     )
+    if paper_env is not None:
+        if paper_env not in registry:
+            raise ValueError(f"no Gymnasium env {paper_env!r} is registered")
+        spec = TaskSpec(**{**spec.__dict__, "paper_id": paper_env})
     existing = TASKS.get(spec.key)
     if existing is not None and not replace:
         if existing == spec:

@@ -46,6 +46,7 @@ def _task(
     contacts: bool = True,
     extra: tuple[ParamSpec, ...] = (),
     com: dict[str, str] | None = None,
+    paper: bool = False,
 ) -> TaskSpec:
     """One built-in task: the original code's rows first (``worldfriction``, the masses), then
     every further kind on the same parts (per-body friction, centre-of-mass offsets), on the
@@ -70,6 +71,7 @@ def _task(
         sets=sets,
         aliases=aliases,
         max_episode_steps=max_episode_steps,
+        paper_env=f"{cls.removesuffix('Env')}-v4" if paper else None,
         check=False,
     )
 
@@ -135,6 +137,7 @@ _task(
     "ant",
     "Ant",
     "AntEnv",
+    paper=True,  # paper=True: the v4 env the paper ran
     planar=False,
     friction=False,
     parts=_ANT_PARTS,
@@ -162,6 +165,7 @@ _task(
     "HalfCheetah",
     "HalfCheetahEnv",
     aliases=("half_cheetah",),
+    paper=True,  # paper=True: the v4 env the paper ran
     planar=True,
     friction=True,
     parts={
@@ -203,6 +207,7 @@ _task(
     "hopper",
     "Hopper",
     "HopperEnv",
+    paper=True,  # paper=True: the v4 env the paper ran
     planar=True,
     friction=True,
     parts={"torso": "torso", "thigh": "thigh", "leg": "leg", "foot": "foot"},
@@ -223,6 +228,7 @@ _task(
     "HumanoidStandUp",
     "HumanoidStandupEnv",
     aliases=("humanoid_standup",),
+    paper=True,  # paper=True: the v4 env the paper ran
     planar=False,
     friction=False,
     parts=_HUMANOID_PARTS,
@@ -252,6 +258,7 @@ _task(
     "InvertedPendulum",
     "InvertedPendulumEnv",
     aliases=("inverted_pendulum",),
+    paper=True,  # paper=True: the v4 env the paper ran
     planar=True,
     friction=False,
     parts={"pole": "pole", "cart": "cart"},
@@ -268,6 +275,7 @@ _task(
     "Walker2d",
     "Walker2dEnv",
     aliases=("walker2d",),
+    paper=True,  # paper=True: the v4 env the paper ran
     planar=True,
     friction=True,
     parts={

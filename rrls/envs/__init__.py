@@ -29,18 +29,20 @@ from rrls.uncertainty import UncertaintySet
 
 _SET_NAMES = {"1d": "ONE_DIM", "2d": "TWO_DIM", "3d": "THREE_DIM", "rarl": "RARL"}
 
-#: (task key, family) -> (the declaration it was built from, the class); rebuilt when a task
-#: is re-registered with ``replace=True``
-_CLASSES: dict[tuple[str, str], tuple[TaskSpec, type]] = {}
+#: (task key, family, paper) -> (the declaration it was built from, the class); rebuilt when a
+#: task is re-registered with ``replace=True``
+_CLASSES: dict[tuple[str, str, bool], tuple[TaskSpec, type]] = {}
 
 
-def _env_class(task: TaskSpec, kind: str) -> type:
-    """``Robust<Task>`` (kind "robust") or ``Force<Task>`` (kind "force"), built once per task."""
-    cached = _CLASSES.get((task.key, kind))
+def _env_class(task: TaskSpec, kind: str, paper: bool = False) -> type:
+    """``Robust<Task>`` (kind "robust") or ``Force<Task>`` (kind "force"), built once per task;
+    ``paper``: ``PaperRobust<Task>``/``PaperForce<Task>`` on the paper's physics (v4 env,
+    ``worldfriction`` on the floor only), what ``Robust<Task>(paper=True)`` builds."""
+    cached = _CLASSES.get((task.key, kind, paper))
     if cached is not None and cached[0] is task:
         return cached[1]
     specs = task.params if kind == "robust" else task.forces
-    name = f"{kind.capitalize()}{task.name}"
+    name = f"{'Paper' if paper else ''}{kind.capitalize()}{task.name}"
     what = "physical parameters" if kind == "robust" else "external forces (world frame, N)"
     masses = [s.name for s in specs if s.field in ("body_mass", "xfrc_applied")]
     first = masses[-1] if masses else specs[-1].name if specs else None
@@ -55,22 +57,40 @@ def _env_class(task: TaskSpec, kind: str) -> type:
     >>> env.get_params()["{first}"]
     0.5
     """
-        if task.key in _DOCTESTED and first
+        if task.key in _DOCTESTED and first and not paper
         else ""
     )
-    doc = f"""Gymnasium's ``{task.v5_id or task.base_class().__name__}`` whose {what} can be read
-    and changed.
+    base = task.base_class(paper)
+    built_on = task.paper_id if paper else task.v5_id or base.__name__
+    doc = f"""Gymnasium's ``{built_on}`` whose {what} can be read and changed.
 
     Parameters: {", ".join(s.name for s in specs)}.
     {example}"""
-    cls = type(
-        name,
-        (ModifiedParamsMixin, task.base_class()),
-        {"task": task, "param_specs": specs, "__doc__": doc, "__module__": __name__},
-    )
+    attrs: dict[str, Any] = {"task": task, "param_specs": specs, "__doc__": doc}
+    attrs.update(__module__=__name__, paper=paper)
+    if task.paper_id is not None and not paper:
+        attrs["paper_twin"] = staticmethod(functools.partial(_paper_twin, task.key, kind))
+    cls = type(name, (ModifiedParamsMixin, base), attrs)
     cls.__qualname__ = name
-    _CLASSES[(task.key, kind)] = (task, cls)
+    _CLASSES[(task.key, kind, paper)] = (task, cls)
     return cls
+
+
+def _paper_twin(key: str, kind: str) -> type:
+    return _env_class(TASKS[key], kind, paper=True)
+
+
+def paper_class(cls: type) -> type:
+    """The twin of an env class on the paper's physics (``PaperRobustHopper`` of
+    ``RobustHopper``); a ``ValueError`` for tasks without one."""
+    if getattr(cls, "paper", False):
+        return cls
+    twin = getattr(cls, "paper_twin", None)
+    if twin is None:
+        raise ValueError(
+            f"{cls.__name__} has no paper physics (paper=True is for the paper's six tasks)"
+        )
+    return twin()
 
 
 #: the tasks whose class docstrings carry a doctest (the paper's six: one example per kind)
@@ -144,6 +164,8 @@ def __getattr__(name: str) -> Any:
             return ROBUST_ENVS[task.key]
         if name == f"Force{task.name}" and task.forces:
             return FORCE_ENVS[task.key]
+        if name in (f"PaperRobust{task.name}", f"PaperForce{task.name}") and task.paper_id:
+            return _env_class(task, "robust" if "Robust" in name else "force", paper=True)
         if name == f"{task.name}ParamsBound".replace("StandUp", "Standup"):
             cached = _ENUMS.get(task.key)
             if cached is None or cached[0] is not task:
@@ -300,6 +322,7 @@ __all__ = [
     "Walker2dParamsBound",
     "env_class",
     "get_uncertainty_set",
+    "paper_class",
     "nominal_params",
     "resolve",
 ]

@@ -9,7 +9,7 @@ bit-identical to ``gym.make("Hopper-v5")``.
 from __future__ import annotations
 
 import contextlib
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from typing import Any, ClassVar
 
 import mujoco
@@ -68,9 +68,27 @@ class ModifiedParamsMixin:
 
     task: ClassVar[TaskSpec]
     param_specs: ClassVar[tuple[ParamSpec, ...]]
+    #: built on the paper's physics (the v4 env, ``worldfriction`` on the floor only)
+    paper: ClassVar[bool] = False
+    #: the class of the same task and family on the paper's physics (None: there is none)
+    paper_twin: ClassVar[Callable[[], type] | None] = None
 
     # -- construction -------------------------------------------------------------------------
-    def __init__(self, *, scale_inertia: bool = False, **kwargs: Any) -> None:
+    def __new__(cls, *args: Any, **kwargs: Any) -> Any:
+        """``paper=True`` builds the class's twin on the paper's physics instead."""
+        if kwargs.get("paper") and not cls.paper:
+            if cls.paper_twin is None:
+                raise ValueError(
+                    f"{cls.__name__} has no paper physics (paper=True is for the paper's six "
+                    "tasks: their Gymnasium v4 envs)"
+                )
+            twin = cls.paper_twin()
+            obj = twin.__new__(twin, *args, **kwargs)
+            obj.__init__(*args, **kwargs)  # not a subclass of cls: Python would skip __init__
+            return obj
+        return super().__new__(cls)
+
+    def __init__(self, *, scale_inertia: bool = False, paper: bool = False, **kwargs: Any) -> None:
         params = {k: kwargs.pop(k) for k in list(kwargs) if k in self._names()}
         try:
             super().__init__(**{**self.task.env_kwargs, **kwargs})  # the Gymnasium env
@@ -81,10 +99,16 @@ class ModifiedParamsMixin:
                 f"{self.task.v5_id or self.task.base_class().__name__}"
             ) from None
         # EzPickle records *our* constructor arguments, so copies rebuild a robust env.
-        EzPickle.__init__(self, scale_inertia=scale_inertia, **params, **kwargs)
+        physics = {"paper": True} if self.paper else {}
+        EzPickle.__init__(self, scale_inertia=scale_inertia, **physics, **params, **kwargs)
         self.scale_inertia = bool(scale_inertia)
         model = self.model
         self._rows = {s.name: (s, s.resolve(model)) for s in self.param_specs}
+        if self.paper:  # the paper's code wrote worldfriction to the floor (first world geom) only
+            floor = np.flatnonzero(model.geom_bodyid == 0)[:1]
+            for name, (spec, _) in list(self._rows.items()):
+                if spec.field == "geom_friction" and spec.target == "*":
+                    self._rows[name] = (spec, floor)
         self._saved = {f: getattr(model, f).copy() for f in _SAVED}
         self._mass0 = self._saved["body_mass"]
         self._inertia0 = self._saved["body_inertia"]

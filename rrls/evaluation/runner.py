@@ -52,6 +52,7 @@ class RolloutSpec:
     points: np.ndarray  # (P, d)
     seeds: np.ndarray  # (P, E) uint32
     max_episode_steps: int = 1000
+    paper: bool = False  # the paper's physics (v4 envs, floor-only worldfriction)
 
     @property
     def n_episodes(self) -> int:
@@ -82,15 +83,17 @@ def episode_seeds(seed: int, n_points: int, episodes: int) -> np.ndarray:
 # -- one worker ------------------------------------------------------------------------------------
 #: bare envs per (task, family), reused within one evaluation (building is slower than
 #: resetting); ``evaluate`` and ``search_worst_case`` empty it when they return
-_ENV_CACHE: dict[tuple[str, str], list[Any]] = {}
+_ENV_CACHE: dict[tuple[str, str, bool], list[Any]] = {}
 
 
 def _envs(spec: RolloutSpec, n: int) -> list[Any]:
     """Bare envs (no wrappers) of the spec's family; every lane is reset before use."""
-    from rrls.envs import FAMILY_ENVS
+    from rrls.envs import FAMILY_ENVS, paper_class
 
-    envs = _ENV_CACHE.setdefault((spec.task, spec.kind), [])
+    envs = _ENV_CACHE.setdefault((spec.task, spec.kind, spec.paper), [])
     cls = FAMILY_ENVS[spec.kind][spec.task]
+    if spec.paper:
+        cls = paper_class(cls)
     while len(envs) < n:
         envs.append(cls())
     return envs[:n]
