@@ -159,6 +159,13 @@ def build_parser(with_train: bool = True) -> argparse.ArgumentParser:
         help="the original code's np.arange mesh (upper bounds excluded)",
     )
     ev.add_argument(
+        "--physics",
+        choices=["v5", "paper"],
+        default="v5",
+        help="v5 (default: Gymnasium v5, rrls's parameter semantics) or paper (the paper's "
+        "Gymnasium v4 envs, worldfriction on the floor only, np.arange mesh)",
+    )
+    ev.add_argument(
         "--out",
         help="output directory (default: evaluations/<task>-<uncertainty>-mesh<M>-ep<E>-seed<S>)",
     )
@@ -278,6 +285,7 @@ def _evaluate(args: argparse.Namespace) -> int:
     out = Path(
         args.out
         or f"evaluations/{task}-{uncertainty}-mesh{args.mesh}-ep{args.episodes}-seed{args.seed}"
+        + ("-paper" if args.physics == "paper" else "")
     )
     result = evaluate(
         policy,
@@ -287,15 +295,16 @@ def _evaluate(args: argparse.Namespace) -> int:
         episodes=args.episodes,
         seed=args.seed,
         workers=args.workers,
-        endpoint=not args.no_endpoint,
+        endpoint=False if args.no_endpoint else None,
         out_dir=out,
+        paper=args.physics == "paper",
         batch_size=args.batch_size,
         progress=True,
     )
     summary = result.summary()
     worst = ", ".join(f"{k}={v:.4g}" for k, v in result.worst_point.items()) or "nominal model"
     rows = [
-        ("task / set", f"{result.task} / {uncertainty}"),
+        ("task / set", f"{result.task} / {uncertainty} ({args.physics} physics)"),
         (
             "mesh",
             f"{len(result.per_point)} points ({args.mesh} per dimension) "

@@ -96,3 +96,16 @@ def test_evaluate_paper_uses_v4_and_the_arange_mesh_and_records_it(tmp_path):
     )
     assert v5.episodes["worldfriction"].tolist()[-1] == 3.0
     assert v5.summary()["physics"] == "v5"
+
+
+def test_cli_evaluate_physics_paper(tmp_path, capsys):
+    from rrls.cli import main
+    from rrls.evaluation.policies import MLPPolicy
+
+    MLPPolicy.random(4, 1, (8,), seed=0).save(tmp_path / "p.npz")
+    args = ["evaluate", str(tmp_path / "p.npz"), "--task", "invertedpendulum"]
+    args += ["--uncertainty", "1d", "--mesh", "2", "--episodes", "1", "--workers", "1"]
+    assert main([*args, "--physics", "paper", "--out", str(tmp_path / "e")]) == 0
+    assert "(paper physics)" in capsys.readouterr().out
+    summary = json.loads((tmp_path / "e" / "summary.json").read_text())
+    assert summary["physics"] == "paper" and summary["endpoint"] is False
