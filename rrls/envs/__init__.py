@@ -1,8 +1,12 @@
-"""The robust and force environments of the six tasks, and their uncertainty sets.
+"""The robust and force environments of every registered task, and their uncertainty sets.
 
-``Robust<Task>`` exposes the masses (and ``worldfriction``) of paper Appendix A; ``Force<Task>``
-exposes ``<body>force_x/_y/_z`` external forces. Both are the Gymnasium v5 env with a
-``set_params``/``get_params`` interface on top (see :mod:`rrls.envs.base`).
+``Robust<Task>`` exposes the masses (and ``worldfriction``) of paper Appendix A and every
+further kind of its task table (friction, centre of mass, joints, gears, gravity, timestep);
+``Force<Task>`` exposes ``<body>force_x/_y/_z`` external forces. Both are the Gymnasium v5 env
+with a ``set_params``/``get_params`` interface on top (see :mod:`rrls.envs.base`); the classes
+are built from the task declarations (:func:`rrls.register_task`) on first use.
+``Robust<Task>(paper=True)`` builds ``PaperRobust<Task>``: the paper's physics (the v4 env,
+``worldfriction`` on the floor only) for the paper's six tasks.
 
 >>> from rrls.envs import RobustHopper, HopperParamsBound
 >>> env = RobustHopper(torsomass=2.0)
