@@ -30,6 +30,10 @@ _LAZY = {
     "generate_evaluation_set": "rrls.evaluation",
     "evaluation": "rrls.evaluation",
     "evaluate": "rrls.evaluate",
+    "register_task": "rrls.registry",
+    "load_task_plugins": "rrls.registry",
+    "TaskSpec": "rrls.registry",
+    "ParamSpec": "rrls.params",
 }
 
 

@@ -7,6 +7,7 @@ import sys
 
 #: what a command may raise for bad input: reported as ``rrls <command>: <message>``, exit 2
 USAGE_ERRORS = (ValueError, FileNotFoundError, FileExistsError, NotADirectoryError)
+#: the paper's tasks, for help texts; any registered task is accepted (``rrls.tasks.get_task``)
 TASK_CHOICES = ["ant", "halfcheetah", "hopper", "humanoidstandup", "invertedpendulum", "walker"]
 SET_CHOICES = ["1d", "2d", "3d", "rarl", "nominal"]
 
@@ -61,6 +62,25 @@ def task_key(text: str) -> str:
         raise argparse.ArgumentTypeError(str(err)) from None
 
 
+def set_name(text: str) -> str:
+    """argparse ``type=``: the name of a set some registered task declares (or ``nominal``);
+    whether the chosen task has it is checked once the task is known."""
+    from rrls.tasks import TASKS
+
+    name = text.lower()
+    valid = list(dict.fromkeys([*SET_CHOICES, *(s for t in TASKS.values() for s in t.sets)]))
+    if name not in valid:
+        choices = ", ".join(valid)
+        raise argparse.ArgumentTypeError(f"invalid choice: {text!r} (choose from {choices})")
+    return name
+
+
+def _task_keys() -> list[str]:
+    from rrls.tasks import TASKS
+
+    return list(TASKS)
+
+
 def build_parser(with_train: bool = True) -> argparse.ArgumentParser:
     from rrls import __version__
 
@@ -80,7 +100,8 @@ def build_parser(with_train: bool = True) -> argparse.ArgumentParser:
         action="append",
         type=task_key,
         metavar="TASK",
-        help=f"only this task (repeatable; default: all of {', '.join(TASK_CHOICES)})",
+        help="only this task (repeatable; default: every registered task: "
+        f"{', '.join(_task_keys())})",
     )
     check.add_argument(
         "--steps", type=positive_int, default=100, help="steps per episode (default 100)"
@@ -101,12 +122,11 @@ def build_parser(with_train: bool = True) -> argparse.ArgumentParser:
         "--task",
         type=task_key,
         metavar="TASK",
-        help=f"one of {', '.join(TASK_CHOICES)} (default: the policy's own task, if recorded)",
+        help=f"one of {', '.join(_task_keys())} (default: the policy's own task, if recorded)",
     )
     ev.add_argument(
         "--uncertainty",
-        choices=SET_CHOICES,
-        type=str.lower,
+        type=set_name,
         default=None,
         help="the set to mesh: 1d, 2d, 3d (masses/friction), rarl (forces) or nominal (the "
         "model as shipped). Default: the set the policy was trained on, else 3d (2d for "
@@ -137,6 +157,13 @@ def build_parser(with_train: bool = True) -> argparse.ArgumentParser:
         "--no-endpoint",
         action="store_true",
         help="the original code's np.arange mesh (upper bounds excluded)",
+    )
+    ev.add_argument(
+        "--physics",
+        choices=["v5", "paper"],
+        default="v5",
+        help="v5 (default: Gymnasium v5, rrls's parameter semantics) or paper (the paper's "
+        "Gymnasium v4 envs, worldfriction on the floor only, np.arange mesh)",
     )
     ev.add_argument(
         "--out",
@@ -195,6 +222,9 @@ def build_parser(with_train: bool = True) -> argparse.ArgumentParser:
 def main(argv: list[str] | None = None) -> int:
     """Run one command. Bad input (``USAGE_ERRORS``) is one line on stderr and exit status 2."""
     argv = sys.argv[1:] if argv is None else list(argv)
+    from rrls.registry import load_task_plugins
+
+    load_task_plugins()  # tasks of installed packages (entry point group ``rrls.tasks``)
     with_train = argv[:1] == ["train"]
     if with_train:  # `train`'s options are generated from the dataclasses, which need torch
         try:
@@ -255,6 +285,7 @@ def _evaluate(args: argparse.Namespace) -> int:
     out = Path(
         args.out
         or f"evaluations/{task}-{uncertainty}-mesh{args.mesh}-ep{args.episodes}-seed{args.seed}"
+        + ("-paper" if args.physics == "paper" else "")
     )
     result = evaluate(
         policy,
@@ -264,15 +295,16 @@ def _evaluate(args: argparse.Namespace) -> int:
         episodes=args.episodes,
         seed=args.seed,
         workers=args.workers,
-        endpoint=not args.no_endpoint,
+        endpoint=False if args.no_endpoint else None,
         out_dir=out,
+        paper=args.physics == "paper",
         batch_size=args.batch_size,
         progress=True,
     )
     summary = result.summary()
     worst = ", ".join(f"{k}={v:.4g}" for k, v in result.worst_point.items()) or "nominal model"
     rows = [
-        ("task / set", f"{result.task} / {uncertainty}"),
+        ("task / set", f"{result.task} / {uncertainty} ({args.physics} physics)"),
         (
             "mesh",
             f"{len(result.per_point)} points ({args.mesh} per dimension) "

@@ -1,8 +1,12 @@
-"""The robust and force environments of the six tasks, and their uncertainty sets.
+"""The robust and force environments of every registered task, and their uncertainty sets.
 
-``Robust<Task>`` exposes the masses (and ``worldfriction``) of paper Appendix A; ``Force<Task>``
-exposes ``<body>force_x/_y/_z`` external forces. Both are the Gymnasium v5 env with a
-``set_params``/``get_params`` interface on top (see :mod:`rrls.envs.base`).
+``Robust<Task>`` exposes the masses (and ``worldfriction``) of paper Appendix A and every
+further kind of its task table (friction, centre of mass, joints, gears, gravity, timestep);
+``Force<Task>`` exposes ``<body>force_x/_y/_z`` external forces. Both are the Gymnasium v5 env
+with a ``set_params``/``get_params`` interface on top (see :mod:`rrls.envs.base`); the classes
+are built from the task declarations (:func:`rrls.register_task`) on first use.
+``Robust<Task>(paper=True)`` builds ``PaperRobust<Task>``: the paper's physics (the v4 env,
+``worldfriction`` on the floor only) for the paper's six tasks.
 
 >>> from rrls.envs import RobustHopper, HopperParamsBound
 >>> env = RobustHopper(torsomass=2.0)
@@ -15,45 +19,39 @@ exposes ``<body>force_x/_y/_z`` external forces. Both are the Gymnasium v5 env w
 from __future__ import annotations
 
 import functools
+from collections.abc import Iterator, Mapping
 from dataclasses import dataclass
 from enum import Enum
 from typing import Any
 
 import numpy as np
-from gymnasium.envs.mujoco.ant_v5 import AntEnv
-from gymnasium.envs.mujoco.half_cheetah_v5 import HalfCheetahEnv
-from gymnasium.envs.mujoco.hopper_v5 import HopperEnv
-from gymnasium.envs.mujoco.humanoidstandup_v5 import HumanoidStandupEnv
-from gymnasium.envs.mujoco.inverted_pendulum_v5 import InvertedPendulumEnv
-from gymnasium.envs.mujoco.walker2d_v5 import Walker2dEnv
 
 from rrls.envs.base import ModifiedParamsMixin
 from rrls.params import check_bounds
 from rrls.tasks import TASKS, TaskSpec, get_task
 from rrls.uncertainty import UncertaintySet
 
-_BASES = {
-    "ant": AntEnv,
-    "halfcheetah": HalfCheetahEnv,
-    "hopper": HopperEnv,
-    "humanoidstandup": HumanoidStandupEnv,
-    "invertedpendulum": InvertedPendulumEnv,
-    "walker": Walker2dEnv,
-}
-
 _SET_NAMES = {"1d": "ONE_DIM", "2d": "TWO_DIM", "3d": "THREE_DIM", "rarl": "RARL"}
 
+#: (task key, family, paper) -> (the declaration it was built from, the class); rebuilt when a
+#: task is re-registered with ``replace=True``
+_CLASSES: dict[tuple[str, str, bool], tuple[TaskSpec, type]] = {}
 
-def _env_class(task: TaskSpec, kind: str) -> type:
-    """``Robust<Task>`` (kind "robust") or ``Force<Task>`` (kind "force")."""
+
+def _env_class(task: TaskSpec, kind: str, paper: bool = False) -> type:
+    """``Robust<Task>`` (kind "robust") or ``Force<Task>`` (kind "force"), built once per task;
+    ``paper``: ``PaperRobust<Task>``/``PaperForce<Task>`` on the paper's physics (v4 env,
+    ``worldfriction`` on the floor only), what ``Robust<Task>(paper=True)`` builds."""
+    cached = _CLASSES.get((task.key, kind, paper))
+    if cached is not None and cached[0] is task:
+        return cached[1]
     specs = task.params if kind == "robust" else task.forces
-    name = f"{kind.capitalize()}{task.name}"
+    name = f"{'Paper' if paper else ''}{kind.capitalize()}{task.name}"
     what = "physical parameters" if kind == "robust" else "external forces (world frame, N)"
-    first = specs[-1].name
-    doc = f"""Gymnasium's ``{task.v5_id}`` whose {what} can be read and changed.
-
-    Parameters: {", ".join(s.name for s in specs)}.
-
+    masses = [s.name for s in specs if s.field in ("body_mass", "xfrc_applied")]
+    first = masses[-1] if masses else specs[-1].name if specs else None
+    example = (
+        f"""
     >>> from rrls.envs import {name}
     >>> env = {name}({first}=1.5)
     >>> obs, info = env.reset(seed=0)
@@ -63,18 +61,49 @@ def _env_class(task: TaskSpec, kind: str) -> type:
     >>> env.get_params()["{first}"]
     0.5
     """
-    cls = type(
-        name,
-        (ModifiedParamsMixin, _BASES[task.key]),
-        {"task": task, "param_specs": specs, "__doc__": doc, "__module__": __name__},
+        if task.key in _DOCTESTED and first and not paper
+        else ""
     )
+    base = task.base_class(paper)
+    built_on = task.paper_id if paper else task.v5_id or base.__name__
+    doc = f"""Gymnasium's ``{built_on}`` whose {what} can be read and changed.
+
+    Parameters: {", ".join(s.name for s in specs)}.
+    {example}"""
+    attrs: dict[str, Any] = {"task": task, "param_specs": specs, "__doc__": doc}
+    attrs.update(__module__=__name__, paper=paper)
+    if task.paper_id is not None and not paper:
+        attrs["paper_twin"] = staticmethod(functools.partial(_paper_twin, task.key, kind))
+    cls = type(name, (ModifiedParamsMixin, base), attrs)
     cls.__qualname__ = name
+    _CLASSES[(task.key, kind, paper)] = (task, cls)
     return cls
+
+
+def _paper_twin(key: str, kind: str) -> type:
+    return _env_class(TASKS[key], kind, paper=True)
+
+
+def paper_class(cls: type) -> type:
+    """The twin of an env class on the paper's physics (``PaperRobustHopper`` of
+    ``RobustHopper``); a ``ValueError`` for tasks without one."""
+    if getattr(cls, "paper", False):
+        return cls
+    twin = getattr(cls, "paper_twin", None)
+    if twin is None:
+        raise ValueError(
+            f"{cls.__name__} has no paper physics (paper=True is for the paper's six tasks)"
+        )
+    return twin()
+
+
+#: the tasks whose class docstrings carry a doctest (the paper's six: one example per kind)
+_DOCTESTED = ("ant", "halfcheetah", "hopper", "humanoidstandup", "invertedpendulum", "walker")
 
 
 def _bounds_enum(task: TaskSpec) -> type[Enum]:
     members = {
-        _SET_NAMES[k]: {n: [lo, hi] for n, (lo, hi) in bounds.items()}
+        _SET_NAMES.get(k, k.upper()): {n: [lo, hi] for n, (lo, hi) in bounds.items()}
         for k, bounds in task.sets.items()
     }
     enum = Enum(f"{task.name.replace('StandUp', 'Standup')}ParamsBound", members)
@@ -82,19 +111,46 @@ def _bounds_enum(task: TaskSpec) -> type[Enum]:
     return enum
 
 
-RobustAnt = _env_class(TASKS["ant"], "robust")
-RobustHalfCheetah = _env_class(TASKS["halfcheetah"], "robust")
-RobustHopper = _env_class(TASKS["hopper"], "robust")
-RobustHumanoidStandUp = _env_class(TASKS["humanoidstandup"], "robust")
-RobustInvertedPendulum = _env_class(TASKS["invertedpendulum"], "robust")
-RobustWalker2d = _env_class(TASKS["walker"], "robust")
+_ENUMS: dict[str, tuple[TaskSpec, type[Enum]]] = {}
 
-ForceAnt = _env_class(TASKS["ant"], "force")
-ForceHalfCheetah = _env_class(TASKS["halfcheetah"], "force")
-ForceHopper = _env_class(TASKS["hopper"], "force")
-ForceHumanoidStandUp = _env_class(TASKS["humanoidstandup"], "force")
-ForceInvertedPendulum = _env_class(TASKS["invertedpendulum"], "force")
-ForceWalker2d = _env_class(TASKS["walker"], "force")
+
+class _Classes(Mapping):
+    """``{task key: env class}`` of one family over every registered task (built on demand)."""
+
+    def __init__(self, kind: str) -> None:
+        self.kind = kind
+
+    def __getitem__(self, key: str) -> type:
+        task = TASKS.get(key)
+        if task is None:
+            raise KeyError(key)
+        if self.kind == "force" and not task.forces:
+            raise KeyError(f"task {key!r} declares no forces")
+        return _env_class(task, self.kind)
+
+    def __iter__(self) -> Iterator[str]:
+        return iter([k for k, t in TASKS.items() if self.kind == "robust" or t.forces])
+
+    def __len__(self) -> int:
+        return sum(1 for _ in self)
+
+
+ROBUST_ENVS: Mapping[str, type] = _Classes("robust")
+FORCE_ENVS: Mapping[str, type] = _Classes("force")
+
+RobustAnt = ROBUST_ENVS["ant"]
+RobustHalfCheetah = ROBUST_ENVS["halfcheetah"]
+RobustHopper = ROBUST_ENVS["hopper"]
+RobustHumanoidStandUp = ROBUST_ENVS["humanoidstandup"]
+RobustInvertedPendulum = ROBUST_ENVS["invertedpendulum"]
+RobustWalker2d = ROBUST_ENVS["walker"]
+
+ForceAnt = FORCE_ENVS["ant"]
+ForceHalfCheetah = FORCE_ENVS["halfcheetah"]
+ForceHopper = FORCE_ENVS["hopper"]
+ForceHumanoidStandUp = FORCE_ENVS["humanoidstandup"]
+ForceInvertedPendulum = FORCE_ENVS["invertedpendulum"]
+ForceWalker2d = FORCE_ENVS["walker"]
 
 AntParamsBound = _bounds_enum(TASKS["ant"])
 HalfCheetahParamsBound = _bounds_enum(TASKS["halfcheetah"])
@@ -103,30 +159,31 @@ HumanoidStandupParamsBound = _bounds_enum(TASKS["humanoidstandup"])
 InvertedPendulumParamsBound = _bounds_enum(TASKS["invertedpendulum"])
 Walker2dParamsBound = _bounds_enum(TASKS["walker"])
 
-ROBUST_ENVS: dict[str, type] = {
-    "ant": RobustAnt,
-    "halfcheetah": RobustHalfCheetah,
-    "hopper": RobustHopper,
-    "humanoidstandup": RobustHumanoidStandUp,
-    "invertedpendulum": RobustInvertedPendulum,
-    "walker": RobustWalker2d,
-}
-FORCE_ENVS: dict[str, type] = {
-    "ant": ForceAnt,
-    "halfcheetah": ForceHalfCheetah,
-    "hopper": ForceHopper,
-    "humanoidstandup": ForceHumanoidStandUp,
-    "invertedpendulum": ForceInvertedPendulum,
-    "walker": ForceWalker2d,
-}
+
+def __getattr__(name: str) -> Any:
+    """``Robust<Name>``, ``Force<Name>`` and ``<Name>ParamsBound`` of any registered task (so
+    classes of tasks registered later import, pickle and unpickle by name like the built-ins)."""
+    for task in list(TASKS.values()):
+        if name == f"Robust{task.name}":
+            return ROBUST_ENVS[task.key]
+        if name == f"Force{task.name}" and task.forces:
+            return FORCE_ENVS[task.key]
+        if name in (f"PaperRobust{task.name}", f"PaperForce{task.name}") and task.paper_id:
+            return _env_class(task, "robust" if "Robust" in name else "force", paper=True)
+        if name == f"{task.name}ParamsBound".replace("StandUp", "Standup"):
+            cached = _ENUMS.get(task.key)
+            if cached is None or cached[0] is not task:
+                _ENUMS[task.key] = cached = (task, _bounds_enum(task))
+            return cached[1]
+    raise AttributeError(f"module 'rrls.envs' has no attribute {name!r}")
 
 
-FAMILY_ENVS: dict[str, dict[str, type]] = {"robust": ROBUST_ENVS, "force": FORCE_ENVS}
+FAMILY_ENVS: dict[str, Mapping[str, type]] = {"robust": ROBUST_ENVS, "force": FORCE_ENVS}
 
 
 @functools.cache
-def _nominal(key: str, family: str) -> tuple[tuple[str, float], ...]:
-    env = FAMILY_ENVS[family][key]()
+def _nominal(cls: type) -> tuple[tuple[str, float], ...]:
+    env = cls()
     try:
         return tuple(env.get_params().items())
     finally:
@@ -140,7 +197,7 @@ def nominal_params(task: str, kind: str = "robust") -> dict[str, float]:
     """
     if kind not in FAMILY_ENVS:
         raise ValueError(f"unknown env family {kind!r}; valid: {', '.join(FAMILY_ENVS)}")
-    return dict(_nominal(get_task(task).key, kind))
+    return dict(_nominal(FAMILY_ENVS[kind][get_task(task).key]))
 
 
 def get_uncertainty_set(task: str, name: str = "3d") -> UncertaintySet:
@@ -269,6 +326,7 @@ __all__ = [
     "Walker2dParamsBound",
     "env_class",
     "get_uncertainty_set",
+    "paper_class",
     "nominal_params",
     "resolve",
 ]

@@ -9,17 +9,31 @@ bit-identical to ``gym.make("Hopper-v5")``.
 from __future__ import annotations
 
 import contextlib
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from typing import Any, ClassVar
 
 import mujoco
 import numpy as np
 from gymnasium.utils import EzPickle
 
-from rrls.params import ParamSpec
+from rrls.params import SETCONST_FIELDS, ParamSpec
 from rrls.tasks import TaskSpec
 
 _FORCES = "xfrc_applied"
+_FRICTION = frozenset({"geom_friction", "body_friction"})
+#: kinds always reported in ``info`` (the original code's); others once they are set
+_INFO_FIELDS = frozenset({"body_mass", "geom_friction", "xfrc_applied"})
+#: model arrays a parameter may write: saved when the env is built, restored by reset_params
+_SAVED = (
+    "body_mass",
+    "body_inertia",
+    "body_ipos",
+    "geom_friction",
+    "dof_damping",
+    "dof_armature",
+    "dof_frictionloss",
+    "actuator_gear",
+)
 
 
 @contextlib.contextmanager
@@ -44,35 +58,69 @@ class ModifiedParamsMixin:
     """Adds the ``ModifiedParamsEnv`` interface to a Gymnasium MuJoCo env.
 
     Parameters are set by constructor keywords, :meth:`set_params` (partial updates) or
-    ``reset(options={...})``; :meth:`get_params` returns all of them; ``info`` at reset and at
-    every step carries the current values. ``scale_inertia=True`` scales a body's inertia with
-    its mass (default: the paper's semantics, mass only).
+    ``reset(options={...})``; :meth:`get_params` returns all of them. ``info`` at reset and at
+    every step carries the current values of the original code's kinds (masses,
+    ``worldfriction``, forces) and of every parameter set since the model was built: copying
+    all ~30-140 rows into every step's ``info`` would cost up to 10 % of a step.
+    ``scale_inertia=True`` scales a body's inertia with its mass (default: the paper's
+    semantics, mass only).
     """
 
     task: ClassVar[TaskSpec]
     param_specs: ClassVar[tuple[ParamSpec, ...]]
+    #: built on the paper's physics (the v4 env, ``worldfriction`` on the floor only)
+    paper: ClassVar[bool] = False
+    #: the class of the same task and family on the paper's physics (None: there is none)
+    paper_twin: ClassVar[Callable[[], type] | None] = None
 
     # -- construction -------------------------------------------------------------------------
-    def __init__(self, *, scale_inertia: bool = False, **kwargs: Any) -> None:
+    def __new__(cls, *args: Any, **kwargs: Any) -> Any:
+        """``paper=True`` builds the class's twin on the paper's physics instead."""
+        if kwargs.get("paper") and not cls.paper:
+            if cls.paper_twin is None:
+                raise ValueError(
+                    f"{cls.__name__} has no paper physics (paper=True is for the paper's six "
+                    "tasks: their Gymnasium v4 envs)"
+                )
+            twin = cls.paper_twin()
+            obj = twin.__new__(twin, *args, **kwargs)
+            obj.__init__(*args, **kwargs)  # not a subclass of cls: Python would skip __init__
+            return obj
+        return super().__new__(cls)
+
+    def __init__(self, *, scale_inertia: bool = False, paper: bool = False, **kwargs: Any) -> None:
         params = {k: kwargs.pop(k) for k in list(kwargs) if k in self._names()}
         try:
-            super().__init__(**kwargs)  # the Gymnasium v5 env
+            super().__init__(**{**self.task.env_kwargs, **kwargs})  # the Gymnasium env
         except TypeError as exc:
             raise TypeError(
                 f"{exc}. {type(self).__name__} takes the physical parameters "
-                f"{', '.join(self.param_names())} and the keywords of {self.task.v5_id}"
+                f"{', '.join(self.param_names())} and the keywords of "
+                f"{self.task.v5_id or self.task.base_class().__name__}"
             ) from None
         # EzPickle records *our* constructor arguments, so copies rebuild a robust env.
-        EzPickle.__init__(self, scale_inertia=scale_inertia, **params, **kwargs)
+        physics = {"paper": True} if self.paper else {}
+        EzPickle.__init__(self, scale_inertia=scale_inertia, **physics, **params, **kwargs)
         self.scale_inertia = bool(scale_inertia)
         model = self.model
         self._rows = {s.name: (s, s.resolve(model)) for s in self.param_specs}
-        self._mass0 = model.body_mass.copy()
-        self._inertia0 = model.body_inertia.copy()
-        self._friction0 = model.geom_friction.copy()
+        if self.paper:  # the paper's code wrote worldfriction to the floor (first world geom) only
+            floor = np.flatnonzero(model.geom_bodyid == 0)[:1]
+            for name, (spec, _) in list(self._rows.items()):
+                if spec.field == "geom_friction" and spec.target == "*":
+                    self._rows[name] = (spec, floor)
+        self._saved = {f: getattr(model, f).copy() for f in _SAVED}
+        self._mass0 = self._saved["body_mass"]
+        self._inertia0 = self._saved["body_inertia"]
+        self._ipos0 = self._saved["body_ipos"]
+        self._gravity0 = model.opt.gravity.copy()
+        self._timestep0 = float(model.opt.timestep)
+        self._viscosity0 = float(model.opt.viscosity)
         # mj_setConst uses its MjData as scratch space (it overwrites qpos): never the live one.
         self._scratch = mujoco.MjData(model)
+        self._friction_rows = [s for s in self.param_specs if s.field in _FRICTION]
         self._values: dict[str, float] = {s.name: self._read(s) for s in self.param_specs}
+        self._info = self._info_values()
         self._overrides: dict[str, float] = {}
         self._init_params: dict[str, float] = {}
         if params:
@@ -104,17 +152,38 @@ class ModifiedParamsMixin:
         """Set some parameters; the others keep their values.
 
         Everything is validated before anything is written, so bad input changes nothing.
+        Values are written in the order given: where two parameters write the same geoms
+        (``worldfriction`` and ``footfriction``), the later one wins for those geoms, and
+        ``get_params`` reports what the model holds.
         """
         updates = self._validate(params)
-        mass_changed = False
+        set_const = friction = False
         for name, value in updates.items():
             spec, idx = self._rows[name]
             self._write(spec, idx, value)
-            mass_changed |= spec.field == "body_mass"
-        if mass_changed:
-            mujoco.mj_setConst(self.model, self._scratch)
+            set_const |= spec.field in SETCONST_FIELDS
+            friction |= spec.field in _FRICTION
+        if set_const:
+            try:
+                mujoco.mj_setConst(self.model, self._scratch)
+            except mujoco.FatalError as err:  # put the model back: a refused call changes nothing
+                for name in reversed(updates):
+                    spec, idx = self._rows[name]
+                    self._write(spec, idx, self._values[name])
+                mujoco.mj_setConst(self.model, self._scratch)
+                raise ValueError(f"MuJoCo refused {updates}: {err}") from None
         self._values.update(updates)
-        self._overrides.update(updates)
+        info = self._info
+        if friction:  # rows sharing geoms: report what the model now holds
+            for spec in self._friction_rows:
+                self._values[spec.name] = value = self._read(spec)
+                if spec.name in info:
+                    info[spec.name] = value
+        for name in updates:
+            info[name] = self._values[name]
+        for name, value in updates.items():  # latest last, so copies replay in the same order
+            self._overrides.pop(name, None)
+            self._overrides[name] = value
 
     def reset_params(self) -> None:
         """Restore the model exactly as built (nominal, or the constructor's parameters).
@@ -123,15 +192,21 @@ class ModifiedParamsMixin:
         foot friction 2.0, which ``worldfriction`` overwrites).
         """
         model = self.model
-        model.body_mass[:] = self._mass0
-        model.body_inertia[:] = self._inertia0
-        model.geom_friction[:] = self._friction0
+        for name, saved in self._saved.items():
+            getattr(model, name)[:] = saved
+        model.opt.gravity[:] = self._gravity0
+        model.opt.timestep = self._timestep0
+        model.opt.viscosity = self._viscosity0
         self.data.xfrc_applied[:] = 0.0
         mujoco.mj_setConst(model, self._scratch)
         self._values = {s.name: self._read(s) for s in self.param_specs}
+        self._info = self._info_values()
         self._overrides = {}
         if self._init_params:
             self.set_params(**self._init_params)
+
+    def _info_values(self) -> dict[str, float]:
+        return {s.name: self._values[s.name] for s in self.param_specs if s.field in _INFO_FIELDS}
 
     def _validate(self, params: dict[str, Any]) -> dict[str, float]:
         names = self._names()
@@ -156,22 +231,54 @@ class ModifiedParamsMixin:
 
     def _read(self, spec: ParamSpec) -> float:
         idx = self._rows[spec.name][1]
-        if spec.field == "body_mass":
-            return float(self.model.body_mass[idx[0]])
-        if spec.field == "geom_friction":  # the floor's (first world geom): the paper's reference
-            floor = np.flatnonzero(self.model.geom_bodyid == 0)[0]
-            return float(self.model.geom_friction[floor, 0])
+        model, field = self.model, spec.field
+        if field == "body_mass":
+            return float(model.body_mass[idx[0]])
+        if field == "geom_friction":
+            if spec.target != "*":
+                return float(model.geom_friction[idx[0], 0])
+            # every geom: the floor's (first world geom), the paper's reference
+            floor = np.flatnonzero(model.geom_bodyid == 0)[0]
+            return float(model.geom_friction[floor, 0])
+        if field == "body_friction":
+            return float(model.geom_friction[idx[0], 0])
+        if field == "body_ipos":
+            b, k = idx[0], spec.component
+            return float(model.body_ipos[b, k] - self._ipos0[b, k])
+        if field in ("dof_damping", "dof_armature", "dof_frictionloss"):
+            return float(getattr(model, field)[idx[0]])
+        if field == "actuator_gear":
+            return float(model.actuator_gear[idx[0], 0])
+        if field == "opt_gravity":
+            return float(-model.opt.gravity[2])
+        if field == "opt_timestep":
+            return float(model.opt.timestep)
+        if field == "opt_viscosity":
+            return float(model.opt.viscosity)
         return float(self.data.xfrc_applied[idx[0], spec.component])
 
     def _write(self, spec: ParamSpec, idx: np.ndarray, value: float) -> None:
-        model = self.model
-        if spec.field == "body_mass":
+        model, field = self.model, spec.field
+        if field == "body_mass":
             b = idx[0]
             model.body_mass[b] = value
             if self.scale_inertia:
                 model.body_inertia[b] = self._inertia0[b] * (value / self._mass0[b])
-        elif spec.field == "geom_friction":
+        elif field in ("geom_friction", "body_friction"):
             model.geom_friction[idx, 0] = value
+        elif field == "body_ipos":
+            b, k = idx[0], spec.component
+            model.body_ipos[b, k] = self._ipos0[b, k] + value
+        elif field in ("dof_damping", "dof_armature", "dof_frictionloss"):
+            getattr(model, field)[idx[0]] = value
+        elif field == "actuator_gear":
+            model.actuator_gear[idx[0], 0] = value
+        elif field == "opt_gravity":
+            model.opt.gravity[2] = -value
+        elif field == "opt_timestep":
+            model.opt.timestep = value
+        elif field == "opt_viscosity":
+            model.opt.viscosity = value
         else:
             self.data.xfrc_applied[idx[0], spec.component] = value
 
@@ -181,7 +288,7 @@ class ModifiedParamsMixin:
         if options:
             self.set_params(**options)
         obs, info = super().reset(seed=seed, options=options)
-        info.update(self._values)
+        info.update(self._info)
         return obs, info
 
     def reset_model(self):  # noqa: ANN201 - Gymnasium's signature
@@ -193,7 +300,7 @@ class ModifiedParamsMixin:
 
     def step(self, action):  # noqa: ANN201 - Gymnasium's signature
         obs, reward, terminated, truncated, info = super().step(action)
-        info.update(self._values)
+        info.update(self._info)
         return obs, reward, terminated, truncated, info
 
     # -- copies -------------------------------------------------------------------------------

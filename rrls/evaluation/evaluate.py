@@ -233,15 +233,16 @@ def evaluate(
     seed: int = 0,
     workers: int | None = None,
     *,
-    endpoint: bool = True,
+    endpoint: bool | None = None,
     out_dir: str | Path | None = None,
     batch_size: int | None = None,
     progress: bool | None = None,
-    max_episode_steps: int = 1000,
+    max_episode_steps: int | None = None,
     disruptors: Mapping[str, float | Sequence[float]] | None = None,
     schedule: Any = None,
     context: bool = False,
     split: Split | None = None,
+    paper: bool = False,
 ) -> EvaluationResult:
     """Evaluate ``policy`` over a uniform mesh of ``task``'s uncertainty set (paper §4).
 
@@ -251,6 +252,12 @@ def evaluate(
     ``workers`` defaults to every core; results do not depend on it nor on ``batch_size`` (live
     episodes per worker). With ``out_dir``, finished chunks are kept there and a re-run with the
     same arguments resumes; ``summary.json`` and the episode table are written at the end.
+    ``max_episode_steps`` defaults to the task's episode length (1000 for the paper's tasks).
+    ``paper=True`` runs the paper's protocol on the paper's physics: the Gymnasium v4 envs with
+    ``worldfriction`` on the floor only, and (unless ``endpoint`` says otherwise) the original
+    code's ``np.arange`` mesh, which stops short of the upper bounds. The default is Gymnasium
+    v5 with rrls's parameter semantics and a mesh reaching both bounds; ``summary.json`` records
+    which (``physics``).
 
     Beyond static dynamics (the README section of that name):
 
@@ -267,9 +274,17 @@ def evaluate(
     Rows stay equal to the one-episode loop on the same wrapper stack
     (``env.set_params(**point); env.reset(seed=seed)``).
     """
+    from rrls.envs import paper_class
     from rrls.evaluation import runner
+    from rrls.tasks import get_task
 
     mesh_box, resolved, stack = _plan(task, uncertainty, disruptors, schedule, context)
+    if max_episode_steps is None:
+        max_episode_steps = get_task(resolved.task).max_episode_steps
+    if endpoint is None:
+        endpoint = not paper
+    if paper:
+        paper_class(resolved.env_class)  # a task without paper physics: refused now
     _check_counts(episodes=episodes, nb_mesh_dim=nb_mesh_dim, max_episode_steps=max_episode_steps)
     if workers is not None:
         _check_counts(workers=workers)
@@ -293,8 +308,10 @@ def evaluate(
         seeds,
         max_episode_steps,
         None if stack.empty else stack,
+        paper=bool(paper),
     )
     settings = {
+        "physics": "paper" if paper else "v5",
         "mesh": nb_mesh_dim,
         "endpoint": endpoint,
         "episodes": episodes,
@@ -495,7 +512,7 @@ def _evaluate(
     config = {
         "uncertainty": _box_json(box),
         "uncertainty_name": resolved.name or resolved.label,
-        "env": f"rrls/{kind}-{key}-v0",
+        "env": f"rrls/{kind}-{key}-v0" + (" (paper=True)" if spec.paper else ""),
         **settings,
         "chunk": runner.CHUNK,
         "policy_fingerprint": policy_fingerprint(policy, obs_dim),

@@ -5,7 +5,10 @@ dominates (Ant, HumanoidStandup). For the planar tasks Gymnasium's Python around
 (observation, health checks, reward, info dict) costs 25-40 % of a step, so ``FastStepper`` runs the
 same MuJoCo calls per lane and then computes observations, rewards and terminations for all lanes
 at once with numpy, with the *same operations in the same order and dtypes* as Gymnasium v5's
-``step`` — the equivalence tests compare both paths bit for bit, task by task.
+``step`` — the equivalence tests compare both paths bit for bit, task by task. Every parameter
+kind lives in the ``MjModel`` that ``mj_step`` reads, so the fast path is exact for all of them;
+the one Python-side constant, ``dt`` (``frame_skip * opt.timestep``, a parameter), is read per
+lane at each reset.
 
 Both report a lane as diverged when MuJoCo flagged the simulation as unstable during the episode
 (``mjWARN_BADQPOS``/``BADQVEL``/``BADQACC``: MuJoCo then resets the data and carries on, so the
@@ -79,7 +82,8 @@ class FastStepper(GenericStepper):
         self.qposs = [d.qpos for d in self.datas]
         self.qvels = [d.qvel for d in self.datas]
         self.frame_skip = env.frame_skip
-        self.dt = env.dt
+        # per lane: the timestep is a parameter (Gymnasium's dt = frame_skip * opt.timestep)
+        self.dts = np.array([e.dt for e in self.envs])
         self.x_before = np.zeros(len(self.envs))
         if task != "invertedpendulum":
             self.w_forward = env._forward_reward_weight
@@ -94,6 +98,7 @@ class FastStepper(GenericStepper):
 
     def reset(self, lane: int, obs: np.ndarray) -> None:
         self.x_before[lane] = self.datas[lane].qpos[0]
+        self.dts[lane] = self.envs[lane].dt
 
     def step(
         self, lanes: np.ndarray, actions: np.ndarray
@@ -122,7 +127,7 @@ class FastStepper(GenericStepper):
             return obs, rewards, terminated, diverged | ~finite
 
         x_after = qpos[:, 0]
-        x_velocity = (x_after - self.x_before[lanes]) / self.dt
+        x_velocity = (x_after - self.x_before[lanes]) / self.dts[lanes]
         self.x_before[lanes] = x_after
         position = qpos[:, 1:] if self.exclude_x else qpos
         velocity = qvel if self.task == "halfcheetah" else np.clip(qvel, -10, 10)

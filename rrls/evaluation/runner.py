@@ -53,6 +53,7 @@ class RolloutSpec:
     seeds: np.ndarray  # (P, E) uint32
     max_episode_steps: int = 1000
     stack: Any = None  # an EnvStack (disruptors, schedule, context) around each bare env
+    paper: bool = False  # the paper's physics (v4 envs, floor-only worldfriction)
 
     @property
     def n_episodes(self) -> int:
@@ -83,16 +84,18 @@ def episode_seeds(seed: int, n_points: int, episodes: int) -> np.ndarray:
 # -- one worker ------------------------------------------------------------------------------------
 #: envs per (task, family, stack), reused within one evaluation (building is slower than
 #: resetting); ``evaluate`` and ``search_worst_case`` empty it when they return
-_ENV_CACHE: dict[tuple[str, str, Any], list[Any]] = {}
+_ENV_CACHE: dict[tuple[str, str, Any, bool], list[Any]] = {}
 
 
 def _envs(spec: RolloutSpec, n: int) -> list[Any]:
-    """Bare envs of the spec's family (in the spec's stack of wrappers, if any); every lane is
-    reset before use."""
-    from rrls.envs import FAMILY_ENVS
+    """Bare envs of the spec's family and physics (in the spec's stack of wrappers, if any);
+    every lane is reset before use."""
+    from rrls.envs import FAMILY_ENVS, paper_class
 
-    envs = _ENV_CACHE.setdefault((spec.task, spec.kind, spec.stack), [])
+    envs = _ENV_CACHE.setdefault((spec.task, spec.kind, spec.stack, spec.paper), [])
     cls = FAMILY_ENVS[spec.kind][spec.task]
+    if spec.paper:
+        cls = paper_class(cls)
     while len(envs) < n:
         envs.append(cls() if spec.stack is None else spec.stack(cls()))
     return envs[:n]

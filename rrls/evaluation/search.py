@@ -54,18 +54,22 @@ def search_worst_case(
     seed: int = 0,
     workers: int | None = None,
     popsize: int | None = None,
-    max_episode_steps: int = 1000,
+    max_episode_steps: int | None = None,
 ) -> WorstCaseSearch:
     """Search ``uncertainty``'s box for the parameters minimising ``policy``'s mean return.
 
     ``budget`` caps the candidate points evaluated (each over ``episodes`` episodes with shared
     seeds). The population (``popsize`` points, default ``max(8, 5 * dim)``) is evaluated in one
     engine call per generation. Returns the worst point, its return and the trace.
+    ``max_episode_steps`` defaults to the task's episode length (1000 for the paper's tasks).
     """
     from rrls.envs import resolve
     from rrls.evaluation import runner
+    from rrls.tasks import get_task
 
     resolved = resolve(task, uncertainty)
+    if max_episode_steps is None:
+        max_episode_steps = get_task(resolved.task).max_episode_steps
     if resolved.is_nominal:
         raise ValueError("the nominal model has no parameters to search over")
     if budget < 2 or episodes < 1:

@@ -1,0 +1,111 @@
+"""paper=True: the paper's physics (Gymnasium v4 envs, worldfriction on the floor only, the
+np.arange mesh) on demand; the default stays v5 with rrls's semantics; results record which."""
+
+from __future__ import annotations
+
+import copy
+import json
+import pickle
+import warnings
+
+import gymnasium as gym
+import numpy as np
+import pytest
+
+from rrls.envs import ROBUST_ENVS, RobustHopper, RobustWalker2d
+from rrls.evaluation import evaluate
+
+
+def _v4(env_id: str) -> gym.Env:
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", DeprecationWarning)
+        return gym.make(env_id)
+
+
+def _rollout(env, actions, seed=0):
+    obs, _ = env.reset(seed=seed)
+    out = [obs]
+    for a in actions:
+        obs, _, term, trunc, _ = env.step(a)
+        out.append(obs)
+        if term or trunc:
+            break
+    return np.array(out)
+
+
+@pytest.mark.parametrize(
+    "task, v4", [("hopper", "Hopper-v4"), ("walker", "Walker2d-v4"), ("ant", "Ant-v4")]
+)
+def test_paper_env_is_the_v4_env_bit_for_bit(task, v4):
+    env = gym.make(f"rrls/robust-{task}-v0", paper=True)
+    assert type(env.unwrapped).__name__.startswith("PaperRobust")
+    assert env.unwrapped.paper and not gym.make(f"rrls/robust-{task}-v0").unwrapped.paper
+    plain = _v4(v4)
+    assert env.observation_space.shape == plain.observation_space.shape
+    actions = np.random.default_rng(0).uniform(-1, 1, (50, *plain.action_space.shape))
+    np.testing.assert_array_equal(_rollout(env, actions), _rollout(plain, actions))
+
+
+def test_paper_worldfriction_writes_the_floor_only():
+    env = RobustWalker2d(paper=True)
+    env.set_params(worldfriction=0.3)
+    friction = env.model.geom_friction[:, 0]
+    assert friction[0] == 0.3 and friction[4] == 0.9 and friction[7] == 1.9  # v4's feet
+    assert RobustWalker2d(worldfriction=0.3).model.geom_friction[:, 0].tolist() == [0.3] * 8
+    env.reset_params()
+    assert env.model.geom_friction[0, 0] == 0.7
+
+
+@pytest.mark.parametrize("how", ["deepcopy", "pickle"])
+def test_paper_envs_copy_as_paper_envs(how):
+    env = RobustHopper(paper=True, torsomass=2.0)
+    twin = copy.deepcopy(env) if how == "deepcopy" else pickle.loads(pickle.dumps(env))
+    assert type(twin) is type(env) and twin.paper and twin.get_params() == env.get_params()
+
+
+def test_tasks_without_paper_physics_refuse_it():
+    with pytest.raises(ValueError, match="RobustSwimmer has no paper physics"):
+        ROBUST_ENVS["swimmer"](paper=True)
+    with pytest.raises(ValueError, match="has no paper physics"):
+        evaluate(lambda o: np.zeros((len(o), 2)), "swimmer", "1d", paper=True, workers=1)
+
+
+def test_evaluate_paper_uses_v4_and_the_arange_mesh_and_records_it(tmp_path):
+    def policy(obs):
+        return np.tanh(obs[:, :3])
+
+    paper = evaluate(
+        policy, "hopper", "1d", nb_mesh_dim=3, episodes=1, workers=1, max_episode_steps=30,
+        paper=True, out_dir=tmp_path / "paper",
+    )  # fmt: skip
+    assert paper.episodes["worldfriction"].round(6).tolist() == [0.1, 1.066667, 2.033333]
+    summary = json.loads((tmp_path / "paper" / "summary.json").read_text())
+    assert summary["physics"] == "paper" and summary["endpoint"] is False
+    for _, row in paper.episodes.iterrows():
+        env = gym.make("rrls/robust-hopper-v0", paper=True, max_episode_steps=30)
+        env.set_params(worldfriction=row["worldfriction"])
+        obs, _ = env.reset(seed=int(row["seed"]))
+        total, done = 0.0, False
+        while not done:
+            obs, r, term, trunc, _ = env.step(policy(obs[None])[0])
+            total += r
+            done = term or trunc
+        assert total == row["return"]
+    v5 = evaluate(
+        policy, "hopper", "1d", nb_mesh_dim=3, episodes=1, workers=1, max_episode_steps=30
+    )
+    assert v5.episodes["worldfriction"].tolist()[-1] == 3.0
+    assert v5.summary()["physics"] == "v5"
+
+
+def test_cli_evaluate_physics_paper(tmp_path, capsys):
+    from rrls.cli import main
+    from rrls.evaluation.policies import MLPPolicy
+
+    MLPPolicy.random(4, 1, (8,), seed=0).save(tmp_path / "p.npz")
+    args = ["evaluate", str(tmp_path / "p.npz"), "--task", "invertedpendulum"]
+    args += ["--uncertainty", "1d", "--mesh", "2", "--episodes", "1", "--workers", "1"]
+    assert main([*args, "--physics", "paper", "--out", str(tmp_path / "e")]) == 0
+    assert "(paper physics)" in capsys.readouterr().out
+    summary = json.loads((tmp_path / "e" / "summary.json").read_text())
+    assert summary["physics"] == "paper" and summary["endpoint"] is False
