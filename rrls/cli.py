@@ -221,7 +221,7 @@ def _dispatch(args: argparse.Namespace) -> int:
         return _train(args)
     if args.command == "evaluate-dynamic":
         return _evaluate_dynamic(args)
-    if args.command in ("benchmark", "report", "quickstart"):
+    if args.command in ("benchmark", "report", "submit", "quickstart"):
         from rrls.experiments.cli import run
 
         return run(args)
