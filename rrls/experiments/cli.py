@@ -70,6 +70,20 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:
     )
     r.add_argument("dir", help="a `rrls benchmark --out` directory")
     r.add_argument("--no-plots", action="store_true", help="skip the figures")
+    r.add_argument(
+        "--reference",
+        metavar="FILE",
+        help="reference results (.json/.csv, or a shipped name: paper) normalising the tasks "
+        "without their own TD3 and M2TD3 runs; refused if measured under another protocol "
+        "(physics, set, mesh, episodes)",
+    )
+    r.add_argument(
+        "--export-reference",
+        metavar="FILE",
+        help="also write this benchmark's results (every algorithm, per-seed values) as a "
+        "reference file (.json, or .csv) another lab can pass to --reference",
+    )
+    r.add_argument("--label", help="--export-reference: the reference's label")
 
     s = sub.add_parser(
         "submit",
@@ -194,9 +208,22 @@ def _report(args: argparse.Namespace) -> int:
         return _fail("report", f"{root} is not a benchmark directory (no runs/ or results/)")
     if (root / "runs").is_dir():
         build_store(root)
-    path = make_report(root, plots=not args.no_plots)
+    from rrls.experiments.reference import ReferenceError, export_reference
+
+    try:
+        path = make_report(root, plots=not args.no_plots, reference=args.reference)
+        exported = None
+        if args.export_reference:
+            exported = export_reference(root, args.export_reference, label=args.label)
+    except ReferenceError as err:
+        return _fail("report", str(err))
     print(_table(root))
     print(f"report: {path}")
+    if exported is not None:
+        print(
+            f"reference: {args.export_reference} ({exported.label!r}: "
+            f"{len(exported.rows)} cells; `rrls report DIR --reference {args.export_reference}`)"
+        )
     return 0
 
 

@@ -110,6 +110,9 @@ def build_store(root: str | Path) -> Path:
                         "average_case": result["average_case"],
                         "dynamic_mean": result.get("dynamic_mean"),
                         "source": "submitted" if result.get("submitted") else "trained",
+                        "policy_kind": (result.get("submitted") or {}).get("kind"),
+                        "policy_source": (result.get("submitted") or {}).get("source"),
+                        "policy_sha256": (result.get("submitted") or {}).get("sha256"),
                         "run_dir": run.name,
                     }
                 ]
