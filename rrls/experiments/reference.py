@@ -236,7 +236,7 @@ def _from_csv(path: Path) -> Reference:
     import pandas as pd
 
     try:
-        frame = pd.read_csv(path, keep_default_na=False, na_values=[""])
+        frame = pd.read_csv(path, keep_default_na=False, na_values=[""], dtype={"values": str})
     except Exception as err:  # noqa: BLE001 - any unreadable table: one line naming it
         raise _fail(path, f"unreadable CSV: {err}") from None
     need = ["task", "uncertainty", "algorithm", "metric", "mean", "label", "physics"]

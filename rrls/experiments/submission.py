@@ -17,8 +17,8 @@ trains nor touches a submitted algorithm, and rebuilding the store keeps it.
 >>> try:
 ...     check_name("TD3")
 ... except ValueError as err:
-...     print(str(err)[:46])
---algo 'TD3' is a built-in algorithm (reserved:
+...     print(str(err).split(" (")[0])
+--algo 'TD3' is a built-in algorithm
 """
 
 from __future__ import annotations
