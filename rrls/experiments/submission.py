@@ -91,16 +91,22 @@ def load_spec(bench_dir: str | Path) -> Spec:
         raise SubmitError(f"{path} is not a benchmark spec ({err})") from None
 
 
-def create_benchmark(bench_dir: str | Path, preset: str, tasks: tuple[str, ...]) -> Spec:
+def create_benchmark(
+    bench_dir: str | Path, preset: str, tasks: tuple[str, ...], **overrides: Any
+) -> Spec:
     """An empty benchmark (no built-in algorithm to train) with ``preset``'s protocol on
-    ``tasks``: submissions compare against a reference file (``rrls report --reference``), and
-    ``rrls benchmark --out DIR --preset P`` may later add the baselines to it."""
+    ``tasks`` (``overrides``: ``make_spec``'s options, e.g. ``mesh``, ``episodes``):
+    submissions compare against a reference file (``rrls report --reference``), and
+    ``rrls benchmark --out DIR --preset P`` (same options) may later add the baselines to it.
+    A directory already holding a benchmark is refused."""
     from dataclasses import replace
 
     from rrls._io import atomic_write_json
     from rrls.experiments.spec import make_spec
 
-    base = make_spec(preset, tasks=",".join(tasks))
+    if (Path(bench_dir) / "benchmark.json").exists():
+        raise SubmitError(f"{bench_dir} already holds a benchmark (benchmark.json)")
+    base = make_spec(preset, tasks=",".join(tasks), **overrides)
     spec = replace(base, algos=())
     atomic_write_json(Path(bench_dir) / "benchmark.json", spec.to_json())
     return spec
