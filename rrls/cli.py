@@ -96,7 +96,11 @@ def build_parser(with_train: bool = True) -> argparse.ArgumentParser:
         "Re-running the same command with the same --out resumes an interrupted evaluation; "
         "a second evaluation into the same --out while one runs is refused.",
     )
-    ev.add_argument("policy", help="a policy file (.npz MLP) or an `rrls train` run directory")
+    ev.add_argument(
+        "policy",
+        help="a policy file (.npz MLP), an `rrls train` run directory, a Stable-Baselines3 .zip "
+        "or module:attribute (the last two run code from the file/module)",
+    )
     ev.add_argument(
         "--task",
         type=task_key,
