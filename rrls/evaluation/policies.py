@@ -247,7 +247,7 @@ def as_policy(obj: Any) -> Callable[[np.ndarray], np.ndarray]:
         return load_policy(obj)
     module_names = {c.__module__.split(".")[0] for c in type(obj).__mro__}
     # an SB3 model or SB3 policy (an nn.Module whose forward is not the action: predict is)
-    if hasattr(obj, "predict") and hasattr(obj, "observation_space"):
+    if _is_sb3(obj):
         return SB3Policy(obj)
     if "torch" in module_names and hasattr(obj, "parameters"):
         return TorchPolicy(obj)
@@ -256,6 +256,11 @@ def as_policy(obj: Any) -> Callable[[np.ndarray], np.ndarray]:
     raise TypeError(
         f"cannot use {type(obj).__name__} as a policy: expected a callable obs -> action"
     )
+
+
+def _is_sb3(obj: Any) -> bool:
+    """An SB3 model (``predict`` and ``policy``) or SB3 policy (``predict`` and spaces)."""
+    return hasattr(obj, "predict") and (hasattr(obj, "policy") or hasattr(obj, "observation_space"))
 
 
 def load_policy(path: str | Path) -> Callable[[np.ndarray], np.ndarray]:
@@ -431,7 +436,7 @@ def policy_source(obj: Any) -> dict[str, Any]:
             "file": str(path.resolve()),
         }
     module_names = {c.__module__.split(".")[0] for c in type(obj).__mro__}
-    if hasattr(obj, "predict") and hasattr(obj, "observation_space"):
+    if _is_sb3(obj):
         kind = "sb3-model"
     elif "torch" in module_names and hasattr(obj, "parameters"):
         kind = "torch-module"
