@@ -42,3 +42,16 @@ def test_tutorial_a_submits_an_sb3_agent_into_a_benchmark(tmp_path):
     assert summary["results"]["hopper"]["sac-dr"]["worst_case"]["n_seeds"] == 1
     assert summary["submitted"][0]["policy_kind"] == "sb3-zip"
     assert "| sac-dr (submitted) |" in (tmp_path / "bench-hopper/report/report.md").read_text()
+
+
+def test_tutorial_c_compares_a_method_with_the_shipped_quick_reference(tmp_path):
+    pytest.importorskip("stable_baselines3")
+    pytest.importorskip("scipy")
+    out = run_tutorial("compare_with_references.py", "--steps", "200", "--seeds", "1", cwd=tmp_path)
+    assert "the paper's tables are refused here" in out and "physics: 'paper-v4' there" in out
+    summary = json.loads((tmp_path / "bench-mine" / "report" / "summary.json").read_text())
+    assert summary["normalisation"]["invertedpendulum"]["worst_case"] == "reference"
+    assert summary["results"]["invertedpendulum"]["my-sac"]["normalised"]["worst_case"]
+    assert summary["reference"]["label"].startswith("rrls quick preset")
+    md = (tmp_path / "bench-mine" / "report" / "report.md").read_text()
+    assert "## Reference: rrls quick preset" in md
