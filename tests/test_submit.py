@@ -304,3 +304,14 @@ def test_damaged_reference_is_named(tmp_path):
 def test_create_benchmark_has_the_presets_protocol(tmp_path):
     spec = create_benchmark(tmp_path / "b", "quick", ("invertedpendulum",))
     assert spec.algos == () and spec.protocol() == make_spec("quick").protocol()
+
+
+def test_shipped_quick_reference_fits_the_quick_preset(tmp_path):
+    ref = load_reference("quick")
+    assert ref.physics == "rrls-v5" and ref.steps == 20_000 and ref.sets == ["1d"]
+    assert set(ref.algorithms()) == {"td3", "dr", "rarl", "nrmdp", "m2td3"}
+    assert all(len(r["values"]) == r["n_seeds"] == 2 for r in ref.rows)
+    spec = create_benchmark(tmp_path / "b", "quick", ("invertedpendulum",))
+    from rrls.experiments.reference import check_compatible
+
+    check_compatible(ref, spec.to_json())  # no error: same physics, set, mesh, episodes
