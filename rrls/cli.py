@@ -117,7 +117,11 @@ def build_parser(with_train: bool = True) -> argparse.ArgumentParser:
         "Re-running the same command with the same --out resumes an interrupted evaluation; "
         "a second evaluation into the same --out while one runs is refused.",
     )
-    ev.add_argument("policy", help="a policy file (.npz MLP) or an `rrls train` run directory")
+    ev.add_argument(
+        "policy",
+        help="a policy file (.npz MLP), an `rrls train` run directory, a Stable-Baselines3 .zip "
+        "or module:attribute (the last two run code from the file/module)",
+    )
     ev.add_argument(
         "--task",
         type=task_key,
@@ -251,7 +255,7 @@ def _dispatch(args: argparse.Namespace) -> int:
         return _train(args)
     if args.command == "evaluate-dynamic":
         return _evaluate_dynamic(args)
-    if args.command in ("benchmark", "report", "quickstart"):
+    if args.command in ("benchmark", "report", "submit", "quickstart"):
         from rrls.experiments.cli import run
 
         return run(args)

@@ -170,6 +170,44 @@ def test_killed_driver_leaves_no_process_and_rerun_gives_identical_numbers(smoke
 
 
 @needs_torch
+def test_submitting_a_runs_policy_reproduces_its_numbers_in_the_report(smoke, tmp_path, capsys):
+    """`rrls submit` evaluates under the benchmark's protocol: TD3's own run directory,
+    submitted under another name (with RARL's adversary), gives TD3's numbers exactly, and
+    `rrls report` shows it in every table and the figures with no other step."""
+    import shutil
+
+    bench = tmp_path / "bench"
+    shutil.copytree(smoke, bench, ignore=shutil.ignore_patterns(".lock"))
+    runs = bench / "runs"
+    argv = ["submit", str(bench), "--algo", "td3-again", "--task", "invertedpendulum"]
+    argv += ["--seed", "0", str(runs / "td3-invertedpendulum-1d-seed0")]
+    argv += ["--adversary", str(runs / "rarl-invertedpendulum-1d-seed0" / "adversary.npz")]
+    assert main(argv) == 0
+    assert main(["report", str(bench)]) == 0
+    out = capsys.readouterr().out
+    assert "td3-again" in out
+    summary = json.loads((bench / "report" / "summary.json").read_text())
+    cells = summary["results"]["invertedpendulum"]
+    for metric in ("worst_case", "average_case"):
+        assert cells["td3-again"][metric] == cells["td3"][metric]
+        assert cells["td3-again"]["normalised"][metric] == cells["td3"]["normalised"][metric]
+    assert cells["td3-again"]["dynamic"]["n_seeds"] == 1
+    assert "td3-again" in summary["aggregate"]
+    assert summary["aggregate"]["td3-again"]["poi_over_td3_worst_case"]["value"] == 0.5
+    for name in ("raw_worst_case", "normalised_average_case", "dynamic"):
+        table = pd.read_csv(bench / "report" / "tables" / f"{name}.csv")
+        assert "td3-again" in set(table["algorithm"])
+        assert "td3-again" in (bench / "report" / "tables" / f"{name}.tex").read_text()
+    ev = pd.read_parquet(bench / "results" / "evaluations.parquet")
+    assert "td3-again" in set(ev["algorithm"])  # the return-over-set figure's data
+    assert (bench / "report" / "figures" / "returns_invertedpendulum.png").exists()
+    # `rrls benchmark` over the directory again neither trains nor drops the submission
+    assert main([*SMOKE, "--out", str(bench)]) == 0
+    again = json.loads((bench / "report" / "summary.json").read_text())
+    assert again["results"]["invertedpendulum"]["td3-again"] == cells["td3-again"]
+
+
+@needs_torch
 def test_ray_backend_runs_the_same_function(smoke, tmp_path):
     ray = pytest.importorskip("ray", reason="the Ray backend needs `pip install rrls[ray]`")
     # the workers import this checkout's rrls (as the driver does), with no network beyond here

@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import hashlib
 import json
+import re
 from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any, Protocol, runtime_checkable
@@ -201,6 +202,7 @@ class TorchPolicy:
         self.module = module.eval()
         self.device = torch.device(device)
         self.dtype = next(module.parameters()).dtype
+        self.metadata: dict[str, Any] = {}
         self._invariant = BatchInvariant(self._forward, block)
 
     def _forward(self, obs: np.ndarray) -> np.ndarray:
@@ -219,7 +221,18 @@ class SB3Policy:
 
     def __init__(self, model: Any, block: int = BLOCK) -> None:
         self.model = model
+        self.metadata: dict[str, Any] = {}
         self._invariant = BatchInvariant(self._forward, block)
+
+    @property
+    def obs_shape(self) -> tuple[int, ...] | None:
+        space = getattr(self.model, "observation_space", None)
+        return tuple(space.shape) if getattr(space, "shape", None) is not None else None
+
+    @property
+    def act_shape(self) -> tuple[int, ...] | None:
+        space = getattr(self.model, "action_space", None)
+        return tuple(space.shape) if getattr(space, "shape", None) is not None else None
 
     def _forward(self, obs: np.ndarray) -> np.ndarray:
         return np.asarray(self.model.predict(obs, deterministic=True)[0])
@@ -233,10 +246,11 @@ def as_policy(obj: Any) -> Callable[[np.ndarray], np.ndarray]:
     if isinstance(obj, (str, Path)):
         return load_policy(obj)
     module_names = {c.__module__.split(".")[0] for c in type(obj).__mro__}
+    # an SB3 model or SB3 policy (an nn.Module whose forward is not the action: predict is)
+    if _is_sb3(obj):
+        return SB3Policy(obj)
     if "torch" in module_names and hasattr(obj, "parameters"):
         return TorchPolicy(obj)
-    if hasattr(obj, "predict") and hasattr(obj, "policy"):
-        return SB3Policy(obj)
     if callable(obj):
         return obj
     raise TypeError(
@@ -244,13 +258,26 @@ def as_policy(obj: Any) -> Callable[[np.ndarray], np.ndarray]:
     )
 
 
-def load_policy(path: str | Path) -> Callable[[np.ndarray], np.ndarray]:
-    """Load a saved policy: an ``.npz`` MLP file, or a training-run directory of ``rrls train``.
+def _is_sb3(obj: Any) -> bool:
+    """An SB3 model (``predict`` and ``policy``) or SB3 policy (``predict`` and spaces)."""
+    return hasattr(obj, "predict") and (hasattr(obj, "policy") or hasattr(obj, "observation_space"))
 
+
+def load_policy(path: str | Path) -> Callable[[np.ndarray], np.ndarray]:
+    """Load a saved policy: an ``.npz`` MLP file, a training-run directory of ``rrls train``, a
+    Stable-Baselines3 ``.zip`` or ``module:attribute`` naming a policy in importable code.
+
+    rrls's own formats (``.npz``, run directories) are read without unpickling. **An SB3 zip and
+    ``module:attribute`` run code**: SB3 stores its policy class and spaces with cloudpickle, and
+    importing a module executes it — load only files and modules you trust.
     The returned policy's ``metadata`` records where it came from (``path``, ``run_dir``).
     """
+    if isinstance(path, str) and is_attribute_reference(path) and not Path(path).exists():
+        return load_attribute(path)
     path = Path(path)
     run_dir = None
+    if path.suffix == ".zip" and path.is_file():
+        return load_sb3(path)
     if path.is_dir():
         for name in ("policy.npz", "final/policy.npz"):
             if (path / name).is_file():
@@ -261,7 +288,10 @@ def load_policy(path: str | Path) -> Callable[[np.ndarray], np.ndarray]:
     elif not path.exists():
         raise FileNotFoundError(f"no policy file {path}")
     elif path.suffix != ".npz":
-        raise ValueError(f"{path}: unknown policy file type (expected .npz or a run directory)")
+        raise ValueError(
+            f"{path}: unknown policy file type (expected an rrls .npz, an `rrls train` run "
+            "directory, a Stable-Baselines3 .zip or module:attribute)"
+        )
     policy = MLPPolicy.load(path)
     policy.metadata.setdefault("path", str(path))
     if run_dir is not None:
@@ -284,3 +314,134 @@ def is_batch_invariant(policy: Callable[[np.ndarray], Any], obs_dim: int, n: int
         np.array_equal(batch[i], np.asarray(policy(probe[i : i + 1]))[0], equal_nan=True)
         for i in range(n)
     )
+
+
+_ATTRIBUTE = re.compile(r"^[A-Za-z_][\w.]*:[A-Za-z_][\w.]*$")
+
+
+def is_attribute_reference(text: str) -> bool:
+    """Whether ``text`` reads as ``package.module:attribute`` (entry-point syntax)."""
+    return bool(_ATTRIBUTE.match(text))
+
+
+def load_attribute(reference: str) -> Callable[[np.ndarray], np.ndarray]:
+    """The policy named by ``module:attribute`` (``pkg.mod:obj`` or ``pkg.mod:obj.attr``),
+    adapted with :func:`as_policy`. Importing the module runs its code."""
+    import importlib
+
+    module_name, _, attr = reference.partition(":")
+    try:
+        obj: Any = importlib.import_module(module_name)
+    except ImportError as err:
+        raise ValueError(f"{reference}: cannot import module {module_name!r} ({err})") from None
+    for part in attr.split("."):
+        if not hasattr(obj, part):
+            public = sorted(n for n in dir(obj) if not n.startswith("_"))[:20]
+            raise ValueError(
+                f"{reference}: {module_name!r} has no attribute {attr!r}; it has: "
+                + ", ".join(public)
+            )
+        obj = getattr(obj, part)
+    policy = as_policy(obj)
+    meta = getattr(policy, "metadata", None)
+    if isinstance(meta, dict):
+        meta.setdefault("path", reference)
+    return policy
+
+
+def load_sb3(path: str | Path) -> SB3Policy:
+    """A Stable-Baselines3 ``.zip`` (any algorithm with a continuous-action policy: PPO, SAC,
+    TD3, ...): the policy rebuilt from the zip's class, spaces and weights, acting
+    deterministically. Unpickles the zip's class and spaces (cloudpickle): trusted files only.
+    Observation normalisation (``VecNormalize``) is not in the zip and is not applied."""
+    try:
+        from stable_baselines3.common.save_util import load_from_zip_file
+    except ImportError:
+        raise ValueError(
+            f"{path} is a Stable-Baselines3 zip: loading it needs stable-baselines3 "
+            "(pip install 'rrls[sb3]')"
+        ) from None
+    try:
+        data, params, _ = load_from_zip_file(str(path), device="cpu")
+        policy = data["policy_class"](
+            data["observation_space"],
+            data["action_space"],
+            lambda _: 0.0,
+            **data.get("policy_kwargs", {}),
+        )
+        policy.load_state_dict(params["policy"])
+        policy.set_training_mode(False)
+    except Exception as err:  # noqa: BLE001 - any unreadable zip: one line naming it
+        raise ValueError(f"{path} is not a loadable Stable-Baselines3 model: {err}") from None
+    adapted = SB3Policy(policy)
+    adapted.metadata.update(path=str(path), sb3_policy_class=type(policy).__name__)
+    return adapted
+
+
+def policy_shapes(policy: Any) -> tuple[tuple[int, ...], tuple[int, ...]] | None:
+    """The observation and action shapes a policy declares (rrls MLP, SB3), else ``None``."""
+    if isinstance(policy, MLPPolicy):
+        return (policy.obs_dim,), (policy.act_dim,)
+    obs, act = getattr(policy, "obs_shape", None), getattr(policy, "act_shape", None)
+    if obs is not None and act is not None:
+        return tuple(obs), tuple(act)
+    return None
+
+
+def file_sha256(path: str | Path) -> str:
+    """The SHA-256 of a file's bytes (provenance of a submitted policy)."""
+    digest = hashlib.sha256()
+    with open(path, "rb") as f:
+        for block in iter(lambda: f.read(1 << 20), b""):
+            digest.update(block)
+    return digest.hexdigest()
+
+
+def policy_source(obj: Any) -> dict[str, Any]:
+    """Where a policy comes from: ``kind`` (``rrls-npz``, ``rrls-run``, ``sb3-zip``,
+    ``module-attribute``, ``torch-module``, ``sb3-model``, ``callable``), ``source`` (the path,
+    reference or type) and ``sha256`` of the file holding it (a module's source file for
+    ``module:attribute``; ``None`` for objects in memory)."""
+    if isinstance(obj, (str, Path)):
+        text = str(obj)
+        if isinstance(obj, str) and is_attribute_reference(text) and not Path(text).exists():
+            import importlib.util
+
+            origin = None
+            try:
+                found = importlib.util.find_spec(text.partition(":")[0])
+                origin = found.origin if found else None
+            except (ImportError, ValueError):
+                origin = None
+            sha = file_sha256(origin) if origin and Path(origin).is_file() else None
+            return {"kind": "module-attribute", "source": text, "sha256": sha, "file": origin}
+        path = Path(obj)
+        if path.is_dir():
+            file = next(
+                (path / n for n in ("policy.npz", "final/policy.npz") if (path / n).is_file()), None
+            )
+            sha = file_sha256(file) if file else None
+            return {
+                "kind": "rrls-run",
+                "source": str(path.resolve()),
+                "sha256": sha,
+                "file": str(file),
+            }
+        kind = "sb3-zip" if path.suffix == ".zip" else "rrls-npz"
+        sha = file_sha256(path) if path.is_file() else None
+        return {
+            "kind": kind,
+            "source": str(path.resolve()),
+            "sha256": sha,
+            "file": str(path.resolve()),
+        }
+    module_names = {c.__module__.split(".")[0] for c in type(obj).__mro__}
+    if _is_sb3(obj):
+        kind = "sb3-model"
+    elif "torch" in module_names and hasattr(obj, "parameters"):
+        kind = "torch-module"
+    else:
+        kind = "callable"
+    name = getattr(obj, "__qualname__", None) or type(obj).__qualname__
+    module = getattr(obj, "__module__", None) or type(obj).__module__
+    return {"kind": kind, "source": f"{module}.{name}", "sha256": None, "file": None}

@@ -2,5 +2,11 @@
 
 ``spec`` (what a benchmark is, presets), ``launch`` (one run; local process pool or Ray),
 ``runner`` (the driver: resume, progress), ``store`` (tidy result tables), ``report`` (statistics,
-tables, figures; reads the store only, never the training code), ``paper`` (the paper's numbers).
+tables, figures; reads the store only, never the training code), ``submission`` (a policy
+trained elsewhere evaluated under a benchmark's protocol: ``submit``), ``reference`` (reference
+results as data files).
 """
+
+from rrls.experiments.submission import submit
+
+__all__ = ["submit"]

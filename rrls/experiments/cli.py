@@ -1,4 +1,5 @@
-"""``rrls benchmark`` and ``rrls report`` (and ``rrls quickstart``, the ``quick`` preset).
+"""``rrls benchmark``, ``rrls report``, ``rrls submit`` (and ``rrls quickstart``, the ``quick``
+preset).
 
 Bad specifications end with one line on stderr and exit status 2, before any run starts.
 """
@@ -69,6 +70,56 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:
     )
     r.add_argument("dir", help="a `rrls benchmark --out` directory")
     r.add_argument("--no-plots", action="store_true", help="skip the figures")
+    r.add_argument(
+        "--reference",
+        metavar="FILE",
+        help="reference results (.json/.csv, or a shipped name: paper) normalising the tasks "
+        "without their own TD3 and M2TD3 runs; refused if measured under another protocol "
+        "(physics, set, mesh, episodes)",
+    )
+    r.add_argument(
+        "--export-reference",
+        metavar="FILE",
+        help="also write this benchmark's results (every algorithm, per-seed values) as a "
+        "reference file (.json, or .csv) another lab can pass to --reference",
+    )
+    r.add_argument("--label", help="--export-reference: the reference's label")
+
+    s = sub.add_parser(
+        "submit",
+        help="evaluate a policy trained elsewhere under a benchmark's protocol and add it as an "
+        "algorithm (then `rrls report DIR` shows it beside the baselines)",
+        description="Evaluate POLICY exactly as BENCH_DIR evaluates its own runs (same set, mesh, "
+        "episodes and episode seeds; with --adversary also the dynamic evaluation) and store it "
+        "as run (--algo, --task, --seed). POLICY: an rrls .npz, an `rrls train` run directory, a "
+        "Stable-Baselines3 .zip or module:attribute naming a callable obs[B, d] -> act[B, k] (or "
+        "an nn.Module / SB3 model). WARNING: an SB3 zip (cloudpickle) and module:attribute "
+        "(import) run code from the file or module: submit only what you trust; rrls's own "
+        ".npz and run directories are read without unpickling.",
+    )
+    s.add_argument("bench_dir", metavar="BENCH_DIR", help="a `rrls benchmark --out` directory")
+    s.add_argument("policy", metavar="POLICY", help=".npz, run directory, SB3 .zip or mod:attr")
+    s.add_argument("--algo", required=True, metavar="NAME", help="the algorithm's name in reports")
+    s.add_argument("--task", required=True, metavar="TASK", help="one of the benchmark's tasks")
+    s.add_argument("--seed", required=True, type=int, metavar="S", help="the policy's seed")
+    s.add_argument(
+        "--adversary", metavar="ADV_POLICY", help="also play this adversary (Table 6), same kinds"
+    )
+    s.add_argument(
+        "--game",
+        help="the adversary's game: adversarial (picks the set's parameters; default unless an "
+        "rrls adversary file records another), nr or pr (action-robust)",
+    )
+    s.add_argument("--alpha", type=float, help="nr/pr: the adversary's probability (0.1)")
+    s.add_argument(
+        "--overwrite", action="store_true", help="replace a submission made with another policy"
+    )
+    s.add_argument(
+        "--preset",
+        help="BENCH_DIR holds no benchmark yet: start one (no baselines) with this preset's "
+        "protocol; compare with `rrls report BENCH_DIR --reference FILE`",
+    )
+    s.add_argument("--workers", type=int, metavar="N", help="evaluation processes (default: all)")
 
 
 def _fail(command: str, message: str) -> int:
@@ -77,7 +128,10 @@ def _fail(command: str, message: str) -> int:
 
 
 def run(args: argparse.Namespace) -> int:
-    """Dispatch ``benchmark`` / ``report`` / ``quickstart``; spec errors -> one line, exit 2."""
+    """Dispatch ``benchmark`` / ``report`` / ``submit`` / ``quickstart``; spec errors -> one
+    line, exit 2."""
+    if args.command == "submit":  # no SciPy needed
+        return _submit(args)
     try:
         import scipy  # noqa: F401
     except ImportError:
@@ -154,9 +208,22 @@ def _report(args: argparse.Namespace) -> int:
         return _fail("report", f"{root} is not a benchmark directory (no runs/ or results/)")
     if (root / "runs").is_dir():
         build_store(root)
-    path = make_report(root, plots=not args.no_plots)
+    from rrls.experiments.reference import ReferenceError, export_reference
+
+    try:
+        path = make_report(root, plots=not args.no_plots, reference=args.reference)
+        exported = None
+        if args.export_reference:
+            exported = export_reference(root, args.export_reference, label=args.label)
+    except ReferenceError as err:
+        return _fail("report", str(err))
     print(_table(root))
     print(f"report: {path}")
+    if exported is not None:
+        print(
+            f"reference: {args.export_reference} ({exported.label!r}: "
+            f"{len(exported.rows)} cells; `rrls report DIR --reference {args.export_reference}`)"
+        )
     return 0
 
 
@@ -207,3 +274,38 @@ def _quickstart(args: argparse.Namespace) -> int:
         print(f"report: {root / 'report' / 'report.md'} (reduced budget, not the paper's)")
         print(f"runs: {root}/runs (TensorBoard: tensorboard --logdir {root}/runs)")
     return code
+
+
+def _submit(args: argparse.Namespace) -> int:
+    from rrls.evaluation import PolicyError
+    from rrls.experiments.submission import SubmitError, submit
+
+    if args.workers is not None and args.workers < 1:
+        return _fail("submit", f"--workers must be >= 1, got {args.workers}")
+    try:
+        done = submit(
+            args.bench_dir,
+            args.algo,
+            args.task,
+            args.seed,
+            args.policy,
+            adversary=args.adversary,
+            overwrite=args.overwrite,
+            game=args.game,
+            alpha=args.alpha,
+            preset=args.preset,
+            workers=args.workers,
+            progress=None,
+        )
+    except (SubmitError, PolicyError) as err:
+        return _fail("submit", str(err))
+    r = done.result
+    what = "submitted" if done.evaluated else "already submitted (same policy; nothing to do)"
+    print(
+        f"{what}: {r['algorithm']} on {r['task']}/{r['uncertainty']} seed {r['seed']}: worst "
+        f"case {r['worst_case']:,.2f}, average case {r['average_case']:,.2f}"
+        + (f", against its adversary {r['dynamic_mean']:,.2f}" if "dynamic_mean" in r else "")
+    )
+    print(f"run: {done.run_dir}")
+    print(f"report: rrls report {args.bench_dir}")
+    return 0

@@ -11,7 +11,11 @@ Conventions (paper §5 and Appendix):
   map is affine), which is how the paper's Tables 4-5 follow from its raw tables (std = raw std /
   |v_M2TD3 - v_TD3|); the "Average" column is the mean over tasks of the means and of the stds;
 - Table 6: per seed, the mean return of the protagonist against its own adversary over the
-  episodes; the cell is mean ± std over seeds.
+  episodes; the cell is mean ± std over seeds;
+- references: a task whose benchmark has no finished TD3 and M2TD3 runs is normalised with a
+  reference file's TD3 and M2TD3 means (``--reference``; ``rrls.experiments.reference``), and
+  the report names the source of each task's normalisation;
+- submitted algorithms (``rrls submit``) are rows like any other, marked as submitted.
 
 The report never imports the training code: it reads ``DIR/results/`` (and ``benchmark.json``).
 """
@@ -81,8 +85,10 @@ def _sorted(algos: Any) -> list[str]:
     return sorted(algos, key=lambda a: (ORDER.index(a) if a in ORDER else len(ORDER), a))
 
 
-def summarise(root: str | Path) -> dict[str, Any]:
-    """Everything ``summary.json`` holds, computed from the store."""
+def summarise(root: str | Path, reference: Any = None) -> dict[str, Any]:
+    """Everything ``summary.json`` holds, computed from the store. ``reference``: a
+    ``rrls.experiments.reference.Reference`` (already checked against the benchmark) that
+    normalises the tasks without their own TD3 and M2TD3 runs."""
     from rrls.experiments.store import load_store
 
     root = Path(root)
@@ -110,12 +116,36 @@ def summarise(root: str | Path) -> dict[str, Any]:
         sel = split[(split["task"] == task) & (split["algorithm"] == algo)]
         return sel.sort_values("seed")[metric].dropna().to_numpy(dtype=float)
 
+    def norm_refs(task: str, metric: str) -> tuple[float, float, str] | None:
+        """(v_TD3, v_M2TD3, source) of ``task``: the benchmark's seed means, else the
+        reference's, else None (no normalised score)."""
+        td3, m2td3 = values(task, "td3", metric), values(task, "m2td3", metric)
+        if len(td3) and len(m2td3) and td3.mean() != m2td3.mean():
+            return float(td3.mean()), float(m2td3.mean()), "benchmark"
+        if reference is not None and uncertainty is not None:
+            r_td3 = reference.mean(task, uncertainty, "td3", metric)
+            r_m2td3 = reference.mean(task, uncertainty, "m2td3", metric)
+            if r_td3 is not None and r_m2td3 is not None and r_td3 != r_m2td3:
+                return r_td3, r_m2td3, "reference"
+        return None
+
+    def td3_seeds(task: str) -> np.ndarray:
+        """TD3's per-seed worst cases: the benchmark's, else the reference's when it has them."""
+        own = values(task, "td3", "worst_case")
+        if len(own) or reference is None or uncertainty is None:
+            return own
+        row = reference.cell(task, uncertainty, "td3", "worst_case")
+        return np.asarray(row["values"] if row and row.get("values") else [], dtype=float)
+
     dyn = tables["dynamic"]
+    dyn_algos = set(dyn["algorithm"]) if len(dyn) and "algorithm" in dyn else set()
     out: dict[str, Any] = {}
     missing: list[str] = []
+    normalisation: dict[str, dict[str, str | None]] = {}
     for task in tasks:
         out[task] = {}
-        refs = {m: (values(task, "td3", m), values(task, "m2td3", m)) for m in METRICS}
+        refs = {m: norm_refs(task, m) for m in METRICS}
+        normalisation[task] = {m: (refs[m][2] if refs[m] else None) for m in METRICS}
         for algo in algos:
             cell: dict[str, Any] = {}
             for m in METRICS:
@@ -127,14 +157,13 @@ def summarise(root: str | Path) -> dict[str, Any]:
                 missing.append(f"{algo}/{task}: {n} of {n_expected} seeds")
             cell["normalised"] = {}
             for m in METRICS:
-                td3, m2td3 = refs[m]
                 x = values(task, algo, m)
-                if len(x) and len(td3) and len(m2td3) and td3.mean() != m2td3.mean():
-                    z = stats.normalise(x, td3.mean(), m2td3.mean())
+                if len(x) and refs[m] is not None:
+                    z = stats.normalise(x, refs[m][0], refs[m][1])
                     cell["normalised"][m] = stats.describe(z, stats.rng_for(task, algo, m, "n"))
                 else:
                     cell["normalised"][m] = None
-            if algo in ("rarl", "nrmdp"):
+            if algo in ("rarl", "nrmdp") or algo in dyn_algos:
                 sel = dyn[(dyn["task"] == task) & (dyn["algorithm"] == algo)] if len(dyn) else dyn
                 per_seed = sel.groupby("seed")["return"].mean() if len(sel) else []
                 cell["dynamic"] = stats.describe(
@@ -154,16 +183,16 @@ def summarise(root: str | Path) -> dict[str, Any]:
         for m in METRICS:
             per_task = []
             for task in tasks:
-                td3, m2td3 = (values(task, "td3", m), values(task, "m2td3", m))
+                ref = norm_refs(task, m)
                 x = values(task, algo, m)
-                if len(x) and len(td3) and len(m2td3) and td3.mean() != m2td3.mean():
-                    per_task.append(stats.normalise(x, td3.mean(), m2td3.mean()))
+                if len(x) and ref is not None:
+                    per_task.append(stats.normalise(x, ref[0], ref[1]))
             agg[f"normalised_{m}"] = stats.aggregate_iqm(per_task, stats.rng_for(algo, m, "agg"))
         if algo != "td3":
             pairs = [
-                (values(t, algo, "worst_case"), values(t, "td3", "worst_case"))
+                (values(t, algo, "worst_case"), td3_seeds(t))
                 for t in tasks
-                if len(values(t, algo, "worst_case")) and len(values(t, "td3", "worst_case"))
+                if len(values(t, algo, "worst_case")) and len(td3_seeds(t))
             ]
             agg["poi_over_td3_worst_case"] = stats.aggregate_poi(pairs, stats.rng_for(algo, "poi"))
         aggregate[algo] = agg
@@ -171,6 +200,18 @@ def summarise(root: str | Path) -> dict[str, Any]:
     for col in ("rrls_version", "gymnasium_version", "mujoco_version"):
         if col in ev:
             versions[col.removesuffix("_version")] = sorted(map(str, ev[col].unique()))
+    runs = tables["runs"]
+    submitted: list[dict[str, Any]] = []
+    if len(runs) and "source" in runs:
+        for row in runs[runs["source"] == "submitted"].to_dict("records"):
+            submitted.append(
+                {
+                    k: (None if isinstance(row.get(k), float) and np.isnan(row[k]) else row.get(k))
+                    for k in ("algorithm", "task", "seed", "policy_kind", "policy_source")
+                    + ("policy_sha256",)
+                }
+            )
+            submitted[-1]["seed"] = int(submitted[-1]["seed"])
     return {
         "benchmark": spec,
         "uncertainty": uncertainty,
@@ -180,19 +221,26 @@ def summarise(root: str | Path) -> dict[str, Any]:
         "aggregate": aggregate,
         "missing": missing,
         "versions": versions,
+        "submitted": submitted,
+        "normalisation": normalisation,
+        "reference": None
+        if reference is None
+        else _reference_summary(reference, tasks, uncertainty),
         "conventions": {
             "worst_case": "per run: min over mesh points of the mean return over the point's "
             "episodes; cell: mean/std (ddof=0)/IQM/95% percentile-bootstrap CI of the mean over "
             "seeds",
             "average_case": "per run: mean over mesh points of the per-point mean return",
             "normalised": "(v - v_TD3) / |v_M2TD3 - v_TD3| with v_TD3, v_M2TD3 the seed means on "
-            "the task; applied to each seed, then mean/std over seeds (= normalising the seed "
-            "mean, as the paper's Tables 4-5 do)",
+            "the task (this benchmark's runs; without them, the reference file's means — see "
+            "'normalisation'); applied to each seed, then mean/std over seeds (= normalising the "
+            "seed mean, as the paper's Tables 4-5 do)",
             "aggregate": "IQM over all (task, seed) normalised scores with a stratified bootstrap "
             "CI (seeds resampled within tasks); mean_over_tasks/std_over_tasks: the paper's "
             "'Average' column",
             "poi_over_td3_worst_case": "P(algorithm's worst case > TD3's) for random seeds, "
-            "averaged over tasks; stratified bootstrap CI",
+            "averaged over tasks (TD3: this benchmark's runs, else the reference's per-seed "
+            "values); stratified bootstrap CI",
             "split": "with a train/test split of the set: worst/average case over the "
             "in-distribution (training part) and out-of-distribution (test part) mesh points "
             "separately, per run; cell: mean/std over seeds",
@@ -253,7 +301,32 @@ def _cell(summary: dict[str, Any], task: str, algo: str, getter: str) -> dict[st
 
 
 def _rows(summary: dict[str, Any], name: str) -> list[str]:
-    return [a for a in summary["algorithms"] if name != "dynamic" or a in ("rarl", "nrmdp")]
+    if name != "dynamic":
+        return list(summary["algorithms"])
+    return [
+        a
+        for a in summary["algorithms"]
+        if a in ("rarl", "nrmdp")
+        or any("dynamic" in summary["results"][t].get(a, {}) for t in summary["tasks"])
+    ]
+
+
+def _reference_summary(reference: Any, tasks: list[str], uncertainty: str | None) -> dict:
+    """The reference's metadata and its cells for the benchmark's tasks (for the report)."""
+    rows = [
+        r
+        for r in reference.rows
+        if r["task"] in tasks and r["uncertainty"] == uncertainty and r["metric"] != "dynamic"
+    ]
+    return {**reference.describe(), "rows": rows}
+
+
+def _label(summary: dict[str, Any], algo: str) -> str:
+    """An algorithm's name in the report; submitted ones are marked."""
+    name = NAMES.get(algo, algo)
+    if any(s["algorithm"] == algo for s in summary.get("submitted") or []):
+        return f"{name} (submitted)"
+    return name
 
 
 def write_tables(summary: dict[str, Any], out: Path, paper: dict[str, Any]) -> list[Path]:
@@ -349,7 +422,7 @@ def _md_table(summary: dict[str, Any], name: str, paper: dict[str, Any]) -> list
     )
     lines = [f"### {title}", "", "| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
     for algo in algos:
-        row = [NAMES.get(algo, algo)]
+        row = [_label(summary, algo)]
         for task in tasks:
             text = _pm(_cell(summary, task, algo, getter), digits)
             pub = _paper_cell(paper, name, algo, task) if same_protocol else None
@@ -372,12 +445,25 @@ def _md_table(summary: dict[str, Any], name: str, paper: dict[str, Any]) -> list
     return [*lines, ""]
 
 
-def make_report(root: str | Path, plots: bool = True) -> Path:
-    """Write ``root/report/`` (summary.json, report.md, tables/, figures) from the store."""
+def make_report(root: str | Path, plots: bool = True, reference: Any = None) -> Path:
+    """Write ``root/report/`` (summary.json, report.md, tables/, figures) from the store.
+
+    ``reference``: a reference file's path, a shipped name (``paper``) or a loaded
+    ``Reference``; refused (``ReferenceError``) unless measured under the benchmark's protocol.
+    """
     from rrls._io import atomic_write_bytes, atomic_write_json
 
     root = Path(root)
-    summary = summarise(root)
+    if reference is not None:
+        from rrls.experiments.reference import Reference, check_compatible, load_reference
+
+        if not isinstance(reference, Reference):
+            reference = load_reference(reference)
+        spec_path = root / "benchmark.json"
+        if not spec_path.exists():
+            raise ValueError(f"{root} holds no benchmark.json: a reference needs its protocol")
+        check_compatible(reference, json.loads(spec_path.read_text()))
+    summary = summarise(root, reference)
     paper = paper_results()
     out = root / "report"
     out.mkdir(parents=True, exist_ok=True)
@@ -426,7 +512,7 @@ def _markdown(
     lines = ["# rrls benchmark report", ""]
     if spec:
         lines += [
-            f"- preset `{spec.get('preset')}`: {len(spec['algos'])} algorithms × "
+            f"- preset `{spec.get('preset')}`: {len(spec['algos'])} built-in algorithms × "
             f"{len(spec['tasks'])} tasks × {len(spec['seeds'])} seeds, {spec['steps']:,} "
             f"training steps per run, set `{spec['uncertainty']}`, mesh {spec['mesh']} per "
             f"dimension × {spec['episodes']} episodes, dynamic evaluation "
@@ -454,20 +540,7 @@ def _markdown(
     lines.append("")
     if summary["missing"]:
         lines += ["## Missing cells", ""] + [f"- {m}" for m in summary["missing"]] + [""]
-    no_refs = [
-        t
-        for t in summary["tasks"]
-        if not all(
-            summary["results"][t].get(a, {}).get("worst_case", {}).get("n_seeds")
-            for a in ("td3", "m2td3")
-        )
-    ]
-    if no_refs:
-        lines += [
-            "Normalised scores need finished TD3 and M2TD3 runs on the task (the references); "
-            f"none for: {', '.join(no_refs)}.",
-            "",
-        ]
+    lines += _normalisation_lines(summary)
     lines += ["## Static evaluation", ""]
     for name in ("raw_worst_case", "raw_average_case", "normalised_worst_case"):
         lines += _md_table(summary, name, paper)
@@ -502,9 +575,11 @@ def _markdown(
             ci = p.get("ci95")
             ci_text = f"[{_fmt(ci[0])}, {_fmt(ci[1])}]" if ci else "–"
             lines.append(
-                f"| {NAMES.get(algo, algo)} | {_fmt(p['value'])} | {ci_text} | {p['n_tasks']} |"
+                f"| {_label(summary, algo)} | {_fmt(p['value'])} | {ci_text} | {p['n_tasks']} |"
             )
         lines.append("")
+    lines += _reference_lines(summary)
+    lines += _submitted_lines(summary)
     if figures:
         lines += ["## Figures", ""]
         for caption, path in figures:
@@ -513,3 +588,97 @@ def _markdown(
     lines += [f"- **{k}**: {v}" for k, v in summary["conventions"].items()]
     lines += ["", "Tables for papers: `tables/*.tex` (booktabs) and `tables/*.csv`.", ""]
     return "\n".join(lines)
+
+
+def _normalisation_lines(summary: dict[str, Any]) -> list[str]:
+    """Which TD3 / M2TD3 means normalise each task: the benchmark's, a reference's, or none."""
+    ref = summary.get("reference")
+    sources: dict[str, list[str]] = {}
+    for task in summary["tasks"]:
+        used = {v for v in summary.get("normalisation", {}).get(task, {}).values()}
+        key = "reference" if "reference" in used else "benchmark" if "benchmark" in used else "-"
+        sources.setdefault(key, []).append(task)
+    lines = ["## Normalisation", ""]
+    if sources.get("benchmark"):
+        lines.append(
+            f"- this benchmark's own TD3 and M2TD3 runs: {', '.join(sources['benchmark'])}"
+        )
+    if sources.get("reference") and ref:
+        spec = summary.get("benchmark") or {}
+        budget = ""
+        if ref.get("steps") and spec.get("steps") and ref["steps"] != spec["steps"]:
+            budget = (
+                f"; **its budget differs**: {ref['steps']:,} training steps per run there, "
+                f"{spec['steps']:,} here"
+            )
+        lines.append(
+            f"- the reference **{ref['label']}** (`{ref['file']}`, physics {ref['physics']}, "
+            f"mesh {ref['mesh']} x {ref['episodes']} episodes{budget}): "
+            f"{', '.join(sources['reference'])}"
+        )
+    if sources.get("-"):
+        lines.append(
+            "- none (no finished TD3 and M2TD3 runs here"
+            + (" nor in the reference" if ref else "; `rrls report DIR --reference FILE`")
+            + f"): {', '.join(sources['-'])}"
+        )
+    return [*lines, ""]
+
+
+def _reference_lines(summary: dict[str, Any]) -> list[str]:
+    """The reference's own cells for the benchmark's tasks, normalised like the benchmark."""
+    ref = summary.get("reference")
+    if not ref or not ref.get("rows"):
+        return []
+    tasks = [t for t in summary["tasks"] if any(r["task"] == t for r in ref["rows"])]
+    algos = _sorted(r["algorithm"] for r in ref["rows"])
+    lines = [
+        f"## Reference: {ref['label']}",
+        "",
+        f"`{ref['file']}`: physics {ref['physics']}, set {summary['uncertainty']}, mesh "
+        f"{ref['mesh']} x {ref['episodes']} episodes"
+        + (f", {ref['steps']:,} training steps per run" if ref.get("steps") else "")
+        + ". Mean ± std over its seeds (n).",
+        "",
+    ]
+    by_key = {(r["task"], r["algorithm"], r["metric"]): r for r in ref["rows"]}
+    for metric, title in (("worst_case", "worst case"), ("average_case", "average case")):
+        head = ["algorithm", *[TASK_NAMES.get(t, t) for t in tasks]]
+        lines += [f"### Reference {title}", "", "| " + " | ".join(head) + " |"]
+        lines.append("|" + "---|" * len(head))
+        for algo in algos:
+            cells = []
+            for task in tasks:
+                row = by_key.get((task, algo, metric))
+                if row is None:
+                    cells.append("–")
+                    continue
+                text = _pm({"mean": row["mean"], "std": row["std"]})
+                text += f" ({row['n_seeds']})" if row.get("n_seeds") else ""
+                cells.append(text)
+            lines.append(f"| {NAMES.get(algo, algo)} | " + " | ".join(cells) + " |")
+        lines.append("")
+    return lines
+
+
+def _submitted_lines(summary: dict[str, Any]) -> list[str]:
+    """Where the submitted policies came from (``rrls submit``'s provenance)."""
+    rows = summary.get("submitted") or []
+    if not rows:
+        return []
+    lines = [
+        "## Submitted policies",
+        "",
+        "Evaluated by `rrls submit` under this benchmark's protocol (same set, mesh, episodes "
+        "and episode seeds as its own runs); not trained here.",
+        "",
+        "| algorithm | task | seed | kind | source | sha256 |",
+        "|---|---|---|---|---|---|",
+    ]
+    for r in rows:
+        sha = (r.get("policy_sha256") or "")[:12] or "–"
+        lines.append(
+            f"| {r['algorithm']} | {r['task']} | {r['seed']} | {r.get('policy_kind') or '–'} "
+            f"| `{r.get('policy_source') or '–'}` | {sha} |"
+        )
+    return [*lines, ""]

@@ -4,7 +4,11 @@
 - ``curves``: one row per (run, step) of training returns and periodic evaluations
   (from ``scalars.csv``);
 - ``dynamic``: one row per episode of the protagonist against its own adversary (RARL, NR-MDP);
-- ``runs``: one row per finished run (worst / average case, dynamic mean).
+- ``runs``: one row per finished run (worst / average case, dynamic mean, ``source``: ``trained``
+  here or ``submitted`` by ``rrls submit``).
+
+A run directory is finished when its ``result.json`` exists (written last, atomically, by
+``write_result``); a submitted run's also holds ``submitted`` (where the policy came from).
 
 Every row carries algorithm, task, uncertainty set, seed, steps and the rrls / gymnasium /
 mujoco versions. Parquet with pyarrow, CSV without. Rows are sorted, so the same run directories
@@ -19,6 +23,18 @@ from typing import Any
 
 TABLES = ("evaluations", "curves", "dynamic", "runs")
 KEY = ["algorithm", "task", "uncertainty", "seed"]
+
+
+def write_result(run: str | Path, result: dict[str, Any]) -> Path:
+    """Mark ``run`` finished: its ``result.json`` (algorithm, task, uncertainty, seed, steps,
+    worst_case, average_case, versions; optional dynamic_*, submitted), written atomically."""
+    from rrls._io import atomic_write_json
+
+    missing = [k for k in ("algorithm", "task", "uncertainty", "seed", "steps") if k not in result]
+    missing += [k for k in ("worst_case", "average_case") if k not in result]
+    if missing:
+        raise ValueError(f"a run result needs {', '.join(missing)}")
+    return atomic_write_json(Path(run) / "result.json", result)
 
 
 def _parquet() -> bool:
@@ -93,6 +109,10 @@ def build_store(root: str | Path) -> Path:
                         "worst_case": result["worst_case"],
                         "average_case": result["average_case"],
                         "dynamic_mean": result.get("dynamic_mean"),
+                        "source": "submitted" if result.get("submitted") else "trained",
+                        "policy_kind": (result.get("submitted") or {}).get("kind"),
+                        "policy_source": (result.get("submitted") or {}).get("source"),
+                        "policy_sha256": (result.get("submitted") or {}).get("sha256"),
                         "run_dir": run.name,
                     }
                 ]
