@@ -166,7 +166,7 @@ def _table_name() -> str:
     return "episodes.parquet"
 
 
-def _versions() -> dict[str, str]:
+def versions() -> dict[str, str]:
     import gymnasium
     import mujoco
 
@@ -298,7 +298,7 @@ def _evaluate(
 def _finish(
     key: str, box: UncertaintySet | None, frame: Any, config: dict[str, Any], policy: Any
 ) -> EvaluationResult:
-    config["versions"] = _versions()
+    config["versions"] = versions()
     config.update(_policy_record(policy))
     result = EvaluationResult(key, box, frame, config)
     if result.n_diverged:

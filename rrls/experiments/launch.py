@@ -22,19 +22,14 @@ import os
 import sys
 import time
 import traceback
-from collections.abc import Callable, Iterator
-from contextlib import ExitStack, contextmanager
+from collections.abc import Callable
+from contextlib import ExitStack
 from pathlib import Path
 from typing import Any
 
+from rrls._proc import THREAD_ENV, die_with_parent, exclusive, single_thread_env
 from rrls.experiments.spec import RunKey, Spec
 
-THREAD_ENV = {
-    "OMP_NUM_THREADS": "1",
-    "MKL_NUM_THREADS": "1",
-    "OPENBLAS_NUM_THREADS": "1",
-    "NUMEXPR_NUM_THREADS": "1",
-}
 DYNAMIC_ALGOS = ("rarl", "nrmdp")
 
 
@@ -98,7 +93,7 @@ def execute_group(
         outs[i].mkdir(parents=True, exist_ok=True)
     with ExitStack() as stack:
         for i in todo:
-            stack.enter_context(_exclusive(outs[i]))
+            stack.enter_context(exclusive(outs[i]))
         stack.enter_context(threadpool_limits(1))
         errors = _group_stages(spec, [runs[i] for i in todo], [outs[i] for i in todo])
         for i in todo:
@@ -173,26 +168,6 @@ def _write_error(out: Path) -> None:
     """The current exception's traceback in ``out/error.txt`` (shown by the driver)."""
     out.mkdir(parents=True, exist_ok=True)
     (out / "error.txt").write_text(traceback.format_exc())
-
-
-@contextmanager
-def _exclusive(out: Path) -> Iterator[None]:
-    """Hold ``out/.lock`` while the run executes: a second driver on the same directory (or an
-    orphan of a killed one) cannot run it twice at once."""
-    try:
-        import fcntl
-    except ImportError:  # not POSIX: no lock
-        yield
-        return
-    with open(out / ".lock", "w") as handle:
-        try:
-            fcntl.flock(handle, fcntl.LOCK_EX | fcntl.LOCK_NB)
-        except OSError:
-            raise RuntimeError(f"{out} is being run by another process") from None
-        try:
-            yield
-        finally:
-            fcntl.flock(handle, fcntl.LOCK_UN)
 
 
 def _train(spec: Spec, runs: list[RunKey], outs: list[Path], progress: list[_ProgressFile]) -> None:
@@ -307,7 +282,7 @@ class GroupFailed(RuntimeError):
 
 def _group_main(root: str, spec_json: dict[str, Any], keys: list[tuple[str, str, int]]) -> None:
     """Entry point of a group's process: dies with the driver, writes error.txt on failure."""
-    _die_with_parent()
+    die_with_parent()
     try:
         _execute_recorded(root, spec_json, keys)
     except BaseException:
@@ -330,45 +305,6 @@ def _execute_recorded(
             if not (out / "result.json").exists():
                 _write_error(out)
         raise
-
-
-def _die_with_parent() -> None:
-    """Exit when the driver goes away (killed included): no orphan keeps training."""
-    parent = os.getppid()
-    if sys.platform.startswith("linux"):
-        try:
-            import ctypes
-            import signal
-
-            libc = ctypes.CDLL("libc.so.6", use_errno=True)
-            libc.prctl(1, signal.SIGKILL)  # PR_SET_PDEATHSIG
-        except OSError:
-            pass
-    import threading
-
-    def watch() -> None:
-        while os.getppid() == parent:
-            time.sleep(1.0)
-        os._exit(1)
-
-    threading.Thread(target=watch, daemon=True).start()
-    if os.getppid() != parent:
-        os._exit(1)
-
-
-@contextmanager
-def single_thread_env() -> Iterator[None]:
-    """Children spawned inside inherit one-thread BLAS/OpenMP settings (restored after)."""
-    saved = {k: os.environ.get(k) for k in THREAD_ENV}
-    os.environ.update(THREAD_ENV)
-    try:
-        yield
-    finally:
-        for k, v in saved.items():
-            if v is None:
-                os.environ.pop(k, None)
-            else:
-                os.environ[k] = v
 
 
 Status = Callable[[RunKey, str, str], None]  # (run, "running" | "done" | "failed", detail)
