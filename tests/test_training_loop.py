@@ -323,3 +323,25 @@ def test_adversary_is_saved_and_evaluate_dynamic_plays_against_it(tmp_path, caps
 def test_hyperparameters_refuse_unknown_names():
     with pytest.raises(ValueError, match="td3 has no hyper-parameter 'alpha'"):
         hyperparameters(TrainConfig(hyper={"alpha": 0.1}))
+
+
+def test_a_damaged_checkpoint_is_refused_naming_the_file(tmp_path, capsys):
+    cut = tmp_path / "cut"
+    assert _cli(cut, "td3", 300, "--stop-at", "120") == 3
+    data = bytearray((cut / "checkpoint.pt").read_bytes())
+    data[len(data) // 2] ^= 0xFF  # one flipped byte in the middle of the tensors
+    (cut / "checkpoint.pt").write_bytes(bytes(data))
+    capsys.readouterr()
+    assert _cli(cut, "td3", 300, "--resume") == 2
+    err = capsys.readouterr().err.strip()
+    assert str(cut / "checkpoint.pt") in err and "damaged" in err and "\n" not in err
+
+
+def test_extending_a_finished_run_equals_the_longer_run(tmp_path):
+    # the replay capacity no longer depends on --steps: 200 steps, then --resume --steps 300,
+    # equals 300 steps at once (the final checkpoint is at step 200: --checkpoint-every 50)
+    assert _cli(tmp_path / "long", "td3", 300) == 0
+    assert _cli(tmp_path / "short", "td3", 200) == 0
+    assert _cli(tmp_path / "short", "td3", 300, "--resume") == 0
+    a, b = (np.load(tmp_path / d / "policy.npz") for d in ("long", "short"))
+    assert all(np.array_equal(a[k], b[k]) for k in a.files if k != "header")

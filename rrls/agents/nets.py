@@ -25,20 +25,22 @@ from torch import nn
 class Linear(nn.Module):
     """Independent linear layers, one per run: ``(K, B, fan_in) -> (K, B, fan_out)``.
 
-    With ``copies`` > 1 (a twin critic: 2), parameters are ``(K, copies, ...)`` (the run first,
+    With ``copies`` (a twin critic: 2), parameters are ``(K, copies, ...)`` (the run first,
     as checkpoints want) and inputs ``(K·copies, B, fan_in)``, entry ``k·copies + j``.
     """
 
     def __init__(
-        self, fan_in: int, fan_out: int, gens: Sequence[torch.Generator], copies: int = 1
+        self, fan_in: int, fan_out: int, gens: Sequence[torch.Generator], copies: int | None = None
     ) -> None:
         super().__init__()
         bound = 1 / math.sqrt(fan_in)
 
         def draw(*shape: int) -> list[torch.Tensor]:
-            return [torch.empty(copies, *shape).uniform_(-bound, bound, generator=g) for g in gens]
+            return [
+                torch.empty(copies or 1, *shape).uniform_(-bound, bound, generator=g) for g in gens
+            ]
 
-        stack = torch.cat if copies == 1 else torch.stack
+        stack = torch.cat if copies is None else torch.stack
         self.weight = nn.Parameter(stack(draw(fan_in, fan_out)))
         self.bias = nn.Parameter(stack(draw(1, fan_out)))
 
@@ -48,7 +50,9 @@ class Linear(nn.Module):
         return torch.baddbmm(self.bias, x, self.weight)
 
 
-def mlp(sizes: Sequence[int], gens: Sequence[torch.Generator], copies: int = 1) -> nn.ModuleList:
+def mlp(
+    sizes: Sequence[int], gens: Sequence[torch.Generator], copies: int | None = None
+) -> nn.ModuleList:
     return nn.ModuleList(Linear(a, b, gens, copies) for a, b in zip(sizes[:-1], sizes[1:]))
 
 

@@ -14,7 +14,10 @@ from dataclasses import asdict, dataclass, fields, replace
 from pathlib import Path
 from typing import Any
 
-ALGOS = ("td3", "dr", "rarl", "nrmdp", "m2td3")  # rrls.agents.ALGOS (not imported: no torch)
+ALGOS = ("td3", "dr", "rarl", "nrmdp", "m2td3")  # the paper's five (the presets' default)
+# every built-in of rrls.agents.ALGOS (not imported: no torch); plug-ins are accepted by name
+# (entry point group "rrls.algorithms") or as package.module:Learner
+BUILT_IN = (*ALGOS, "sac", "sacdr")
 PAPER_TASKS = ("ant", "halfcheetah", "hopper", "humanoidstandup", "walker")
 GRID = ("algos", "tasks", "seeds")  # may grow between invocations
 LABELS = ("preset", "device")  # do not change the numbers' meaning (device: see README)
@@ -66,7 +69,7 @@ class Spec:
             "learning_starts": min(self.learning_starts, self.steps),
             "hidden": tuple(self.hidden),
         }
-        if self.learning_rate is not None:
+        if self.learning_rate is not None and algo in ALGOS:  # TD3's rate (SAC has two)
             hyper["learning_rate"] = self.learning_rate
         if self.batch_size is not None:
             hyper["batch_size"] = self.batch_size
@@ -157,7 +160,12 @@ PRESETS: dict[str, dict[str, Any]] = {
 
 
 def _csv(value: str, what: str) -> tuple[str, ...]:
-    items = tuple(dict.fromkeys(v.strip().lower() for v in value.split(",") if v.strip()))
+    # names are case-insensitive; package.module:Class plug-ins keep their case
+    items = tuple(
+        dict.fromkeys(
+            v.strip() if ":" in v else v.strip().lower() for v in value.split(",") if v.strip()
+        )
+    )
     if not items:
         raise SpecError(f"--{what} is empty")
     return items
@@ -208,11 +216,15 @@ def _task_key(task: str) -> str:
 
 def validate(spec: Spec) -> None:
     """Raise ``SpecError`` for anything that cannot run (before any process starts)."""
+    from importlib.metadata import entry_points
+
     from rrls.envs import get_uncertainty_set
 
-    bad = [a for a in spec.algos if a not in ALGOS]
+    plugins = [ep.name for ep in entry_points(group="rrls.algorithms")]
+    bad = [a for a in spec.algos if a not in BUILT_IN and a not in plugins and ":" not in a]
     if bad:
-        raise SpecError(f"unknown algorithm {bad[0]!r}; valid: {', '.join(ALGOS)}")
+        valid = ", ".join([*BUILT_IN, *plugins])
+        raise SpecError(f"unknown algorithm {bad[0]!r}; valid: {valid}, or package.module:Learner")
     if not spec.algos or not spec.tasks:
         raise SpecError("a benchmark needs at least one algorithm and one task")
     for task in spec.tasks:
@@ -287,7 +299,7 @@ def estimate(spec: Spec, jobs: int, max_episode_steps: int = 1000) -> dict[str, 
 
     train = evals = 0.0
     for key in spec.runs():
-        train += STARTUP_S + spec.steps / TRAIN_STEPS_PER_S[key.algo]
+        train += STARTUP_S + spec.steps / TRAIN_STEPS_PER_S.get(key.algo, TRAIN_STEPS_PER_S["td3"])
         dims = len(get_uncertainty_set(key.task, spec.uncertainty).names)
         env_sps = ENV_STEPS_PER_S.get(key.task, 5_000.0)
         n_periodic = spec.steps // spec.eval_every if spec.eval_every else 0
