@@ -194,7 +194,7 @@ def test_ray_backend_runs_the_same_function(smoke, tmp_path):
 @pytest.mark.parametrize(
     "extra, needle",
     [
-        (["--algos", "td3,sac"], "unknown algorithm 'sac'"),
+        (["--algos", "td3,ppo"], "unknown algorithm 'ppo'"),
         (["--tasks", "pong"], "unknown task 'pong'"),
         (["--tasks", "invertedpendulum", "--uncertainty", "3d"], "no uncertainty set '3d'"),
         (["--seeds", "0"], "--seeds must be >= 1"),

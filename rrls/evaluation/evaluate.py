@@ -370,9 +370,9 @@ def rollout_table(
 
 
 def _dims(spec: Any) -> tuple[int, int]:
-    from rrls.evaluation.runner import _envs
+    from rrls.evaluation.runner import make_rollout_envs
 
-    env = _envs(spec, 1)[0]
+    env = make_rollout_envs(spec, 1)[0]
     return env.observation_space.shape[0], env.action_space.shape[0]
 
 

@@ -171,10 +171,10 @@ def _table(root: object) -> str:
 
     summary = json.loads((Path(str(root)) / "report" / "summary.json").read_text())
     lines = [f"{'task':<18} {'algorithm':<10} {'seeds':>5} {'worst case':>20} {'average case':>20}"]
-    from rrls.experiments.report import _sorted
+    from rrls.experiments.names import sort_algos
 
     for task, algos in summary["results"].items():
-        for algo in _sorted(algos):
+        for algo in sort_algos(algos):
             cell = algos[algo]
             w, a = cell["worst_case"], cell["average_case"]
             if not w["n_seeds"]:

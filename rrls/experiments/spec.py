@@ -9,7 +9,6 @@ tasks, seeds) may grow: the stored spec becomes the union and only the new runs 
 from __future__ import annotations
 
 import json
-import os
 from dataclasses import asdict, dataclass, fields, replace
 from pathlib import Path
 from typing import Any
@@ -315,10 +314,9 @@ def estimate(spec: Spec, jobs: int, max_episode_steps: int = 1000) -> dict[str, 
 
 
 def default_jobs() -> int:
-    try:
-        return len(os.sched_getaffinity(0))
-    except AttributeError:
-        return os.cpu_count() or 1
+    from rrls._proc import cores
+
+    return cores()
 
 
 def format_duration(seconds: float) -> str:
