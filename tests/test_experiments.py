@@ -21,7 +21,15 @@ from rrls.cli import main
 from rrls.experiments import stats
 from rrls.experiments.report import make_report, paper_results, summarise
 from rrls.experiments.runner import Display, plan
-from rrls.experiments.spec import Spec, SpecError, estimate, make_spec, reconcile
+from rrls.experiments.spec import (
+    STARTUP_S,
+    TRAIN_STEPS_PER_S,
+    Spec,
+    SpecError,
+    estimate,
+    make_spec,
+    reconcile,
+)
 
 needs_torch = pytest.mark.skipif(
     importlib.util.find_spec("torch") is None, reason="training needs torch (rrls[train])"
@@ -232,7 +240,7 @@ def test_ray_backend_runs_the_same_function(smoke, tmp_path):
 @pytest.mark.parametrize(
     "extra, needle",
     [
-        (["--algos", "td3,sac"], "unknown algorithm 'sac'"),
+        (["--algos", "td3,ppo"], "unknown algorithm 'ppo'"),
         (["--tasks", "pong"], "unknown task 'pong'"),
         (["--tasks", "invertedpendulum", "--uncertainty", "3d"], "no uncertainty set '3d'"),
         (["--seeds", "0"], "--seeds must be >= 1"),
@@ -267,8 +275,9 @@ def test_paper_preset_is_the_protocol_and_prints_an_estimate(tmp_path):
     assert spec.learning_rate is None and spec.hidden == (256, 256)  # the paper's 3e-4
     est = estimate(spec, jobs=2)
     assert est["runs"] == 250 and est["wall_s"] == pytest.approx(est["cpu_s"] / 2)
-    # TD3, DR, M2TD3 at ~330 steps/s; RARL (one player learns per step) and NR-MDP at ~300
-    assert est["train_s"] == pytest.approx(50 * 5e6 * (3 / 330 + 2 / 300) + 250 * 5.0)
+    # each run: the start-up plus its steps at its algorithm's calibrated single-thread rate
+    rates = [TRAIN_STEPS_PER_S[a] for a in spec.algos]
+    assert est["train_s"] == pytest.approx(50 * 5e6 * sum(1 / r for r in rates) + 250 * STARTUP_S)
     text = plan(tmp_path, spec, 250, 0, 2, "local")
     assert "250 runs" in text and "estimate" in text and "days" in text
     # explicit options override the preset

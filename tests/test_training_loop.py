@@ -3,7 +3,6 @@ autograd, saved adversaries, run-directory hygiene and process hygiene."""
 
 from __future__ import annotations
 
-import copy
 import json
 
 import numpy as np
@@ -12,7 +11,7 @@ import pytest
 torch = pytest.importorskip("torch")
 
 from rrls.agents import TrainConfig, hyperparameters, train  # noqa: E402
-from rrls.agents.core import TD3, TD3Config  # noqa: E402
+from rrls.agents.seeds import RunSeeds  # noqa: E402
 from rrls.cli import main  # noqa: E402
 
 SMALL = ["--hidden", "16", "16", "--batch-size", "32", "--learning-starts", "100"]
@@ -57,8 +56,7 @@ def test_every_algorithm_option_reaches_its_learner(tmp_path, capsys):
     run = json.loads((tmp_path / "m2" / "run.json").read_text())["hyperparameters"]
     assert run["hatomega_learning_rate"] == 0.01 and run["learning_rate"] == 0.002
     # and the learner's optimisers use them
-    from rrls.agents import hyperparameters
-    from rrls.agents.loop import algorithm
+    from rrls.agents import algorithm, hyperparameters
 
     config = TrainConfig(
         algo="m2td3",
@@ -68,9 +66,10 @@ def test_every_algorithm_option_reaches_its_learner(tmp_path, capsys):
     )
     hyper = hyperparameters(config)
     env = algorithm("m2td3").make_env(config.task, config.uncertainty, hyper)
-    learner = algorithm("m2td3").Learner(env, hyper, [config], [np.random.default_rng(0)])
-    assert learner.candidates.learning_rate == 0.01
-    assert learner.agent.actor_opt.lr == learner.agent.critic_opt.lr == 0.002
+    learner = algorithm("m2td3").Learner(env, hyper, [RunSeeds(0)], torch.device("cpu"))
+    assert learner.candidates.opt.param_groups[0]["lr"] == 0.01
+    opts = (learner.agent.actor_opt, learner.agent.critic_opt)
+    assert all(o.param_groups[0]["lr"] == 0.002 for o in opts)
     capsys.readouterr()
     assert _cli(tmp_path / "bad", "td3", 200, "--alpha", "0.2") == 2
     assert "--alpha does not apply to td3 (only to nrmdp)" in capsys.readouterr().err
@@ -127,9 +126,9 @@ def test_finished_runs_bad_checkpoints_and_killed_writes(tmp_path, capsys):
 
 
 def test_a_run_leaves_the_process_as_it_found_it(tmp_path):
-    from rrls.agents.common import _flush_denormal_enabled
+    from rrls.agents.run import flush_denormal_enabled
 
-    threads, flush = torch.get_num_threads(), _flush_denormal_enabled()
+    threads, flush = torch.get_num_threads(), flush_denormal_enabled()
     config = TrainConfig(
         algo="td3",
         task="invertedpendulum",
@@ -141,7 +140,7 @@ def test_a_run_leaves_the_process_as_it_found_it(tmp_path):
         hyper={"learning_starts": 50, "hidden": (8,), "batch_size": 8},
     )
     train(config)
-    assert torch.get_num_threads() == threads and _flush_denormal_enabled() == flush
+    assert torch.get_num_threads() == threads and flush_denormal_enabled() == flush
     curves = (tmp_path / "r" / "scalars.csv").read_text().splitlines()
     assert curves[0] == "step,metric,value"
     assert any(",charts/episode_return," in line for line in curves[1:])
@@ -166,16 +165,15 @@ def test_adaptive_threads_use_idle_cores_and_give_them_back():
 def _nrmdp_learner(mode: str, alpha: float = 0.3):
     from rrls.agents import nrmdp
 
-    config = TrainConfig(algo="nrmdp", task="invertedpendulum", steps=100, progress=False)
     hyper = nrmdp.Config(
         alpha=alpha, mode=mode, hidden=(5,), policy_noise=0.0, batch_size=4, ratio=1, tau=0.5
     )
     env = nrmdp.make_env("invertedpendulum", "2d", hyper)
-    return nrmdp.Learner(env, hyper, [config], [np.random.default_rng(0)]), hyper
+    return nrmdp.Learner(env, hyper, [RunSeeds(0)], torch.device("cpu")), hyper
 
 
 def _q1(agent, obs, action):
-    return agent.critic(torch.cat([obs, action], 2), n=1)[:, 0]
+    return agent.critic(torch.cat([obs, action], 2))[:, 0]
 
 
 @pytest.mark.parametrize("mode", ["nr", "pr"])
@@ -190,7 +188,7 @@ def test_action_robust_target_is_the_references(mode):
     }
     s2 = batch["next_obs"]
     with torch.no_grad():
-        mine, theirs = agent.actor_target(s2), learner.opponent.target(s2)
+        mine, theirs = agent.actor_target(s2), learner.opponent_target(s2)
 
         def q(a):
             return agent.critic_target(torch.cat([s2, a], 2)).amin(1)
@@ -200,75 +198,75 @@ def test_action_robust_target_is_the_references(mode):
         else:  # the mixture of the two players' values
             value = (1 - alpha) * q(mine) + alpha * q(theirs)
         expected = batch["reward"] + hyper.gamma * (1 - batch["terminated"]) * value
-    eps = (torch.zeros(1, 4, 1), torch.zeros(1, 4, 1))  # policy_noise is 0
-    torch.testing.assert_close(learner.target(batch, eps), expected)
+    zero = torch.zeros(1, 4, 1)  # policy_noise is 0
+    torch.testing.assert_close(learner.target(batch, zero, zero), expected)
 
 
 @pytest.mark.parametrize("mode", ["nr", "pr"])
-def test_action_robust_policy_steps_match_autograd_and_the_adversary_lowers_q(mode):
+def test_action_robust_policy_steps_follow_the_reference_objectives(mode):
+    # each player's step moves its own actor only, the adversary lowering the protagonist's
+    # objective and the protagonist raising it
     learner, hyper = _nrmdp_learner(mode)
-    agent, opponent, alpha = learner.agent, learner.opponent, hyper.alpha
-    reference = copy.deepcopy(learner)
-    optimisers = {  # torch.optim's Adam: the reference of the fused fast path
-        moves: torch.optim.Adam(
-            (reference.opponent if moves else reference.agent.player).actor.parameters(),
-            lr=hyper.learning_rate,
-        )
-        for moves in (True, False)
-    }
+    agent, alpha = learner.agent, hyper.alpha
     obs = torch.randn(1, 4, 4, generator=torch.Generator().manual_seed(1))
+    for i in range(4):  # a full buffer for the update
+        learner.observe(
+            obs[:, i].numpy(),
+            [(np.zeros(1), np.zeros(1))],
+            np.ones(1),
+            obs[:, (i + 1) % 4].numpy(),
+            np.zeros(1, bool),
+            [{"executed_action": np.array([0.1 * i])}],
+        )
 
-    def objective(ref, adversary_moves: bool):
-        a, o = ref.agent, ref.opponent
+    @torch.no_grad()
+    def objective(adversary_moves: bool):
+        a, o, ot = agent, learner.opponent, learner.opponent_target
         if mode == "nr":
             if adversary_moves:
-                action = (1 - alpha) * a.actor_target(obs) + alpha * o.actor(obs)
+                action = (1 - alpha) * a.actor_target(obs) + alpha * o(obs)
             else:
-                action = (1 - alpha) * a.actor(obs) + alpha * o.target(obs)
-            return _q1(a, obs, action).mean()
+                action = (1 - alpha) * a.actor(obs) + alpha * ot(obs)
+            return _q1(a, obs, action).mean().item()
         if adversary_moves:
-            return alpha * _q1(a, obs, o.actor(obs)).mean()
-        return (1 - alpha) * _q1(a, obs, a.actor(obs)).mean()
+            return alpha * _q1(a, obs, o(obs)).mean().item()
+        return (1 - alpha) * _q1(a, obs, a.actor(obs)).mean().item()
 
     for adversary_moves in (True, False):
-        before = objective(learner, adversary_moves).item()
-        # plain autograd + torch.optim on a copy: the reference the fast path must equal
-        ref = reference.opponent if adversary_moves else reference.agent.player
-        loss = objective(reference, adversary_moves) * (1.0 if adversary_moves else -1.0)
-        optimisers[adversary_moves].zero_grad()
-        loss.backward(inputs=list(ref.actor.parameters()))
-        optimisers[adversary_moves].step()
+        moved = learner.opponent if adversary_moves else agent.actor
+        still = agent.actor if adversary_moves else learner.opponent
+        before = [p.detach().clone() for p in moved.parameters()]
+        kept = [p.detach().clone() for p in still.parameters()]
+        value = objective(adversary_moves)
+        critic = [p.detach().clone() for p in agent.critic.parameters()]
+        # the policy step alone (the critic's step is checked by the loss tests)
         if adversary_moves:
-            got = agent.policy_step(
-                opponent,
-                obs,
-                share=alpha if mode == "nr" else 1.0,
-                other=(1 - alpha) * agent.actor_target(obs).detach() if mode == "nr" else None,
-                weight=1.0 if mode == "nr" else alpha,
-                descend=True,
-            )
+            if mode == "nr":
+                with torch.no_grad():
+                    other = (1 - alpha) * agent.actor_target(obs)
+                loss = _q1(agent, obs, other + alpha * learner.opponent(obs)).mean(-1)
+            else:
+                loss = alpha * _q1(agent, obs, learner.opponent(obs)).mean(-1)
+            agent.policy_step(learner.opponent, learner.opponent_opt, loss)
         else:
-            got = agent.policy_step(
-                agent.player,
-                obs,
-                share=1 - alpha if mode == "nr" else 1.0,
-                other=alpha * opponent.target(obs).detach() if mode == "nr" else None,
-                weight=1.0 if mode == "nr" else 1 - alpha,
-            )
-        torch.testing.assert_close(got, loss.detach()[None])
-        moved = opponent.actor if adversary_moves else agent.actor
-        ref_moved = ref.actor
-        for p, r in zip(moved.parameters(), ref_moved.parameters()):
-            torch.testing.assert_close(p, r)
-        after = objective(learner, adversary_moves).item()
-        # the adversary's step lowers the protagonist's Q, the protagonist's raises it
-        assert (after < before) if adversary_moves else (after > before)
+            if mode == "nr":
+                with torch.no_grad():
+                    other = alpha * learner.opponent_target(obs)
+                loss = -_q1(agent, obs, (1 - alpha) * agent.actor(obs) + other).mean(-1)
+            else:
+                loss = -(1 - alpha) * _q1(agent, obs, agent.actor(obs)).mean(-1)
+            agent.policy_step(agent.actor, agent.actor_opt, loss)
+        assert all(torch.equal(p, c) for p, c in zip(agent.critic.parameters(), critic))
+        assert not all(torch.equal(p, b) for p, b in zip(moved.parameters(), before))
+        assert all(torch.equal(p, k) for p, k in zip(still.parameters(), kept))
+        after = objective(adversary_moves)
+        assert (after < value) if adversary_moves else (after > value)
 
 
 def test_the_update_schedule_gives_the_adversary_one_policy_step_in_ratio_plus_one():
     learner, hyper = _nrmdp_learner("nr")  # ratio 1: alternate
     for i in range(4):
-        learner.store(
+        learner.observe(
             np.zeros((1, 4)),
             [None],
             np.ones(1),
@@ -276,55 +274,14 @@ def test_the_update_schedule_gives_the_adversary_one_policy_step_in_ratio_plus_o
             np.zeros(1, bool),
             [{"executed_action": np.array([0.1 * i])}],
         )
-    kinds = [sorted(learner.update(step, True)) for step in range(4)]
+    kinds = [sorted(learner.update(step)) for step in (2, 4, 6, 8)]  # policy_frequency 2
     assert kinds == [
         ["actor_loss", "critic_loss"],
         ["adversary_loss", "critic_loss"],
         ["actor_loss", "critic_loss"],
         ["adversary_loss", "critic_loss"],
     ]
-    assert sorted(learner.update(5, False)) == ["critic_loss"]
-
-
-def test_td3_update_matches_a_plain_autograd_reference():
-    # the whole fast update (target, critic, actor, Polyak) against autograd + torch.optim
-    cfg = TD3Config(hidden=(6,), policy_noise=0.0, tau=0.1, batch_size=5)
-    agent = TD3(3, 2, np.array([-1.0, -2.0]), np.array([1.0, 2.0]), cfg, seeds=[0, 7])
-    ref = copy.deepcopy(agent)
-    critic_opt = torch.optim.Adam(ref.critic.parameters(), lr=cfg.learning_rate)
-    actor_opt = torch.optim.Adam(ref.actor.parameters(), lr=cfg.learning_rate)
-    g = torch.Generator().manual_seed(3)
-    for step in range(4):
-        batch = {  # a group of two runs
-            "obs": torch.randn(2, 5, 3, generator=g),
-            "action": torch.rand(2, 5, 2, generator=g),
-            "reward": torch.randn(2, 5, generator=g),
-            "next_obs": torch.randn(2, 5, 3, generator=g),
-            "terminated": (torch.rand(2, 5, generator=g) < 0.3).float(),
-        }
-        agent.update(batch, torch.zeros(2, 5, 2), update_actor=step % 2 == 1)
-        with torch.no_grad():
-            a2 = ref.actor_target(batch["next_obs"])
-            q2 = ref.critic_target(torch.cat([batch["next_obs"], a2], 2)).amin(1)
-            y = batch["reward"] + cfg.gamma * (1 - batch["terminated"]) * q2
-        q = ref.critic(torch.cat([batch["obs"], batch["action"]], 2))
-        critic_opt.zero_grad()
-        ((q - y[:, None]) ** 2).mean(2).sum().backward()
-        critic_opt.step()
-        if step % 2 == 1:
-            x = torch.cat([batch["obs"], ref.actor(batch["obs"])], 2)
-            loss = -ref.critic(x, n=1).mean(2).sum()  # each run's own mean
-            actor_opt.zero_grad()
-            loss.backward(inputs=list(ref.actor.parameters()))
-            actor_opt.step()
-            with torch.no_grad():
-                for net in ("actor", "critic"):
-                    src, dst = getattr(ref, net), getattr(ref, f"{net}_target")
-                    for p, t in zip(src.parameters(), dst.parameters()):
-                        t.mul_(1 - cfg.tau).add_(cfg.tau * p)
-    for net in ("actor", "critic", "actor_target", "critic_target"):
-        for got, want in zip(getattr(agent, net).parameters(), getattr(ref, net).parameters()):
-            torch.testing.assert_close(got, want, rtol=1e-5, atol=1e-6)
+    assert sorted(learner.update(5)) == ["critic_loss"]
 
 
 # -- adversaries saved, and played against (paper Table 6) ------------------------------------
@@ -363,3 +320,25 @@ def test_adversary_is_saved_and_evaluate_dynamic_plays_against_it(tmp_path, caps
 def test_hyperparameters_refuse_unknown_names():
     with pytest.raises(ValueError, match="td3 has no hyper-parameter 'alpha'"):
         hyperparameters(TrainConfig(hyper={"alpha": 0.1}))
+
+
+def test_a_damaged_checkpoint_is_refused_naming_the_file(tmp_path, capsys):
+    cut = tmp_path / "cut"
+    assert _cli(cut, "td3", 300, "--stop-at", "120") == 3
+    data = bytearray((cut / "checkpoint.pt").read_bytes())
+    data[len(data) // 2] ^= 0xFF  # one flipped byte in the middle of the tensors
+    (cut / "checkpoint.pt").write_bytes(bytes(data))
+    capsys.readouterr()
+    assert _cli(cut, "td3", 300, "--resume") == 2
+    err = capsys.readouterr().err.strip()
+    assert str(cut / "checkpoint.pt") in err and "damaged" in err and "\n" not in err
+
+
+def test_extending_a_finished_run_equals_the_longer_run(tmp_path):
+    # the replay capacity no longer depends on --steps: 200 steps, then --resume --steps 300,
+    # equals 300 steps at once (the final checkpoint is at step 200: --checkpoint-every 50)
+    assert _cli(tmp_path / "long", "td3", 300) == 0
+    assert _cli(tmp_path / "short", "td3", 200) == 0
+    assert _cli(tmp_path / "short", "td3", 300, "--resume") == 0
+    a, b = (np.load(tmp_path / d / "policy.npz") for d in ("long", "short"))
+    assert all(np.array_equal(a[k], b[k]) for k in a.files if k != "header")

@@ -1,8 +1,11 @@
-"""Domain Randomization (Tobin et al. 2017): TD3 on environments whose parameters are drawn
-uniformly from the uncertainty set at every episode (``rrls.wrappers.DomainRandomization``).
+"""Domain Randomization (Tobin et al. 2017, "Domain Randomization for Transferring Deep Neural
+Networks from Simulation to the Real World"; https://arxiv.org/abs/1703.06907): TD3 on
+environments whose parameters are drawn uniformly from the uncertainty set at every episode
+(``rrls.wrappers.DomainRandomization``).
 
 The learner is TD3's, unchanged; only the environment differs. The draws come from the
-environment's own seeded generator, so they are part of the checkpoint.
+environment's own seeded generator (the run's ``"env"`` stream), so they are part of the
+checkpoint.
 """
 
 from __future__ import annotations
@@ -10,13 +13,10 @@ from __future__ import annotations
 from typing import Any
 
 from rrls.agents.common import task_env
-from rrls.agents.core import TD3Config
-from rrls.agents.td3 import Learner
-
-Config = TD3Config
+from rrls.agents.td3 import Config, Learner
 
 
-def make_env(task: str, uncertainty: str, config: TD3Config) -> Any:
+def make_env(task: str, uncertainty: str, config: Config) -> Any:
     """The task whose parameters (or forces, for ``rarl``) are redrawn at every reset."""
     from rrls.wrappers import DomainRandomization
 

@@ -51,9 +51,9 @@ class LocalEnvs:
 
 
 def _worker(make: Callable[[], Any], indices: list[int], conn: Any) -> None:
-    from rrls.experiments.launch import _die_with_parent
+    from rrls._proc import die_with_parent
 
-    _die_with_parent()
+    die_with_parent()
     local = LocalEnvs(make, len(indices))
     position = {k: i for i, k in enumerate(indices)}
     while True:

@@ -1,234 +1,41 @@
-"""The one collection loop every baseline runs: an algorithm only brings its ``Learner``.
+"""The one collection loop every algorithm runs: an algorithm only brings its ``Learner``
+(``rrls.agents.learner``: act, observe, update, state_dict, load_state_dict, export).
 
-The loop owns what the five algorithms share, so it is written once: the environment and its
-seeding, the uniformly random warm-up, acting, time limits (an episode truncated at
-``max_episode_steps`` bootstraps, a terminated one does not, and no transition crosses a
-reset), when updates happen, periodic evaluation, checkpoints taken at episode ends and the
-bitwise resume from them, logs and the export of the final policies.
+The loop owns what algorithms share, written once: the environments and their seeding, the
+uniformly random warm-up, acting, time limits (an episode truncated at ``max_episode_steps``
+bootstraps, a terminated one does not, and no transition crosses a reset), when updates start,
+periodic evaluation, checkpoints (each run's slice of the learner's state, taken every
+``checkpoint_every`` steps, mid-episode: the episode in progress is replayed on resume, so the
+resumed run continues bit for bit), logs and the export of the final policies.
 
-An algorithm module (``td3``, ``dr``, ``rarl``, ``nrmdp``, ``m2td3``) holds its paper reference,
-its hyper-parameters as one dataclass ``Config`` (the paper's values; ``rrls train`` offers
-every field as an option), ``make_env(task, uncertainty, config)`` and a ``Learner``: what it
-acts, what it stores and how it updates.
+Every generator of a run is a child of ``SeedSequence(seed)`` (``rrls.agents.seeds``): the
+loop's ``"env"`` (first reset) and ``"warmup"`` streams, the learner's own.
 """
 
 from __future__ import annotations
 
-import importlib
 import json
 from collections.abc import Callable
 from functools import partial
 from pathlib import Path
-from types import ModuleType
 from typing import Any
 
 import numpy as np
 import torch
 
+from rrls.agents import graphs
 from rrls.agents.common import (
-    ALGOS,
-    Run,
+    Algorithm,
     TrainConfig,
-    process_settings,
+    algorithm,
+    hyperparameters,
     rng_state,
     set_rng_state,
 )
-from rrls.agents.core import TD3Config
 from rrls.agents.envs import make_envs
-
-
-class Learner:
-    """What an algorithm plugs into the loop, for a group of ``K`` runs (a run alone: ``K = 1``).
-
-    ``actor`` holds the runs' policies (evaluated and exported as each run's ``policy.npz``);
-    ``adversary``, if any, is exported as ``adversary.npz`` with ``game`` in its metadata.
-    Observations, rewards and flags come as arrays with the runs first; actions as one env
-    action per run. A run's checkpoint is its slice of every stacked tensor (``stacked``), the
-    group's common counters (``shared``), its own generators and replay rows.
-    """
-
-    actor: Any
-    adversary: Any = None
-    game: dict[str, Any] | None = None
-
-    def act(self, obs: np.ndarray, rngs: list[np.random.Generator], warmup: bool) -> list[Any]:
-        """Each run's env action: uniformly random while ``warmup``, else explore."""
-        raise NotImplementedError
-
-    def store(
-        self,
-        obs: np.ndarray,
-        actions: list[Any],
-        rewards: np.ndarray,
-        next_obs: np.ndarray,
-        terminated: np.ndarray,
-        infos: list[dict[str, Any]],
-    ) -> None:
-        """Write the step's transitions to the replay buffer(s); ``terminated`` only, never
-        truncation."""
-        raise NotImplementedError
-
-    def update(self, step: int, update_actor: bool) -> dict[str, torch.Tensor]:
-        """The gradient steps of one env step, for every run; returns ``(K,)`` losses (logged
-        every 1 000 steps)."""
-        raise NotImplementedError
-
-    def episode_options(self, k: int, step: int, rng: np.random.Generator) -> dict | None:
-        """``reset(options=...)`` for run ``k``'s next episode (M2TD3 picks its parameters)."""
-        return None
-
-    def episode_end(self, k: int, episode_return: float, length: int) -> dict[str, float]:
-        """Called at each of run ``k``'s episode ends; returns extra scalars to log."""
-        return {}
-
-    def summary(self, k: int) -> dict[str, Any]:
-        """Extra entries of run ``k``'s ``run.json``."""
-        return {}
-
-    # -- per-run checkpoints ----------------------------------------------------------------
-    def stacked(self) -> dict[str, torch.Tensor]:
-        """Every tensor whose leading dimension is the run, by name."""
-        return {}
-
-    def shared(self) -> dict[str, torch.Tensor]:
-        """Tensors common to the group's runs (optimiser step counts)."""
-        return {}
-
-    def generators(self) -> dict[str, list[torch.Generator]]:
-        """Each run's torch generators, by name."""
-        return {}
-
-    def buffers(self) -> list[Any]:
-        return []
-
-    def extra_state(self, k: int) -> dict[str, Any]:
-        """Run ``k``'s other state (plain values and tensors)."""
-        return {}
-
-    def load_extra_state(self, k: int, state: dict[str, Any]) -> None:
-        pass
-
-    def policy(self, k: int, metadata: dict[str, Any]) -> Any:
-        """Run ``k``'s actor as the ``MLPPolicy`` that is evaluated and saved."""
-        return self.actor.to_mlp_policy(k, metadata)
-
-    def adversary_policy(self, k: int, metadata: dict[str, Any]) -> Any:
-        """Run ``k``'s adversary as an ``MLPPolicy`` (its metadata says so), if any."""
-        if self.adversary is None:
-            return None
-        meta = {**metadata, "act_dim": self.adversary.act_dim, "role": "adversary"}
-        return self.adversary.to_mlp_policy(k, meta)
-
-    def actor_state(self, k: int) -> dict[str, torch.Tensor]:
-        """Run ``k``'s actor tensors (``actor.pt``)."""
-        return {n: t[k].detach().cpu().clone() for n, t in self.actor.named_parameters()}
-
-    def state_dict(self, k: int) -> dict[str, Any]:
-        """Run ``k``'s whole learner state: the same whatever group it was trained in."""
-        return {
-            "stacked": {n: t[k].detach().cpu().clone() for n, t in self.stacked().items()},
-            "shared": {n: t.detach().cpu().clone() for n, t in self.shared().items()},
-            "generators": {n: g[k].get_state() for n, g in self.generators().items()},
-            "buffers": [b.state(k) for b in self.buffers()],
-            "extra": self.extra_state(k),
-        }
-
-    @torch.no_grad()
-    def load_state_dict(self, k: int, state: dict[str, Any]) -> None:
-        for name, tensor in self.stacked().items():
-            tensor[k].copy_(state["stacked"][name])
-        for name, tensor in self.shared().items():
-            if k and not torch.equal(tensor.cpu(), state["shared"][name]):
-                raise ValueError("the runs of a group must resume from the same step")
-            tensor.copy_(state["shared"][name])
-        for name, gens in self.generators().items():
-            gens[k].set_state(state["generators"][name])
-        for buffer, saved in zip(self.buffers(), state["buffers"]):
-            buffer.load(k, saved)
-        self.load_extra_state(k, state["extra"])
-
-
-#: runs per stacked learner on a CPU. Measured (``benchmarks/train_speed.py --groups``, Hopper,
-#: 2 cores): 8 stacked runs step 1.3-1.5x faster than 8 single-threaded processes, but 32 stacked
-#: runs are slower than 8 (their activations, ~16 MB a layer, leave the caches); a group of 32
-#: is then four stacks of 8, updated one after the other in the same lockstep loop. A run's
-#: numbers do not depend on its stack (see ``Learner.state_dict``).
-CPU_STACK = 8
-
-
-class Stacks(Learner):
-    """Several stacked learners of one group, used as one: run ``k`` lives in one of them."""
-
-    def __init__(self, parts: list[Learner]) -> None:
-        self.parts = parts
-        self.where = [(i, j) for i, p in enumerate(parts) for j in range(p.actor.group)]
-        sizes = [p.actor.group for p in parts]
-        self.bounds = [sum(sizes[:i]) for i in range(len(sizes) + 1)]
-        self.actor, self.adversary, self.game = parts[0].actor, parts[0].adversary, parts[0].game
-
-    def _slices(self) -> list[slice]:
-        return [slice(a, b) for a, b in zip(self.bounds, self.bounds[1:])]
-
-    def act(self, obs: np.ndarray, rngs: list[np.random.Generator], warmup: bool) -> list[Any]:
-        return [
-            a for p, s in zip(self.parts, self._slices()) for a in p.act(obs[s], rngs[s], warmup)
-        ]
-
-    def store(self, obs, actions, rewards, next_obs, terminated, infos) -> None:  # noqa: ANN001
-        for p, s in zip(self.parts, self._slices()):
-            p.store(obs[s], actions[s], rewards[s], next_obs[s], terminated[s], infos[s])
-
-    def update(self, step: int, update_actor: bool) -> dict[str, torch.Tensor]:
-        losses = [p.update(step, update_actor) for p in self.parts]
-        return {name: torch.cat([part[name] for part in losses]) for name in losses[0]}
-
-    def _call(self, method: str, k: int, *args: Any) -> Any:
-        i, j = self.where[k]
-        return getattr(self.parts[i], method)(j, *args)
-
-    def episode_options(self, k: int, step: int, rng: np.random.Generator) -> dict | None:
-        return self._call("episode_options", k, step, rng)
-
-    def episode_end(self, k: int, episode_return: float, length: int) -> dict[str, float]:
-        return self._call("episode_end", k, episode_return, length)
-
-    def summary(self, k: int) -> dict[str, Any]:
-        return self._call("summary", k)
-
-    def policy(self, k: int, metadata: dict[str, Any]) -> Any:
-        return self._call("policy", k, metadata)
-
-    def adversary_policy(self, k: int, metadata: dict[str, Any]) -> Any:
-        return self._call("adversary_policy", k, metadata)
-
-    def actor_state(self, k: int) -> dict[str, torch.Tensor]:
-        return self._call("actor_state", k)
-
-    def state_dict(self, k: int) -> dict[str, Any]:
-        return self._call("state_dict", k)
-
-    def load_state_dict(self, k: int, state: dict[str, Any]) -> None:
-        self._call("load_state_dict", k, state)
-
-
-def algorithm(name: str) -> ModuleType:
-    """The module of algorithm ``name`` (``rrls.agents.td3``, ...)."""
-    if name not in ALGOS:
-        raise ValueError(f"unknown algorithm {name!r}; valid: {', '.join(ALGOS)}")
-    return importlib.import_module(f"rrls.agents.{name}")
-
-
-def hyperparameters(config: TrainConfig) -> TD3Config:
-    """The algorithm's ``Config`` with the run's overrides (``config.hyper``), validated."""
-    cls = algorithm(config.algo).Config
-    valid = set(cls.__dataclass_fields__)
-    unknown = sorted(set(config.hyper) - valid)
-    if unknown:
-        raise ValueError(
-            f"{config.algo} has no hyper-parameter {', '.join(map(repr, unknown))}; "
-            f"valid: {', '.join(sorted(valid))}"
-        )
-    return cls(**config.hyper)
+from rrls.agents.learner import run_slice, stack_runs
+from rrls.agents.run import Run, process_settings
+from rrls.agents.seeds import RunSeeds
 
 
 def train(
@@ -253,11 +60,11 @@ def train_group(
 ) -> list[Path]:
     """Train several runs of one algorithm on one task together; returns their directories.
 
-    The runs (typically different seeds) differ only in ``seed`` and ``out``; they are stacked
-    (``K`` agents, one update call) and their envs step in lockstep. Each run keeps its own
-    directory, checkpoint, logs and policy, and its numbers are those it has when trained alone
-    (``tests/test_group.py``). Resumed runs that stopped at different steps are continued in
-    groups of equal step. ``on_episode(k, step, return)`` is called at run ``k``'s episode ends.
+    The runs (typically different seeds) differ only in ``seed`` and ``out``; one learner holds
+    them all (one batched update) and their envs step in lockstep. Each run keeps its own
+    directory, checkpoint, logs and policy; its numbers equal those it has alone up to float32
+    rounding (``tests/test_group.py``), and bit for bit given the same group. Resumed runs that
+    stopped at different steps are continued in groups of equal step.
     """
     if not configs:
         return []
@@ -285,12 +92,12 @@ def train_group(
     return [run.dir for run in runs]
 
 
-def _check_group(configs: list[TrainConfig], hyper: TD3Config) -> None:
+def _check_group(configs: list[TrainConfig], hyper: Any) -> None:
     """The runs of a group must differ only in seed and directory."""
     first, reference = configs[0], configs[0].identity(hyper)
     same = ("steps", "device", "eval_every", "eval_episodes", "eval_mesh", "checkpoint_every")
     for config in configs[1:]:
-        identity = config.identity(hyperparameters(config))  # once per run, not per field
+        identity = config.identity(hyperparameters(config))
         diff = [k for k, v in reference.items() if k != "seed" and identity[k] != v]
         diff += [name for name in same if getattr(config, name) != getattr(first, name)]
         if diff:
@@ -314,33 +121,26 @@ class _Episode:
 
     def state(self, obs: np.ndarray) -> dict[str, Any]:
         parts: list[torch.Tensor] = []
+        tuples = bool(self.actions) and isinstance(self.actions[0], tuple)
         if self.actions:
-            first = self.actions[0]
-            if isinstance(first, tuple):
-                parts = [
-                    torch.as_tensor(np.stack([a[i] for a in self.actions]))
-                    for i in range(len(first))
-                ]
-            else:
-                parts = [torch.as_tensor(np.stack(self.actions))]
+            columns = zip(*self.actions) if tuples else [self.actions]
+            parts = [torch.as_tensor(np.stack(c)) for c in columns]
         return {
             "env_rng": self.env_rng,
             "seed": self.seed,
             "options": json.dumps(self.options),
-            "tuple": bool(self.actions) and isinstance(self.actions[0], tuple),
+            "tuple": tuples,
             "actions": parts,
             "obs": torch.as_tensor(np.asarray(obs)),
         }
 
 
-def _begin(
-    envs: Any, k: int, seed: int | None, options: dict | None
-) -> tuple[np.ndarray, _Episode]:
+def _begin(envs: Any, k: int, seed: int | None, options: dict | None) -> tuple:
     episode = _Episode(envs.rng_state(k), seed, options)
     return envs.reset(k, seed, options), episode
 
 
-def _replay(envs: Any, k: int, saved: dict[str, Any], path: Path) -> tuple[np.ndarray, _Episode]:
+def _replay(envs: Any, k: int, saved: dict[str, Any], path: Path) -> tuple:
     """Re-run the episode a checkpoint was taken in, up to the checkpoint."""
     envs.set_rng_state(k, saved["env_rng"])
     obs, episode = _begin(envs, k, saved["seed"], json.loads(saved["options"]))
@@ -359,13 +159,7 @@ def _replay(envs: Any, k: int, saved: dict[str, Any], path: Path) -> tuple[np.nd
     return obs, episode
 
 
-def _train_together(
-    hyper: TD3Config,
-    runs: list[Run],
-    states: list[dict[str, Any] | None],
-    on_episode: Callable[[int, int, float], None] | None,
-    threads: Any,
-) -> None:
+def _train_together(hyper, runs, states, on_episode, threads) -> None:  # noqa: ANN001
     """The collection loop of one group of runs at the same step."""
     first = runs[0].config
     algo = algorithm(first.algo)
@@ -385,42 +179,45 @@ def env_workers(config: TrainConfig, group: int) -> int:
         return config.env_workers
     if not config.device.startswith("cuda") or group < 16:
         return 0
-    import os
+    from rrls._proc import cores
 
-    return max(0, min(group // 8, (os.cpu_count() or 1) - 1))
+    return max(0, min(group // 8, cores() - 1))
+
+
+def uniform(space: Any, rng: np.random.Generator) -> Any:
+    """A uniformly random action of a ``Box`` (or of each ``Box`` of a ``Tuple``) space."""
+    if hasattr(space, "spaces"):
+        return tuple(uniform(s, rng) for s in space.spaces)
+    return rng.uniform(space.low, space.high).astype(np.float32)
 
 
 def _collect(
-    algo: ModuleType,
-    hyper: TD3Config,
-    runs: list[Run],
-    states: list[dict[str, Any] | None],
-    on_episode: Callable[[int, int, float], None] | None,
-    threads: Any,
-    template: Any,
-    envs: Any,
+    algo: Algorithm,
+    hyper,
+    runs,
+    states,
+    on_episode,
+    threads,
+    template,
+    envs,  # noqa: ANN001
 ) -> None:
     first = runs[0].config
-    configs = [run.config for run in runs]
-    # warm-up actions, exploration noise, M2TD3's draws: each run's own generator
-    rngs = [np.random.default_rng(c.seed) for c in configs]
-    # on a CPU, stacks of at most CPU_STACK runs (cache-sized), updated one after the other
-    size = len(runs) if first.device.startswith("cuda") else CPU_STACK
-    bounds = list(range(0, len(runs), size)) + [len(runs)]
-    parts = [
-        algo.Learner(template, hyper, configs[a:b], rngs[a:b]) for a, b in zip(bounds, bounds[1:])
-    ]
-    learner: Learner = parts[0] if len(parts) == 1 else Stacks(parts)
-    metas = [run.metadata(template, learner, k) for k, run in enumerate(runs)]
+    seeds = [RunSeeds(run.config.seed) for run in runs]
+    warmup = [s.numpy("warmup") for s in seeds]
+    graphs.ENABLED = first.cuda_graphs
+    learner = algo.Learner(template, hyper, seeds, torch.device(first.device))
+    learning_starts = int(getattr(hyper, "learning_starts", 0))
+    metas = [run.metadata(template) for run in runs]
 
     observations, episodes = [], []
+    if any(state is not None for state in states):
+        learner.load_state_dict(stack_runs([state["learner"] for state in states]))
     for k, (run, state) in enumerate(zip(runs, states)):
         if state is None:
-            options = learner.episode_options(k, 0, rngs[k])
-            obs, episode = _begin(envs, k, run.config.seed, options)
-        else:  # restore everything, then replay the episode in progress
-            learner.load_state_dict(k, state["learner"])
-            set_rng_state(rngs[k], state["rng"])
+            options = learner.episode_options(k, 0)
+            obs, episode = _begin(envs, k, seeds[k].integer("env"), options)
+        else:  # restore the loop's generator, then replay the episode in progress
+            set_rng_state(warmup[k], state["warmup"])
             obs, episode = _replay(envs, k, state["episode"], run.checkpoint_path)
         observations.append(obs)
         episodes.append(episode)
@@ -430,7 +227,10 @@ def _collect(
     bar = runs[0].progress(group)
     try:
         while step < steps:
-            actions = learner.act(obs, rngs, warmup=step < hyper.learning_starts)
+            if step < learning_starts:
+                actions = [uniform(template.action_space, rng) for rng in warmup]
+            else:
+                actions = learner.act(obs)
             results = envs.step(actions)
             next_obs = np.stack([r[0] for r in results])
             rewards = np.array([r[1] for r in results], dtype=np.float64)
@@ -439,17 +239,17 @@ def _collect(
             for run in runs:
                 run.step = step
             # a truncated transition keeps terminated=0: its target bootstraps from next_obs
-            learner.store(obs, actions, rewards, next_obs, terminated, [r[3] for r in results])
+            learner.observe(obs, actions, rewards, next_obs, terminated, [r[3] for r in results])
 
-            if step > hyper.learning_starts:
-                losses = learner.update(step, step % hyper.policy_frequency == 0)
+            if step > learning_starts:
+                losses = learner.update(step)
                 if step % 1000 == 0:
                     values = {name: v.cpu().tolist() for name, v in losses.items()}
                     for k, run in enumerate(runs):
                         run.log({f"losses/{n}": v[k] for n, v in values.items()})
             if runs[0].eval_due():
                 for k, run in enumerate(runs):
-                    run.evaluate(learner.policy(k, metas[k]))
+                    run.evaluate(_policies(learner, k, metas[k])["policy"])
 
             for k, episode in enumerate(episodes):
                 episode.actions.append(actions[k])
@@ -461,17 +261,18 @@ def _collect(
                     runs[k].episode_end(episode.ret, episode.length, **extra)
                     if on_episode is not None:
                         on_episode(k, step, episode.ret)
-                    options = learner.episode_options(k, step, rngs[k])
+                    options = learner.episode_options(k, step)
                     next_obs[k], episodes[k] = _begin(envs, k, None, options)
                     threads.poll()
             obs = next_obs
 
             if runs[0].checkpoint_due():
+                state = learner.state_dict()
                 for k, run in enumerate(runs):
                     run.save(
                         {
-                            "learner": learner.state_dict(k),
-                            "rng": rng_state(rngs[k]),
+                            "learner": run_slice(state, k),
+                            "warmup": rng_state(warmup[k]),
                             "episode": episodes[k].state(obs[k]),
                         }
                     )
@@ -480,10 +281,15 @@ def _collect(
     finally:
         bar.close()
     for k, run in enumerate(runs):
-        run.finish(
-            learner.policy(k, metas[k]),
-            learner.actor_state(k),
-            metas[k],
-            {"steps": run.step, "episodes": run.episodes, **learner.summary(k)},
-            adversary=learner.adversary_policy(k, metas[k]),
-        )
+        run.finish(_policies(learner, k, metas[k]), {"steps": run.step, "episodes": run.episodes})
+
+
+def _policies(learner: Any, k: int, metadata: dict[str, Any]) -> dict[str, Any]:
+    """Run ``k``'s exported policies, their metadata completed with the run's."""
+    out = learner.export(k)
+    for name, policy in out.items():
+        own = dict(policy.metadata)
+        policy.metadata = {**metadata, "act_dim": policy.act_dim, **own}
+        if name != "policy":
+            policy.metadata.setdefault("role", name)
+    return out

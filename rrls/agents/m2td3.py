@@ -40,12 +40,14 @@ from typing import Any
 
 import numpy as np
 import torch
+from torch import nn
 
-from rrls.agents import td3
-from rrls.agents.common import TrainConfig, task_env
-from rrls.agents.core import TD3, TD3Config, Update, hp
-from rrls.agents.networks import per_run
+from rrls.agents.common import hp, task_env
+from rrls.agents.graphs import Update
 from rrls.agents.replay import ReplayBuffer, transition_fields
+from rrls.agents.seeds import NumpyGenerators, RunSeeds
+from rrls.agents.td3 import TD3, TD3Config
+from rrls.agents.td3 import Learner as TD3Learner
 
 
 @dataclass
@@ -74,62 +76,55 @@ class Config(TD3Config):
 
 
 class Candidates:
-    """Each run's ``N`` candidate worst-case parameters ω̂, always inside ``[low, high]``.
+    """Each run's ``N`` candidate worst-case parameters ω̂ = low + sigmoid(logit) · (high - low),
+    always inside the box, with selection probabilities ``(K, N)``.
 
-    Stacked for the group: logits ``(K, N, dim)``, each candidate with its own Adam state (as the
-    authors' one optimiser per ω̂; restarted with it), selection probabilities ``(K, N)``.
+    Every candidate is its own parameter with its own Adam state (the authors' one optimiser per
+    ω̂, restarted with it): one ``torch.optim.Adam`` over the ``K·N`` logits, of which only the
+    chosen ones get a gradient (the others are skipped, their step counts unchanged).
     """
 
-    def __init__(
-        self,
-        low: np.ndarray,
-        high: np.ndarray,
-        rngs: list[np.random.Generator],
-        config: Config,
-        device: torch.device,
-    ) -> None:
-        self.n, self.learning_rate = config.hatomega_number, config.hatomega_learning_rate
+    def __init__(self, low, high, rngs, config: Config, device: torch.device) -> None:  # noqa: ANN001
+        self.n, self.group = config.hatomega_number, len(rngs.list)
         self.distance = config.hatomega_parameter_distance
         self.min_probability = config.minimum_probability
         self.low_np, self.high_np = np.asarray(low, np.float64), np.asarray(high, np.float64)
         self.low = torch.tensor(self.low_np, dtype=torch.float32, device=device)
         self.high = torch.tensor(self.high_np, dtype=torch.float32, device=device)
-        shape = (len(rngs), self.n, len(low))
-        self.logits = torch.zeros(shape, device=device)
-        self.exp_avg = torch.zeros(shape, device=device)
-        self.exp_avg_sq = torch.zeros(shape, device=device)
-        # β^t as running products (exact multiplications; a tensor ``pow`` is transcendental)
-        self.beta_powers = torch.ones((*shape[:2], 2), device=device)
-        self._betas = torch.tensor([0.9, 0.999], device=device)
-        self.probabilities = torch.full(shape[:2], 1.0 / self.n, dtype=torch.float64, device=device)
-        for k, rng in enumerate(rngs):
+        dim = len(self.low_np)
+        self.logits = [
+            nn.Parameter(torch.zeros(dim, device=device)) for _ in range(self.group * self.n)
+        ]
+        self.opt = torch.optim.Adam(self.logits, lr=config.hatomega_learning_rate)
+        shape = (self.group, self.n)
+        self.probabilities = torch.full(shape, 1.0 / self.n, dtype=torch.float64, device=device)
+        for k in range(self.group):
             for j in range(self.n):
-                self.reinitialise(k, j, rng, probability=False)
+                self.reinitialise(k, j, rngs[k], probability=False)
 
     def values(self) -> torch.Tensor:
-        """All candidates, ``(K, N, dim)``."""
-        return self.low + per_run(torch.sigmoid, self.logits) * (self.high - self.low)
+        """All candidates, ``(K, N, dim)`` (differentiable in the logits)."""
+        logits = torch.stack(self.logits).view(self.group, self.n, -1)
+        return self.low + torch.sigmoid(logits) * (self.high - self.low)
 
-    def reinitialise(
-        self, k: int, j: int, rng: np.random.Generator, probability: bool = True
-    ) -> None:
+    @torch.no_grad()
+    def reinitialise(self, k: int, j: int, rng, probability: bool = True) -> None:  # noqa: ANN001
         """A fresh uniform point and a fresh Adam; its probability = the mean of the others."""
         low, high = self.low_np, self.high_np
-        y = (rng.uniform(low, high) - low) / np.maximum(high - low, 1e-5)
-        y = np.clip(y, 1e-5, 1 - 1e-5)
-        self.logits[k, j] = torch.as_tensor(np.log(y / (1 - y)), dtype=torch.float32)
-        self.exp_avg[k, j] = 0.0
-        self.exp_avg_sq[k, j] = 0.0
-        self.beta_powers[k, j] = 1.0
+        y = np.clip((rng.uniform(low, high) - low) / np.maximum(high - low, 1e-5), 1e-5, 1 - 1e-5)
+        logit = self.logits[k * self.n + j]
+        logit.copy_(torch.as_tensor(np.log(y / (1 - y)), dtype=torch.float32))
+        self.opt.state.pop(logit, None)
         if probability:
             p = self.probabilities[k]
             p[j] = 0.0
             p[j] = p.sum() / (self.n - 1)
 
-    def restart(self, k: int, rng: np.random.Generator) -> list[int]:
+    def restart(self, k: int, rng) -> list[int]:  # noqa: ANN001
         """Re-initialise run ``k``'s candidates that collapsed onto another or are rarely the
         worst."""
-        values = self.values()[k].cpu().numpy()
+        with torch.no_grad():
+            values = self.values()[k].cpu().numpy()
         close = {
             i
             for i, j in combinations(range(self.n), 2)
@@ -143,79 +138,86 @@ class Candidates:
             self.reinitialise(k, j, rng)
         return sorted(close | set(rare))
 
-    def select(self, k: int, rng: np.random.Generator) -> int:
+    def select(self, k: int, rng) -> int:  # noqa: ANN001
         p = self.probabilities[k]
         p /= p.sum()
         return int(rng.choice(self.n, p=p.cpu().numpy()))
 
-    @torch.no_grad()
-    def step(self, chosen: torch.Tensor, grad_logits: torch.Tensor) -> None:
-        """One Adam step (``torch.optim.Adam``'s arithmetic) of each run's chosen candidate."""
-        beta1, beta2, eps = 0.9, 0.999, 1e-8
-        index = chosen.view(-1, 1, 1).expand(-1, 1, self.logits.shape[2])
-        index2 = chosen.view(-1, 1, 1).expand(-1, 1, 2)
-        powers = self.beta_powers.gather(1, index2).squeeze(1)  # (K, 2)
-        powers.mul_(self._betas)
-        m = self.exp_avg.gather(1, index).squeeze(1).lerp_(grad_logits, 1 - beta1)
-        v = self.exp_avg_sq.gather(1, index).squeeze(1).mul_(beta2)
-        v.addcmul_(grad_logits, grad_logits, value=1 - beta2)
-        bias1, bias2 = 1 - powers[:, :1], 1 - powers[:, 1:]
-        denom = (v.sqrt() / bias2.sqrt()).add_(eps)
-        logits = self.logits.gather(1, index).squeeze(1)
-        logits.addcdiv_(m, denom * bias1 / self.learning_rate, value=-1.0)
-        self.beta_powers.scatter_(1, index2, powers.unsqueeze(1))
-        self.exp_avg.scatter_(1, index, m.unsqueeze(1))
-        self.exp_avg_sq.scatter_(1, index, v.unsqueeze(1))
-        self.logits.scatter_(1, index, logits.unsqueeze(1))
+    def step(self, loss: torch.Tensor, chosen: torch.Tensor) -> None:
+        """One Adam step of each run's chosen candidate on its ``(K,)`` loss."""
+        self.opt.zero_grad(set_to_none=True)
+        mine = [self.logits[k * self.n + j] for k, j in enumerate(chosen.tolist())]
+        loss.sum().backward(inputs=mine)  # the others keep no gradient: Adam skips them
+        self.opt.step()
 
+    @torch.no_grad()
     def mark_worst(self, chosen: torch.Tensor, coeff: torch.Tensor) -> None:
         """``p ← (1 - 1/L) p + (1/L) e_k`` per run: a decaying average of which is worst."""
         self.probabilities.mul_(1.0 - coeff.unsqueeze(1))
         self.probabilities.scatter_add_(1, chosen.view(-1, 1), coeff.unsqueeze(1))
 
-    def stacked(self) -> dict[str, torch.Tensor]:
-        return {
-            "hatomega.logits": self.logits,
-            "hatomega.exp_avg": self.exp_avg,
-            "hatomega.exp_avg_sq": self.exp_avg_sq,
-            "hatomega.beta_powers": self.beta_powers,
-            "hatomega.probabilities": self.probabilities,
-        }
+    def state_dict(self) -> dict[str, torch.Tensor]:
+        """Runs first: logits, Adam moments and step counts ``(K, N, ...)``, probabilities."""
+        shape = (self.group, self.n)
+        moments = {"exp_avg": [], "exp_avg_sq": [], "step": []}
+        for p in self.logits:
+            state = self.opt.state.get(p, {})
+            moments["exp_avg"].append(state.get("exp_avg", torch.zeros_like(p)))
+            moments["exp_avg_sq"].append(state.get("exp_avg_sq", torch.zeros_like(p)))
+            moments["step"].append(torch.as_tensor(state.get("step", 0.0), dtype=torch.float32))
+        out = {k: torch.stack(v).view(*shape, -1).detach().clone() for k, v in moments.items()}
+        out["logits"] = torch.stack(self.logits).view(*shape, -1).detach().clone()
+        out["probabilities"] = self.probabilities.clone()
+        return out
+
+    @torch.no_grad()
+    def load_state_dict(self, state: dict[str, torch.Tensor]) -> None:
+        logits = state["logits"].flatten(0, 1)
+        exp_avg, exp_avg_sq = state["exp_avg"].flatten(0, 1), state["exp_avg_sq"].flatten(0, 1)
+        for i, p in enumerate(self.logits):
+            p.copy_(logits[i])
+            step = float(state["step"].flatten(0, 1)[i, 0])
+            self.opt.state.pop(p, None)
+            if step > 0:
+                self.opt.state[p] = {
+                    "step": torch.tensor(step),
+                    "exp_avg": exp_avg[i].clone().to(p.device),
+                    "exp_avg_sq": exp_avg_sq[i].clone().to(p.device),
+                }
+        self.probabilities.copy_(state["probabilities"])
 
 
 def make_env(task: str, uncertainty: str, config: Config) -> Any:
-    """The task's env of the set's family; the learner sets ω at every reset."""
-    return task_env(task, uncertainty)[0]
+    """The task's env of the set's family; the learner sets ω at every reset (``uncertainty_box``
+    tells it the set)."""
+    env, box = task_env(task, uncertainty)
+    env.uncertainty_box = box
+    return env
 
 
-class Learner(td3.Learner):
-    """TD3 with ω-conditioned critics, the candidates ω̂ and each run's episode ω (acting,
-    checkpointed generators and buffers as TD3's learner)."""
+class Learner(TD3Learner):
+    """TD3 with ω-conditioned critics, the candidates ω̂ and each run's episode ω (acting and
+    exploration as TD3's learner)."""
 
-    def __init__(
-        self,
-        env: Any,
-        config: Config,
-        runs: list[TrainConfig],
-        rngs: list[np.random.Generator],
-    ) -> None:
-        self.box = box = task_env(runs[0].task, runs[0].uncertainty)[1]
+    def __init__(self, env: Any, config: Config, seeds: list[RunSeeds], device: Any) -> None:
+        self.box = box = getattr(env, "uncertainty_box", None)
+        if box is None:
+            raise ValueError("M2TD3 needs an uncertainty set (--uncertainty 1d, 2d or 3d)")
         obs_dim = env.observation_space.shape[0]
         self.low, self.high = env.action_space.low, env.action_space.high
-        act_dim, dim = len(self.low), box.dim
-        half = (box.high - box.low) / 2
-        self.config = config
-        seeds, device = [r.seed for r in runs], runs[0].device
-        self.agent = TD3(obs_dim, act_dim, self.low, self.high, config, seeds, device, cond_dim=dim)
-        self.actor = self.agent.actor
+        self.config, dim, device = config, box.dim, torch.device(device)
+        self.agent = TD3(obs_dim, self.low, self.high, config, seeds, device, cond_dim=dim)
+        self.rngs = NumpyGenerators(seeds, "explore")
+        self.sigma = (self.high - self.low) / 2 * config.exploration_noise
         self.buffer = ReplayBuffer(
-            min(config.buffer_size, runs[0].steps),
-            transition_fields(obs_dim, (act_dim,), omega=(dim,)),
+            config.buffer_size,
+            transition_fields(obs_dim, (len(self.low),), omega=(dim,)),
             device,
-            [s + 2 for s in seeds],
+            seeds,
         )
-        device = self.agent.device
-        self.candidates = Candidates(box.low, box.high, rngs, config, device)
+        self.draws = NumpyGenerators(seeds, "algo")  # episode ω, candidate restarts
+        self.candidates = Candidates(box.low, box.high, self.draws, config, device)
+        half = (box.high - box.low) / 2
         self.omega_std = config.omega_std_rate * half
 
         def tensor(x: np.ndarray) -> torch.Tensor:
@@ -224,16 +226,9 @@ class Learner(td3.Learner):
         self.omega_low, self.omega_high = tensor(box.low), tensor(box.high)
         self.noise_scale = tensor(config.policy_noise_rate * half)
         self.noise_clip = tensor(config.noise_clip_omega_rate * half)
-        self.last_length = [runs[0].max_episode_steps] * len(runs)
-        self.coeff = torch.full(
-            (len(runs),),
-            1.0 / max(1, runs[0].max_episode_steps),
-            dtype=torch.float64,
-            device=device,
-        )
-        self.omega = np.zeros((len(runs), dim))
-        self._omega_columns = slice(obs_dim + act_dim, obs_dim + act_dim + dim)
-        self._update = Update(self._compute, device, runs[0].cuda_graphs)
+        self.coeff = torch.full((len(seeds),), 1e-3, dtype=torch.float64, device=device)
+        self.omega = np.zeros((len(seeds), dim))
+        self._update = Update(self._compute, device)
 
     def critic_omega(self, w: torch.Tensor) -> torch.Tensor:
         """The critics' view of ω: raw (the authors) or rescaled to [-1, 1] (opt-in)."""
@@ -241,19 +236,20 @@ class Learner(td3.Learner):
             return w
         return (w - self.omega_low) / (self.omega_high - self.omega_low) * 2.0 - 1.0
 
-    def episode_options(self, k: int, step: int, rng: np.random.Generator) -> dict[str, Any]:
+    def episode_options(self, k: int, step: int) -> dict[str, Any]:
         """Run ``k``'s ω for its next episode: uniform at first, then around a candidate."""
-        box = self.box
+        box, rng = self.box, self.draws[k]
         if step < self.config.learning_starts:
             self.omega[k] = rng.uniform(box.low, box.high)
         else:
             self.candidates.restart(k, rng)
             j = self.candidates.select(k, rng)
-            centre = self.candidates.values()[k, j].cpu().numpy().astype(np.float64)
+            with torch.no_grad():
+                centre = self.candidates.values()[k, j].cpu().numpy().astype(np.float64)
             self.omega[k] = np.clip(centre + rng.normal(0, self.omega_std), box.low, box.high)
         return dict(zip(box.names, self.omega[k].tolist()))
 
-    def store(self, obs, actions, rewards, next_obs, terminated, infos) -> None:  # noqa: ANN001
+    def observe(self, obs, actions, rewards, next_obs, terminated, infos) -> None:  # noqa: ANN001
         self.buffer.add(
             obs=obs,
             action=actions,
@@ -263,97 +259,79 @@ class Learner(td3.Learner):
             omega=self.omega,
         )
 
-    def update(self, step: int, update_actor: bool) -> dict[str, torch.Tensor]:
+    def update(self, step: int) -> dict[str, torch.Tensor]:
         size, agent = self.config.batch_size, self.agent
         draws = {"idx": self.buffer.draw(size)}
         draws["eps_omega"] = agent.draw(size, self.box.dim)  # ω's smoothing noise, then a's
         draws["eps"] = agent.draw(size)
-        return self._update(update_actor, draws)
-
-    def _compute(self, update_actor: bool, x: dict[str, torch.Tensor]) -> dict:
-        """The device work of an update (``core.Update`` may capture it in a CUDA graph)."""
-        agent, candidates, cw = self.agent, self.candidates, self.critic_omega
-        batch, eps_omega, eps = self.buffer.gather(x["idx"]), x["eps_omega"], x["eps"]
-        # critic: TD3's target with smoothing noise on the next action *and* on ω
-        noise = torch.maximum(
-            torch.minimum(eps_omega * self.noise_scale, self.noise_clip), -self.noise_clip
-        )
-        next_w = torch.maximum(
-            torch.minimum(batch["omega"] + noise, self.omega_high), self.omega_low
-        )
-        y = agent.td_target(
-            batch["reward"], batch["next_obs"], batch["terminated"], eps, next_cond=cw(next_w)
-        )
-        losses = {
-            "critic_loss": agent.update_critic(
-                batch["obs"], batch["action"], y, cond=cw(batch["omega"])
-            )
-        }
-        if not update_actor:
-            return losses
         with torch.no_grad():
-            # the worst candidate of each run: the lowest mean Q1(s, π(s), ω̂ₖ)
-            s = batch["obs"]
-            a = agent.actor.forward_saved(s)[0]
-            w = candidates.values()
-            k, n, b = w.shape[0], w.shape[1], s.shape[1]
-            x = torch.cat(
-                (s.repeat(1, n, 1), a.repeat(1, n, 1), cw(w).repeat_interleave(b, 1)), dim=2
-            )
-            q = agent.critic.forward_saved(x, n=1)[0].view(k, n, b).mean(2)
-            chosen = n - 1 - torch.argmin(q.flip(1), dim=1)  # ties: the last, as the authors
-            worst = w.gather(1, chosen.view(-1, 1, 1).expand(-1, 1, w.shape[2]))
-            worst = worst.expand(-1, b, -1)
-            # ω̂ₖ descends Q1(s, π(s), ω̂ₖ): dQ1/dω through the critic, then through cw and the
-            # sigmoid to the logits
-            q1, saved = agent.critic.forward_saved(torch.cat((s, a, cw(worst)), dim=2), n=1)
-            grad_w = agent.critic.backward_saved(
-                saved, torch.full_like(q1, 1.0 / b), input_columns=self._omega_columns
-            ).sum(1)
-            span = self.omega_high - self.omega_low
-            if self.config.normalize_omega:
-                grad_w = grad_w * (2.0 / span)
-            sig = per_run(
-                torch.sigmoid,
-                candidates.logits.gather(
-                    1, chosen.view(-1, 1, 1).expand(-1, 1, w.shape[2])
-                ).squeeze(1),
-            )
-            candidates.step(chosen, grad_w * span * sig * (1.0 - sig))
-        losses["actor_loss"] = agent.update_actor(s, cond=cw(worst))
-        agent.update_targets()
-        candidates.mark_worst(chosen, self.coeff)
-        losses["omega_loss"] = q1.mean((1, 2))
+            draws["candidates"] = self.candidates.values()
+        out = self._update(step % self.config.policy_frequency == 0, draws)
+        losses = {k: v for k, v in out.items() if k.endswith("_loss")}
+        if "chosen" in out:  # the worst candidates descend Q1(s, π(s), ω̂) (eager: see below)
+            cw, chosen, s, a = self.critic_omega, out["chosen"], out["obs"], out["action"]
+            index = chosen.view(-1, 1, 1).expand(-1, 1, self.box.dim)
+            worst = self.candidates.values().gather(1, index).expand(-1, s.shape[1], -1)
+            loss = agent.critic.q1(torch.cat((s, a, cw(worst)), -1)).mean(-1)
+            self.candidates.step(loss, chosen)
+            self.candidates.mark_worst(chosen, self.coeff)
+            losses["omega_loss"] = loss.detach()
         return losses
 
+    def _compute(self, update_actor: bool, x: dict[str, torch.Tensor]) -> dict:
+        """The device work of an update (``graphs.Update`` may capture it): the critics, and the
+        actor against each run's worst candidate. The candidates' own step follows eagerly
+        (which of them steps varies; a graph replays fixed work)."""
+        agent, cw = self.agent, self.critic_omega
+        data = self.buffer.gather(x["idx"])
+        # critic: TD3's target with smoothing noise on the next action *and* on ω
+        noise = torch.maximum(
+            torch.minimum(x["eps_omega"] * self.noise_scale, self.noise_clip), -self.noise_clip
+        )
+        next_w = torch.maximum(
+            torch.minimum(data["omega"] + noise, self.omega_high), self.omega_low
+        )
+        y = agent.td_target(data, x["eps"], next_cond=cw(next_w))
+        s = data["obs"]
+        losses = {"critic_loss": agent.critic_step(s, data["action"], y, cond=cw(data["omega"]))}
+        if not update_actor:
+            return losses
+        with torch.no_grad():  # each run's worst candidate: the lowest mean Q1(s, π(s), ω̂)
+            a, w = agent.actor(s), x["candidates"]
+            k, n, b = w.shape[0], w.shape[1], s.shape[1]
+            xs = torch.cat(
+                (s.repeat(1, n, 1), a.repeat(1, n, 1), cw(w).repeat_interleave(b, 1)), dim=2
+            )
+            q = agent.critic.q1(xs).view(k, n, b).mean(2)
+            chosen = n - 1 - torch.argmin(q.flip(1), dim=1)  # ties: the last, as the authors
+            worst = w.gather(1, chosen.view(-1, 1, 1).expand(-1, 1, w.shape[2])).expand(-1, b, -1)
+        losses["actor_loss"] = agent.actor_step(s, cond=cw(worst))
+        agent.soft_update()
+        return {**losses, "chosen": chosen, "obs": s, "action": a}
+
     def episode_end(self, k: int, episode_return: float, length: int) -> dict[str, float]:
-        self.last_length[k] = length
         self.coeff[k] = 1.0 / max(1, length)
-        values = self.candidates.values()[k].cpu().numpy()
+        with torch.no_grad():
+            values = self.candidates.values()[k].cpu().numpy()
         probabilities = self.candidates.probabilities[k].cpu().numpy()
         extra = {f"m2td3/probability_{j}": p for j, p in enumerate(probabilities)}
-        extra.update(
-            {
-                f"m2td3/hatomega_{j}_{name}": values[j, i]
-                for j in range(len(values))
-                for i, name in enumerate(self.box.names)
-            }
-        )
+        for j in range(len(values)):
+            for i, name in enumerate(self.box.names):
+                extra[f"m2td3/hatomega_{j}_{name}"] = values[j, i]
         return extra
 
-    def summary(self, k: int) -> dict[str, Any]:
+    def state_dict(self) -> dict[str, Any]:
         return {
-            "hatomega": self.candidates.values()[k].tolist(),
-            "probabilities": self.candidates.probabilities[k].tolist(),
+            **super().state_dict(),
+            "candidates": self.candidates.state_dict(),
+            "draws": self.draws.state_dict(),
+            "coeff": self.coeff.clone(),
+            "omega": torch.as_tensor(self.omega),
         }
 
-    def stacked(self) -> dict[str, torch.Tensor]:
-        return {**super().stacked(), **self.candidates.stacked()}
-
-    def extra_state(self, k: int) -> dict[str, Any]:
-        return {"last_length": self.last_length[k], "omega": torch.as_tensor(self.omega[k])}
-
-    def load_extra_state(self, k: int, state: dict[str, Any]) -> None:
-        self.last_length[k] = int(state["last_length"])
-        self.coeff[k] = 1.0 / max(1, self.last_length[k])
-        self.omega[k] = state["omega"].numpy()
+    def load_state_dict(self, state: dict[str, Any]) -> None:
+        super().load_state_dict(state)
+        self.candidates.load_state_dict(state["candidates"])
+        self.draws.load_state_dict(state["draws"])
+        self.coeff.copy_(state["coeff"])
+        self.omega[:] = state["omega"].numpy()

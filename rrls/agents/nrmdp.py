@@ -27,17 +27,19 @@ saved (``adversary.npz``) for the dynamic evaluation (paper Table 6).
 
 from __future__ import annotations
 
+import copy
 from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 import torch
 
-from rrls.agents.common import TrainConfig, task_env
-from rrls.agents.core import TD3, Player, TD3Config, Update, hp
-from rrls.agents.loop import Learner as _Learner
-from rrls.agents.networks import rows
-from rrls.agents.replay import ReplayBuffer, transition_fields
+from rrls.agents.common import hp, task_env
+from rrls.agents.graphs import Update, adam
+from rrls.agents.nets import Actor, NumpyActor, deterministic, polyak, to_mlp_policy
+from rrls.agents.seeds import Generators, RunSeeds
+from rrls.agents.td3 import Learner as TD3Learner
+from rrls.agents.td3 import TD3Config, cat
 
 
 @dataclass
@@ -69,128 +71,113 @@ def make_env(task: str, uncertainty: str, config: Config) -> Any:
     return ProbabilisticActionRobust(task_env(task)[0], alpha=config.alpha, mode=config.mode)
 
 
-class Learner(_Learner):
-    """The protagonists' TD3 (whose critics both players use) and the adversaries' policies."""
+class Learner(TD3Learner):
+    """TD3's learner (the protagonist: acting, buffer, critic) plus the adversaries' policies."""
 
-    def __init__(
-        self,
-        env: Any,
-        config: Config,
-        runs: list[TrainConfig],
-        rngs: list[np.random.Generator],
-    ) -> None:
-        obs_dim = env.observation_space.shape[0]
+    def __init__(self, env: Any, config: Config, seeds: list[RunSeeds], device: Any) -> None:
         space = env.action_space.spaces[0]
-        self.low, self.high = space.low, space.high
-        self.config, self.alpha = config, config.alpha
-        seeds, device = [r.seed for r in runs], runs[0].device
-        act_dim = len(self.low)
-        self.agent = TD3(obs_dim, act_dim, self.low, self.high, config, seeds, device)
-        gens = [torch.Generator().manual_seed(s + 1000) for s in seeds]
-        self.opponent = Player(
-            obs_dim, act_dim, self.low, self.high, config, gens, self.agent.device
-        )
-        self.buffer = ReplayBuffer(
-            min(config.buffer_size, runs[0].steps),
-            transition_fields(obs_dim, (act_dim,)),
-            device,
-            [s + 2 for s in seeds],
-        )
-        self.actor, self.adversary = self.agent.actor, self.opponent.actor
+        super().__init__(_Protagonist(env, space), config, seeds, device)
+        obs_dim, hidden = env.observation_space.shape[0], config.hidden
+        init = Generators(seeds, "adversary.init")
+        self.opponent = Actor(obs_dim, len(space.low), hidden, space.low, space.high, init)
+        self.opponent = self.opponent.to(device)
+        self.opponent_target = copy.deepcopy(self.opponent).requires_grad_(False)
+        self.opponent_opt = adam(self.opponent.parameters(), config.learning_rate, device)
+        self.fast = NumpyActor(self.opponent) if self.agent.fast is not None else None
+        self.alpha, self.policy_steps = config.alpha, 0
         self.game = {"game": config.mode, "alpha": config.alpha}
-        self.policy_steps = 0
-        self._update = Update(self._compute, self.agent.device, runs[0].cuda_graphs)
-        self._sources = [rows(p) for p in self.opponent.actor.parameters()]
-        self._targets = [rows(p) for p in self.opponent.target.parameters()]
+        self._update = Update(self._compute, device)
 
-    def act(self, obs: np.ndarray, rngs: list[np.random.Generator], warmup: bool) -> list[Any]:
-        if warmup:
-            return [
-                tuple(rng.uniform(self.low, self.high).astype(np.float32) for _ in range(2))
-                for rng in rngs
-            ]
-        mine = self.agent.explore(obs, rngs)
-        theirs = self.opponent.deterministic(obs).astype(np.float32)
-        return list(zip(mine, theirs))
+    def act(self, obs: np.ndarray) -> list[Any]:
+        """The protagonist explores with noise, the adversary acts without (as the reference)."""
+        theirs = deterministic(self.opponent, obs, self.fast).astype(np.float32)
+        return list(zip(super().act(obs), theirs))
 
-    def store(self, obs, actions, rewards, next_obs, terminated, infos) -> None:  # noqa: ANN001
-        self.buffer.add(
-            obs=obs,
-            action=np.stack([info["executed_action"] for info in infos]),
-            reward=rewards,
-            next_obs=next_obs,
-            terminated=terminated,
-        )
+    def observe(self, obs, actions, rewards, next_obs, terminated, infos) -> None:  # noqa: ANN001
+        executed = np.stack([info["executed_action"] for info in infos])
+        super().observe(obs, executed, rewards, next_obs, terminated, infos)
 
-    @torch.no_grad()
-    def target(
-        self, batch: dict[str, torch.Tensor], eps: tuple[torch.Tensor, torch.Tensor]
-    ) -> torch.Tensor:
-        """The critic's target: NR-MDP on the mixed target action, PR-MDP on the mixture."""
-        agent, alpha, next_obs = self.agent, self.alpha, batch["next_obs"]
-        mine = agent.target_action(agent.actor_target, next_obs, eps[0])
-        theirs = agent.target_action(self.opponent.target, next_obs, eps[1])
-        if self.config.mode == "nr":
-            q = agent.target_q(next_obs, torch.lerp(mine, theirs, alpha), None)
-        else:
-            q = torch.lerp(
-                agent.target_q(next_obs, mine, None), agent.target_q(next_obs, theirs, None), alpha
-            )
-        return agent.bootstrap(batch["reward"], batch["terminated"], q)
-
-    def update(self, step: int, update_actor: bool) -> dict[str, torch.Tensor]:
+    def update(self, step: int) -> dict[str, torch.Tensor]:
         size, turn = self.config.batch_size, None
-        if update_actor:
+        if step % self.config.policy_frequency == 0:
             self.policy_steps += 1
             turn = "adversary" if self.policy_steps % (self.config.ratio + 1) == 0 else "actor"
         draws = {"idx": self.buffer.draw(size)}
         draws.update({"mine": self.agent.draw(size), "theirs": self.agent.draw(size)})
         return self._update(turn, draws)
 
+    @torch.no_grad()
+    def target(self, data: dict[str, torch.Tensor], eps_mine, eps_theirs) -> torch.Tensor:  # noqa: ANN001
+        """The critic's target: NR-MDP on the mixed target action, PR-MDP on the mixture."""
+        agent, alpha, s2 = self.agent, self.alpha, data["next_obs"]
+        mine = agent.target_action(agent.actor_target, s2, eps_mine)
+        theirs = agent.target_action(self.opponent_target, s2, eps_theirs)
+
+        def q(action: torch.Tensor) -> torch.Tensor:
+            return agent.critic_target(cat(s2, action)).amin(1)
+
+        if self.config.mode == "nr":
+            return agent.target(data, q(torch.lerp(mine, theirs, alpha)))
+        return agent.target(data, torch.lerp(q(mine), q(theirs), alpha))
+
     def _compute(self, turn: str | None, x: dict[str, torch.Tensor]) -> dict:
-        """The device work of an update: the shared critic, then ``turn``'s policy step."""
+        """The shared critic's step, then ``turn``'s policy step."""
         agent, alpha, nr = self.agent, self.alpha, self.config.mode == "nr"
-        batch = self.buffer.gather(x["idx"])
-        s = batch["obs"]
-        target = self.target(batch, (x["mine"], x["theirs"]))
-        losses = {"critic_loss": agent.update_critic(s, batch["action"], target)}
+        data = self.buffer.gather(x["idx"])
+        s = data["obs"]
+        y = self.target(data, x["mine"], x["theirs"])
+        losses = {"critic_loss": agent.critic_step(s, data["action"], y)}
         if turn is None:
             return losses
-        if turn == "adversary":
+        q1 = agent.critic.q1
+        if turn == "adversary":  # descends Q, against the protagonist's target policy
             if nr:
-                other = agent.actor_target.forward_saved(s)[0].mul_(1.0 - alpha)
-                loss = agent.policy_step(self.opponent, s, share=alpha, other=other, descend=True)
+                with torch.no_grad():
+                    other = (1 - alpha) * agent.actor_target(s)
+                loss = q1(cat(s, other + alpha * self.opponent(s))).mean(-1)
             else:
-                loss = agent.policy_step(self.opponent, s, weight=alpha, descend=True)
-            losses["adversary_loss"] = loss
-        else:
+                loss = alpha * q1(cat(s, self.opponent(s))).mean(-1)
+            losses["adversary_loss"] = agent.policy_step(self.opponent, self.opponent_opt, loss)
+        else:  # the protagonist ascends Q, against the adversary's target policy
             if nr:
-                other = self.opponent.target.forward_saved(s)[0].mul_(alpha)
-                loss = agent.policy_step(agent.player, s, share=1.0 - alpha, other=other)
+                with torch.no_grad():
+                    other = alpha * self.opponent_target(s)
+                loss = -q1(cat(s, (1 - alpha) * agent.actor(s) + other)).mean(-1)
             else:
-                loss = agent.policy_step(agent.player, s, weight=1.0 - alpha)
-            losses["actor_loss"] = loss
-        agent.update_targets()
-        torch._foreach_lerp_(self._targets, self._sources, self.config.tau)
+                loss = -(1 - alpha) * q1(cat(s, agent.actor(s))).mean(-1)
+            losses["actor_loss"] = agent.policy_step(agent.actor, agent.actor_opt, loss)
+        agent.soft_update()
+        polyak(self.opponent_target, self.opponent, self.config.tau)
         return losses
 
     def episode_end(self, k: int, episode_return: float, length: int) -> dict[str, float]:
         return {"charts/adversary_return": -episode_return}
 
-    def stacked(self) -> dict[str, torch.Tensor]:
-        return {**self.agent.stacked("agent"), **self.opponent.stacked("adversary")}
+    def state_dict(self) -> dict[str, Any]:
+        return {
+            **super().state_dict(),
+            "opponent": self.opponent.state_dict(),
+            "opponent_target": self.opponent_target.state_dict(),
+            "opponent_opt": self.opponent_opt.state_dict(),
+            "policy_steps": self.policy_steps,
+        }
 
-    def shared(self) -> dict[str, torch.Tensor]:
-        return {**self.agent.shared("agent"), **self.opponent.shared("adversary")}
-
-    def generators(self) -> dict[str, list[torch.Generator]]:
-        return self.agent.generators("agent")
-
-    def buffers(self) -> list[Any]:
-        return [self.buffer]
-
-    def extra_state(self, k: int) -> dict[str, Any]:
-        return {"policy_steps": self.policy_steps}
-
-    def load_extra_state(self, k: int, state: dict[str, Any]) -> None:
+    def load_state_dict(self, state: dict[str, Any]) -> None:
+        super().load_state_dict(state)
+        self.opponent.load_state_dict(state["opponent"])
+        self.opponent_target.load_state_dict(state["opponent_target"])
+        self.opponent_opt.load_state_dict(state["opponent_opt"])
         self.policy_steps = int(state["policy_steps"])
+
+    def export(self, k: int) -> dict[str, Any]:
+        return {
+            "policy": to_mlp_policy(self.agent.actor, k, self.game),
+            "adversary": to_mlp_policy(self.opponent, k, self.game),
+        }
+
+
+class _Protagonist:
+    """The env as the protagonist's TD3 learner sees it: its own action space."""
+
+    def __init__(self, env: Any, space: Any) -> None:
+        self.observation_space, self.action_space = env.observation_space, space

@@ -9,15 +9,21 @@ algorithm does not have is refused, naming the algorithms that have it.
 from __future__ import annotations
 
 import argparse
+import json
 import typing
 from dataclasses import fields, replace
 from pathlib import Path
 from typing import Any
 
-from rrls.agents.common import ALGOS, TrainConfig
-from rrls.agents.loop import algorithm
+from rrls.agents.common import ALGOS, TrainConfig, algorithm
 
 _SKIP = {"progress", "hyper", "stop_at"}
+
+
+def _algos(args: argparse.Namespace | None = None) -> list[str]:
+    """The built-in algorithms, plus the one named on the command line if it is a plug-in."""
+    extra = getattr(args, "algo", None)
+    return [*ALGOS, *([extra] if extra and extra not in ALGOS else [])]
 
 
 def _kind(hint: Any) -> Any:
@@ -40,10 +46,10 @@ def _add(parser: argparse._ActionsContainer, name: str, kind: Any, **kwargs: Any
         parser.add_argument(flag, type=kind, **kwargs)
 
 
-def hyperparameter_table() -> dict[str, dict[str, Any]]:
-    """name -> {"kind", "help", "choices", "defaults": {algo: default}} over all algorithms."""
+def hyperparameter_table(algos: list[str] | None = None) -> dict[str, dict[str, Any]]:
+    """name -> {"kind", "help", "choices", "defaults": {algo: default}} over the algorithms."""
     table: dict[str, dict[str, Any]] = {}
-    for algo in ALGOS:
+    for algo in algos or ALGOS:
         cls = algorithm(algo).Config
         hints = typing.get_type_hints(cls)
         for f in fields(cls):
@@ -75,7 +81,9 @@ def add_train_arguments(parser: argparse.ArgumentParser) -> None:
             continue
         kwargs: dict[str, Any] = {"default": None, "help": f.metadata.get("help", "")}
         if f.name in ("algo", "task"):
-            kwargs.update(required=True, choices=ALGOS if f.name == "algo" else list(TASKS))
+            kwargs["required"] = True
+            if f.name == "task":
+                kwargs["choices"] = list(TASKS)
         elif f.name == "uncertainty":
             kwargs["choices"] = ["1d", "2d", "3d", "rarl"]
         elif f.default is not None and not isinstance(f.default, bool):
@@ -102,6 +110,13 @@ def add_train_arguments(parser: argparse.ArgumentParser) -> None:
         "--overwrite apply to every run",
     )
     run.add_argument("--stop-at", type=int, default=None, help=argparse.SUPPRESS)
+    run.add_argument(
+        "--hyper",
+        action="append",
+        metavar="NAME=VALUE",
+        help="a hyper-parameter of a plug-in algorithm (--algo package.module:Learner) that has "
+        "no option of its own (VALUE read as JSON, else as text)",
+    )
 
     hyper = parser.add_argument_group(
         "hyper-parameters (default: the algorithm's paper value, shown per algorithm)"
@@ -167,10 +182,10 @@ def configs_from_args(args: argparse.Namespace) -> tuple[list[TrainConfig], bool
 
 def config_from_args(args: argparse.Namespace) -> tuple[TrainConfig, bool]:
     """The ``TrainConfig`` (and ``--resume``) the parsed options describe."""
-    table = hyperparameter_table()
+    table = hyperparameter_table(_algos(args))
     hyper = {}
     for name, entry in table.items():
-        value = getattr(args, name)
+        value = getattr(args, name, None)
         if value is None:
             continue
         if args.algo not in entry["defaults"]:
@@ -178,6 +193,14 @@ def config_from_args(args: argparse.Namespace) -> tuple[TrainConfig, bool]:
             flag = "--" + name.replace("_", "-")
             raise ValueError(f"{flag} does not apply to {args.algo} (only to {owners})")
         hyper[name] = tuple(value) if isinstance(entry["kind"], tuple) else value
+    for item in getattr(args, "hyper", None) or []:  # a plug-in's own: --hyper name=value
+        name, sep, text = item.partition("=")
+        if not sep:
+            raise ValueError(f"--hyper {item!r}: write NAME=VALUE")
+        try:
+            hyper[name] = json.loads(text)
+        except ValueError:
+            hyper[name] = text
     run = {
         f.name: getattr(args, f.name)
         for f in fields(TrainConfig)

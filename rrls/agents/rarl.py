@@ -25,10 +25,13 @@ from typing import Any
 import numpy as np
 import torch
 
-from rrls.agents.common import TrainConfig, task_env
-from rrls.agents.core import TD3, TD3Config, Update, hp
-from rrls.agents.loop import Learner as _Learner
+from rrls.agents.common import hp, task_env
+from rrls.agents.graphs import Update
+from rrls.agents.learner import Learner as _Learner
+from rrls.agents.nets import to_mlp_policy
 from rrls.agents.replay import ReplayBuffer, transition_fields
+from rrls.agents.seeds import NumpyGenerators, RunSeeds
+from rrls.agents.td3 import TD3, TD3Config
 
 
 @dataclass
@@ -50,49 +53,46 @@ def make_env(task: str, uncertainty: str, config: Config) -> Any:
     return DynamicAdversarial(*task_env(task, uncertainty))
 
 
-class Learner(_Learner):
-    """Two TD3 learners, one replay buffer each (the adversary's rewards negated), per run."""
+PLAYERS = ("", "adversary.")  # generator names: the protagonist's, the adversary's
 
-    def __init__(
-        self,
-        env: Any,
-        config: Config,
-        runs: list[TrainConfig],
-        rngs: list[np.random.Generator],
-    ) -> None:
+
+class Learner(_Learner):
+    """Two TD3 players, one replay buffer each (the adversary's rewards negated), per run."""
+
+    def __init__(self, env: Any, config: Config, seeds: list[RunSeeds], device: Any) -> None:
         obs_dim = env.observation_space.shape[0]
         self.spaces = env.action_space.spaces
         self.config = config
-        seeds, device = [r.seed for r in runs], runs[0].device
-        self.players, self.buffer_list = [], []
-        for i, space in enumerate(self.spaces):
-            own = [s + 1000 * i for s in seeds]
-            self.players.append(
-                TD3(obs_dim, space.shape[0], space.low, space.high, config, own, device)
+        self.players = [
+            TD3(obs_dim, s.low, s.high, config, seeds, device, name=name)
+            for s, name in zip(self.spaces, PLAYERS)
+        ]
+        self.buffers = [
+            ReplayBuffer(
+                config.buffer_size,
+                transition_fields(obs_dim, s.shape),
+                device,
+                seeds,
+                purpose=name + "replay",
             )
-            self.buffer_list.append(
-                ReplayBuffer(
-                    min(config.buffer_size, runs[0].steps),
-                    transition_fields(obs_dim, space.shape),
-                    device,
-                    [s + 2 for s in own],
-                )
-            )
-        self.actor, self.adversary = (p.actor for p in self.players)
-        self._update = Update(self._compute, self.players[0].device, runs[0].cuda_graphs)
-        self.game = {"game": "adversarial", "uncertainty": runs[0].uncertainty}
+            for s, name in zip(self.spaces, PLAYERS)
+        ]
+        self.rngs = [NumpyGenerators(seeds, name + "explore") for name in PLAYERS]
+        self._update = Update(self._compute, device)
+        self.game = {"game": "adversarial"}  # the set: the run's ``uncertainty``
 
-    def act(self, obs: np.ndarray, rngs: list[np.random.Generator], warmup: bool) -> list[Any]:
-        if warmup:
-            return [
-                tuple(rng.uniform(s.low, s.high).astype(np.float32) for s in self.spaces)
-                for rng in rngs
-            ]
-        return list(zip(*(player.explore(obs, rngs) for player in self.players)))
+    def act(self, obs: np.ndarray) -> list[Any]:
+        cfg, per_player = self.config, []
+        for player, rngs, space in zip(self.players, self.rngs, self.spaces):
+            sigma = (space.high - space.low) / 2 * cfg.exploration_noise
+            noise = np.stack([rng.normal(0.0, sigma) for rng in rngs])
+            action = np.clip(player.act(obs) + noise, space.low, space.high)
+            per_player.append(action.astype(np.float32))
+        return list(zip(*per_player))
 
-    def store(self, obs, actions, rewards, next_obs, terminated, infos) -> None:  # noqa: ANN001
+    def observe(self, obs, actions, rewards, next_obs, terminated, infos) -> None:  # noqa: ANN001
         # zero-sum: the adversary learns from -reward; truncation bootstraps for both
-        for i, (buffer, sign) in enumerate(zip(self.buffer_list, (1.0, -1.0))):
+        for i, (buffer, sign) in enumerate(zip(self.buffers, (1.0, -1.0))):
             buffer.add(
                 obs=obs,
                 action=np.stack([a[i] for a in actions]),
@@ -106,30 +106,42 @@ class Learner(_Learner):
         update, so the first phase is a whole one)."""
         return (step - self.config.learning_starts - 1) // self.config.phase_steps % 2
 
-    def update(self, step: int, update_actor: bool) -> dict[str, torch.Tensor]:
+    def update(self, step: int) -> dict[str, torch.Tensor]:
         i, size = self.learning(step), self.config.batch_size
-        inputs = {"idx": self.buffer_list[i].draw(size), "eps": self.players[i].draw(size)}
-        losses = self._update((i, update_actor), inputs)
+        draws = {"idx": self.buffers[i].draw(size), "eps": self.players[i].draw(size)}
+        losses = self._update((i, step % self.config.policy_frequency == 0), draws)
         name = ("protagonist", "adversary")[i]
         return {f"{name}_{k}": v for k, v in losses.items()}
 
     def _compute(self, variant: tuple[int, bool], x: dict[str, torch.Tensor]) -> dict:
         """The device work of an update: the learning player's TD3 step."""
         i, update_actor = variant
-        batch = self.buffer_list[i].gather(x["idx"])
-        return self.players[i].update(batch, x["eps"], update_actor)
+        player, data = self.players[i], self.buffers[i].gather(x["idx"])
+        y = player.td_target(data, x["eps"])
+        losses = {"critic_loss": player.critic_step(data["obs"], data["action"], y)}
+        if update_actor:
+            losses["actor_loss"] = player.actor_step(data["obs"])
+            player.soft_update()
+        return losses
 
     def episode_end(self, k: int, episode_return: float, length: int) -> dict[str, float]:
         return {"charts/adversary_return": -episode_return}
 
-    def stacked(self) -> dict[str, torch.Tensor]:
-        return {k: v for i, p in enumerate(self.players) for k, v in p.stacked(f"p{i}").items()}
+    def state_dict(self) -> dict[str, Any]:
+        return {
+            "players": [p.state_dict() for p in self.players],
+            "buffers": [b.state_dict() for b in self.buffers],
+            "explore": [r.state_dict() for r in self.rngs],
+        }
 
-    def shared(self) -> dict[str, torch.Tensor]:
-        return {k: v for i, p in enumerate(self.players) for k, v in p.shared(f"p{i}").items()}
+    def load_state_dict(self, state: dict[str, Any]) -> None:
+        parts = {"players": self.players, "buffers": self.buffers, "explore": self.rngs}
+        for key, objects in parts.items():
+            for obj, saved in zip(objects, state[key]):
+                obj.load_state_dict(saved)
 
-    def generators(self) -> dict[str, list[torch.Generator]]:
-        return {k: v for i, p in enumerate(self.players) for k, v in p.generators(f"p{i}").items()}
-
-    def buffers(self) -> list[Any]:
-        return self.buffer_list
+    def export(self, k: int) -> dict[str, Any]:
+        return {
+            name: to_mlp_policy(p.actor, k, self.game)
+            for name, p in zip(("policy", "adversary"), self.players)
+        }

@@ -1,10 +1,13 @@
-"""A preallocated tensor replay, one per run of a group (no Python objects per transition).
+"""A preallocated tensor replay for a group of runs (no Python objects per transition).
 
-The ``K`` runs of a group step in lockstep, so their buffers fill together: one ``(K, capacity,
-width)`` table with a shared write position, each run's rows its own. A step's ``K`` transitions
-are one row write (one host-to-device copy on a GPU). Sampling draws each run's indices from its
-own seeded ``torch.Generator`` (on the CPU, whatever the device; checkpointed), so a run samples
-the same batches alone or in any group, and a resumed run the same as an uninterrupted one.
+The ``K`` runs of a group step in lockstep, so their buffers fill together: one ``(K, rows,
+width)`` table with a shared write position, each run's rows its own, each field a block of
+columns (a batch is one gather). Sampling draws each run's indices from its own ``"replay"``
+generator on the CPU, whatever the device, so a run samples the same batches alone or in any
+group, and a resumed run the same as an uninterrupted one. The capacity is ``buffer_size``
+whatever ``--steps`` (extending a finished run with ``--resume --steps N`` then equals the
+N-step run); on a CPU the table grows by doubling as it fills, on a GPU it is allocated at once
+(a captured CUDA graph keeps its address).
 """
 
 from __future__ import annotations
@@ -14,11 +17,13 @@ import math
 import numpy as np
 import torch
 
+from rrls.agents.seeds import Generators, RunSeeds
+
 
 def transition_fields(
     obs_dim: int, act_shape: tuple[int, ...], **extra: tuple[int, ...]
 ) -> dict[str, tuple[int, ...]]:
-    """The fields of a TD3 transition (plus ``extra`` ones, e.g. M2TD3's ω) for ``ReplayBuffer``."""
+    """The fields of a transition (plus ``extra`` ones, e.g. M2TD3's ω) for ``ReplayBuffer``."""
     return {
         "obs": (obs_dim,),
         "action": tuple(act_shape),
@@ -31,46 +36,47 @@ def transition_fields(
 
 class ReplayBuffer:
     """Circular buffers of ``len(seeds)`` runs; ``fields`` maps a name to its per-transition
-    shape. ``sample`` returns fields shaped ``(K, batch, *shape)``."""
+    shape; ``gather`` returns fields shaped ``(K, batch, *shape)``."""
 
     def __init__(
         self,
         capacity: int,
         fields: dict[str, tuple[int, ...]],
-        device: torch.device | str = "cpu",
-        seeds: list[int] | int = 0,
+        device: torch.device | str,
+        seeds: list[RunSeeds],
+        purpose: str = "replay",
     ) -> None:
-        seeds = [seeds] if isinstance(seeds, int) else list(seeds)
         self.capacity, self.group = int(capacity), len(seeds)
         self.device = torch.device(device)
-        # one table, each field a block of its columns: a batch is a single gather (one instead
-        # of one per field), fields are views of it
         self.shapes = {name: tuple(shape) for name, shape in fields.items()}
         self._widths = [math.prod(shape) for shape in self.shapes.values()]
         self.width = sum(self._widths)
-        self.table = torch.zeros(
-            (self.group, self.capacity, self.width), dtype=torch.float32, device=self.device
-        )
-        self._flat = self.table.view(self.group * self.capacity, self.width)
-        self._offsets = torch.arange(self.group, device=self.device).unsqueeze(1) * self.capacity
+        rows = self.capacity if self.device.type == "cuda" else min(self.capacity, 4096)
+        self._allocate(rows)
         self._row = np.zeros((self.group, self.width), dtype=np.float32)  # the step being written
         self._columns: dict[str, np.ndarray] = {}
         start = 0
         for name, width in zip(self.shapes, self._widths):
             self._columns[name] = self._row[:, start : start + width]
             start += width
-        self.pos = 0
-        self.size = 0
-        self.generators = [torch.Generator(device="cpu").manual_seed(s) for s in seeds]
+        self.pos = self.size = 0
+        self.generators = Generators(seeds, purpose)
+
+    def _allocate(self, rows: int) -> None:
+        table = torch.zeros((self.group, rows, self.width), device=self.device)
+        if hasattr(self, "table"):
+            table[:, : self.table.shape[1]] = self.table
+        self.table = table
+        self._flat = table.view(-1, self.width)
+        self._offsets = torch.arange(self.group, device=self.device).unsqueeze(1) * rows
 
     def add(self, **transitions: np.ndarray) -> None:
         """Store one transition per run: each field ``(K, *shape)`` (or ``(K,)`` for scalars)."""
         for name, value in transitions.items():
             self._columns[name][:] = np.asarray(value, dtype=np.float32).reshape(self.group, -1)
-        if self.device.type == "cpu":
-            self.table[:, self.pos].copy_(torch.from_numpy(self._row))
-        else:
-            self.table[:, self.pos].copy_(torch.from_numpy(self._row).to(self.device))
+        if self.pos >= self.table.shape[1]:
+            self._allocate(min(self.capacity, 2 * self.table.shape[1]))
+        self.table[:, self.pos].copy_(torch.from_numpy(self._row))
         self.pos = (self.pos + 1) % self.capacity
         self.size = min(self.size + 1, self.capacity)
 
@@ -89,26 +95,21 @@ class ReplayBuffer:
             fields[name] = block.squeeze(2) if not shape else block.view(k, batch, *shape)
         return fields
 
-    def sample(self, batch_size: int) -> dict[str, torch.Tensor]:
-        return self.gather(self.draw(batch_size).to(self.device))
-
     def __len__(self) -> int:
         return self.size
 
-    # -- per-run checkpoints ----------------------------------------------------------------
-    def state(self, k: int) -> dict[str, object]:
-        """Run ``k``'s filled rows, position and sampling generator."""
+    def state_dict(self) -> dict[str, object]:
+        """The filled rows (runs first), the position and the sampling generators."""
         return {
-            "table": self.table[k, : self.size].cpu().clone(),
+            "table": self.table[:, : self.size].clone(),
             "pos": self.pos,
             "size": self.size,
-            "generator": self.generators[k].get_state(),
+            "generator": self.generators.state_dict(),
         }
 
-    def load(self, k: int, state: dict[str, object]) -> None:
-        pos, size = int(state["pos"]), int(state["size"])
-        if k and (pos, size) != (self.pos, self.size):
-            raise ValueError("the runs of a group must resume from the same step")
-        self.pos, self.size = pos, size
-        self.table[k, : self.size] = state["table"].to(self.device)
-        self.generators[k].set_state(state["generator"])
+    def load_state_dict(self, state: dict[str, object]) -> None:
+        self.pos, self.size = int(state["pos"]), int(state["size"])
+        if self.table.shape[1] < self.size:
+            self._allocate(min(self.capacity, 1 << max(0, self.size - 1).bit_length()))
+        self.table[:, : self.size] = state["table"].to(self.device)
+        self.generators.load_state_dict(state["generator"])

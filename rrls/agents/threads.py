@@ -15,12 +15,7 @@ import os
 import time
 from pathlib import Path
 
-
-def _cores() -> int:
-    try:
-        return len(os.sched_getaffinity(0))
-    except AttributeError:  # not Linux
-        return os.cpu_count() or 1
+from rrls._proc import cores
 
 
 def _busy_jiffies() -> tuple[int, int] | None:
@@ -51,7 +46,7 @@ class AdaptiveThreads:
 
         self._torch = torch
         self.previous = torch.get_num_threads()
-        self.cores = _cores()
+        self.cores = cores()
         self.fixed = fixed
         self.interval = interval
         self._last = _busy_jiffies()

@@ -190,12 +190,14 @@ def evaluate_run_dynamic(
     from rrls.evaluation.policies import MLPPolicy
 
     run_dir = Path(run_dir)
-    path = run_dir / "adversary.npz"
+    from rrls.rundir import ADVERSARY, POLICY
+
+    path = run_dir / ADVERSARY
     if not path.exists():
         raise FileNotFoundError(
             f"{run_dir} holds no adversary.npz: only RARL and NR-MDP/PR-MDP runs train one"
         )
-    protagonist, adversary = MLPPolicy.load(run_dir / "policy.npz"), MLPPolicy.load(path)
+    protagonist, adversary = MLPPolicy.load(run_dir / POLICY), MLPPolicy.load(path)
     meta = adversary.metadata
     return evaluate_dynamic(
         protagonist,

@@ -197,7 +197,7 @@ def _table_name() -> str:
     return "episodes.parquet"
 
 
-def _versions() -> dict[str, str]:
+def versions() -> dict[str, str]:
     import gymnasium
     import mujoco
 
@@ -533,7 +533,7 @@ def _evaluate(
 def _finish(
     key: str, box: UncertaintySet | None, frame: Any, config: dict[str, Any], policy: Any
 ) -> EvaluationResult:
-    config["versions"] = _versions()
+    config["versions"] = versions()
     config.update(_policy_record(policy))
     result = EvaluationResult(key, box, frame, config)
     if result.n_diverged:
@@ -609,9 +609,9 @@ def rollout_table(
 
 
 def _dims(spec: Any) -> tuple[int, int]:
-    from rrls.evaluation.runner import _envs
+    from rrls.evaluation.runner import make_rollout_envs
 
-    env = _envs(spec, 1)[0]
+    env = make_rollout_envs(spec, 1)[0]
     return env.observation_space.shape[0], env.action_space.shape[0]
 
 

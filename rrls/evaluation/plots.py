@@ -14,7 +14,7 @@ import numpy as np
 from rrls.evaluation.evaluate import EvaluationResult
 
 
-def _pyplot() -> Any:
+def pyplot() -> Any:
     try:
         import matplotlib
     except ImportError as err:
@@ -33,7 +33,7 @@ def plot_result(result: EvaluationResult | str | Path, path: str | Path | None =
         path = path or out_dir / "returns.png"
     if path is None:
         raise ValueError("give a path for the PNG when plotting an in-memory result")
-    plt = _pyplot()
+    plt = pyplot()
     names = result.param_names
     table = result.per_point
     title = (

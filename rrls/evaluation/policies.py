@@ -279,12 +279,11 @@ def load_policy(path: str | Path) -> Callable[[np.ndarray], np.ndarray]:
     if path.suffix == ".zip" and path.is_file():
         return load_sb3(path)
     if path.is_dir():
-        for name in ("policy.npz", "final/policy.npz"):
-            if (path / name).is_file():
-                run_dir, path = path, path / name
-                break
-        else:
-            raise FileNotFoundError(f"{path} holds no policy.npz: not an `rrls train` run")
+        from rrls.rundir import POLICY
+
+        if not (path / POLICY).is_file():
+            raise FileNotFoundError(f"{path} holds no {POLICY}: not an `rrls train` run")
+        run_dir, path = path, path / POLICY
     elif not path.exists():
         raise FileNotFoundError(f"no policy file {path}")
     elif path.suffix != ".npz":

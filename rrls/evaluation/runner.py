@@ -87,7 +87,7 @@ def episode_seeds(seed: int, n_points: int, episodes: int) -> np.ndarray:
 _ENV_CACHE: dict[tuple[str, str, Any, bool], list[Any]] = {}
 
 
-def _envs(spec: RolloutSpec, n: int) -> list[Any]:
+def make_rollout_envs(spec: RolloutSpec, n: int) -> list[Any]:
     """Bare envs of the spec's family and physics (in the spec's stack of wrappers, if any);
     every lane is reset before use."""
     from rrls.envs import FAMILY_ENVS, paper_class
@@ -131,7 +131,7 @@ def run_rows(
     from rrls.evaluation.kernels import make_stepper
 
     n_lanes = max(1, lanes)
-    envs = _envs(spec, n_lanes)
+    envs = make_rollout_envs(spec, n_lanes)
     stepper = make_stepper(envs, spec.task, fast=fast)
     act_dim = envs[0].action_space.shape[0]
     obs_dim = envs[0].observation_space.shape[0]
@@ -438,10 +438,9 @@ def _picklable(obj: Any) -> bool:
 
 # -- many chunks, many workers, resumable ---------------------------------------------------------
 def default_workers() -> int:
-    try:
-        return len(os.sched_getaffinity(0))
-    except AttributeError:  # pragma: no cover - macOS / Windows
-        return os.cpu_count() or 1
+    from rrls._proc import cores
+
+    return cores()
 
 
 def run(
@@ -490,7 +489,7 @@ def run(
     lanes = plan.lanes
 
     if len(todo):
-        _envs(spec, lanes)  # built once here: forked workers inherit them
+        make_rollout_envs(spec, lanes)  # built once here: forked workers inherit them
     bar = _progress_bar(n, progress)
     bar.update(n - len(todo))
 

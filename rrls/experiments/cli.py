@@ -30,7 +30,11 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:
         help="smoke (seconds, for tests), quick (~10 min on 2 cores, reduced budget), "
         "paper (the paper's protocol; default)",
     )
-    b.add_argument("--algos", help="comma-separated: td3,dr,rarl,nrmdp,m2td3")
+    b.add_argument(
+        "--algos",
+        help="comma-separated: td3,dr,rarl,nrmdp,m2td3 (the paper's five: the default), sac, "
+        "sacdr, an installed plug-in or package.module:Learner",
+    )
     b.add_argument("--tasks", help="comma-separated: ant,halfcheetah,hopper,humanoidstandup,walker")
     b.add_argument("--uncertainty", help="evaluation set (and DR/M2TD3's training set): 1d, 2d, 3d")
     b.add_argument("--seeds", type=int, metavar="N", help="number of seeds (0..N-1)")
@@ -234,10 +238,10 @@ def _table(root: object) -> str:
 
     summary = json.loads((Path(str(root)) / "report" / "summary.json").read_text())
     lines = [f"{'task':<18} {'algorithm':<10} {'seeds':>5} {'worst case':>20} {'average case':>20}"]
-    from rrls.experiments.report import _sorted
+    from rrls.experiments.names import sort_algos
 
     for task, algos in summary["results"].items():
-        for algo in _sorted(algos):
+        for algo in sort_algos(algos):
             cell = algos[algo]
             w, a = cell["worst_case"], cell["average_case"]
             if not w["n_seeds"]:

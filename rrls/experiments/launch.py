@@ -22,19 +22,15 @@ import os
 import sys
 import time
 import traceback
-from collections.abc import Callable, Iterator
-from contextlib import ExitStack, contextmanager
+from collections.abc import Callable
+from contextlib import ExitStack
 from pathlib import Path
 from typing import Any
 
+from rrls import rundir
+from rrls._proc import THREAD_ENV, die_with_parent, exclusive, single_thread_env
 from rrls.experiments.spec import RunKey, Spec
 
-THREAD_ENV = {
-    "OMP_NUM_THREADS": "1",
-    "MKL_NUM_THREADS": "1",
-    "OPENBLAS_NUM_THREADS": "1",
-    "NUMEXPR_NUM_THREADS": "1",
-}
 DYNAMIC_ALGOS = ("rarl", "nrmdp")
 
 
@@ -89,8 +85,8 @@ def execute_group(
     outs = [run_dir(Path(root), spec, run) for run in runs]
     results: dict[int, dict[str, Any]] = {}
     for i, out in enumerate(outs):
-        if (out / "result.json").exists():
-            results[i] = json.loads((out / "result.json").read_text())
+        if (out / rundir.RESULT).exists():
+            results[i] = json.loads((out / rundir.RESULT).read_text())
     todo = [i for i in range(len(runs)) if i not in results]
     if not todo:
         return [results[i] for i in range(len(runs))]
@@ -98,12 +94,12 @@ def execute_group(
         outs[i].mkdir(parents=True, exist_ok=True)
     with ExitStack() as stack:
         for i in todo:
-            stack.enter_context(_exclusive(outs[i]))
+            stack.enter_context(exclusive(outs[i]))
         stack.enter_context(threadpool_limits(1))
         errors = _group_stages(spec, [runs[i] for i in todo], [outs[i] for i in todo])
         for i in todo:
             if i not in errors:
-                results[i] = json.loads((outs[i] / "result.json").read_text())
+                results[i] = json.loads((outs[i] / rundir.RESULT).read_text())
     if errors:
         first = next(iter(errors.values()))
         lines = str(first).strip().splitlines() or [type(first).__name__]
@@ -118,12 +114,12 @@ def _group_stages(spec: Spec, runs: list[RunKey], outs: list[Path]) -> dict[int,
 
     start = time.time()
     errors: dict[int, BaseException] = {}
-    todo = [i for i, out in enumerate(outs) if not (out / "result.json").exists()]
+    todo = [i for i, out in enumerate(outs) if not (out / rundir.RESULT).exists()]
     # (a run finished by another process while this one waited to start is left alone)
-    progress = {i: _ProgressFile(outs[i] / "progress.json", spec.steps) for i in todo}
+    progress = {i: _ProgressFile(outs[i] / rundir.PROGRESS, spec.steps) for i in todo}
     for i in todo:
-        (outs[i] / "error.txt").unlink(missing_ok=True)
-    untrained = [i for i in todo if not (outs[i] / "run.json").exists()]
+        (outs[i] / rundir.ERROR).unlink(missing_ok=True)
+    untrained = [i for i in todo if not (outs[i] / rundir.RUN_JSON).exists()]
     if untrained:
         for i in untrained:
             progress[i].write("train", 0)
@@ -157,12 +153,12 @@ def _group_stages(spec: Spec, runs: list[RunKey], outs: list[Path]) -> dict[int,
                 result.update(_dynamic(spec, out))
             # this execution's (a resumed run: since resuming; a group: since the group began)
             result["seconds"] = time.time() - start
-            atomic_write_json(out / "result.json", result)
+            atomic_write_json(out / rundir.RESULT, result)
             progress[i].write("done", spec.steps)
             # The checkpoint only serves to resume training (its replay buffer is up to ~250 MB
             # at 5 M steps: 60 GB for the paper's grid); a finished run keeps its policies,
             # curves, logs.
-            (out / "checkpoint.pt").unlink(missing_ok=True)
+            (out / rundir.CHECKPOINT).unlink(missing_ok=True)
         except Exception as err:
             _write_error(out)
             errors[i] = err
@@ -172,27 +168,7 @@ def _group_stages(spec: Spec, runs: list[RunKey], outs: list[Path]) -> dict[int,
 def _write_error(out: Path) -> None:
     """The current exception's traceback in ``out/error.txt`` (shown by the driver)."""
     out.mkdir(parents=True, exist_ok=True)
-    (out / "error.txt").write_text(traceback.format_exc())
-
-
-@contextmanager
-def _exclusive(out: Path) -> Iterator[None]:
-    """Hold ``out/.lock`` while the run executes: a second driver on the same directory (or an
-    orphan of a killed one) cannot run it twice at once."""
-    try:
-        import fcntl
-    except ImportError:  # not POSIX: no lock
-        yield
-        return
-    with open(out / ".lock", "w") as handle:
-        try:
-            fcntl.flock(handle, fcntl.LOCK_EX | fcntl.LOCK_NB)
-        except OSError:
-            raise RuntimeError(f"{out} is being run by another process") from None
-        try:
-            yield
-        finally:
-            fcntl.flock(handle, fcntl.LOCK_UN)
+    (out / rundir.ERROR).write_text(traceback.format_exc())
 
 
 def _train(spec: Spec, runs: list[RunKey], outs: list[Path], progress: list[_ProgressFile]) -> None:
@@ -226,7 +202,7 @@ def _train(spec: Spec, runs: list[RunKey], outs: list[Path], progress: list[_Pro
 def _evaluate(spec: Spec, run: RunKey, out: Path) -> dict[str, Any]:
     from rrls.evaluation import MLPPolicy, evaluate
 
-    policy = MLPPolicy.load(out / "policy.npz")
+    policy = MLPPolicy.load(out / rundir.POLICY)
     result = evaluate(
         policy,
         run.task,
@@ -295,7 +271,7 @@ class _ProgressFile:
 
 def read_progress(path: Path) -> dict[str, Any] | None:
     try:
-        return json.loads((path / "progress.json").read_text())
+        return json.loads((path / rundir.PROGRESS).read_text())
     except (OSError, ValueError):
         return None
 
@@ -307,7 +283,7 @@ class GroupFailed(RuntimeError):
 
 def _group_main(root: str, spec_json: dict[str, Any], keys: list[tuple[str, str, int]]) -> None:
     """Entry point of a group's process: dies with the driver, writes error.txt on failure."""
-    _die_with_parent()
+    die_with_parent()
     try:
         _execute_recorded(root, spec_json, keys)
     except BaseException:
@@ -327,48 +303,9 @@ def _execute_recorded(
         spec = Spec.from_json(spec_json)
         for key in keys:
             out = run_dir(Path(root), spec, RunKey(*key))
-            if not (out / "result.json").exists():
+            if not (out / rundir.RESULT).exists():
                 _write_error(out)
         raise
-
-
-def _die_with_parent() -> None:
-    """Exit when the driver goes away (killed included): no orphan keeps training."""
-    parent = os.getppid()
-    if sys.platform.startswith("linux"):
-        try:
-            import ctypes
-            import signal
-
-            libc = ctypes.CDLL("libc.so.6", use_errno=True)
-            libc.prctl(1, signal.SIGKILL)  # PR_SET_PDEATHSIG
-        except OSError:
-            pass
-    import threading
-
-    def watch() -> None:
-        while os.getppid() == parent:
-            time.sleep(1.0)
-        os._exit(1)
-
-    threading.Thread(target=watch, daemon=True).start()
-    if os.getppid() != parent:
-        os._exit(1)
-
-
-@contextmanager
-def single_thread_env() -> Iterator[None]:
-    """Children spawned inside inherit one-thread BLAS/OpenMP settings (restored after)."""
-    saved = {k: os.environ.get(k) for k in THREAD_ENV}
-    os.environ.update(THREAD_ENV)
-    try:
-        yield
-    finally:
-        for k, v in saved.items():
-            if v is None:
-                os.environ.pop(k, None)
-            else:
-                os.environ[k] = v
 
 
 Status = Callable[[RunKey, str, str], None]  # (run, "running" | "done" | "failed", detail)
@@ -429,17 +366,17 @@ def run_local(
 def _ok(root: Path, spec: Spec, key: RunKey, group_ok: bool) -> bool:
     """Whether ``key`` ended well: its group did, or it wrote no error (a failed group may
     still have finished some of its runs)."""
-    return group_ok or not (run_dir(root, spec, key) / "error.txt").exists()
+    return group_ok or not (run_dir(root, spec, key) / rundir.ERROR).exists()
 
 
 def _finish(
     root: Path, spec: Spec, key: RunKey, ok: bool, on_event: Status, detail: str = ""
 ) -> None:
     out = run_dir(root, spec, key)
-    if ok and (out / "result.json").exists():
+    if ok and (out / rundir.RESULT).exists():
         on_event(key, "done", "")
         return
-    error = out / "error.txt"
+    error = out / rundir.ERROR
     text = error.read_text().strip() if error.exists() else detail or "the run's process died"
     on_event(key, "failed", text.splitlines()[-1] if text else "failed")
 

@@ -15,20 +15,20 @@ BINS = 50
 
 
 def _pyplot() -> Any:
-    from rrls.evaluation.plots import _pyplot as pyplot
+    from rrls.evaluation.plots import pyplot
 
     return pyplot()
 
 
 def _algo_label(algo: str) -> str:
-    from rrls.experiments.report import NAMES
+    from rrls.experiments.names import NAMES
 
     return NAMES.get(algo, algo)
 
 
 def _color(algo: str) -> str:
     """One colour per algorithm in every figure."""
-    from rrls.experiments.report import ORDER
+    from rrls.experiments.names import ORDER
 
     index = ORDER.index(algo) if algo in ORDER else len(ORDER) + sum(map(ord, algo)) % 5
     return f"C{index}"
@@ -86,9 +86,9 @@ def plot_curves(curves: Any, metric: str, steps: int, path: Path, ylabel: str) -
     tasks = list(dict.fromkeys(t for t, _ in binned))
     fig, axes = plt.subplots(1, len(tasks), figsize=(4.2 * len(tasks), 3.4), squeeze=False)
     for ax, task in zip(axes[0], tasks):
-        from rrls.experiments.report import _sorted
+        from rrls.experiments.names import sort_algos
 
-        for algo in _sorted(a for t, a in binned if t == task):
+        for algo in sort_algos(a for t, a in binned if t == task):
             values = binned[(task, algo)]
             with warnings.catch_warnings():  # bins before a run's first episode are empty
                 warnings.simplefilter("ignore", RuntimeWarning)
@@ -97,7 +97,7 @@ def plot_curves(curves: Any, metric: str, steps: int, path: Path, ylabel: str) -
             ax.plot(centres, mean, label=label, color=_color(algo))
             lo, hi = _band(values, stats.rng_for(task, algo, metric, "band"))
             ax.fill_between(centres, lo, hi, color=_color(algo), alpha=0.2, linewidth=0)
-        from rrls.experiments.report import TASK_NAMES
+        from rrls.experiments.names import TASK_NAMES
 
         ax.set_title(TASK_NAMES.get(task, task))
         ax.set_xlabel("environment steps")
@@ -137,10 +137,10 @@ def plot_over_set(evaluations: Any, task: str, path: Path) -> Path | None:
         return None
     plt = _pyplot()
     fig, axes = plt.subplots(1, len(params), figsize=(4.2 * len(params), 3.4), squeeze=False)
-    from rrls.experiments.report import TASK_NAMES, _sorted
+    from rrls.experiments.names import TASK_NAMES, sort_algos
 
     for ax, name in zip(axes[0], params):
-        for algo in _sorted(data["algorithm"].unique()):
+        for algo in sort_algos(data["algorithm"].unique()):
             sel = data[data["algorithm"] == algo]
             curve = sel.groupby(name)["return"].mean()
             ax.plot(

@@ -30,17 +30,8 @@ from typing import Any
 import numpy as np
 
 from rrls.experiments import stats
+from rrls.experiments.names import NAMES, ORDER, TASK_NAMES, sort_algos  # noqa: F401 - re-exported
 
-ORDER = ("td3", "dr", "m2td3", "rarl", "nrmdp")  # the paper's row order
-NAMES = {"td3": "TD3", "dr": "DR", "m2td3": "M2TD3", "rarl": "RARL", "nrmdp": "NR-MDP"}
-TASK_NAMES = {
-    "ant": "Ant",
-    "halfcheetah": "HalfCheetah",
-    "hopper": "Hopper",
-    "humanoidstandup": "HumanoidStandup",
-    "invertedpendulum": "InvertedPendulum",
-    "walker": "Walker",
-}
 METRICS = ("worst_case", "average_case")
 
 
@@ -80,11 +71,6 @@ def paper_results() -> dict[str, Any]:
     return json.loads(text)
 
 
-def _sorted(algos: Any) -> list[str]:
-    algos = list(dict.fromkeys(algos))
-    return sorted(algos, key=lambda a: (ORDER.index(a) if a in ORDER else len(ORDER), a))
-
-
 def summarise(root: str | Path, reference: Any = None) -> dict[str, Any]:
     """Everything ``summary.json`` holds, computed from the store. ``reference``: a
     ``rrls.experiments.reference.Reference`` (already checked against the benchmark) that
@@ -100,7 +86,7 @@ def summarise(root: str | Path, reference: Any = None) -> dict[str, Any]:
     present_tasks = list(dict.fromkeys(ev["task"])) if len(ev) else []
     present_algos = list(ev["algorithm"].unique()) if len(ev) else []
     tasks = list(dict.fromkeys([*(spec["tasks"] if spec else []), *present_tasks]))
-    algos = _sorted([*(spec["algos"] if spec else []), *present_algos])
+    algos = sort_algos([*(spec["algos"] if spec else []), *present_algos])
     n_expected = len(spec["seeds"]) if spec else None
     uncertainty = spec["uncertainty"] if spec else (ev["uncertainty"].iloc[0] if len(ev) else None)
 
@@ -631,7 +617,7 @@ def _reference_lines(summary: dict[str, Any]) -> list[str]:
     if not ref or not ref.get("rows"):
         return []
     tasks = [t for t in summary["tasks"] if any(r["task"] == t for r in ref["rows"])]
-    algos = _sorted(r["algorithm"] for r in ref["rows"])
+    algos = sort_algos(r["algorithm"] for r in ref["rows"])
     lines = [
         f"## Reference: {ref['label']}",
         "",

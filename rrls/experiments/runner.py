@@ -8,6 +8,7 @@ import time
 from pathlib import Path
 from typing import Any, TextIO
 
+from rrls import rundir
 from rrls.experiments.launch import (
     default_pack,
     groups,
@@ -138,7 +139,7 @@ class Display:
 def pending_runs(root: Path, spec: Spec) -> tuple[list[RunKey], int]:
     """(runs without ``result.json``, number of finished runs)."""
     keys = spec.runs()
-    todo = [k for k in keys if not (run_dir(root, spec, k) / "result.json").exists()]
+    todo = [k for k in keys if not (run_dir(root, spec, k) / rundir.RESULT).exists()]
     return todo, len(keys) - len(todo)
 
 

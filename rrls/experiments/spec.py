@@ -9,12 +9,14 @@ tasks, seeds) may grow: the stored spec becomes the union and only the new runs 
 from __future__ import annotations
 
 import json
-import os
 from dataclasses import asdict, dataclass, fields, replace
 from pathlib import Path
 from typing import Any
 
-ALGOS = ("td3", "dr", "rarl", "nrmdp", "m2td3")  # rrls.agents.ALGOS (not imported: no torch)
+ALGOS = ("td3", "dr", "rarl", "nrmdp", "m2td3")  # the paper's five (the presets' default)
+# every built-in of rrls.agents.ALGOS (not imported: no torch); plug-ins are accepted by name
+# (entry point group "rrls.algorithms") or as package.module:Learner
+BUILT_IN = (*ALGOS, "sac", "sacdr")
 PAPER_TASKS = ("ant", "halfcheetah", "hopper", "humanoidstandup", "walker")
 GRID = ("algos", "tasks", "seeds")  # may grow between invocations
 LABELS = ("preset", "device")  # do not change the numbers' meaning (device: see README)
@@ -66,7 +68,7 @@ class Spec:
             "learning_starts": min(self.learning_starts, self.steps),
             "hidden": tuple(self.hidden),
         }
-        if self.learning_rate is not None:
+        if self.learning_rate is not None and algo in ALGOS:  # TD3's rate (SAC has two)
             hyper["learning_rate"] = self.learning_rate
         if self.batch_size is not None:
             hyper["batch_size"] = self.batch_size
@@ -157,7 +159,12 @@ PRESETS: dict[str, dict[str, Any]] = {
 
 
 def _csv(value: str, what: str) -> tuple[str, ...]:
-    items = tuple(dict.fromkeys(v.strip().lower() for v in value.split(",") if v.strip()))
+    # names are case-insensitive; package.module:Class plug-ins keep their case
+    items = tuple(
+        dict.fromkeys(
+            v.strip() if ":" in v else v.strip().lower() for v in value.split(",") if v.strip()
+        )
+    )
     if not items:
         raise SpecError(f"--{what} is empty")
     return items
@@ -208,11 +215,15 @@ def _task_key(task: str) -> str:
 
 def validate(spec: Spec) -> None:
     """Raise ``SpecError`` for anything that cannot run (before any process starts)."""
+    from importlib.metadata import entry_points
+
     from rrls.envs import get_uncertainty_set
 
-    bad = [a for a in spec.algos if a not in ALGOS]
+    plugins = [ep.name for ep in entry_points(group="rrls.algorithms")]
+    bad = [a for a in spec.algos if a not in BUILT_IN and a not in plugins and ":" not in a]
     if bad:
-        raise SpecError(f"unknown algorithm {bad[0]!r}; valid: {', '.join(ALGOS)}")
+        valid = ", ".join([*BUILT_IN, *plugins])
+        raise SpecError(f"unknown algorithm {bad[0]!r}; valid: {valid}, or package.module:Learner")
     if not spec.algos or not spec.tasks:
         raise SpecError("a benchmark needs at least one algorithm and one task")
     for task in spec.tasks:
@@ -264,11 +275,22 @@ def reconcile(out: Path, spec: Spec) -> Spec:
 
 
 # --- compute estimate ------------------------------------------------------------------------
-# Measured on the 2-core development machine (docs: /work/shared/MEASURED.md): training steps/s
-# of one run (TD3 ~330, M2TD3 similar; RARL updates one player per step (phases) and NR-MDP one
-# critic and one policy per step, so about TD3's, less the second actor's forward when acting),
-# and env steps/s of each task's `env.step` (the evaluation's cost, policy calls excluded).
-TRAIN_STEPS_PER_S = {"td3": 330.0, "dr": 330.0, "m2td3": 330.0, "rarl": 300.0, "nrmdp": 300.0}
+# Training: learning steps per CPU-second of one single-threaded Hopper run, measured in CPU time
+# (robust to a machine shared with other work) by `python3 benchmarks/calibrate.py td3 m2td3
+# sac`: CPU seconds of `rrls train --threads 1` for 3 000 steps (1 000 random) minus those of
+# 1 000 random steps. Measured on the 2-core development machine, 2026-11-23, while other jobs
+# loaded it (CPU time still grows under cache contention: these rates are on the slow side).
+# DR trains TD3's learner, SAC-DR SAC's; RARL and NR-MDP (not measured) are taken as TD3's.
+# Env steps/s of each task's `env.step`: the evaluation's cost, policy calls excluded.
+TRAIN_STEPS_PER_S = {
+    "td3": 77.0,
+    "dr": 77.0,
+    "m2td3": 85.0,
+    "rarl": 77.0,
+    "nrmdp": 77.0,
+    "sac": 47.0,
+    "sacdr": 47.0,
+}
 STARTUP_S = 5.0  # per run: a fresh process importing torch, building envs (measured 4-6 s)
 ENV_STEPS_PER_S = {
     "ant": 3_600.0,
@@ -287,7 +309,7 @@ def estimate(spec: Spec, jobs: int, max_episode_steps: int = 1000) -> dict[str, 
 
     train = evals = 0.0
     for key in spec.runs():
-        train += STARTUP_S + spec.steps / TRAIN_STEPS_PER_S[key.algo]
+        train += STARTUP_S + spec.steps / TRAIN_STEPS_PER_S.get(key.algo, TRAIN_STEPS_PER_S["td3"])
         dims = len(get_uncertainty_set(key.task, spec.uncertainty).names)
         env_sps = ENV_STEPS_PER_S.get(key.task, 5_000.0)
         n_periodic = spec.steps // spec.eval_every if spec.eval_every else 0
@@ -303,10 +325,9 @@ def estimate(spec: Spec, jobs: int, max_episode_steps: int = 1000) -> dict[str, 
 
 
 def default_jobs() -> int:
-    try:
-        return len(os.sched_getaffinity(0))
-    except AttributeError:
-        return os.cpu_count() or 1
+    from rrls._proc import cores
+
+    return cores()
 
 
 def format_duration(seconds: float) -> str:

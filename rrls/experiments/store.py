@@ -21,6 +21,8 @@ import json
 from pathlib import Path
 from typing import Any
 
+from rrls import rundir
+
 TABLES = ("evaluations", "curves", "dynamic", "runs")
 KEY = ["algorithm", "task", "uncertainty", "seed"]
 
@@ -72,7 +74,7 @@ def _curves(run: Path) -> Any:
     """``scalars.csv`` (step, metric, value) pivoted to one row per step."""
     import pandas as pd
 
-    path = run / "scalars.csv"
+    path = run / rundir.SCALARS
     if not path.exists():
         return pd.DataFrame({"step": []})
     long = pd.read_csv(path)

@@ -1,0 +1,32 @@
+"""The training rates of `rrls benchmark`'s estimate (rrls.experiments.spec.TRAIN_STEPS_PER_S).
+
+Single-thread training rate per algorithm, in CPU time (robust to a loaded machine):
+CPU seconds of `rrls train --threads 1` for 3 000 steps (1 000 random) minus for 1 000 random
+steps = the CPU cost of 2 000 learning steps; rate = 2000 / that.
+
+    python3 benchmarks/calibrate.py td3 m2td3 sac
+"""
+
+import resource
+import subprocess
+import sys
+import tempfile
+
+
+def cpu(algo: str, steps: int) -> float:
+    """CPU seconds of one single-threaded Hopper run of ``steps`` (1 000 of them random)."""
+    before = resource.getrusage(resource.RUSAGE_CHILDREN)
+    with tempfile.TemporaryDirectory() as out:
+        command = [sys.executable, "-m", "rrls", "train", "--algo", algo, "--task", "hopper"]
+        command += ["--steps", str(steps), "--learning-starts", "1000", "--threads", "1"]
+        command += ["--eval-every", "0", "--out", out, "--overwrite", "--uncertainty", "3d"]
+        subprocess.run(command, check=True, capture_output=True)
+    after = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return (after.ru_utime + after.ru_stime) - (before.ru_utime + before.ru_stime)
+
+
+if __name__ == "__main__":
+    for algo in sys.argv[1:] or ["td3", "m2td3", "sac"]:
+        full, random = cpu(algo, 3000), cpu(algo, 1000)
+        rate = 2000 / (full - random)
+        print(f"{algo}: {rate:.0f} learning steps per CPU-second", flush=True)

@@ -1,0 +1,77 @@
+"""The learner protocol: what an algorithm gives the training loop (``docs/algorithms.md``).
+
+A learner holds a *group* of ``K`` runs (a run alone: ``K = 1``), which differ only in their
+seeds. Six methods::
+
+    __init__(env, config, seeds, device)   # seeds: one ``RunSeeds`` per run
+    act(obs) -> list of K env actions      # exploring (the loop does the random warm-up)
+    observe(obs, actions, rewards, next_obs, terminated, infos)   # store the K transitions
+    update(step) -> {name: (K,) tensor}    # called every env step after the warm-up
+    state_dict() / load_state_dict(state)  # everything, tensors with the runs first
+    export(k) -> {"policy": MLPPolicy[, "adversary": MLPPolicy]}   # run k's final policies
+
+Two optional hooks: ``episode_options(k, step)`` (``reset(options=...)``, M2TD3's ω) and
+``episode_end(k, ret, length) -> {scalar: value}``. The convention that lets the loop checkpoint
+each run on its own: in ``state_dict()``, every tensor with at least one dimension has the run
+first (``(K, ...)``); 0-d tensors and plain values are common to the group (step counts). A
+run's checkpoint is its slice ``[k : k + 1]`` of every such tensor (a group of one), whatever
+group it was trained in.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+import torch
+
+
+class Learner:
+    """Base class with the optional hooks (subclassing it is not required)."""
+
+    def act(self, obs: np.ndarray) -> list[Any]:
+        raise NotImplementedError
+
+    def observe(self, obs, actions, rewards, next_obs, terminated, infos) -> None:  # noqa: ANN001
+        raise NotImplementedError
+
+    def update(self, step: int) -> dict[str, torch.Tensor]:
+        raise NotImplementedError
+
+    def state_dict(self) -> dict[str, Any]:
+        raise NotImplementedError
+
+    def load_state_dict(self, state: dict[str, Any]) -> None:
+        raise NotImplementedError
+
+    def export(self, k: int) -> dict[str, Any]:
+        raise NotImplementedError
+
+    def episode_options(self, k: int, step: int) -> dict | None:
+        return None
+
+    def episode_end(self, k: int, episode_return: float, length: int) -> dict[str, float]:
+        return {}
+
+
+def run_slice(state: Any, k: int) -> Any:
+    """Run ``k``'s part of a group's state (every tensor of dimension >= 1 is runs-first)."""
+    if isinstance(state, torch.Tensor):
+        return (state[k : k + 1] if state.dim() else state).detach().cpu().clone()
+    if isinstance(state, dict):
+        return {key: run_slice(v, k) for key, v in state.items()}
+    if isinstance(state, list | tuple):
+        return type(state)(run_slice(v, k) for v in state)
+    return state
+
+
+def stack_runs(states: list[Any]) -> Any:
+    """The group state of runs' ``run_slice`` states (the inverse of ``run_slice``)."""
+    first = states[0]
+    if isinstance(first, torch.Tensor):
+        return torch.cat(states) if first.dim() else first
+    if isinstance(first, dict):
+        return {key: stack_runs([s[key] for s in states]) for key in first}
+    if isinstance(first, list | tuple):
+        return type(first)(stack_runs(list(parts)) for parts in zip(*states))
+    return first

@@ -1,0 +1,359 @@
+"""A training run's side of the disk: the run directory and its checkpoints (``Run``), the
+metrics sinks (``Metrics``: TensorBoard, ``scalars.csv``, Weights & Biases with ``--track``, a
+progress bar) and the periodic evaluation (``evaluate_policy``).
+
+Checkpoints are taken every ``checkpoint_every`` steps, mid-episode: they hold each run's slice
+of the learner's state, the loop's generator and the episode in progress (replayed on resume),
+so a resumed run continues exactly as the uninterrupted one (tested bit for bit). They are
+written atomically, sealed by a SHA-256 (a damaged file is refused with a one-line error naming
+it) and loaded with ``torch.load(weights_only=True)``. File names: ``rrls.rundir``.
+"""
+
+from __future__ import annotations
+
+import io
+import json
+import sys
+import time
+from collections.abc import Iterator
+from contextlib import contextmanager
+from dataclasses import asdict
+from pathlib import Path
+from typing import Any
+
+import torch
+
+from rrls import rundir
+from rrls._io import atomic_write_json
+from rrls.agents.common import Interrupted, TrainConfig, benchmark_set, jsonable
+
+
+def versions() -> dict[str, str]:
+    """The evaluation's version record plus torch (saved with every policy)."""
+    from rrls.evaluation.evaluate import versions as evaluation_versions
+
+    return {**evaluation_versions(), "torch": torch.__version__}
+
+
+class Metrics:
+    """Where a run's scalars go: TensorBoard (``tb/``), ``scalars.csv`` (the curves as a plain
+    table, for reports that must not parse TensorBoard files), W&B when ``track``."""
+
+    def __init__(self, config: TrainConfig, directory: Path, step: int) -> None:
+        self.config, self.dir, self.start = config, directory, step
+        self.csv_path = directory / rundir.SCALARS
+        self._csv: Any = None
+        self._tb: Any = None
+        self._wandb: Any = None
+        if config.track:
+            try:
+                import wandb
+            except ImportError:
+                raise ValueError("--track logs to Weights & Biases: pip install wandb") from None
+            self._wandb = wandb.init(
+                project=config.wandb_project,
+                name=directory.name,
+                config=asdict(config),
+                dir=str(directory),
+                resume="allow",
+                reinit=True,
+            )
+
+    def log(self, values: dict[str, float], step: int) -> None:
+        """TensorBoard (and W&B) only (losses: frequent, not part of the curves table)."""
+        if self._tb is None:
+            try:
+                from torch.utils.tensorboard import SummaryWriter
+            except ImportError:  # tensorboard is part of the `train` extra
+                self._tb = False
+            else:
+                self._tb = SummaryWriter(
+                    str(self.dir / rundir.TENSORBOARD), purge_step=self.start or None
+                )
+        if self._tb:
+            for key, value in values.items():
+                self._tb.add_scalar(key, float(value), step)
+        if self._wandb is not None:
+            self._wandb.log({k: float(v) for k, v in values.items()}, step=step)
+
+    def record(self, values: dict[str, float], step: int) -> None:
+        """``log`` plus a row per value in ``scalars.csv``."""
+        self.log(values, step)
+        if self._csv is None:
+            new = not self.csv_path.exists()
+            self._csv = open(self.csv_path, "a", encoding="utf-8")  # noqa: SIM115
+            if new:
+                self._csv.write("step,metric,value\n")
+        self._csv.writelines(f"{step},{key},{float(value)!r}\n" for key, value in values.items())
+
+    def flush(self) -> None:
+        if self._csv is not None:
+            self._csv.flush()
+
+    def close(self) -> None:
+        if self._tb:
+            self._tb.close()
+        self._tb = None
+        if self._csv is not None:
+            self._csv.close()
+            self._csv = None
+        if self._wandb is not None:
+            self._wandb.finish()
+            self._wandb = None
+
+
+def evaluate_policy(policy: Any, config: TrainConfig) -> dict[str, float]:
+    """Nominal return (and the coarse-mesh worst/average case) of a run's ``MLPPolicy``."""
+    from rrls.envs import resolve
+    from rrls.evaluation import evaluate
+
+    common = {"seed": 10_000, "workers": 1, "progress": False}
+    nominal = evaluate(policy, config.task, "nominal", episodes=config.eval_episodes, **common)
+    scores = {"eval/nominal_return": nominal.average_case}
+    if config.eval_mesh > 0:
+        family = resolve(config.task, config.uncertainty).family
+        mesh_set = benchmark_set(config.task) if family == "force" else config.uncertainty
+        mesh = evaluate(
+            policy, config.task, mesh_set, nb_mesh_dim=config.eval_mesh, episodes=1, **common
+        )
+        scores.update({"eval/worst_case": mesh.worst_case, "eval/average_case": mesh.average_case})
+    return scores
+
+
+class Run:
+    """One run's directory: fresh start / resume / overwrite policy, checkpoints, final files."""
+
+    def __init__(self, config: TrainConfig, resume: bool, hyper: Any) -> None:
+        self.config, self.hyper = config, hyper
+        self.dir = Path(config.out)
+        self.checkpoint_path = self.dir / rundir.CHECKPOINT
+        self.step = self.episodes = 0
+        self.finished = False
+        self.metrics: Metrics | None = None
+        self._bar: Any = None
+        done = rundir.finished_steps(self.dir)
+        if config.overwrite:
+            rundir.remove_run_files(self.dir)
+        elif done is not None:
+            if not resume:
+                raise FileExistsError(
+                    f"{self.dir} holds a finished run ({done} steps): pass --overwrite to "
+                    "replace it, --resume with more --steps to extend it, or another --out"
+                )
+            if config.steps <= done:
+                if self.checkpoint_path.exists():
+                    self._check_identity(self._read_checkpoint())
+                if config.steps < done:
+                    raise ValueError(
+                        f"cannot resume {self.dir}: it has already trained {done} steps, "
+                        f"more than --steps {config.steps}"
+                    )
+                self.finished, self.step = True, done
+                return
+        elif self.checkpoint_path.exists() and not resume:
+            raise FileExistsError(
+                f"{self.dir} already holds a run: pass --resume to continue it, --overwrite to "
+                "replace it, or another --out"
+            )
+        self.dir.mkdir(parents=True, exist_ok=True)
+        rundir.remove_temporary_files(self.dir)  # left by a write killed half-way
+        self.resumed = resume and self.checkpoint_path.exists()
+        if not self.resumed:  # a fresh start: curves of a run killed before its first
+            rundir.remove_run_files(self.dir)  # checkpoint would otherwise be appended to
+        self._last_checkpoint = self._last_eval = 0
+        self._t0, self._t0_step = time.perf_counter(), 0
+
+    # -- checkpoints ------------------------------------------------------------------------
+    def _read_checkpoint(self) -> dict[str, Any]:
+        """The checkpoint, or a one-line error naming the file when it cannot be used."""
+        path = self.checkpoint_path
+        data = rundir.read_sealed(path)  # damaged bytes: refused here
+        try:
+            state = torch.load(io.BytesIO(data), weights_only=True, map_location="cpu")
+        except Exception as err:  # noqa: BLE001 - not a checkpoint: all say the same
+            raise ValueError(
+                f"cannot resume from {path}: the file is not a readable checkpoint "
+                f"({type(err).__name__}); delete it (or pass --overwrite) to start again"
+            ) from None
+        if not isinstance(state, dict) or "learner" not in state or "config" not in state:
+            raise ValueError(
+                f"cannot resume from {path}: it was written by another version of rrls "
+                "(another layout); pass --overwrite to start again"
+            )
+        return state
+
+    def _check_identity(self, state: dict[str, Any]) -> None:
+        saved = json.loads(state["config"])
+        current = self.config.identity(self.hyper)
+        diff = [k for k in current if k != "hyper" and saved.get(k) != current[k]]
+        diff += [
+            k for k in current["hyper"] if saved.get("hyper", {}).get(k) != current["hyper"][k]
+        ]
+        if diff:
+            raise ValueError(
+                f"cannot resume {self.dir}: it was trained with other {', '.join(sorted(diff))}"
+            )
+
+    def load(self) -> dict[str, Any] | None:
+        """The saved state when resuming (checked against this config), else ``None``."""
+        if not self.resumed:
+            return None
+        state = self._read_checkpoint()
+        self._check_identity(state)
+        if int(state["step"]) > self.config.steps:
+            raise ValueError(
+                f"cannot resume from {self.checkpoint_path}: it is at step {int(state['step'])}, "
+                f"beyond --steps {self.config.steps}"
+            )
+        self.step, self.episodes = int(state["step"]), int(state["episodes"])
+        self._last_checkpoint = self.step
+        self._last_eval = int(state["last_eval"])
+        rundir.truncate_scalars(self.dir / rundir.SCALARS, self.step)
+        return state
+
+    def checkpoint_due(self) -> bool:
+        return self.step - self._last_checkpoint >= self.config.checkpoint_every
+
+    def save(self, state: dict[str, Any]) -> None:
+        """Write the checkpoint atomically, sealed by its checksum."""
+        state = {
+            **state,
+            "step": self.step,
+            "episodes": self.episodes,
+            "last_eval": self._last_eval,
+            "config": json.dumps(self.config.identity(self.hyper)),
+        }
+        buf = io.BytesIO()
+        torch.save(state, buf)
+        if self.metrics is not None:  # the curves reach at least as far as the checkpoint
+            self.metrics.flush()
+        rundir.write_sealed(self.checkpoint_path, buf.getvalue())
+        self._last_checkpoint = self.step
+
+    def check_stop(self) -> None:
+        """``stop_at`` (a test aid): stop as if killed, right after a checkpoint."""
+        stop = self.config.stop_at
+        if stop is not None and self.step >= stop:
+            raise Interrupted(f"stopped at step {self.step} (stop_at={stop})")
+
+    # -- logs and evaluation ----------------------------------------------------------------
+    def _metrics(self) -> Metrics:
+        if self.metrics is None:
+            self.metrics = Metrics(self.config, self.dir, self.step)
+        return self.metrics
+
+    def log(self, values: dict[str, float]) -> None:
+        self._metrics().log(values, self.step)
+
+    def progress(self, group: int = 1) -> Any:
+        from tqdm.auto import tqdm
+
+        shown = self.config.progress
+        self._bar = tqdm(
+            total=self.config.steps * group,
+            initial=self.step * group,
+            unit="step",
+            desc=f"{self.config.algo} {self.config.task}"
+            + (f" ({group} runs)" if group > 1 else ""),
+            disable=not sys.stderr.isatty() if shown is None else not shown,
+            smoothing=0.05,
+        )
+        self._t0, self._t0_step = time.perf_counter(), self.step
+        return self._bar
+
+    def episode_end(self, episode_return: float, length: int, **extra: float) -> None:
+        self.episodes += 1
+        elapsed = time.perf_counter() - self._t0
+        sps = (self.step - self._t0_step) / elapsed if elapsed > 0 else 0.0
+        self._metrics().record(
+            {
+                "charts/episode_return": episode_return,
+                "charts/episode_length": length,
+                "charts/steps_per_second": sps,
+                **extra,
+            },
+            self.step,
+        )
+        if self._bar is not None:
+            self._bar.set_postfix(ret=f"{episode_return:.1f}", refresh=False)
+
+    def eval_due(self) -> bool:
+        every = self.config.eval_every
+        return every > 0 and self.step - self._last_eval >= every
+
+    def evaluate(self, policy: Any) -> dict[str, float]:
+        self._last_eval = self.step
+        scores = evaluate_policy(policy, self.config)
+        self._metrics().record(scores, self.step)
+        return scores
+
+    def metadata(self, env: Any) -> dict[str, Any]:
+        """What the saved policies record (``rrls evaluate RUN_DIR`` reads task and set)."""
+        return {
+            "algorithm": self.config.algo,
+            "task": self.config.task,
+            "uncertainty": self.config.uncertainty,
+            "obs_dim": env.observation_space.shape[0],
+            "hidden": list(getattr(self.hyper, "hidden", ())),
+            "seed": self.config.seed,
+            "run_dir": str(self.dir),
+            "versions": versions(),
+        }
+
+    # -- the end ----------------------------------------------------------------------------
+    def finish(self, policies: dict[str, Any], summary: dict[str, Any]) -> Path:
+        """Save the final policies (``policy.npz``; ``adversary.npz`` for two-player runs, for
+        the dynamic evaluation, Table 6) and ``run.json`` (last: it marks the run finished)."""
+        for name, policy in policies.items():
+            policy.save(self.dir / (rundir.POLICY if name == "policy" else f"{name}.npz"))
+        atomic_write_json(
+            self.dir / rundir.RUN_JSON,
+            {
+                **policies["policy"].metadata,
+                "config": jsonable(asdict(self.config)),
+                "hyperparameters": jsonable(asdict(self.hyper)),
+                **summary,
+            },
+        )
+        self.close()
+        return self.dir
+
+    def close(self) -> None:
+        """Close the logs and the progress bar."""
+        if self._bar is not None:
+            self._bar.close()
+        if self.metrics is not None:
+            self.metrics.close()
+            self.metrics = None
+
+
+@contextmanager
+def process_settings(threads: int | None) -> Iterator[Any]:
+    """The process as training wants it, put back as it was afterwards.
+
+    Threads: torch's intra-op threads follow ``AdaptiveThreads`` (the cores other processes
+    leave idle, or ``threads``); numpy's BLAS is held to one thread (``threadpoolctl``): acting
+    is batch-1 products whose extra BLAS threads only spin, and measured, they cost a default
+    Hopper run ~20 % (``OMP_NUM_THREADS=1`` made it that much faster). Denormals are flushed to
+    zero: dead ReLU units' Adam moments decay through the denormal range, where x86 arithmetic
+    is ~100x slower (measured: each Adam step 5x slower).
+    """
+    from threadpoolctl import threadpool_limits
+
+    from rrls.agents.threads import AdaptiveThreads
+
+    flushed = flush_denormal_enabled()
+    torch.set_flush_denormal(True)
+    adaptive = AdaptiveThreads(threads)
+    try:
+        with threadpool_limits(1, user_api="blas"):
+            yield adaptive
+    finally:
+        adaptive.restore()
+        torch.set_flush_denormal(flushed)
+
+
+def flush_denormal_enabled() -> bool:
+    """Whether this thread flushes float32 denormals to zero (torch has no getter for it)."""
+    tiny = torch.tensor([1e-37], dtype=torch.float32)
+    return bool((tiny * 1e-3).item() == 0.0)

@@ -1,0 +1,193 @@
+"""SAC (Haarnoja et al. 2018, "Soft Actor-Critic Algorithms and Applications";
+https://arxiv.org/abs/1812.05905). CleanRL's ``sac_continuous_action.py`` and its
+hyper-parameters, for a group of ``K`` runs. Not part of the paper's five baselines: trained on
+the nominal task and evaluated over the uncertainty set like TD3.
+
+- Critics: ``y = r + γ (1 - terminated) (min_i Q_i'(s', a') - α log π(a'|s'))``, ``a' ~ π(s')``;
+  loss ``Σ_i mean((Q_i(s, a) - y)²)``.
+- Actor, every ``policy_frequency`` updates, as many steps (CleanRL's delayed update):
+  ``mean(α log π(ã|s) - min_i Q_i(s, ã))``, ``ã ~ π(s)`` reparameterised.
+- Temperature (``autotune``): ``log α`` descends ``-α (log π(ã|s) + H̄)``, ``H̄ = -dim(A)``.
+- Targets: Polyak averaging every ``target_network_frequency`` updates.
+- Acting: a sample of the squashed Gaussian policy (the loop does the uniform warm-up); the
+  exported policy for evaluation is its mean, ``tanh(μ(s))`` scaled to the box.
+"""
+
+from __future__ import annotations
+
+import copy
+import math
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+import torch
+
+from rrls.agents.common import hp, task_env
+from rrls.agents.graphs import Update, adam
+from rrls.agents.learner import Learner as _Learner
+from rrls.agents.nets import Critic, GaussianActor, polyak, to_mlp_policy
+from rrls.agents.replay import ReplayBuffer, transition_fields
+from rrls.agents.seeds import Generators, NumpyGenerators, RunSeeds
+
+
+@dataclass
+class Config:
+    """CleanRL's ``sac_continuous_action.py`` defaults."""
+
+    policy_lr: float = hp(3e-4, "Adam step size of the policy")
+    q_lr: float = hp(1e-3, "Adam step size of the critics (and of the temperature)")
+    gamma: float = hp(0.99, "discount factor")
+    tau: float = hp(0.005, "Polyak rate of the target networks")
+    learning_starts: int = hp(5_000, "uniformly random steps before learning starts")
+    policy_frequency: int = hp(2, "critic updates per (burst of) policy updates")
+    target_network_frequency: int = hp(1, "critic updates per Polyak step")
+    entropy_coef: float = hp(0.2, "SAC's temperature α (initial value when autotuned)")
+    autotune: bool = hp(True, "learn α towards the target entropy -dim(A)")
+    batch_size: int = hp(256, "replay batch size")
+    buffer_size: int = hp(1_000_000, "replay capacity (transitions)")
+    hidden: tuple[int, ...] = hp((256, 256), "hidden layer sizes of actors and critics")
+
+    def __post_init__(self) -> None:
+        self.hidden = tuple(int(h) for h in self.hidden)
+        for name in (
+            "policy_lr",
+            "q_lr",
+            "tau",
+            "policy_frequency",
+            "target_network_frequency",
+            "entropy_coef",
+            "batch_size",
+            "buffer_size",
+        ):
+            value = getattr(self, name)
+            if not (np.isfinite(value) and value > 0):
+                raise ValueError(f"{name} must be a positive number, got {value}")
+        if not 0 <= self.gamma <= 1:
+            raise ValueError(f"gamma must be in [0, 1], got {self.gamma}")
+        if self.learning_starts < 0:
+            raise ValueError(f"learning_starts must be >= 0, got {self.learning_starts}")
+        if not self.hidden or min(self.hidden) < 1:
+            raise ValueError(f"hidden layer sizes must be >= 1, got {list(self.hidden)}")
+
+
+def make_env(task: str, uncertainty: str, config: Config) -> Any:
+    """The nominal task (SAC never sees the uncertainty set; it is only evaluated over it)."""
+    return task_env(task)[0]
+
+
+class Learner(_Learner):
+    """SAC for ``K`` runs: one replay buffer each, one update for all."""
+
+    def __init__(self, env: Any, config: Config, seeds: list[RunSeeds], device: Any) -> None:
+        obs_dim = env.observation_space.shape[0]
+        self.low, self.high = env.action_space.low, env.action_space.high
+        act_dim, hidden = len(self.low), config.hidden
+        self.config, self.device = config, torch.device(device)
+        init = Generators(seeds, "init")
+        self.actor = GaussianActor(obs_dim, act_dim, hidden, self.low, self.high, init).to(device)
+        self.critic = Critic(obs_dim + act_dim, hidden, init).to(device)
+        self.critic_target = copy.deepcopy(self.critic).requires_grad_(False)
+        self.actor_opt = adam(self.actor.parameters(), config.policy_lr, device)
+        self.critic_opt = adam(self.critic.parameters(), config.q_lr, device)
+        start = math.log(config.entropy_coef)
+        self.log_alpha = torch.full((len(seeds),), start, device=device, requires_grad=True)
+        self.alpha_opt = adam([self.log_alpha], config.q_lr, device)
+        self.target_entropy = -float(act_dim)
+        self.noise = Generators(seeds, "noise")  # the updates' action samples
+        self.rngs = NumpyGenerators(seeds, "explore")  # acting's samples
+        self.buffer = ReplayBuffer(
+            config.buffer_size, transition_fields(obs_dim, (act_dim,)), device, seeds
+        )
+        self.act_dim = act_dim
+        self._update = Update(self._compute, device)
+
+    def act(self, obs: np.ndarray) -> list[Any]:
+        """A sample of each run's policy at its observation."""
+        eps = np.stack([rng.standard_normal(self.act_dim) for rng in self.rngs])
+        with torch.inference_mode():
+            x = torch.as_tensor(np.asarray(obs), dtype=torch.float32, device=self.device)
+            e = torch.as_tensor(eps, dtype=torch.float32, device=self.device)
+            action, _ = self.actor.sample(x.unsqueeze(1), e.unsqueeze(1))
+        return list(action.squeeze(1).cpu().numpy())
+
+    def observe(self, obs, actions, rewards, next_obs, terminated, infos) -> None:  # noqa: ANN001
+        self.buffer.add(
+            obs=obs, action=actions, reward=rewards, next_obs=next_obs, terminated=terminated
+        )
+
+    def draw(self, batch: int, n: int) -> torch.Tensor:
+        """``n`` standard normal ``(K, batch, act)`` draws, each run from its own generator."""
+        shape = (n, batch, self.act_dim)
+        return torch.stack([torch.randn(shape, generator=g) for g in self.noise], dim=1)
+
+    def update(self, step: int) -> dict[str, torch.Tensor]:
+        cfg = self.config
+        policy = step % cfg.policy_frequency == 0
+        target = step % cfg.target_network_frequency == 0
+        n = 1 + (2 * cfg.policy_frequency if policy else 0)
+        draws = {"idx": self.buffer.draw(cfg.batch_size), "eps": self.draw(cfg.batch_size, n)}
+        return self._update((policy, target), draws)
+
+    def _compute(self, variant: tuple[bool, bool], x: dict[str, torch.Tensor]) -> dict:
+        """The device work of one update (``graphs.Update`` may capture it)."""
+        cfg, (policy, target) = self.config, variant
+        data, eps = self.buffer.gather(x["idx"]), x["eps"]
+        obs, alpha = data["obs"], self.log_alpha.detach().exp().unsqueeze(1)
+        with torch.no_grad():
+            next_action, next_log_pi = self.actor.sample(data["next_obs"], eps[0])
+            q_next = self.critic_target(torch.cat((data["next_obs"], next_action), -1)).amin(1)
+            soft = q_next - alpha * next_log_pi
+            y = data["reward"] + cfg.gamma * (1.0 - data["terminated"]) * soft
+        q = self.critic(torch.cat((obs, data["action"]), -1))
+        critic_loss = (q - y.unsqueeze(1)).square().mean(-1).sum(-1)
+        self.critic_opt.zero_grad()
+        critic_loss.sum().backward()  # runs do not mix: each run's gradient is its own
+        self.critic_opt.step()
+        losses = {"critic_loss": critic_loss.detach()}
+        for i in range(cfg.policy_frequency if policy else 0):
+            alpha = self.log_alpha.detach().exp().unsqueeze(1)
+            action, log_pi = self.actor.sample(obs, eps[1 + 2 * i])
+            min_q = self.critic(torch.cat((obs, action), -1)).amin(1)
+            actor_loss = (alpha * log_pi - min_q).mean(-1)
+            self.actor_opt.zero_grad()
+            actor_loss.sum().backward(inputs=list(self.actor.parameters()))
+            self.actor_opt.step()
+            losses["actor_loss"] = actor_loss.detach()
+            if cfg.autotune:
+                with torch.no_grad():
+                    _, log_pi = self.actor.sample(obs, eps[2 + 2 * i])
+                alpha_loss = -self.log_alpha.exp().unsqueeze(1) * (log_pi + self.target_entropy)
+                alpha_loss = alpha_loss.mean(-1)
+                self.alpha_opt.zero_grad()
+                alpha_loss.sum().backward()
+                self.alpha_opt.step()
+                losses["alpha_loss"] = alpha_loss.detach()
+            losses["alpha"] = self.log_alpha.detach().exp()
+        if target:
+            polyak(self.critic_target, self.critic, cfg.tau)
+        return losses
+
+    def state_dict(self) -> dict[str, Any]:
+        return {
+            **{n: getattr(self, n).state_dict() for n in NETS},
+            "log_alpha": self.log_alpha.detach().clone(),
+            "noise": self.noise.state_dict(),
+            "explore": self.rngs.state_dict(),
+            "buffer": self.buffer.state_dict(),
+        }
+
+    def load_state_dict(self, state: dict[str, Any]) -> None:
+        for n in NETS:
+            getattr(self, n).load_state_dict(state[n])
+        with torch.no_grad():
+            self.log_alpha.copy_(state["log_alpha"])
+        self.noise.load_state_dict(state["noise"])
+        self.rngs.load_state_dict(state["explore"])
+        self.buffer.load_state_dict(state["buffer"])
+
+    def export(self, k: int) -> dict[str, Any]:
+        return {"policy": to_mlp_policy(self.actor, k)}
+
+
+NETS = ("actor", "critic", "critic_target", "actor_opt", "critic_opt", "alpha_opt")
