@@ -200,7 +200,11 @@ class Learner(TD3Learner):
     exploration as TD3's learner)."""
 
     def __init__(self, env: Any, config: Config, seeds: list[RunSeeds], device: Any) -> None:
-        self.box = box = getattr(env, "uncertainty_box", None)
+        try:  # through any wrapper a user (or a benchmark's clock) put around make_env's env
+            box = env.get_wrapper_attr("uncertainty_box")
+        except AttributeError:
+            box = None
+        self.box = box
         if box is None:
             raise ValueError("M2TD3 needs an uncertainty set (--uncertainty 1d, 2d or 3d)")
         obs_dim = env.observation_space.shape[0]
