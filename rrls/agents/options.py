@@ -86,6 +86,9 @@ def add_train_arguments(parser: argparse.ArgumentParser) -> None:
                 kwargs["choices"] = list(TASKS)
         elif f.name == "uncertainty":
             kwargs["choices"] = ["1d", "2d", "3d", "rarl"]
+        elif f.metadata.get("choices"):
+            kwargs["choices"] = f.metadata["choices"]
+            kwargs["help"] += f" (default {f.default})"
         elif f.default is not None and not isinstance(f.default, bool):
             kwargs["help"] += f" (default {f.default})"
         if isinstance(f.default, bool):

@@ -64,12 +64,12 @@ class Config(TD3Config):
             )
 
 
-def make_env(task: str, uncertainty: str, config: Config) -> Any:
+def make_env(task: str, uncertainty: str, config: Config, paper: bool = False) -> Any:
     """The two-player game over the set: parameters (``1d/2d/3d``) or forces (``rarl``), the
     adversary's moves rate-limited if ``config.rate_limit`` is set."""
     from rrls.wrappers import DynamicAdversarial
 
-    return DynamicAdversarial(*task_env(task, uncertainty), rate_limit=config.rate_limit)
+    return DynamicAdversarial(*task_env(task, uncertainty, paper), rate_limit=config.rate_limit)
 
 
 PLAYERS = ("", "adversary.")  # generator names: the protagonist's, the adversary's

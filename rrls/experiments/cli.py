@@ -38,6 +38,13 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:
     b.add_argument("--tasks", help="comma-separated: ant,halfcheetah,hopper,humanoidstandup,walker")
     b.add_argument("--uncertainty", help="evaluation set (and DR/M2TD3's training set): 1d, 2d, 3d")
     b.add_argument("--seeds", type=int, metavar="N", help="number of seeds (0..N-1)")
+    b.add_argument(
+        "--physics",
+        choices=["v5", "paper"],
+        help="v5 (default: Gymnasium v5, rrls's parameter semantics) or paper (the paper's "
+        "Gymnasium v4 envs, worldfriction on the floor only, np.arange mesh) for training and "
+        "evaluation; recorded in benchmark.json",
+    )
     b.add_argument("--steps", type=int, metavar="N", help="training steps per run")
     b.add_argument("--learning-starts", type=int, metavar="N")
     b.add_argument(
@@ -175,6 +182,7 @@ def _spec_from(args: argparse.Namespace) -> tuple:
         mesh=args.mesh,
         episodes=args.episodes,
         device=args.device,
+        physics=getattr(args, "physics", None),
     )
     jobs = args.jobs or (None if args.backend == "ray" else default_jobs())
     return spec, jobs

@@ -30,6 +30,7 @@ from typing import Any
 from rrls import rundir
 from rrls._proc import THREAD_ENV, die_with_parent, exclusive, single_thread_env
 from rrls.experiments.spec import RunKey, Spec
+from rrls.physics import is_paper
 
 DYNAMIC_ALGOS = ("rarl", "nrmdp")
 
@@ -189,6 +190,7 @@ def _train(spec: Spec, runs: list[RunKey], outs: list[Path], progress: list[_Pro
             device=spec.device,
             checkpoint_every=spec.checkpoint_every,
             threads=1,
+            physics=spec.physics,
             progress=False,
             hyper=spec.hyperparameters(run.algo),
         )
@@ -212,6 +214,7 @@ def _evaluate(spec: Spec, run: RunKey, out: Path) -> dict[str, Any]:
         seed=spec.eval_seed,
         workers=1,
         out_dir=out / "eval",
+        paper=is_paper(spec.physics),
         progress=False,
     )
     meta = policy.metadata
@@ -222,6 +225,7 @@ def _evaluate(spec: Spec, run: RunKey, out: Path) -> dict[str, Any]:
         "train_set": spec.train_set(run.algo),
         "seed": run.seed,
         "steps": spec.steps,
+        "physics": spec.physics,
         "worst_case": result.worst_case,
         "average_case": result.average_case,
         "versions": meta.get("versions", {}),
