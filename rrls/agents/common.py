@@ -80,7 +80,9 @@ def benchmark_set(task: str) -> str:
     which has no 3D set, on its 2D set)."""
     from rrls.tasks import get_task
 
-    return "2d" if "3d" not in get_task(task).sets else "3d"
+    sets = list(get_task(task).sets)
+    # a registered task without the paper's names: its first declared set
+    return next((s for s in ("3d", "2d", "1d") if s in sets), sets[0] if sets else "nominal")
 
 
 @dataclass
@@ -97,8 +99,9 @@ class TrainConfig:
     task: str = hp("hopper", "the task")
     uncertainty: str | None = hp(
         None,
-        "the uncertainty set trained on (and evaluated over): 1d, 2d, 3d or rarl (forces); "
-        "default: the paper's benchmark set, 3d (2d for invertedpendulum)",
+        "the uncertainty set trained on (and evaluated over): any set the task declares (the "
+        "paper's tasks: 1d, 2d, 3d, rarl (forces)); default: the paper's benchmark set, 3d (2d "
+        "where the task has no 3d set)",
     )
     steps: int = hp(5_000_000, "env steps")
     seed: int = hp(0, "seed of every random draw: each purpose a child of SeedSequence(seed)")

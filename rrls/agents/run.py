@@ -26,7 +26,7 @@ import torch
 from rrls import rundir
 from rrls._io import atomic_write_json
 from rrls.agents.common import Interrupted, TrainConfig, benchmark_set, jsonable
-from rrls.physics import is_paper
+from rrls.physics import is_paper, physics_label
 
 
 def versions() -> dict[str, str]:
@@ -186,6 +186,7 @@ class Run:
 
     def _check_identity(self, state: dict[str, Any]) -> None:
         saved = json.loads(state["config"])
+        saved["physics"] = physics_label(saved.get("physics"))  # older checkpoints: rrls-v5
         current = self.config.identity(self.hyper)
         diff = [k for k in current if k != "hyper" and saved.get(k) != current[k]]
         diff += [
