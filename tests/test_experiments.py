@@ -427,3 +427,20 @@ def test_quickstart_is_the_quick_preset(tmp_path, capsys, monkeypatch):
     assert json.loads((tmp_path / "benchmark.json").read_text())["preset"] == "quick"
     assert (tmp_path / "quickstart.png").stat().st_size > 10_000
     assert (tmp_path / "report" / "report.md").exists()
+
+
+@needs_torch
+def test_a_paper_physics_benchmark_trains_evaluates_and_records_it(tmp_path, capsys):
+    out = tmp_path / "paper"
+    args = [*SMOKE, "--algos", "rarl", "--jobs", "1", "--out", str(out)]
+    assert main([*args, "--physics", "paper"]) == 0
+    assert json.loads((out / "benchmark.json").read_text())["physics"] == "paper-v4"
+    (run,) = (out / "runs").iterdir()
+    assert json.loads((run / "run.json").read_text())["config"]["physics"] == "paper-v4"
+    summary = json.loads((run / "eval" / "summary.json").read_text())
+    assert summary["physics"] == "paper-v4" and summary["endpoint"] is False
+    result = json.loads((run / "result.json").read_text())
+    assert result["physics"] == "paper-v4" and result["dynamic_env"].endswith("[paper-v4]")
+    capsys.readouterr()
+    assert main(args) == 2  # the same directory on rrls's physics: another protocol
+    assert "physics: 'paper-v4' there, 'rrls-v5' now" in capsys.readouterr().err
