@@ -162,3 +162,17 @@ def test_a_reference_of_other_physics_is_refused_for_a_paper_benchmark():
     check_compatible(quick, old)
     with pytest.raises(SpecError, match="task 'swimmer' has no paper physics"):
         make_spec("smoke", tasks="swimmer", uncertainty="1d", physics="paper")
+
+
+def test_a_plugin_make_env_without_paper_is_refused_on_the_papers_physics():
+    pytest.importorskip("torch")
+    from rrls.agents import TrainConfig
+    from rrls.agents.common import algorithm, env_factory
+
+    def make_env(task, uncertainty, config):
+        raise AssertionError("not called")
+
+    plugin = algorithm("td3")._replace(name="mine", make_env=make_env)
+    with pytest.raises(ValueError, match="'mine': its make_env takes no 'paper' keyword"):
+        env_factory(plugin, TrainConfig(task="hopper", physics="paper"), None)
+    assert env_factory(plugin, TrainConfig(task="hopper"), None).func is make_env
