@@ -334,7 +334,7 @@ def _evaluate(
     workers: int | None,
     progress: bool | None,
 ) -> dict[str, Any]:
-    """The final mesh evaluation of the benchmark's runs (``launch``'s), into ``out/eval``."""
+    """The final mesh evaluation of the benchmark's runs (``pipeline``'s), into ``out/eval``."""
     from rrls.evaluation import evaluate
 
     meta = getattr(policy, "metadata", None) or {}
