@@ -54,6 +54,13 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:
         "Gymnasium v4 envs, worldfriction on the floor only, np.arange mesh) for training and "
         "evaluation; recorded in benchmark.json",
     )
+    b.add_argument(
+        "--rate-limit",
+        type=float,
+        metavar="L",
+        help="RARL trains against (and is evaluated with) TC-RMDP's rate-limited adversary: "
+        "the parameters move at most L per step in the set's normalised units",
+    )
     b.add_argument("--steps", type=int, metavar="N", help="training steps per run")
     b.add_argument("--learning-starts", type=int, metavar="N")
     b.add_argument(
@@ -192,6 +199,7 @@ def _spec_from(args: argparse.Namespace) -> tuple:
         episodes=args.episodes,
         device=args.device,
         physics=getattr(args, "physics", None),
+        rate_limit=getattr(args, "rate_limit", None),
     )
     jobs = args.jobs or (None if args.backend == "ray" else default_jobs())
     return spec, jobs

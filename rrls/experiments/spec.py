@@ -56,6 +56,8 @@ class Spec:
     device: str = "cpu"
     #: which physics trains and evaluates every run (``rrls.physics``: rrls-v5 or paper-v4)
     physics: str = V5
+    #: RARL's adversary moves at most this much per step (TC-RMDP's game); None: RARL's own
+    rate_limit: float | None = None
 
     def runs(self) -> list[RunKey]:
         """Every (algorithm, task, seed) of the grid, in a stable order."""
@@ -78,6 +80,8 @@ class Spec:
             hyper["batch_size"] = self.batch_size
         if algo == "m2td3":
             hyper["normalize_omega"] = self.normalize_omega
+        if algo == "rarl" and self.rate_limit is not None:
+            hyper["rate_limit"] = self.rate_limit
         return hyper
 
     def protocol(self) -> dict[str, Any]:
@@ -258,6 +262,11 @@ def validate(spec: Spec) -> None:
         raise SpecError("--seeds must be >= 1")
     if spec.checkpoint_every < 1:
         raise SpecError("checkpoint_every must be >= 1")
+    if spec.rate_limit is not None:
+        if not (isinstance(spec.rate_limit, (int, float)) and 0 < spec.rate_limit < float("inf")):
+            raise SpecError(f"--rate-limit must be a finite number > 0, got {spec.rate_limit!r}")
+        if "rarl" not in spec.algos:
+            raise SpecError("--rate-limit applies to RARL's adversary: add rarl to --algos")
 
 
 def reconcile(out: Path, spec: Spec) -> Spec:

@@ -381,6 +381,7 @@ def _dynamic(
         seed=spec.eval_seed,
         alpha=0.1 if alpha is None else float(alpha),
         paper=is_paper(spec.physics),
+        rate_limit=spec.rate_limit if game == "adversarial" else None,
     )
     atomic_write_table(out / "dynamic.csv", result.episodes)
     return {"dynamic_mean": result.mean, "dynamic_std": result.std, "dynamic_env": result.env_id}
