@@ -144,6 +144,11 @@ def test_train_physics_paper_uses_the_v4_twin_and_records_it(tmp_path):
     from rrls.evaluation import evaluate_run_dynamic
 
     assert evaluate_run_dynamic(run, episodes=1).env_id.endswith("[paper-v4]")
+    from rrls.cli import main
+
+    args = ["evaluate", str(run), "--mesh", "2", "--episodes", "1", "--workers", "1"]
+    assert main([*args, "--out", str(tmp_path / "e")]) == 0  # the run's physics by default
+    assert json.loads((tmp_path / "e" / "summary.json").read_text())["physics"] == "paper-v4"
     with pytest.raises(ValueError, match="task 'swimmer' has no paper physics; valid with"):
         TrainConfig(task="swimmer", physics="paper")
 
