@@ -290,7 +290,8 @@ def test_train_takes_any_set_the_task_declares_and_the_tasks_time_limit(tmp_path
         "InvertedPendulum-v5",
         name="NamedSets",
         params=mass_params({"pole": "pole", "cart": "cart"}),
-        sets={"heavypole": {"polemass": (5.0, 20.0)}},
+        # (a force set too: tests/test_registration expects every task's adversarial-forces id)
+        sets={"heavypole": {"polemass": (5.0, 20.0)}, "rarl": {"poleforce_x": (-1.0, 1.0)}},
         planar=True,
         max_episode_steps=40,
     )
@@ -302,7 +303,7 @@ def test_train_takes_any_set_the_task_declares_and_the_tasks_time_limit(tmp_path
     assert config["uncertainty"] == "heavypole" and config["max_episode_steps"] == 40
     assert main([*args, "--uncertainty", "3d", "--out", str(tmp_path / "x")]) == 2
     err = capsys.readouterr().err.strip()
-    assert err.endswith("task 'namedsets' has no uncertainty set '3d'; valid: heavypole")
+    assert err.endswith("task 'namedsets' has no uncertainty set '3d'; valid: heavypole, rarl")
     assert len(err.splitlines()) == 1
 
 
