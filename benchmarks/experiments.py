@@ -51,7 +51,7 @@ def one_run_alone(args: argparse.Namespace, out: Path) -> float:
 
 def local_backend(args: argparse.Namespace, out: Path) -> dict[str, float]:
     """Wall time of the pool, the longest run, the driver's CPU, store and report times."""
-    from rrls.experiments.launch import run_local
+    from rrls.experiments.backends import run_local
     from rrls.experiments.report import make_report
     from rrls.experiments.spec import make_spec
     from rrls.experiments.store import build_store

@@ -165,9 +165,10 @@ def build_parser(with_train: bool = True) -> argparse.ArgumentParser:
     ev.add_argument(
         "--physics",
         choices=["v5", "paper"],
-        default="v5",
-        help="v5 (default: Gymnasium v5, rrls's parameter semantics) or paper (the paper's "
-        "Gymnasium v4 envs, worldfriction on the floor only, np.arange mesh)",
+        default=None,
+        help="v5 (Gymnasium v5, rrls's parameter semantics) or paper (the paper's Gymnasium v4 "
+        "envs, worldfriction on the floor only, np.arange mesh); default: the physics the "
+        "policy was trained on (rrls train records it), else v5",
     )
     ev.add_argument(
         "--out",
@@ -275,6 +276,7 @@ def _evaluate(args: argparse.Namespace) -> int:
     from pathlib import Path
 
     from rrls.evaluation import evaluate, load_policy
+    from rrls.physics import is_paper
     from rrls.tasks import get_task
 
     policy = load_policy(args.policy)
@@ -286,6 +288,8 @@ def _evaluate(args: argparse.Namespace) -> int:
     if meta.get("task") not in (None, task):
         raise UsageError(f"the policy was trained on {meta['task']!r}, not on --task {task!r}")
     uncertainty = args.uncertainty or _default_set(task, meta)
+    if args.physics is None:  # the physics a run directory's policy was trained on
+        args.physics = "paper" if is_paper(meta.get("physics")) else "v5"
     out = Path(
         args.out
         or f"evaluations/{task}-{uncertainty}-mesh{args.mesh}-ep{args.episodes}-seed{args.seed}"

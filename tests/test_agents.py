@@ -488,3 +488,38 @@ def test_nrmdp_adversary_lowers_the_protagonists_return_more_than_a_random_one(t
         for adv in (adversary, random_adversary)
     ]
     assert scores[0] < 0.5 * scores[1], scores
+
+
+def test_rarl_trains_against_a_rate_limited_adversary_and_is_evaluated_in_that_game(tmp_path):
+    from rrls.agents import rarl
+    from rrls.evaluation import evaluate_run_dynamic
+    from rrls.evaluation.policies import MLPPolicy
+
+    out = tmp_path / "tc"
+    assert (
+        _cli_train(out, "rarl", steps=200, extra=["--uncertainty", "2d", "--rate-limit", "0.05"])
+        == 0
+    )
+    meta = MLPPolicy.load(out / "adversary.npz").metadata
+    assert meta["rate_limit"] == 0.05 and meta["game"] == "adversarial"
+    assert json.loads((out / "run.json").read_text())["hyperparameters"]["rate_limit"] == 0.05
+    result = evaluate_run_dynamic(out, episodes=1)
+    assert "rate_limit=0.05" in result.env_id
+    # the training game: the parameters move at most 0.05 per step, in normalised units
+    game = rarl.make_env("invertedpendulum", "2d", rarl.Config(rate_limit=0.05))
+    box = game.uncertainty_set
+    game.reset(seed=0)
+    before = box.normalize(box.to_array(game.get_params()))
+    for _ in range(20):
+        game.step((np.zeros(1), np.ones(2)))
+        now = box.normalize(box.to_array(game.get_params()))
+        assert np.abs(now - before).max() <= 0.05 + 1e-9
+        before = now
+    assert now.max() > 0.5  # it did move towards the corner
+
+
+def test_rate_limit_is_refused_for_algorithms_without_an_adversary(tmp_path, capsys):
+    assert _cli_train(tmp_path / "x", "td3", steps=200, extra=["--rate-limit", "0.05"]) == 2
+    assert "--rate-limit does not apply to td3 (only to rarl)" in capsys.readouterr().err
+    with pytest.raises(ValueError, match="rate_limit must be a finite number > 0"):
+        hyperparameters(TrainConfig(algo="rarl", hyper={"rate_limit": -1.0}))

@@ -427,3 +427,34 @@ def test_quickstart_is_the_quick_preset(tmp_path, capsys, monkeypatch):
     assert json.loads((tmp_path / "benchmark.json").read_text())["preset"] == "quick"
     assert (tmp_path / "quickstart.png").stat().st_size > 10_000
     assert (tmp_path / "report" / "report.md").exists()
+
+
+@needs_torch
+def test_a_paper_physics_benchmark_trains_evaluates_and_records_it(tmp_path, capsys):
+    # (with RARL against TC-RMDP's rate-limited adversary: trained and evaluated in that game)
+    out = tmp_path / "paper"
+    args = [*SMOKE, "--algos", "rarl", "--jobs", "1", "--out", str(out), "--rate-limit", "0.1"]
+    assert main([*args, "--physics", "paper"]) == 0
+    assert json.loads((out / "benchmark.json").read_text())["physics"] == "paper-v4"
+    (run,) = (out / "runs").iterdir()
+    assert json.loads((run / "run.json").read_text())["config"]["physics"] == "paper-v4"
+    summary = json.loads((run / "eval" / "summary.json").read_text())
+    assert summary["physics"] == "paper-v4" and summary["endpoint"] is False
+    result = json.loads((run / "result.json").read_text())
+    assert result["physics"] == "paper-v4" and result["dynamic_env"].endswith("[paper-v4]")
+    assert "rate_limit=0.1" in result["dynamic_env"]
+    assert json.loads((run / "run.json").read_text())["hyperparameters"]["rate_limit"] == 0.1
+    capsys.readouterr()
+    assert main(args) == 2  # the same directory on rrls's physics: another protocol
+    assert "physics: 'paper-v4' there, 'rrls-v5' now" in capsys.readouterr().err
+
+
+def test_benchmark_rate_limit_is_rarls_alone_and_checked():
+    spec = make_spec("smoke", rate_limit=0.05)
+    assert spec.hyperparameters("rarl")["rate_limit"] == 0.05
+    assert "rate_limit" not in spec.hyperparameters("td3")
+    assert make_spec("smoke").hyperparameters("rarl").get("rate_limit") is None
+    with pytest.raises(SpecError, match="--rate-limit must be a finite number > 0"):
+        make_spec("smoke", rate_limit=-1.0)
+    with pytest.raises(SpecError, match="add rarl to --algos"):
+        make_spec("smoke", algos="td3", rate_limit=0.1)

@@ -80,7 +80,7 @@ def test_evaluate_paper_uses_v4_and_the_arange_mesh_and_records_it(tmp_path):
     )  # fmt: skip
     assert paper.episodes["worldfriction"].round(6).tolist() == [0.1, 1.066667, 2.033333]
     summary = json.loads((tmp_path / "paper" / "summary.json").read_text())
-    assert summary["physics"] == "paper" and summary["endpoint"] is False
+    assert summary["physics"] == "paper-v4" and summary["endpoint"] is False
     for _, row in paper.episodes.iterrows():
         env = gym.make("rrls/robust-hopper-v0", paper=True, max_episode_steps=30)
         env.set_params(worldfriction=row["worldfriction"])
@@ -95,7 +95,7 @@ def test_evaluate_paper_uses_v4_and_the_arange_mesh_and_records_it(tmp_path):
         policy, "hopper", "1d", nb_mesh_dim=3, episodes=1, workers=1, max_episode_steps=30
     )
     assert v5.episodes["worldfriction"].tolist()[-1] == 3.0
-    assert v5.summary()["physics"] == "v5"
+    assert v5.summary()["physics"] == "rrls-v5"
 
 
 def test_cli_evaluate_physics_paper(tmp_path, capsys):
@@ -108,4 +108,76 @@ def test_cli_evaluate_physics_paper(tmp_path, capsys):
     assert main([*args, "--physics", "paper", "--out", str(tmp_path / "e")]) == 0
     assert "(paper physics)" in capsys.readouterr().out
     summary = json.loads((tmp_path / "e" / "summary.json").read_text())
-    assert summary["physics"] == "paper" and summary["endpoint"] is False
+    assert summary["physics"] == "paper-v4" and summary["endpoint"] is False
+
+
+def test_physics_labels_are_one_vocabulary_and_old_ones_read_as_today():
+    from rrls.physics import PAPER, V5, physics_label
+
+    assert [physics_label(v) for v in ("v5", "rrls-v5", None, False)] == [V5] * 4
+    assert [physics_label(v) for v in ("paper", "paper-v4", "v4", True)] == [PAPER] * 4
+    with pytest.raises(ValueError, match="unknown physics 'v3'; valid: v5"):
+        physics_label("v3")
+
+
+def test_train_physics_paper_uses_the_v4_twin_and_records_it(tmp_path):
+    pytest.importorskip("torch")
+    from rrls.agents import TrainConfig, hyperparameters, train
+    from rrls.agents.common import algorithm, env_factory
+    from rrls.evaluation.policies import MLPPolicy
+
+    small = {"hidden": (8, 8), "batch_size": 16, "learning_starts": 50}
+    config = TrainConfig(
+        algo="rarl", task="hopper", uncertainty="1d", steps=80, seed=0, out=str(tmp_path / "r"),
+        eval_every=0, checkpoint_every=80, physics="paper", hyper=small, progress=False,
+    )  # fmt: skip
+    assert config.physics == "paper-v4" and config.max_episode_steps == 1000
+    env = env_factory(algorithm("rarl"), config, hyperparameters(config))()
+    assert type(env.unwrapped).__name__ == "PaperRobustHopper" and env.unwrapped.paper
+    v5 = env_factory(
+        algorithm("rarl"), TrainConfig(algo="rarl", task="hopper"), hyperparameters(config)
+    )()
+    assert type(v5.unwrapped).__name__ == "RobustHopper"
+    run = train(config)
+    assert json.loads((run / "run.json").read_text())["config"]["physics"] == "paper-v4"
+    assert MLPPolicy.load(run / "adversary.npz").metadata["physics"] == "paper-v4"
+    from rrls.evaluation import evaluate_run_dynamic
+
+    assert evaluate_run_dynamic(run, episodes=1).env_id.endswith("[paper-v4]")
+    from rrls.cli import main
+
+    args = ["evaluate", str(run), "--mesh", "2", "--episodes", "1", "--workers", "1"]
+    assert main([*args, "--out", str(tmp_path / "e")]) == 0  # the run's physics by default
+    assert json.loads((tmp_path / "e" / "summary.json").read_text())["physics"] == "paper-v4"
+    with pytest.raises(ValueError, match="task 'swimmer' has no paper physics; valid with"):
+        TrainConfig(task="swimmer", physics="paper")
+
+
+def test_a_reference_of_other_physics_is_refused_for_a_paper_benchmark():
+    from rrls.experiments.reference import ReferenceError, check_compatible, load_reference
+    from rrls.experiments.spec import SpecError, make_spec
+
+    spec = make_spec("quick", physics="paper")
+    assert spec.physics == "paper-v4" and spec.to_json()["physics"] == "paper-v4"
+    quick = load_reference("quick")  # measured on rrls-v5
+    with pytest.raises(ReferenceError, match="physics: 'rrls-v5' there, 'paper-v4' here"):
+        check_compatible(quick, spec.to_json())
+    check_compatible(quick, make_spec("quick").to_json())  # same physics: accepted
+    old = {**make_spec("quick").to_json(), "physics": "v5"}  # an older label
+    check_compatible(quick, old)
+    with pytest.raises(SpecError, match="task 'swimmer' has no paper physics"):
+        make_spec("smoke", tasks="swimmer", uncertainty="1d", physics="paper")
+
+
+def test_a_plugin_make_env_without_paper_is_refused_on_the_papers_physics():
+    pytest.importorskip("torch")
+    from rrls.agents import TrainConfig
+    from rrls.agents.common import algorithm, env_factory
+
+    def make_env(task, uncertainty, config):
+        raise AssertionError("not called")
+
+    plugin = algorithm("td3")._replace(name="mine", make_env=make_env)
+    with pytest.raises(ValueError, match="'mine': its make_env takes no 'paper' keyword"):
+        env_factory(plugin, TrainConfig(task="hopper", physics="paper"), None)
+    assert env_factory(plugin, TrainConfig(task="hopper"), None).func is make_env

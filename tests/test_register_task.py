@@ -281,3 +281,35 @@ def test_centre_of_mass_rows_on_simple_bodies_are_refused_at_registration():
             params=(ParamSpec("objectcom_x", "body_ipos", "object"),),
         )
     assert "badpusher" not in TASKS
+
+
+@needs_torch
+def test_train_takes_any_set_the_task_declares_and_the_tasks_time_limit(tmp_path, capsys):
+    rrls.register_task(
+        "namedsets",
+        "InvertedPendulum-v5",
+        name="NamedSets",
+        params=mass_params({"pole": "pole", "cart": "cart"}),
+        # (a force set too: tests/test_registration expects every task's adversarial-forces id)
+        sets={"heavypole": {"polemass": (5.0, 20.0)}, "rarl": {"poleforce_x": (-1.0, 1.0)}},
+        planar=True,
+        max_episode_steps=40,
+    )
+    out = tmp_path / "run"
+    args = ["train", "--algo", "dr", "--task", "namedsets", "--steps", "60"]
+    args += ["--learning-starts", "50", "--eval-every", "0", "--hidden", "8", "--batch-size", "8"]
+    assert main([*args, "--uncertainty", "heavypole", "--out", str(out)]) == 0
+    config = json.loads((out / "run.json").read_text())["config"]
+    assert config["uncertainty"] == "heavypole" and config["max_episode_steps"] == 40
+    assert main([*args, "--uncertainty", "3d", "--out", str(tmp_path / "x")]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.endswith("task 'namedsets' has no uncertainty set '3d'; valid: heavypole, rarl")
+    assert len(err.splitlines()) == 1
+
+
+def test_display_names_come_from_the_registry():
+    from rrls.experiments.names import task_name
+
+    assert task_name("usertask") == "UserTask" and task_name("reacher") == "Reacher"
+    assert task_name("walker") == "Walker"  # the paper's heading
+    assert task_name("not-a-task") == "not-a-task"

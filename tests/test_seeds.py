@@ -100,7 +100,7 @@ def _results(root: Path) -> dict[str, dict]:
 
 
 def test_packed_benchmark_gives_the_numbers_of_unpacked_runs(tmp_path):
-    from rrls.experiments.launch import execute_group
+    from rrls.experiments.pipeline import execute_group
     from rrls.experiments.runner import benchmark
     from rrls.experiments.spec import make_spec
 
@@ -124,7 +124,7 @@ def test_packed_benchmark_gives_the_numbers_of_unpacked_runs(tmp_path):
 
 
 def test_a_bad_run_fails_alone_in_its_group(tmp_path):
-    from rrls.experiments.launch import GroupFailed, execute_group
+    from rrls.experiments.pipeline import GroupFailed, execute_group
     from rrls.experiments.spec import make_spec
 
     spec = make_spec("smoke", algos="td3", seeds=2)

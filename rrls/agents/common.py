@@ -16,6 +16,8 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
+from rrls.physics import is_paper, physics_label
+
 #: the built-in algorithms (the paper's five, then SAC and SAC on the randomised env)
 ALGOS = ("td3", "dr", "rarl", "nrmdp", "m2td3", "sac", "sacdr")
 ENTRY_POINTS = "rrls.algorithms"
@@ -78,7 +80,9 @@ def benchmark_set(task: str) -> str:
     which has no 3D set, on its 2D set)."""
     from rrls.tasks import get_task
 
-    return "2d" if "3d" not in get_task(task).sets else "3d"
+    sets = list(get_task(task).sets)
+    # a registered task without the paper's names: its first declared set
+    return next((s for s in ("3d", "2d", "1d") if s in sets), sets[0] if sets else "nominal")
 
 
 @dataclass
@@ -95,8 +99,9 @@ class TrainConfig:
     task: str = hp("hopper", "the task")
     uncertainty: str | None = hp(
         None,
-        "the uncertainty set trained on (and evaluated over): 1d, 2d, 3d or rarl (forces); "
-        "default: the paper's benchmark set, 3d (2d for invertedpendulum)",
+        "the uncertainty set trained on (and evaluated over): any set the task declares (the "
+        "paper's tasks: 1d, 2d, 3d, rarl (forces)); default: the paper's benchmark set, 3d (2d "
+        "where the task has no 3d set)",
     )
     steps: int = hp(5_000_000, "env steps")
     seed: int = hp(0, "seed of every random draw: each purpose a child of SeedSequence(seed)")
@@ -125,7 +130,15 @@ class TrainConfig:
     checkpoint_every: int = hp(
         50_000, "checkpoint every N steps (an episode in progress is replayed on resume)"
     )
-    max_episode_steps: int = hp(1000, "time limit: episodes are truncated here")
+    max_episode_steps: int | None = hp(
+        None, "time limit: episodes are truncated here (default: the task's, e.g. 1000, Reacher 50)"
+    )
+    physics: str = hp(
+        "v5",
+        "v5 (Gymnasium v5 envs, rrls's parameter semantics) or paper (the paper's Gymnasium v4 "
+        "envs, worldfriction on the floor only; the paper's six tasks)",
+        choices=["v5", "paper"],
+    )
     track: bool = hp(False, "also log to Weights & Biases (needs wandb installed)")
     wandb_project: str = hp("rrls", "the W&B project of --track")
     progress: bool | None = None  # progress bar (None: when stderr is a terminal)
@@ -134,7 +147,7 @@ class TrainConfig:
     hyper: dict[str, Any] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
-        from rrls.tasks import get_task
+        from rrls.tasks import TASKS, get_task
 
         algorithm(self.algo)  # ValueError naming the valid ones
         task = get_task(self.task)  # ValueError listing the tasks
@@ -146,8 +159,17 @@ class TrainConfig:
                 f"task {task.key!r} has no uncertainty set {self.uncertainty!r}; "
                 f"valid: {', '.join(task.sets)}"
             )
+        if self.max_episode_steps is None:
+            self.max_episode_steps = task.max_episode_steps
+        self.physics = physics_label(self.physics)  # ValueError naming the valid ones
+        if is_paper(self.physics) and task.paper_id is None:
+            raise ValueError(
+                f"task {task.key!r} has no paper physics; valid with --physics paper: "
+                + ", ".join(k for k, t in TASKS.items() if t.paper_id is not None)
+            )
         if self.out is None:
-            self.out = f"runs/{self.algo}-{task.key}-{self.uncertainty}-seed{self.seed}"
+            paper = "-paper" if is_paper(self.physics) else ""
+            self.out = f"runs/{self.algo}-{task.key}-{self.uncertainty}{paper}-seed{self.seed}"
         checks = {
             "steps": self.steps >= 1,
             "seed": self.seed >= 0,
@@ -181,6 +203,7 @@ class TrainConfig:
             "uncertainty": self.uncertainty,
             "seed": self.seed,
             "max_episode_steps": self.max_episode_steps,
+            "physics": self.physics,
             "hyper": jsonable(asdict(hyper)),
         }
 
@@ -197,14 +220,33 @@ def set_rng_state(gen: np.random.Generator, state: str) -> None:
     gen.bit_generator.state = json.loads(state)
 
 
-def task_env(task: str, uncertainty: str = "nominal") -> tuple[Any, Any]:
+def task_env(task: str, uncertainty: str = "nominal", paper: bool = False) -> tuple[Any, Any]:
     """A bare env of ``task`` (no time limit: the loop truncates) of the family ``uncertainty``
     needs (``rrls.envs.resolve``, the one place that decides), and the set's box (``None`` for
-    the nominal task)."""
-    from rrls.envs import resolve
+    the nominal task). ``paper``: on the paper's physics (the v4 twin, ``paper_class``)."""
+    from rrls.envs import paper_class, resolve
 
     resolved = resolve(task, uncertainty)
-    return resolved.make_env(), (None if resolved.is_nominal else resolved.box)
+    cls = paper_class(resolved.env_class) if paper else resolved.env_class
+    return cls(), (None if resolved.is_nominal else resolved.box)
+
+
+def env_factory(algo: Algorithm, config: TrainConfig, hyper: Any) -> Any:
+    """What builds ``config``'s training env (picklable, for worker processes): the algorithm's
+    ``make_env(task, uncertainty, hyper)``, with ``paper=True`` on the paper's physics (a
+    plug-in whose ``make_env`` takes no ``paper`` keyword cannot train there: refused)."""
+    import functools
+    import inspect
+
+    if not is_paper(config.physics):
+        return functools.partial(algo.make_env, config.task, config.uncertainty, hyper)
+
+    if "paper" not in inspect.signature(algo.make_env).parameters:
+        raise ValueError(
+            f"algorithm {algo.name!r}: its make_env takes no 'paper' keyword, so it cannot "
+            "train on the paper's physics (--physics paper)"
+        )
+    return functools.partial(algo.make_env, config.task, config.uncertainty, hyper, paper=True)
 
 
 def jsonable(fields: dict[str, Any]) -> dict[str, Any]:

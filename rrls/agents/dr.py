@@ -16,11 +16,11 @@ from rrls.agents.common import task_env
 from rrls.agents.td3 import Config, Learner
 
 
-def make_env(task: str, uncertainty: str, config: Config) -> Any:
+def make_env(task: str, uncertainty: str, config: Config, paper: bool = False) -> Any:
     """The task whose parameters (or forces, for ``rarl``) are redrawn at every reset."""
     from rrls.wrappers import DomainRandomization
 
-    env, box = task_env(task, uncertainty)
+    env, box = task_env(task, uncertainty, paper)
     return DomainRandomization(env, box)
 
 

@@ -16,7 +16,6 @@ from __future__ import annotations
 
 import json
 from collections.abc import Callable
-from functools import partial
 from pathlib import Path
 from typing import Any
 
@@ -28,6 +27,7 @@ from rrls.agents.common import (
     Algorithm,
     TrainConfig,
     algorithm,
+    env_factory,
     hyperparameters,
     rng_state,
     set_rng_state,
@@ -163,7 +163,7 @@ def _train_together(hyper, runs, states, on_episode, threads) -> None:  # noqa: 
     """The collection loop of one group of runs at the same step."""
     first = runs[0].config
     algo = algorithm(first.algo)
-    make = partial(algo.make_env, first.task, first.uncertainty, hyper)
+    make = env_factory(algo, first, hyper)
     template = make()  # spaces and metadata; the group's envs may live in worker processes
     envs = make_envs(make, len(runs), env_workers(first, len(runs)))
     try:

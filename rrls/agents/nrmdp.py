@@ -64,11 +64,13 @@ class Config(TD3Config):
             raise ValueError(f"ratio must be >= 0, got {self.ratio}")
 
 
-def make_env(task: str, uncertainty: str, config: Config) -> Any:
+def make_env(task: str, uncertainty: str, config: Config, paper: bool = False) -> Any:
     """The nominal task under the action-robust game (the set is only evaluated over)."""
     from rrls.wrappers import ProbabilisticActionRobust
 
-    return ProbabilisticActionRobust(task_env(task)[0], alpha=config.alpha, mode=config.mode)
+    return ProbabilisticActionRobust(
+        task_env(task, paper=paper)[0], alpha=config.alpha, mode=config.mode
+    )
 
 
 class Learner(TD3Learner):

@@ -84,8 +84,11 @@ def add_train_arguments(parser: argparse.ArgumentParser) -> None:
             kwargs["required"] = True
             if f.name == "task":
                 kwargs["choices"] = list(TASKS)
-        elif f.name == "uncertainty":
-            kwargs["choices"] = ["1d", "2d", "3d", "rarl"]
+        elif f.name == "uncertainty":  # any set the task declares: TrainConfig checks it
+            kwargs["metavar"] = "SET"
+        elif f.metadata.get("choices"):
+            kwargs["choices"] = f.metadata["choices"]
+            kwargs["help"] += f" (default {f.default})"
         elif f.default is not None and not isinstance(f.default, bool):
             kwargs["help"] += f" (default {f.default})"
         if isinstance(f.default, bool):

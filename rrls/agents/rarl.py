@@ -14,6 +14,10 @@ only the adversary learns.
   ``n_pro_itr = n_adv_itr = 1`` TRPO iteration per player, each on a fresh batch of
   ``batch_size = 4000`` env steps collected with both players acting; here a phase is those
   4 000 env steps, each followed by one off-policy update of the learning player.
+- **Rate limit.** ``rate_limit=L`` (``rrls train --algo rarl --rate-limit L``) plays the game of
+  Time-Constrained Robust MDPs (Zouitine et al., NeurIPS 2024): the adversary's parameter vector
+  moves at most ``L`` per step in the set's normalised units (``DynamicAdversarial(...,
+  rate_limit=L)``); the saved adversary records ``L``, so the dynamic evaluation replays that game.
 - The final adversary is saved (``adversary.npz``) for the dynamic evaluation (paper Table 6).
 """
 
@@ -39,18 +43,33 @@ class Config(TD3Config):
     """TD3's table for both players, plus the phase length."""
 
     phase_steps: int = hp(4000, "env steps per phase (protagonist, then adversary, ...)")
+    rate_limit: float | None = hp(
+        None,
+        "TC-RMDP's rate-limited adversary: the parameters move at most this much per step, in "
+        "the set's normalised units (default: none, RARL's unconstrained game)",
+    )
 
     def __post_init__(self) -> None:
         super().__post_init__()
         if self.phase_steps < 1:
             raise ValueError(f"phase_steps must be >= 1, got {self.phase_steps}")
+        if self.rate_limit is not None and not (
+            isinstance(self.rate_limit, (int, float))
+            and not isinstance(self.rate_limit, bool)
+            and 0 < self.rate_limit < float("inf")
+        ):
+            raise ValueError(
+                f"rate_limit must be a finite number > 0 (normalised units per step), "
+                f"got {self.rate_limit!r}"
+            )
 
 
-def make_env(task: str, uncertainty: str, config: Config) -> Any:
-    """The two-player game over the set: parameters (``1d/2d/3d``) or forces (``rarl``)."""
+def make_env(task: str, uncertainty: str, config: Config, paper: bool = False) -> Any:
+    """The two-player game over the set: parameters (``1d/2d/3d``) or forces (``rarl``), the
+    adversary's moves rate-limited if ``config.rate_limit`` is set."""
     from rrls.wrappers import DynamicAdversarial
 
-    return DynamicAdversarial(*task_env(task, uncertainty))
+    return DynamicAdversarial(*task_env(task, uncertainty, paper), rate_limit=config.rate_limit)
 
 
 PLAYERS = ("", "adversary.")  # generator names: the protagonist's, the adversary's
@@ -79,7 +98,11 @@ class Learner(_Learner):
         ]
         self.rngs = [NumpyGenerators(seeds, name + "explore") for name in PLAYERS]
         self._update = Update(self._compute, device)
-        self.game = {"game": "adversarial"}  # the set: the run's ``uncertainty``
+        # the game the policies record (the set: the run's ``uncertainty``); the dynamic
+        # evaluation (``evaluate_run_dynamic``) reads it back to replay the same game
+        self.game: dict[str, Any] = {"game": "adversarial"}
+        if config.rate_limit is not None:
+            self.game["rate_limit"] = float(config.rate_limit)
 
     def act(self, obs: np.ndarray) -> list[Any]:
         cfg, per_player = self.config, []

@@ -26,6 +26,7 @@ import torch
 from rrls import rundir
 from rrls._io import atomic_write_json
 from rrls.agents.common import Interrupted, TrainConfig, benchmark_set, jsonable
+from rrls.physics import is_paper, physics_label
 
 
 def versions() -> dict[str, str]:
@@ -107,7 +108,8 @@ def evaluate_policy(policy: Any, config: TrainConfig) -> dict[str, float]:
     from rrls.envs import resolve
     from rrls.evaluation import evaluate
 
-    common = {"seed": 10_000, "workers": 1, "progress": False}
+    common: dict[str, Any] = {"seed": 10_000, "workers": 1, "progress": False}
+    common["paper"] = is_paper(config.physics)
     nominal = evaluate(policy, config.task, "nominal", episodes=config.eval_episodes, **common)
     scores = {"eval/nominal_return": nominal.average_case}
     if config.eval_mesh > 0:
@@ -184,6 +186,7 @@ class Run:
 
     def _check_identity(self, state: dict[str, Any]) -> None:
         saved = json.loads(state["config"])
+        saved["physics"] = physics_label(saved.get("physics"))  # older checkpoints: rrls-v5
         current = self.config.identity(self.hyper)
         diff = [k for k in current if k != "hyper" and saved.get(k) != current[k]]
         diff += [
@@ -293,6 +296,7 @@ class Run:
             "algorithm": self.config.algo,
             "task": self.config.task,
             "uncertainty": self.config.uncertainty,
+            "physics": self.config.physics,
             "obs_dim": env.observation_space.shape[0],
             "hidden": list(getattr(self.hyper, "hidden", ())),
             "seed": self.config.seed,

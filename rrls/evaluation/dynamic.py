@@ -16,6 +16,8 @@ from typing import Any
 
 import numpy as np
 
+from rrls.physics import PAPER, is_paper
+
 
 @dataclass
 class DynamicResult:
@@ -68,6 +70,7 @@ def make_dynamic_env(
     alpha: float = 0.1,
     rate_limit: float | None = None,
     context: bool = False,
+    paper: bool = False,
 ) -> Any:
     """The two-player env: the registered id, or ``ProbabilisticActionRobust`` with ``alpha``.
 
@@ -75,7 +78,7 @@ def make_dynamic_env(
     move at most ``L`` per step in the set's normalised units) and ``context=True`` appends the
     parameters in force, normalised to the set, to the shared observation (TC-RMDP's oracle);
     ``uncertainty`` may then also be an ``UncertaintySet``. This is the env both training (RARL
-    ``--rate-limit``) and :func:`evaluate_dynamic` play.
+    ``--rate-limit``) and :func:`evaluate_dynamic` play. ``paper=True``: on the paper's physics.
 
     >>> env = make_dynamic_env("hopper", uncertainty="2d", rate_limit=0.05, context=True)
     >>> env.observation_space.shape, env.get_wrapper_attr("rate_limit")
@@ -83,6 +86,7 @@ def make_dynamic_env(
     """
     import gymnasium as gym
 
+    kw = {"paper": True} if paper else {}
     if game != "adversarial" and (rate_limit is not None or context):
         raise ValueError("rate_limit and context apply to the parameter game (game='adversarial')")
     if game == "adversarial" and (
@@ -94,16 +98,17 @@ def make_dynamic_env(
         resolved = resolve(task, uncertainty)
         if resolved.is_nominal:
             raise ValueError("the nominal model has no parameters for an adversary to play")
-        base = gym.make(f"rrls/{resolved.family}-{resolved.task}-v0")
+        base = gym.make(f"rrls/{resolved.family}-{resolved.task}-v0", **kw)
         env = DynamicAdversarial(base, resolved.box, rate_limit=rate_limit)
         return ContextObservation(env, resolved.box) if context else env
     env_id = dynamic_env_id(task, game, uncertainty)
     if game == "adversarial":
-        return gym.make(env_id)
+        return gym.make(env_id, **kw)
     from rrls.tasks import get_task
     from rrls.wrappers import ProbabilisticActionRobust
 
-    return ProbabilisticActionRobust(gym.make(f"rrls/robust-{get_task(task).key}-v0"), alpha, game)
+    base = gym.make(f"rrls/robust-{get_task(task).key}-v0", **kw)
+    return ProbabilisticActionRobust(base, alpha, game)
 
 
 def evaluate_dynamic(
@@ -118,12 +123,14 @@ def evaluate_dynamic(
     batch_size: int = 64,
     rate_limit: float | None = None,
     context: bool = False,
+    paper: bool = False,
 ) -> DynamicResult:
     """Mean ± std return of ``protagonist`` while ``adversary`` plays the game every step.
 
     Both are policies ``obs[B, obs_dim] -> actions``: the adversary's actions live in its own
     space (``[-1, 1]^k`` for the parameter game, the agent's action box for NR/PR-MDP).
-    ``rate_limit`` and ``context``: see :func:`make_dynamic_env` (TC-RMDP's game and oracle).
+    ``rate_limit`` and ``context``: see :func:`make_dynamic_env` (TC-RMDP's game and oracle);
+    ``paper=True``: on the paper's physics (``env_id`` then ends in ``[paper-v4]``).
     """
     import pandas as pd
 
@@ -137,6 +144,9 @@ def evaluate_dynamic(
         env_id = dynamic_env_id(task, game, uncertainty)
     else:
         env_id = f"{task}-adversarial ({uncertainty}, rate_limit={rate_limit}, context={context})"
+    if paper:
+        env_id += f" [{PAPER}]"
+    extras["paper"] = paper
     protagonist, adversary = as_policy(protagonist), as_policy(adversary)
     seeds = episode_seeds(seed, 1, episodes)[0]
     n_lanes = max(1, min(batch_size, episodes))
@@ -185,7 +195,7 @@ def evaluate_run_dynamic(
     ``run_dir`` is a RARL or NR-/PR-MDP run of ``rrls train``: ``policy.npz`` and
     ``adversary.npz``, whose metadata name the task, the game and the set (or alpha) it played,
     and, for a rate-limited adversary (TC-RMDP), ``rate_limit`` (and ``context`` if the policies
-    observed the parameters): it is evaluated in the game it was trained in.
+    observed the parameters), and its ``physics``: it is evaluated in the game it was trained in.
     """
     from rrls.evaluation.policies import MLPPolicy
 
@@ -211,6 +221,7 @@ def evaluate_run_dynamic(
         batch_size=batch_size,
         rate_limit=None if meta.get("rate_limit") is None else float(meta["rate_limit"]),
         context=bool(meta.get("context", False)),
+        paper=is_paper(meta.get("physics")),
     )
 
 

@@ -22,6 +22,7 @@ from typing import Any
 
 import numpy as np
 
+from rrls.physics import physics_label
 from rrls.uncertainty import Split, UncertaintySet
 
 EPISODE_COLUMNS = ("point", "episode", "seed", "return", "length", "terminated", "diverged")
@@ -311,7 +312,7 @@ def evaluate(
         paper=bool(paper),
     )
     settings = {
-        "physics": "paper" if paper else "v5",
+        "physics": physics_label(bool(paper)),
         "mesh": nb_mesh_dim,
         "endpoint": endpoint,
         "episodes": episodes,

@@ -9,12 +9,14 @@ from __future__ import annotations
 import argparse
 import sys
 
-from rrls.experiments.spec import PRESETS, SpecError
+from rrls.experiments.spec import PAPER_TASKS, PRESETS, SpecError
 
 
 def add_parsers(sub: argparse._SubParsersAction) -> None:
     """Register ``benchmark`` and ``report`` on the ``rrls`` sub-command parser (ranges are
     checked by the spec, so that errors are one line with exit status 2)."""
+    from rrls.tasks import TASKS  # every registered task, plug-ins' included (loaded by main)
+
     b = sub.add_parser(
         "benchmark",
         help="train, evaluate and report a grid of runs (the paper's comparison); resumable",
@@ -35,9 +37,30 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:
         help="comma-separated: td3,dr,rarl,nrmdp,m2td3 (the paper's five: the default), sac, "
         "sacdr, an installed plug-in or package.module:Learner",
     )
-    b.add_argument("--tasks", help="comma-separated: ant,halfcheetah,hopper,humanoidstandup,walker")
+    b.add_argument(
+        "--tasks",
+        help="comma-separated, of every registered task: "
+        + ", ".join(TASKS)
+        + " (default: the preset's; the paper's five: "
+        + ", ".join(PAPER_TASKS)
+        + ")",
+    )
     b.add_argument("--uncertainty", help="evaluation set (and DR/M2TD3's training set): 1d, 2d, 3d")
     b.add_argument("--seeds", type=int, metavar="N", help="number of seeds (0..N-1)")
+    b.add_argument(
+        "--physics",
+        choices=["v5", "paper"],
+        help="v5 (default: Gymnasium v5, rrls's parameter semantics) or paper (the paper's "
+        "Gymnasium v4 envs, worldfriction on the floor only, np.arange mesh) for training and "
+        "evaluation; recorded in benchmark.json",
+    )
+    b.add_argument(
+        "--rate-limit",
+        type=float,
+        metavar="L",
+        help="RARL trains against (and is evaluated with) TC-RMDP's rate-limited adversary: "
+        "the parameters move at most L per step in the set's normalised units",
+    )
     b.add_argument("--steps", type=int, metavar="N", help="training steps per run")
     b.add_argument("--learning-starts", type=int, metavar="N")
     b.add_argument(
@@ -175,6 +198,8 @@ def _spec_from(args: argparse.Namespace) -> tuple:
         mesh=args.mesh,
         episodes=args.episodes,
         device=args.device,
+        physics=getattr(args, "physics", None),
+        rate_limit=getattr(args, "rate_limit", None),
     )
     jobs = args.jobs or (None if args.backend == "ray" else default_jobs())
     return spec, jobs

@@ -15,14 +15,19 @@ NAMES = {
     "sac": "SAC",
     "sacdr": "SAC-DR",
 }
-TASK_NAMES = {
-    "ant": "Ant",
-    "halfcheetah": "HalfCheetah",
-    "hopper": "Hopper",
-    "humanoidstandup": "HumanoidStandup",
-    "invertedpendulum": "InvertedPendulum",
-    "walker": "Walker",
-}
+#: the paper's column headings where they differ from the registered class-name stem
+PAPER_TASK_NAMES = {"humanoidstandup": "HumanoidStandup", "walker": "Walker"}
+
+
+def task_name(task: str) -> str:
+    """A task's display name: the paper's heading for its tasks, else the class-name stem it
+    was registered with (``rrls.register_task(name=...)``), else the key itself."""
+    if task in PAPER_TASK_NAMES:
+        return PAPER_TASK_NAMES[task]
+    from rrls.tasks import TASKS
+
+    spec = TASKS.get(task)
+    return spec.name if spec is not None else task
 
 
 def sort_algos(algos: Iterable[str]) -> list[str]:

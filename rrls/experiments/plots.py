@@ -97,9 +97,9 @@ def plot_curves(curves: Any, metric: str, steps: int, path: Path, ylabel: str) -
             ax.plot(centres, mean, label=label, color=_color(algo))
             lo, hi = _band(values, stats.rng_for(task, algo, metric, "band"))
             ax.fill_between(centres, lo, hi, color=_color(algo), alpha=0.2, linewidth=0)
-        from rrls.experiments.names import TASK_NAMES
+        from rrls.experiments.names import task_name
 
-        ax.set_title(TASK_NAMES.get(task, task))
+        ax.set_title(task_name(task))
         ax.set_xlabel("environment steps")
         ax.set_ylabel(ylabel)
         ax.legend(fontsize=7, title="algorithm (seeds)", title_fontsize=7)
@@ -137,7 +137,7 @@ def plot_over_set(evaluations: Any, task: str, path: Path) -> Path | None:
         return None
     plt = _pyplot()
     fig, axes = plt.subplots(1, len(params), figsize=(4.2 * len(params), 3.4), squeeze=False)
-    from rrls.experiments.names import TASK_NAMES, sort_algos
+    from rrls.experiments.names import sort_algos, task_name
 
     for ax, name in zip(axes[0], params):
         for algo in sort_algos(data["algorithm"].unique()):
@@ -154,7 +154,7 @@ def plot_over_set(evaluations: Any, task: str, path: Path) -> Path | None:
         ax.set_xlabel(name)
         ax.set_ylabel("mean return" if len(params) == 1 else "mean return (others averaged)")
         ax.legend(fontsize=7)
-    fig.suptitle(f"{TASK_NAMES.get(task, task)}: return over the uncertainty set", fontsize=10)
+    fig.suptitle(f"{task_name(task)}: return over the uncertainty set", fontsize=10)
     fig.tight_layout()
     path.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(path, dpi=110)

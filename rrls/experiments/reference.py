@@ -34,12 +34,14 @@ from importlib import resources
 from pathlib import Path
 from typing import Any
 
+from rrls.physics import PAPER, V5, physics_label
+
 FORMAT = "rrls-reference"
 VERSION = 1
 #: rrls's default physics: Gymnasium v5 envs, rrls's parameter semantics (docs/differences.md)
-PHYSICS = "rrls-v5"
+PHYSICS = V5
 #: the paper's: v4 envs, floor-only friction, the ``np.arange`` mesh
-PAPER_PHYSICS = "paper-v4"
+PAPER_PHYSICS = PAPER
 METRICS = ("worst_case", "average_case", "dynamic")
 COMPARED = ("physics", "uncertainty", "mesh", "endpoint", "episodes")
 #: references shipped with rrls, by name (``--reference paper``)
@@ -220,7 +222,7 @@ def _from_json(data: Any, path: Any) -> Reference:
         raise _fail(path, f"missing {', '.join(missing)}")
     return Reference(
         label=str(data["label"]),
-        physics=str(data["physics"]),
+        physics=_physics(data["physics"], path),
         mesh=int(data["mesh"]),
         episodes=int(data["episodes"]),
         endpoint=bool(data.get("endpoint", True)),
@@ -269,7 +271,7 @@ def _from_csv(path: Path) -> Reference:
         rows.append(rec)
     return Reference(
         label=str(meta["label"]),
-        physics=str(meta["physics"]),
+        physics=_physics(meta["physics"], path),
         mesh=int(meta["mesh"]),
         episodes=int(meta["episodes"]),
         endpoint=_bool(meta.get("endpoint", True)),
@@ -282,6 +284,14 @@ def _from_csv(path: Path) -> Reference:
         },
         rows=_check_rows(rows, path),
     )
+
+
+def _physics(value: Any, path: Any) -> str:
+    """The physics label a file gives (older labels read as today's)."""
+    try:
+        return physics_label(str(value))
+    except ValueError as err:
+        raise ReferenceError(f"{path}: {err}") from None
 
 
 def _missing(value: Any) -> bool:
@@ -298,7 +308,7 @@ def _bool(value: Any) -> bool:
 def benchmark_protocol(spec: dict[str, Any]) -> dict[str, Any]:
     """What a reference must share with a benchmark (``benchmark.json``'s content)."""
     return {
-        "physics": spec.get("physics", PHYSICS),
+        "physics": physics_label(spec.get("physics")),
         "uncertainty": spec["uncertainty"],
         "mesh": int(spec["mesh"]),
         "endpoint": bool(spec.get("endpoint", True)),

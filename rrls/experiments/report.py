@@ -30,7 +30,7 @@ from typing import Any
 import numpy as np
 
 from rrls.experiments import stats
-from rrls.experiments.names import NAMES, ORDER, TASK_NAMES, sort_algos  # noqa: F401 - re-exported
+from rrls.experiments.names import NAMES, ORDER, sort_algos, task_name  # noqa: F401 - re-exported
 
 METRICS = ("worst_case", "average_case")
 
@@ -358,7 +358,7 @@ def write_tables(summary: dict[str, Any], out: Path, paper: dict[str, Any]) -> l
         # the two algorithms play different adversaries, so no ranking)
         scale = {t: paper["dynamic_scale"].get(t, 1.0) if name == "dynamic" else 1.0 for t in tasks}
         cols = [
-            TASK_NAMES.get(t, t) + (f" ($10^{round(np.log10(scale[t]))}$)" if scale[t] != 1 else "")
+            task_name(t) + (f" ($10^{round(np.log10(scale[t]))}$)" if scale[t] != 1 else "")
             for t in tasks
         ] + (["Average"] if normalised else [])
         lines = [
@@ -403,7 +403,7 @@ def _md_table(summary: dict[str, Any], name: str, paper: dict[str, Any]) -> list
         return []
     same_protocol = summary["uncertainty"] == paper["uncertainty"]
     normalised = name.startswith("normalised")
-    head = ["algorithm", *[TASK_NAMES.get(t, t) for t in tasks]] + (
+    head = ["algorithm", *[task_name(t) for t in tasks]] + (
         ["Average", "IQM [95% CI]"] if normalised else []
     )
     lines = [f"### {title}", "", "| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
@@ -629,7 +629,7 @@ def _reference_lines(summary: dict[str, Any]) -> list[str]:
     ]
     by_key = {(r["task"], r["algorithm"], r["metric"]): r for r in ref["rows"]}
     for metric, title in (("worst_case", "worst case"), ("average_case", "average case")):
-        head = ["algorithm", *[TASK_NAMES.get(t, t) for t in tasks]]
+        head = ["algorithm", *[task_name(t) for t in tasks]]
         lines += [f"### Reference {title}", "", "| " + " | ".join(head) + " |"]
         lines.append("|" + "---|" * len(head))
         for algo in algos:

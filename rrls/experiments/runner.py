@@ -9,14 +9,8 @@ from pathlib import Path
 from typing import Any, TextIO
 
 from rrls import rundir
-from rrls.experiments.launch import (
-    default_pack,
-    groups,
-    read_progress,
-    run_dir,
-    run_local,
-    run_ray,
-)
+from rrls.experiments.backends import run_local, run_ray
+from rrls.experiments.pipeline import default_pack, groups, read_progress, run_dir
 from rrls.experiments.spec import RunKey, Spec, estimate, format_duration, reconcile
 
 
@@ -181,7 +175,7 @@ def benchmark(
 
     ``pack``: at most that many seeds of one (algorithm, task) cell are trained together in
     one process (``train_group``; same numbers as alone); default every seed of a cell on
-    CUDA, 1 on CPU (``launch.default_pack``). Returns 0 when every run finished, 1 when some
+    CUDA, 1 on CPU (``pipeline.default_pack``). Returns 0 when every run finished, 1 when some
     failed (the others still ran), 130 when interrupted (finished work is kept: the same
     command resumes).
     """

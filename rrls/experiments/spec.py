@@ -13,6 +13,8 @@ from dataclasses import asdict, dataclass, fields, replace
 from pathlib import Path
 from typing import Any
 
+from rrls.physics import V5, is_paper, physics_label
+
 ALGOS = ("td3", "dr", "rarl", "nrmdp", "m2td3")  # the paper's five (the presets' default)
 # every built-in of rrls.agents.ALGOS (not imported: no torch); plug-ins are accepted by name
 # (entry point group "rrls.algorithms") or as package.module:Learner
@@ -52,6 +54,10 @@ class Spec:
     eval_seed: int = 0
     preset: str = "paper"
     device: str = "cpu"
+    #: which physics trains and evaluates every run (``rrls.physics``: rrls-v5 or paper-v4)
+    physics: str = V5
+    #: RARL's adversary moves at most this much per step (TC-RMDP's game); None: RARL's own
+    rate_limit: float | None = None
 
     def runs(self) -> list[RunKey]:
         """Every (algorithm, task, seed) of the grid, in a stable order."""
@@ -74,6 +80,8 @@ class Spec:
             hyper["batch_size"] = self.batch_size
         if algo == "m2td3":
             hyper["normalize_omega"] = self.normalize_omega
+        if algo == "rarl" and self.rate_limit is not None:
+            hyper["rate_limit"] = self.rate_limit
         return hyper
 
     def protocol(self) -> dict[str, Any]:
@@ -87,6 +95,7 @@ class Spec:
     def from_json(cls, data: dict[str, Any]) -> Spec:
         known = {f.name for f in fields(cls)}
         kw = {k: tuple(v) if isinstance(v, list) else v for k, v in data.items() if k in known}
+        kw["physics"] = physics_label(kw.get("physics"))  # older labels read as today's
         return cls(**kw)
 
 
@@ -198,6 +207,10 @@ def make_spec(preset: str = "paper", **overrides: Any) -> Spec:
     if "steps" in given and "learning_starts" not in given:  # a short run still learns
         given["learning_starts"] = min(values["learning_starts"], given["steps"] // 5)
     values.update(given)
+    try:
+        values["physics"] = physics_label(values.get("physics"))
+    except ValueError as err:
+        raise SpecError(str(err)) from None
     values["tasks"] = tuple(dict.fromkeys(_task_key(t) for t in values["tasks"]))
     spec = Spec(**values)
     validate(spec)
@@ -218,6 +231,7 @@ def validate(spec: Spec) -> None:
     from importlib.metadata import entry_points
 
     from rrls.envs import get_uncertainty_set
+    from rrls.tasks import TASKS, get_task
 
     plugins = [ep.name for ep in entry_points(group="rrls.algorithms")]
     bad = [a for a in spec.algos if a not in BUILT_IN and a not in plugins and ":" not in a]
@@ -228,6 +242,11 @@ def validate(spec: Spec) -> None:
         raise SpecError("a benchmark needs at least one algorithm and one task")
     for task in spec.tasks:
         key = _task_key(task)
+        if is_paper(spec.physics) and get_task(key).paper_id is None:
+            valid = ", ".join(k for k, t in TASKS.items() if t.paper_id is not None)
+            raise SpecError(
+                f"task {key!r} has no paper physics; valid with --physics paper: {valid}"
+            )
         for name in {spec.uncertainty, *(spec.train_set(a) for a in spec.algos)}:
             try:
                 get_uncertainty_set(key, name)
@@ -243,6 +262,11 @@ def validate(spec: Spec) -> None:
         raise SpecError("--seeds must be >= 1")
     if spec.checkpoint_every < 1:
         raise SpecError("checkpoint_every must be >= 1")
+    if spec.rate_limit is not None:
+        if not (isinstance(spec.rate_limit, (int, float)) and 0 < spec.rate_limit < float("inf")):
+            raise SpecError(f"--rate-limit must be a finite number > 0, got {spec.rate_limit!r}")
+        if "rarl" not in spec.algos:
+            raise SpecError("--rate-limit applies to RARL's adversary: add rarl to --algos")
 
 
 def reconcile(out: Path, spec: Spec) -> Spec:

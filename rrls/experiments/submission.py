@@ -34,6 +34,7 @@ from typing import Any
 import numpy as np
 
 from rrls.experiments.spec import ALGOS, RunKey, Spec, SpecError
+from rrls.physics import is_paper
 
 #: names a submission may not take: the built-in algorithms, their display names, and "paper"
 #: (the paper's published numbers in the report)
@@ -112,14 +113,17 @@ def create_benchmark(
     return spec
 
 
-def _env_shapes(task: str, uncertainty: str) -> tuple[tuple[int, ...], tuple[int, ...], int]:
-    """The task's observation and action shapes, and the set's dimension (one env built)."""
+def _env_shapes(
+    task: str, uncertainty: str, paper: bool = False
+) -> tuple[tuple[int, ...], tuple[int, ...], int]:
+    """The task's observation and action shapes (on the benchmark's physics: Ant-v4 has 27
+    observations, Ant-v5 105), and the set's dimension (one env built)."""
     import gymnasium as gym
 
     from rrls.envs import resolve
 
     resolved = resolve(task, uncertainty)
-    env = gym.make(f"rrls/robust-{resolved.task}-v0")
+    env = gym.make(f"rrls/robust-{resolved.task}-v0", **({"paper": True} if paper else {}))
     try:
         obs, act = env.observation_space.shape, env.action_space.shape
     finally:
@@ -235,7 +239,7 @@ def submit(
         adapted = as_policy(policy)
     except (TypeError, ValueError, FileNotFoundError) as err:
         raise SubmitError(str(err)) from None
-    obs_shape, act_shape, set_dim = _env_shapes(key, spec.uncertainty)
+    obs_shape, act_shape, set_dim = _env_shapes(key, spec.uncertainty, is_paper(spec.physics))
     check_shapes(adapted, obs_shape, act_shape, "policy", key)
     adv = adv_source = None
     if adversary is not None:
@@ -330,7 +334,7 @@ def _evaluate(
     workers: int | None,
     progress: bool | None,
 ) -> dict[str, Any]:
-    """The final mesh evaluation of the benchmark's runs (``launch``'s), into ``out/eval``."""
+    """The final mesh evaluation of the benchmark's runs (``pipeline``'s), into ``out/eval``."""
     from rrls.evaluation import evaluate
 
     meta = getattr(policy, "metadata", None) or {}
@@ -343,6 +347,7 @@ def _evaluate(
         seed=spec.eval_seed,
         workers=workers,
         out_dir=out / "eval",
+        paper=is_paper(spec.physics),
         progress=progress,
     )
     return {
@@ -352,6 +357,7 @@ def _evaluate(
         "train_set": str(meta.get("uncertainty") or "unknown"),
         "seed": seed,
         "steps": int(meta.get("steps") or 0),  # the training budget when the policy records it
+        "physics": spec.physics,
         "worst_case": result.worst_case,
         "average_case": result.average_case,
         "versions": result.config.get("versions", {}),
@@ -374,6 +380,8 @@ def _dynamic(
         episodes=spec.dynamic_episodes,
         seed=spec.eval_seed,
         alpha=0.1 if alpha is None else float(alpha),
+        paper=is_paper(spec.physics),
+        rate_limit=spec.rate_limit if game == "adversarial" else None,
     )
     atomic_write_table(out / "dynamic.csv", result.episodes)
     return {"dynamic_mean": result.mean, "dynamic_std": result.std, "dynamic_env": result.env_id}

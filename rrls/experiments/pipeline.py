@@ -1,4 +1,4 @@
-"""Run a benchmark's grid: one process per group of runs (local pool) or one Ray task per group.
+"""The benchmark's pipeline: what one group of runs does, wherever it executes.
 
 A group is runs that share algorithm, task and set and differ only in seed; its runs are trained
 together by ``rrls.agents.loop.train_group`` (one stacked agent: on a GPU, many seeds at once;
@@ -9,7 +9,8 @@ A run = train (``rrls.agents.train``, resumed from its checkpoint if one exists)
 mesh evaluation (resumable chunks under ``eval/``), then for RARL/NR-MDP the protagonist against
 its own adversary (``dynamic.csv``), then ``result.json``: the marker of a finished run, written
 last and atomically. Everything lives in the run's directory, so a killed driver loses nothing
-finished and a re-run picks up where each run stopped.
+finished and a re-run picks up where each run stopped. The backends (``backends``: a local
+process pool or Ray) only decide where ``execute_recorded`` runs and report what it left.
 
 Threads: every run is single-threaded (torch, BLAS, the evaluation's workers). Two runs with
 two threads each on 2 cores took 118 s for what takes 38 s with one thread each.
@@ -19,7 +20,6 @@ from __future__ import annotations
 
 import json
 import os
-import sys
 import time
 import traceback
 from collections.abc import Callable
@@ -28,8 +28,9 @@ from pathlib import Path
 from typing import Any
 
 from rrls import rundir
-from rrls._proc import THREAD_ENV, die_with_parent, exclusive, single_thread_env
+from rrls._proc import THREAD_ENV, exclusive
 from rrls.experiments.spec import RunKey, Spec
+from rrls.physics import is_paper
 
 DYNAMIC_ALGOS = ("rarl", "nrmdp")
 
@@ -116,7 +117,7 @@ def _group_stages(spec: Spec, runs: list[RunKey], outs: list[Path]) -> dict[int,
     errors: dict[int, BaseException] = {}
     todo = [i for i, out in enumerate(outs) if not (out / rundir.RESULT).exists()]
     # (a run finished by another process while this one waited to start is left alone)
-    progress = {i: _ProgressFile(outs[i] / rundir.PROGRESS, spec.steps) for i in todo}
+    progress = {i: ProgressFile(outs[i] / rundir.PROGRESS, spec.steps) for i in todo}
     for i in todo:
         (outs[i] / rundir.ERROR).unlink(missing_ok=True)
     untrained = [i for i in todo if not (outs[i] / rundir.RUN_JSON).exists()]
@@ -171,7 +172,7 @@ def _write_error(out: Path) -> None:
     (out / rundir.ERROR).write_text(traceback.format_exc())
 
 
-def _train(spec: Spec, runs: list[RunKey], outs: list[Path], progress: list[_ProgressFile]) -> None:
+def _train(spec: Spec, runs: list[RunKey], outs: list[Path], progress: list[ProgressFile]) -> None:
     """Train ``runs`` (one cell) together, resuming each from its checkpoint."""
     from rrls.agents import TrainConfig, train_group
 
@@ -189,6 +190,7 @@ def _train(spec: Spec, runs: list[RunKey], outs: list[Path], progress: list[_Pro
             device=spec.device,
             checkpoint_every=spec.checkpoint_every,
             threads=1,
+            physics=spec.physics,
             progress=False,
             hyper=spec.hyperparameters(run.algo),
         )
@@ -212,6 +214,7 @@ def _evaluate(spec: Spec, run: RunKey, out: Path) -> dict[str, Any]:
         seed=spec.eval_seed,
         workers=1,
         out_dir=out / "eval",
+        paper=is_paper(spec.physics),
         progress=False,
     )
     meta = policy.metadata
@@ -222,6 +225,7 @@ def _evaluate(spec: Spec, run: RunKey, out: Path) -> dict[str, Any]:
         "train_set": spec.train_set(run.algo),
         "seed": run.seed,
         "steps": spec.steps,
+        "physics": spec.physics,
         "worst_case": result.worst_case,
         "average_case": result.average_case,
         "versions": meta.get("versions", {}),
@@ -237,7 +241,7 @@ def _dynamic(spec: Spec, out: Path) -> dict[str, Any]:
     return {"dynamic_mean": result.mean, "dynamic_std": result.std, "dynamic_env": result.env_id}
 
 
-class _ProgressFile:
+class ProgressFile:
     """``progress.json`` in the run directory: phase, step, steps/s (read by the driver)."""
 
     def __init__(self, path: Path, total: int) -> None:
@@ -276,21 +280,11 @@ def read_progress(path: Path) -> dict[str, Any] | None:
         return None
 
 
-# --- local backend: one spawned process per group ----------------------------------------------
 class GroupFailed(RuntimeError):
     """Some runs of a group failed; each one's traceback is already in its ``error.txt``."""
 
 
-def _group_main(root: str, spec_json: dict[str, Any], keys: list[tuple[str, str, int]]) -> None:
-    """Entry point of a group's process: dies with the driver, writes error.txt on failure."""
-    die_with_parent()
-    try:
-        _execute_recorded(root, spec_json, keys)
-    except BaseException:
-        sys.exit(1)
-
-
-def _execute_recorded(
+def execute_recorded(
     root: str, spec_json: dict[str, Any], keys: list[tuple[str, str, int]]
 ) -> list[dict[str, Any]]:
     """``execute_group``, and a failure outside the runs' stages (a held lock, an interrupt)
@@ -311,65 +305,13 @@ def _execute_recorded(
 Status = Callable[[RunKey, str, str], None]  # (run, "running" | "done" | "failed", detail)
 
 
-def run_local(
-    root: Path,
-    spec: Spec,
-    keys: list[RunKey],
-    jobs: int,
-    on_event: Status,
-    tick: Callable,
-    pack: int = 1,
-) -> None:
-    """At most ``jobs`` group processes at a time (``groups(keys, pack)``); ``tick()``
-    refreshes the display (~2/s)."""
-    import multiprocessing as mp
-
-    ctx = mp.get_context("spawn")
-    pending, running = groups(keys, pack), {}
-    spec_json = spec.to_json()
-    with single_thread_env():
-        try:
-            while pending or running:
-                while pending and len(running) < jobs:
-                    group = pending.pop(0)
-                    name = group[0].name(spec.uncertainty)
-                    if len(group) > 1:
-                        name += "-" + "-".join(str(key.seed) for key in group[1:])
-                    proc = ctx.Process(
-                        target=_group_main,
-                        args=(str(root), spec_json, [(k.algo, k.task, k.seed) for k in group]),
-                        name=f"rrls-run-{name}",
-                    )
-                    proc.start()
-                    running[group] = proc
-                    for key in group:
-                        on_event(key, "running", "")
-                for group, proc in list(running.items()):
-                    if proc.is_alive():
-                        continue
-                    proc.join()
-                    del running[group]
-                    for key in group:
-                        _finish(root, spec, key, _ok(root, spec, key, proc.exitcode == 0), on_event)
-                tick()
-                time.sleep(0.5)
-        finally:
-            for proc in running.values():
-                proc.terminate()
-            for proc in running.values():
-                proc.join(10)
-                if proc.is_alive():
-                    proc.kill()
-                    proc.join()
-
-
-def _ok(root: Path, spec: Spec, key: RunKey, group_ok: bool) -> bool:
+def run_ok(root: Path, spec: Spec, key: RunKey, group_ok: bool) -> bool:
     """Whether ``key`` ended well: its group did, or it wrote no error (a failed group may
     still have finished some of its runs)."""
     return group_ok or not (run_dir(root, spec, key) / rundir.ERROR).exists()
 
 
-def _finish(
+def finish_run(
     root: Path, spec: Spec, key: RunKey, ok: bool, on_event: Status, detail: str = ""
 ) -> None:
     out = run_dir(root, spec, key)
@@ -379,61 +321,3 @@ def _finish(
     error = out / rundir.ERROR
     text = error.read_text().strip() if error.exists() else detail or "the run's process died"
     on_event(key, "failed", text.splitlines()[-1] if text else "failed")
-
-
-# --- Ray backend: the same function as Ray tasks ----------------------------------------------
-def run_ray(
-    root: Path,
-    spec: Spec,
-    keys: list[RunKey],
-    jobs: int | None,
-    address: str | None,
-    on_event: Status,
-    tick: Callable,
-    pack: int = 1,
-) -> None:
-    """One Ray task per group of ``groups(keys, pack)`` (one CPU; a quarter GPU with
-    ``device="cuda"``). Connects to ``address`` (or ``RAY_ADDRESS``), else to the instance this
-    process already started, else starts a local one. The run directories must be on a
-    filesystem every node sees."""
-    import ray
-
-    started = False
-    if not ray.is_initialized():
-        ray.init(address=address or os.environ.get("RAY_ADDRESS"), include_dashboard=False)
-        started = True
-    gpus = 0.25 if spec.device.startswith("cuda") else 0
-    task = ray.remote(num_cpus=1, num_gpus=gpus, max_retries=0)(_ray_run)
-    spec_json = spec.to_json()
-    pending, inflight = groups(keys, pack), {}
-    limit = jobs or len(pending)
-    try:
-        while pending or inflight:
-            while pending and len(inflight) < limit:
-                group = pending.pop(0)
-                ref = task.remote(str(root), spec_json, [(k.algo, k.task, k.seed) for k in group])
-                inflight[ref] = group
-                for key in group:
-                    on_event(key, "running", "")
-            ready, _ = ray.wait(list(inflight), num_returns=1, timeout=0.5)
-            for ref in ready:
-                group = inflight.pop(ref)
-                try:
-                    ray.get(ref)
-                    ok, detail = True, ""
-                except Exception as err:  # the task's traceback is also in error.txt
-                    ok, detail = False, (str(err).strip().splitlines() or ["failed"])[-1]
-                for key in group:
-                    _finish(root, spec, key, _ok(root, spec, key, ok), on_event, detail)
-            tick()
-    finally:
-        for ref in inflight:
-            ray.cancel(ref, force=True)
-        if started:
-            ray.shutdown()
-
-
-def _ray_run(
-    root: str, spec_json: dict[str, Any], keys: list[tuple[str, str, int]]
-) -> list[dict[str, Any]]:
-    return _execute_recorded(root, spec_json, keys)

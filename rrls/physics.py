@@ -1,0 +1,40 @@
+"""The two physics a number can come from, and their one vocabulary.
+
+Every result records which physics produced it (``summary.json``, ``run.json``, the policies'
+metadata, ``benchmark.json``, reference files), always with one of these labels:
+
+- ``rrls-v5`` (default): Gymnasium v5 envs with rrls's corrected parameter semantics;
+- ``paper-v4``: the paper's physics (Gymnasium v4 envs, ``worldfriction`` on the floor only,
+  the ``np.arange`` mesh), what ``paper=True`` builds.
+
+The short names users type (``--physics v5|paper``) and the labels older files wrote are read
+as the same two. Nothing here imports anything: every layer may use it.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+V5 = "rrls-v5"
+PAPER = "paper-v4"
+LABELS = (V5, PAPER)
+#: what ``--physics`` and older files say -> the label
+ALIASES = {"v5": V5, "rrls": V5, V5: V5, "paper": PAPER, "v4": PAPER, PAPER: PAPER}
+
+
+def physics_label(value: Any = None) -> str:
+    """The label of ``value``: a label, an alias, ``paper=`` as a bool, or None (the default);
+    anything else is a one-line ``ValueError`` naming the valid ones."""
+    if value is None or value is False:
+        return V5
+    if value is True:
+        return PAPER
+    label = ALIASES.get(str(value).strip().lower()) if isinstance(value, str) else None
+    if label is None:
+        raise ValueError(f"unknown physics {value!r}; valid: v5 ({V5}) or paper ({PAPER})")
+    return label
+
+
+def is_paper(value: Any) -> bool:
+    """Whether ``value`` names the paper's physics (``paper=True`` for the env constructors)."""
+    return physics_label(value) == PAPER
