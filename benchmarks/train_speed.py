@@ -342,10 +342,18 @@ def _measure(name: str, task: str, steps: int, warmup: int) -> float:
     return rrls_algo(name, task, steps, warmup)
 
 
-def wall_times(task: str, steps: int = 22_000, random_steps: int = 1_000) -> dict[str, float]:
+def wall_times(
+    task: str,
+    steps: int = 22_000,
+    random_steps: int = 1_000,
+    rounds: int = 1,
+    against: str | None = None,
+) -> dict[str, list[float]]:
     """Wall seconds of ``steps`` env steps (``random_steps`` random, then one update per step),
-    start-up included, each a fresh process: CleanRL's loop (row (a)) and ``rrls train`` with
-    its defaults (issue 11's target: rrls >= 1.5x)."""
+    start-up included, each a fresh process, ``rounds`` times in turn: CleanRL's loop (row (a))
+    and ``rrls train`` with its defaults (floor: rrls >= 1.3x). ``against``: a checkout of
+    another rrls (e.g. ``git worktree add ../old <commit>``) whose ``rrls train`` is timed in
+    the same rounds, so a change of core is compared on one machine in one session."""
     import subprocess
     import sys
 
@@ -354,17 +362,22 @@ def wall_times(task: str, steps: int = 22_000, random_steps: int = 1_000) -> dic
         f"import sys, warnings; warnings.simplefilter('ignore'); sys.path.insert(0, {here!r});"
         f"import train_speed; train_speed.cleanrl({task!r}, {updates}, 0)"
     )
-    times = {}
+    times: dict[str, list[float]] = {}
     with tempfile.TemporaryDirectory() as out:
         rrls_cmd = [
             *(sys.executable, "-m", "rrls", "train", "--algo", "td3", "--task", task),
             *("--steps", str(steps), "--learning-starts", str(random_steps)),
             *("--eval-every", "0", "--out", out, "--overwrite"),
         ]
-        for name, cmd in (("cleanrl", [sys.executable, "-c", cleanrl_cmd]), ("rrls", rrls_cmd)):
-            start = time.perf_counter()
-            subprocess.run(cmd, check=True, capture_output=True)
-            times[name] = time.perf_counter() - start
+        cmds = {"cleanrl": ([sys.executable, "-c", cleanrl_cmd], None), "rrls": (rrls_cmd, None)}
+        if against:  # its own package first on the path, in a clean working directory
+            env = {**os.environ, "PYTHONPATH": str(Path(against).resolve())}
+            cmds["against"] = (rrls_cmd, env)
+        for _ in range(rounds):
+            for name, (cmd, env) in cmds.items():
+                start = time.perf_counter()
+                subprocess.run(cmd, check=True, capture_output=True, env=env, cwd=out)
+                times.setdefault(name, []).append(time.perf_counter() - start)
     return times
 
 
@@ -577,7 +590,13 @@ def main() -> None:
     parser.add_argument(
         "--wall",
         action="store_true",
-        help="also time 22 000 steps end to end, CleanRL's loop vs rrls train (~5 min)",
+        help="also time 22 000 steps end to end, CleanRL's loop vs rrls train (~5 min a round)",
+    )
+    parser.add_argument("--wall-rounds", type=int, default=1, help="rounds of --wall (median)")
+    parser.add_argument(
+        "--wall-against",
+        metavar="CHECKOUT",
+        help="with --wall: also time another rrls checkout's `rrls train` in the same rounds",
     )
     parser.add_argument(
         "--no-shared",
@@ -656,12 +675,23 @@ def main() -> None:
         ratios = " | ".join(f"{value / med[k]:.2f}x" for k in refs)
         print(f"| {ROWS[name]} | {value:.0f} | {ratios} |")
     if args.wall and "cleanrl" in med:
-        wall = wall_times(args.task)
+        wall = {
+            k: statistics.median(v)
+            for k, v in wall_times(
+                args.task, rounds=args.wall_rounds, against=args.wall_against
+            ).items()
+        }
         print(
-            f"\nWall time, 22 000 steps (1 000 random), start-up included: CleanRL's loop "
-            f"{wall['cleanrl']:.1f} s, rrls train (defaults) {wall['rrls']:.1f} s: "
-            f"{wall['cleanrl'] / wall['rrls']:.2f}x (floor >= 1.3x)"
+            f"\nWall time, 22 000 steps (1 000 random), start-up included, median of "
+            f"{args.wall_rounds}: CleanRL's loop {wall['cleanrl']:.1f} s, rrls train (defaults) "
+            f"{wall['rrls']:.1f} s: {wall['cleanrl'] / wall['rrls']:.2f}x (floor >= 1.3x)"
         )
+        if "against" in wall:
+            print(
+                f"  {args.wall_against}: rrls train {wall['against']:.1f} s: "
+                f"{wall['cleanrl'] / wall['against']:.2f}x; this checkout vs it "
+                f"{wall['against'] / wall['rrls']:.2f}x"
+            )
     if shared:
         print_shared(shared, med, cores, args.rounds)
     if args.groups:
