@@ -25,6 +25,7 @@ _LAZY = {
     "wrappers": "rrls.wrappers",
     "uncertainty": "rrls.uncertainty",
     "UncertaintySet": "rrls.uncertainty",
+    "Split": "rrls.uncertainty",
     "ModifiedParamsEnv": "rrls.interface",
     "get_uncertainty_set": "rrls.envs",
     "generate_evaluation_set": "rrls.evaluation",

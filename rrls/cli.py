@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import sys
+from typing import Any
 
 #: what a command may raise for bad input: reported as ``rrls <command>: <message>``, exit 2
 USAGE_ERRORS = (ValueError, FileNotFoundError, FileExistsError, NotADirectoryError)
@@ -171,6 +172,14 @@ def build_parser(with_train: bool = True) -> argparse.ArgumentParser:
         "policy was trained on (rrls train records it), else v5",
     )
     ev.add_argument(
+        "--split",
+        metavar="KIND[:F]",
+        default=None,
+        help="also give in- and out-of-distribution worst/average case: extrapolation[:F] (ID: "
+        "the centred box, a fraction F of each axis, default 0.5) or interpolation[:F] (ID: the "
+        "set minus that box); default: the split the run trained under (rrls train --split)",
+    )
+    ev.add_argument(
         "--out",
         help="output directory (default: evaluations/<task>-<uncertainty>-mesh<M>-ep<E>-seed<S>)",
     )
@@ -272,6 +281,29 @@ def _dispatch(args: argparse.Namespace) -> int:
     raise AssertionError(args.command)  # argparse rejects unknown commands
 
 
+def _split_rows(result: Any, split: str | None) -> list[tuple[str, str]]:
+    """In- and out-of-distribution worst/average case, when the evaluation had a split."""
+    scores = result.split_scores()
+    if not scores:
+        return []
+
+    def fmt(v: float | None) -> str:
+        return "-" if v is None else f"{v:,.2f}"
+
+    return [
+        (
+            f"in distribution ({split})",
+            f"worst {fmt(scores['worst_case_id'])}, average {fmt(scores['average_case_id'])} "
+            f"over {scores['points_id']} points",
+        ),
+        (
+            "out of distribution",
+            f"worst {fmt(scores['worst_case_ood'])}, average {fmt(scores['average_case_ood'])} "
+            f"over {scores['points_ood']} points",
+        ),
+    ]
+
+
 def _evaluate(args: argparse.Namespace) -> int:
     from pathlib import Path
 
@@ -290,6 +322,18 @@ def _evaluate(args: argparse.Namespace) -> int:
     uncertainty = args.uncertainty or _default_set(task, meta)
     if args.physics is None:  # the physics a run directory's policy was trained on
         args.physics = "paper" if is_paper(meta.get("physics")) else "v5"
+    split_text = args.split or (
+        meta.get("split") if uncertainty == meta.get("uncertainty") else None
+    )
+    split = None
+    if split_text:
+        from rrls.envs import get_uncertainty_set
+        from rrls.uncertainty import Split
+
+        try:
+            split = Split.parse(get_uncertainty_set(task, uncertainty), split_text)
+        except ValueError as err:
+            raise UsageError(str(err)) from None
     out = Path(
         args.out
         or f"evaluations/{task}-{uncertainty}-mesh{args.mesh}-ep{args.episodes}-seed{args.seed}"
@@ -307,6 +351,7 @@ def _evaluate(args: argparse.Namespace) -> int:
         out_dir=out,
         paper=args.physics == "paper",
         batch_size=args.batch_size,
+        split=split,
         progress=True,
     )
     summary = result.summary()
@@ -320,6 +365,7 @@ def _evaluate(args: argparse.Namespace) -> int:
         ),
         ("worst case", f"{result.worst_case:,.2f}   at {worst}"),
         ("average case", f"{result.average_case:,.2f}"),
+        *_split_rows(result, split_text),
         ("diverged", f"{summary['diverged']} of {summary['episodes_total']} episodes"),
         ("written", f"{out / 'summary.json'}, {out / _table_file(out)}"),
     ]

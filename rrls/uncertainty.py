@@ -321,6 +321,24 @@ class Split:
         the outer shell of the set."""
         return cls("extrapolation", box, cls._region(box, inner))
 
+    @classmethod
+    def parse(cls, box: UncertaintySet, text: str) -> Split:
+        """A split from its command-line form, ``KIND[:F]`` (``extrapolation:0.5``: train on
+        the centred half of each axis; ``interpolation:0.5``: hold it out); F defaults to 0.5."""
+        kind, _, size = str(text).strip().lower().partition(":")
+        if kind not in cls.KINDS:
+            raise ValueError(
+                f"split {text!r}: the kind must be one of {', '.join(cls.KINDS)} "
+                "(KIND or KIND:F, F a fraction of each axis in (0, 1))"
+            )
+        try:
+            fraction = float(size) if size else 0.5
+        except ValueError:
+            raise ValueError(
+                f"split {text!r}: F must be a fraction of each axis in (0, 1), got {size!r}"
+            ) from None
+        return getattr(cls, kind)(box, fraction)
+
     def in_distribution(self, points: Point) -> np.ndarray | bool:
         """Whether the point(s) lie in the training part of the split."""
         inside = np.asarray(self.region.contains(self.box.to_array(points)), dtype=bool)

@@ -523,3 +523,22 @@ def test_rate_limit_is_refused_for_algorithms_without_an_adversary(tmp_path, cap
     assert "--rate-limit does not apply to td3 (only to rarl)" in capsys.readouterr().err
     with pytest.raises(ValueError, match="rate_limit must be a finite number > 0"):
         hyperparameters(TrainConfig(algo="rarl", hyper={"rate_limit": -1.0}))
+
+
+def test_no_private_torch_api_anywhere_in_rrls():
+    # the training core is plain PyTorch: no torch._* / ATen calls, no nn.Module internals
+    import re
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parents[1] / "rrls"
+    private = re.compile(
+        r"torch\._[a-zA-Z]|torch\.ops\.|\baten\.|_load_from_state_dict|\._parameters\b"
+        r"|nn\.Module\._apply|\bsuper\(\)\._apply"
+    )
+    hits = [
+        f"{path.relative_to(root)}:{n}"
+        for path in sorted(root.rglob("*.py"))
+        for n, line in enumerate(path.read_text().splitlines(), 1)
+        if private.search(line)
+    ]
+    assert not hits, hits

@@ -93,6 +93,10 @@ def test_cli_refuses_bad_options_naming_them(argv, culprit, files, capsys):
             ["evaluate", "{d}/bare.npz", "--task", "invertedpendulum", "--uncertainty", "3d"],
             "task 'invertedpendulum' has no uncertainty set '3d'; valid: 1d, 2d, rarl, nominal",
         ),
+        (
+            ["evaluate", "{d}/bare.npz", "--task", "invertedpendulum", "--split", "shell"],
+            "split 'shell': the kind must be one of interpolation, extrapolation",
+        ),
         (["plot", "{d}/nosuchdir"], "no evaluation directory {d}/nosuchdir"),
         (["plot", "{d}/empty"], "{d}/empty holds no summary.json"),
     ],
@@ -358,3 +362,16 @@ def test_dynamic_evaluation_names_the_policy_that_returns_non_numbers():
         evaluate_dynamic(still, words, "invertedpendulum", "adversarial", "rarl", episodes=1)
     with pytest.raises(PolicyError, match="the protagonist returned shape \\(1,\\) for 1"):
         evaluate_dynamic(lambda o: np.zeros(1), still, "invertedpendulum", "nr", episodes=1)
+
+
+def test_cli_evaluate_split_prints_in_and_out_of_distribution(files, capsys):
+    # a run that trained under a split is evaluated with it by default (its metadata says so)
+    policy = _ip_policy(task="invertedpendulum", uncertainty="1d", split="extrapolation:0.5")
+    policy.save(files / "split" / "policy.npz")
+    argv = ["evaluate", str(files / "split"), "--mesh", "3", "--episodes", "1", "--workers", "1"]
+    assert main([*argv, "--out", str(files / "ev")]) == 0
+    out = capsys.readouterr().out
+    assert "in distribution (extrapolation:0.5)" in out and "over 1 points" in out
+    assert "out of distribution" in out and "over 2 points" in out
+    assert main([*argv, "--out", str(files / "ev2"), "--split", "interpolation:0.5"]) == 0
+    assert "in distribution (interpolation:0.5)" in capsys.readouterr().out

@@ -458,3 +458,38 @@ def test_benchmark_rate_limit_is_rarls_alone_and_checked():
         make_spec("smoke", rate_limit=-1.0)
     with pytest.raises(SpecError, match="add rarl to --algos"):
         make_spec("smoke", algos="td3", rate_limit=0.1)
+
+
+@needs_torch
+def test_a_split_benchmark_trains_inside_and_reports_in_and_out_of_distribution(tmp_path):
+    out = tmp_path / "split"
+    args = [*SMOKE, "--algos", "td3,dr", "--jobs", "1", "--mesh", "3", "--out", str(out)]
+    assert main([*args, "--split", "Extrapolation"]) == 0
+    assert json.loads((out / "benchmark.json").read_text())["split"] == "extrapolation:0.5"
+    run = out / "runs" / "dr-invertedpendulum-1d-seed0"
+    assert json.loads((run / "run.json").read_text())["config"]["split"] == "extrapolation:0.5"
+    result = json.loads((run / "result.json").read_text())
+    # mesh 3 over the 1d set: the centre is the inner box (ID), the two ends its shell (OOD)
+    assert (result["points_id"], result["points_ood"]) == (1, 2)
+    assert min(result["worst_case_id"], result["worst_case_ood"]) == result["worst_case"]
+    ev = pd.read_parquet(out / "results" / "evaluations.parquet")
+    assert ev.groupby("point")["in_distribution"].first().tolist() == [False, True, False]
+    md = (out / "report" / "report.md").read_text()
+    assert "## In and out of distribution" in md and "Split extrapolation:0.5" in md
+    summary = json.loads((out / "report" / "summary.json").read_text())
+    assert summary["results"]["invertedpendulum"]["dr"]["split"]["worst_case_ood"]["n_seeds"] == 1
+    assert main([*args, "--split", "extrapolation:0.25"]) == 2  # another protocol: refused
+
+
+def test_benchmark_split_is_canonical_and_refuses_interpolation():
+    assert make_spec("smoke", split="extrapolation").split == "extrapolation:0.5"
+    assert make_spec("smoke", split="extrapolation:0.3").protocol()["split"] == "extrapolation:0.3"
+    assert make_spec("smoke").split_of("invertedpendulum") is None
+    split = make_spec("smoke", split="extrapolation").split_of("invertedpendulum")
+    assert split.kind == "extrapolation" and split.region.dim == 1
+    with pytest.raises(SpecError, match="interpolation's training part is not a box"):
+        make_spec("smoke", split="interpolation")
+    with pytest.raises(SpecError, match="kind must be one of interpolation, extrapolation"):
+        make_spec("smoke", split="shell")
+    with pytest.raises(SpecError, match="fraction of each axis"):
+        make_spec("smoke", split="extrapolation:2")

@@ -342,3 +342,74 @@ def test_extending_a_finished_run_equals_the_longer_run(tmp_path):
     assert _cli(tmp_path / "short", "td3", 300, "--resume") == 0
     a, b = (np.load(tmp_path / d / "policy.npz") for d in ("long", "short"))
     assert all(np.array_equal(a[k], b[k]) for k in a.files if k != "header")
+
+
+def test_a_split_run_trains_on_the_inner_box_only(tmp_path):
+    from rrls.agents.common import algorithm, env_factory
+    from rrls.envs import get_uncertainty_set
+    from rrls.uncertainty import Split
+
+    box = get_uncertainty_set("hopper", "3d")
+    inner = Split.extrapolation(box, 0.5).region
+    for algo, attr in (
+        ("dr", "uncertainty_set"),
+        ("m2td3", "uncertainty_box"),
+        ("rarl", "uncertainty_set"),
+    ):
+        config = TrainConfig(algo=algo, task="hopper", split="extrapolation", out=str(tmp_path))
+        env = env_factory(algorithm(algo), config, hyperparameters(config))()
+        seen = env.get_wrapper_attr(attr)
+        np.testing.assert_allclose(seen.low, inner.low)
+        np.testing.assert_allclose(seen.high, inner.high)
+        assert config.identity(hyperparameters(config))["split"] == "extrapolation:0.5"
+    # DR's draws stay inside the inner box, and reach the physics
+    config = TrainConfig(algo="dr", task="hopper", split="extrapolation:0.2", out=str(tmp_path))
+    env = env_factory(algorithm("dr"), config, hyperparameters(config))()
+    for seed in range(20):
+        env.reset(seed=seed)
+        point = [env.get_wrapper_attr("get_params")()[n] for n in box.names]
+        assert Split.extrapolation(box, 0.2).in_distribution(point)
+    assert (
+        "-extrapolation0.2-"
+        in TrainConfig(algo="td3", task="hopper", split="extrapolation:0.2").out
+    )
+    assert "split" not in TrainConfig(algo="td3", task="hopper").identity(
+        hyperparameters(TrainConfig(algo="td3", task="hopper"))
+    )  # runs without a split resume as before
+    with pytest.raises(ValueError, match="interpolation's training part is not a box"):
+        TrainConfig(algo="dr", task="hopper", split="interpolation")
+
+
+def test_track_logs_to_weights_and_biases_when_installed(tmp_path, monkeypatch, capsys):
+    import sys
+    import types
+
+    calls: list[tuple[str, object]] = []
+
+    class FakeRun:
+        def log(self, values, step):  # noqa: ANN001
+            calls.append(("log", (dict(values), step)))
+
+        def finish(self):
+            calls.append(("finish", None))
+
+    def init(**kwargs):  # noqa: ANN003
+        calls.append(("init", kwargs))
+        return FakeRun()
+
+    monkeypatch.setitem(sys.modules, "wandb", types.SimpleNamespace(init=init))
+    out = tmp_path / "tracked"
+    assert _cli(out, "td3", 200, "--eval-every", "100", "--track", "--wandb-project", "p") == 0
+    kinds = [k for k, _ in calls]
+    assert kinds[0] == "init" and kinds[-1] == "finish" and "log" in kinds
+    assert calls[0][1]["project"] == "p" and calls[0][1]["config"]["algo"] == "td3"
+    logged = {key for kind, v in calls if kind == "log" for key in v[0]}
+    csv = (out / "scalars.csv").read_text().splitlines()[1:]
+    assert {line.split(",")[1] for line in csv} <= logged  # every curve reaches W&B too
+    monkeypatch.setitem(sys.modules, "wandb", None)  # not installed: one line naming the fix
+    with pytest.raises(ValueError, match="pip install wandb"):
+        train(
+            TrainConfig(
+                algo="td3", task="invertedpendulum", steps=10, track=True, out=str(tmp_path / "x")
+            )
+        )

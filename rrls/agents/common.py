@@ -103,6 +103,13 @@ class TrainConfig:
         "paper's tasks: 1d, 2d, 3d, rarl (forces)); default: the paper's benchmark set, 3d (2d "
         "where the task has no 3d set)",
     )
+    split: str | None = hp(
+        None,
+        "train on the inner part of the set only: extrapolation[:F] (the centred box, a "
+        "fraction F of each axis, default 0.5; CARL's generalisation protocol): every algorithm "
+        "that trains on the set (DR, M2TD3, RARL, SAC-DR) sees only that box, and the "
+        "evaluations still cover the whole set, the rest being out of distribution",
+    )
     steps: int = hp(5_000_000, "env steps")
     seed: int = hp(0, "seed of every random draw: each purpose a child of SeedSequence(seed)")
     out: str | None = hp(None, "run directory (default runs/<algo>-<task>-<set>-seed<S>)")
@@ -159,6 +166,8 @@ class TrainConfig:
                 f"task {task.key!r} has no uncertainty set {self.uncertainty!r}; "
                 f"valid: {', '.join(task.sets)}"
             )
+        if self.split is not None:
+            self.split = training_split(task.key, self.uncertainty, self.split)
         if self.max_episode_steps is None:
             self.max_episode_steps = task.max_episode_steps
         self.physics = physics_label(self.physics)  # ValueError naming the valid ones
@@ -169,7 +178,10 @@ class TrainConfig:
             )
         if self.out is None:
             paper = "-paper" if is_paper(self.physics) else ""
-            self.out = f"runs/{self.algo}-{task.key}-{self.uncertainty}{paper}-seed{self.seed}"
+            split = "-" + self.split.replace(":", "") if self.split else ""
+            self.out = (
+                f"runs/{self.algo}-{task.key}-{self.uncertainty}{split}{paper}-seed{self.seed}"
+            )
         checks = {
             "steps": self.steps >= 1,
             "seed": self.seed >= 0,
@@ -201,11 +213,47 @@ class TrainConfig:
             "algo": self.algo,
             "task": self.task,
             "uncertainty": self.uncertainty,
+            **({"split": self.split} if self.split else {}),  # older runs: no key
             "seed": self.seed,
             "max_episode_steps": self.max_episode_steps,
             "physics": self.physics,
             "hyper": jsonable(asdict(hyper)),
         }
+
+    def training_set(self) -> Any:
+        """What ``make_env`` gets as its ``uncertainty``: the set's name, or under ``split`` the
+        training part as an ``UncertaintySet`` (the inner box; ``rrls.envs.resolve`` and
+        ``task_env`` take either)."""
+        if not self.split:
+            return self.uncertainty
+        from rrls.envs import get_uncertainty_set
+        from rrls.uncertainty import Split, UncertaintySet
+
+        box = get_uncertainty_set(self.task, self.uncertainty)
+        region = Split.parse(box, self.split).region
+        label = f"{box.label} {self.split} (training part)"
+        return UncertaintySet(region.names, region.low, region.high, None, label, box.family)
+
+
+def training_split(task: str, uncertainty: str, text: str) -> str:
+    """``text`` checked as a split of the set rrls can train on, in its canonical form
+    (``extrapolation:0.5``): interpolation's training part (the set minus an interior box) is
+    not a box, which M2TD3's and RARL's searches need, so training refuses it."""
+    from rrls.envs import get_uncertainty_set
+    from rrls.uncertainty import Split
+
+    box = get_uncertainty_set(task, uncertainty)
+    if box.dim == 0:
+        raise ValueError(f"split {text!r}: the set {uncertainty!r} of {task!r} is empty")
+    split = Split.parse(box, text)
+    if split.kind != "extrapolation":
+        raise ValueError(
+            f"split {text!r}: training takes extrapolation[:F] (an inner box); interpolation's "
+            "training part is not a box (evaluate(..., split=Split.interpolation(...)) and "
+            "DomainRandomization(randomize_fn=split.sample_train) serve it by hand)"
+        )
+    width = (split.region.high - split.region.low) / (box.high - box.low)
+    return f"extrapolation:{float(np.round(width.max(), 6)):g}"
 
 
 class Interrupted(Exception):
@@ -220,7 +268,7 @@ def set_rng_state(gen: np.random.Generator, state: str) -> None:
     gen.bit_generator.state = json.loads(state)
 
 
-def task_env(task: str, uncertainty: str = "nominal", paper: bool = False) -> tuple[Any, Any]:
+def task_env(task: str, uncertainty: Any = "nominal", paper: bool = False) -> tuple[Any, Any]:
     """A bare env of ``task`` (no time limit: the loop truncates) of the family ``uncertainty``
     needs (``rrls.envs.resolve``, the one place that decides), and the set's box (``None`` for
     the nominal task). ``paper``: on the paper's physics (the v4 twin, ``paper_class``)."""
@@ -239,14 +287,14 @@ def env_factory(algo: Algorithm, config: TrainConfig, hyper: Any) -> Any:
     import inspect
 
     if not is_paper(config.physics):
-        return functools.partial(algo.make_env, config.task, config.uncertainty, hyper)
+        return functools.partial(algo.make_env, config.task, config.training_set(), hyper)
 
     if "paper" not in inspect.signature(algo.make_env).parameters:
         raise ValueError(
             f"algorithm {algo.name!r}: its make_env takes no 'paper' keyword, so it cannot "
             "train on the paper's physics (--physics paper)"
         )
-    return functools.partial(algo.make_env, config.task, config.uncertainty, hyper, paper=True)
+    return functools.partial(algo.make_env, config.task, config.training_set(), hyper, paper=True)
 
 
 def jsonable(fields: dict[str, Any]) -> dict[str, Any]:

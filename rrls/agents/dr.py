@@ -16,7 +16,7 @@ from rrls.agents.common import task_env
 from rrls.agents.td3 import Config, Learner
 
 
-def make_env(task: str, uncertainty: str, config: Config, paper: bool = False) -> Any:
+def make_env(task: str, uncertainty: Any, config: Config, paper: bool = False) -> Any:
     """The task whose parameters (or forces, for ``rarl``) are redrawn at every reset."""
     from rrls.wrappers import DomainRandomization
 

@@ -187,7 +187,7 @@ class Candidates:
         self.probabilities.copy_(state["probabilities"])
 
 
-def make_env(task: str, uncertainty: str, config: Config, paper: bool = False) -> Any:
+def make_env(task: str, uncertainty: Any, config: Config, paper: bool = False) -> Any:
     """The task's env of the set's family; the learner sets ω at every reset (``uncertainty_box``
     tells it the set)."""
     env, box = task_env(task, uncertainty, paper)

@@ -64,7 +64,7 @@ class Config(TD3Config):
             raise ValueError(f"ratio must be >= 0, got {self.ratio}")
 
 
-def make_env(task: str, uncertainty: str, config: Config, paper: bool = False) -> Any:
+def make_env(task: str, uncertainty: Any, config: Config, paper: bool = False) -> Any:
     """The nominal task under the action-robust game (the set is only evaluated over)."""
     from rrls.wrappers import ProbabilisticActionRobust
 

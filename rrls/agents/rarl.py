@@ -64,7 +64,7 @@ class Config(TD3Config):
             )
 
 
-def make_env(task: str, uncertainty: str, config: Config, paper: bool = False) -> Any:
+def make_env(task: str, uncertainty: Any, config: Config, paper: bool = False) -> Any:
     """The two-player game over the set: parameters (``1d/2d/3d``) or forces (``rarl``), the
     adversary's moves rate-limited if ``config.rate_limit`` is set."""
     from rrls.wrappers import DynamicAdversarial

@@ -296,6 +296,7 @@ class Run:
             "algorithm": self.config.algo,
             "task": self.config.task,
             "uncertainty": self.config.uncertainty,
+            **({"split": self.config.split} if self.config.split else {}),
             "physics": self.config.physics,
             "obs_dim": env.observation_space.shape[0],
             "hidden": list(getattr(self.hyper, "hidden", ())),

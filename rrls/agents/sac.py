@@ -71,7 +71,7 @@ class Config:
             raise ValueError(f"hidden layer sizes must be >= 1, got {list(self.hidden)}")
 
 
-def make_env(task: str, uncertainty: str, config: Config, paper: bool = False) -> Any:
+def make_env(task: str, uncertainty: Any, config: Config, paper: bool = False) -> Any:
     """The nominal task (SAC never sees the uncertainty set; it is only evaluated over it)."""
     return task_env(task, paper=paper)[0]
 

@@ -65,7 +65,7 @@ class Config:
 TD3Config = Config  # the name the other algorithms extend
 
 
-def make_env(task: str, uncertainty: str, config: Config, paper: bool = False) -> Any:
+def make_env(task: str, uncertainty: Any, config: Config, paper: bool = False) -> Any:
     """The nominal task: TD3 never sees the uncertainty set (it is only evaluated over it)."""
     return task_env(task, paper=paper)[0]
 

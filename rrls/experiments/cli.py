@@ -61,6 +61,13 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:
         help="RARL trains against (and is evaluated with) TC-RMDP's rate-limited adversary: "
         "the parameters move at most L per step in the set's normalised units",
     )
+    b.add_argument(
+        "--split",
+        metavar="extrapolation[:F]",
+        help="generalisation protocol (CARL's): every run trains on the inner box of the set (a "
+        "centred fraction F of each axis, default 0.5), the evaluation covers the whole set and "
+        "rrls report gives in- and out-of-distribution worst/average case apart",
+    )
     b.add_argument("--steps", type=int, metavar="N", help="training steps per run")
     b.add_argument("--learning-starts", type=int, metavar="N")
     b.add_argument(
@@ -200,6 +207,7 @@ def _spec_from(args: argparse.Namespace) -> tuple:
         device=args.device,
         physics=getattr(args, "physics", None),
         rate_limit=getattr(args, "rate_limit", None),
+        split=getattr(args, "split", None),
     )
     jobs = args.jobs or (None if args.backend == "ray" else default_jobs())
     return spec, jobs

@@ -181,6 +181,7 @@ def _train(spec: Spec, runs: list[RunKey], outs: list[Path], progress: list[Prog
             algo=run.algo,
             task=run.task,
             uncertainty=spec.train_set(run.algo),
+            split=spec.split,
             steps=spec.steps,
             eval_every=spec.eval_every,
             eval_mesh=spec.eval_mesh,
@@ -215,6 +216,7 @@ def _evaluate(spec: Spec, run: RunKey, out: Path) -> dict[str, Any]:
         workers=1,
         out_dir=out / "eval",
         paper=is_paper(spec.physics),
+        split=spec.split_of(run.task),
         progress=False,
     )
     meta = policy.metadata
@@ -223,6 +225,7 @@ def _evaluate(spec: Spec, run: RunKey, out: Path) -> dict[str, Any]:
         "task": run.task,
         "uncertainty": spec.uncertainty,
         "train_set": spec.train_set(run.algo),
+        **({"split": spec.split, **result.split_scores()} if spec.split else {}),
         "seed": run.seed,
         "steps": spec.steps,
         "physics": spec.physics,

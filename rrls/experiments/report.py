@@ -479,9 +479,19 @@ def _split_table(summary: dict[str, Any]) -> list[str]:
     ]
     if not cells:
         return []
+    kind = (summary.get("benchmark") or {}).get("split")
     lines = [
         "## In and out of distribution (train/test split of the set)",
         "",
+        *(
+            [
+                f"Split {kind}: in distribution (ID), the inner box the runs trained on; out of "
+                "distribution (OOD), the rest of the set's mesh.",
+                "",
+            ]
+            if kind
+            else []
+        ),
         "| task | algorithm | worst ID | average ID | worst OOD | average OOD |",
         "|---|---|---|---|---|---|",
     ]

@@ -147,6 +147,7 @@ def plan(
         f"{len(spec.tasks)} tasks x {len(spec.seeds)} seeds = {est['runs']} runs "
         f"({finished} finished, {todo} to run), {spec.steps:,} steps each, set "
         f"{spec.uncertainty}, mesh {spec.mesh} x {spec.episodes} episodes; {backend} backend"
+        + (f", split {spec.split} (training on the inner box)" if spec.split else "")
         + (f", {jobs} jobs" if jobs else "")
         + (f", up to {pack} seeds of a cell trained together per process" if pack > 1 else "")
         + "\nestimate for the whole grid (from measured single-thread speeds on a 2-core CPU; "

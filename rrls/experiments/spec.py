@@ -58,6 +58,9 @@ class Spec:
     physics: str = V5
     #: RARL's adversary moves at most this much per step (TC-RMDP's game); None: RARL's own
     rate_limit: float | None = None
+    #: a train/test split of the set (``extrapolation:F``): every run trains on the inner box,
+    #: the evaluation covers the whole set and the report gives in/out of distribution apart
+    split: str | None = None
 
     def runs(self) -> list[RunKey]:
         """Every (algorithm, task, seed) of the grid, in a stable order."""
@@ -67,6 +70,15 @@ class Spec:
         """The set a run trains on: ``uncertainty`` for every algorithm (paper §5 trains every
         baseline on the 3D set; RARL's adversary then picks the parameters every step)."""
         return self.uncertainty
+
+    def split_of(self, task: str) -> Any:
+        """The evaluation's ``rrls.uncertainty.Split`` of ``task``'s set, None without one."""
+        if not self.split:
+            return None
+        from rrls.envs import get_uncertainty_set
+        from rrls.uncertainty import Split
+
+        return Split.parse(get_uncertainty_set(task, self.uncertainty), self.split)
 
     def hyperparameters(self, algo: str) -> dict[str, Any]:
         """The preset's overrides of ``algo``'s paper hyper-parameters (``TrainConfig.hyper``)."""
@@ -212,6 +224,15 @@ def make_spec(preset: str = "paper", **overrides: Any) -> Spec:
     except ValueError as err:
         raise SpecError(str(err)) from None
     values["tasks"] = tuple(dict.fromkeys(_task_key(t) for t in values["tasks"]))
+    if values.get("split"):  # canonical (extrapolation:0.5), so two spellings are one protocol
+        from rrls.agents.common import training_split
+
+        try:
+            values["split"] = training_split(
+                values["tasks"][0], values["uncertainty"], values["split"]
+            )
+        except ValueError as err:
+            raise SpecError(str(err)) from None
     spec = Spec(**values)
     validate(spec)
     return spec
@@ -262,6 +283,14 @@ def validate(spec: Spec) -> None:
         raise SpecError("--seeds must be >= 1")
     if spec.checkpoint_every < 1:
         raise SpecError("checkpoint_every must be >= 1")
+    if spec.split:
+        from rrls.agents.common import training_split
+
+        for task in spec.tasks:
+            try:
+                training_split(_task_key(task), spec.uncertainty, spec.split)
+            except ValueError as err:
+                raise SpecError(str(err)) from None
     if spec.rate_limit is not None:
         if not (isinstance(spec.rate_limit, (int, float)) and 0 < spec.rate_limit < float("inf")):
             raise SpecError(f"--rate-limit must be a finite number > 0, got {spec.rate_limit!r}")

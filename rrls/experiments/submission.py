@@ -348,6 +348,7 @@ def _evaluate(
         workers=workers,
         out_dir=out / "eval",
         paper=is_paper(spec.physics),
+        split=spec.split_of(task),
         progress=progress,
     )
     return {
@@ -355,6 +356,7 @@ def _evaluate(
         "task": task,
         "uncertainty": spec.uncertainty,
         "train_set": str(meta.get("uncertainty") or "unknown"),
+        **({"split": spec.split, **result.split_scores()} if spec.split else {}),
         "seed": seed,
         "steps": int(meta.get("steps") or 0),  # the training budget when the policy records it
         "physics": spec.physics,
