@@ -331,18 +331,18 @@ def reconcile(out: Path, spec: Spec) -> Spec:
 # Training: learning steps per CPU-second of one single-threaded Hopper run, measured in CPU time
 # (robust to a machine shared with other work) by `python3 benchmarks/calibrate.py td3 m2td3
 # sac`: CPU seconds of `rrls train --threads 1` for 3 000 steps (1 000 random) minus those of
-# 1 000 random steps. Measured on the 2-core development machine, 2026-11-23, while other jobs
-# loaded it (CPU time still grows under cache contention: these rates are on the slow side).
+# 1 000 random steps. Measured on the 2-core development machine, quiet, 2026-11-24 (under
+# load the same script gave 77 / 85 / 47: CPU time grows with cache contention).
 # DR trains TD3's learner, SAC-DR SAC's; RARL and NR-MDP (not measured) are taken as TD3's.
 # Env steps/s of each task's `env.step`: the evaluation's cost, policy calls excluded.
 TRAIN_STEPS_PER_S = {
-    "td3": 77.0,
-    "dr": 77.0,
-    "m2td3": 85.0,
-    "rarl": 77.0,
-    "nrmdp": 77.0,
-    "sac": 47.0,
-    "sacdr": 47.0,
+    "td3": 94.0,
+    "dr": 94.0,
+    "m2td3": 103.0,
+    "rarl": 94.0,
+    "nrmdp": 94.0,
+    "sac": 57.0,
+    "sacdr": 57.0,
 }
 STARTUP_S = 5.0  # per run: a fresh process importing torch, building envs (measured 4-6 s)
 ENV_STEPS_PER_S = {
