@@ -76,9 +76,9 @@ def test_td3_update_equals_a_plain_cleanrl_style_update():
                     for p, tp in zip(src.parameters(), dst.parameters()):
                         tp.lerp_(p, 0.005)
         losses = learner._compute(step % 2 == 0, {"idx": idx, "eps": eps})
-        assert float(losses["critic_loss"][0]) == pytest.approx(float(loss), rel=1e-5)
+        assert float(losses["critic_loss"][0]) == pytest.approx(loss.item(), rel=1e-5)
         if step % 2 == 0:
-            assert float(losses["actor_loss"][0]) == pytest.approx(float(pi_loss), rel=1e-4)
+            assert float(losses["actor_loss"][0]) == pytest.approx(pi_loss.item(), rel=1e-4)
     pairs = [(ag.actor, actor, None), (ag.actor_target, actor_t, None)]
     pairs += [(ag.critic, critics[j], j) for j in (0, 1)]
     for ours, plain, j in pairs:
