@@ -107,9 +107,9 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:
     r.add_argument(
         "--reference",
         metavar="FILE",
-        help="reference results (.json/.csv, or a shipped name: paper) normalising the tasks "
-        "without their own TD3 and M2TD3 runs; refused if measured under another protocol "
-        "(physics, set, mesh, episodes)",
+        help="reference results (.json/.csv, or a shipped name: paper, quick) normalising"
+        " the tasks without their own TD3 and M2TD3 runs; refused if measured under another"
+        " protocol (physics, set, mesh, episodes)",
     )
     r.add_argument(
         "--export-reference",
