@@ -69,9 +69,10 @@ def refuse_empty(box: UncertaintySet, who: str, env: gym.Env) -> None:
 def check_finite_action(action: Any, step: int, who: str = "action") -> None:
     """Refuse a NaN/inf action before it reaches MuJoCo, naming the episode's step (from 1)."""
     if type(action) is np.ndarray and action.dtype.kind == "f" and action.ndim == 1:
-        # the common case in one cheap call: a NaN/inf makes the dot product non-finite (an
-        # overflow of huge finite values too, which the exact check below then lets through)
-        if math.isfinite(action.dot(action)):
+        # the common case, cheaply (a Python sum of the list: ~0.5 us, half a numpy dot's): a
+        # NaN/inf makes the sum non-finite (an overflow of huge finite values too, which the
+        # exact check below then lets through)
+        if math.isfinite(sum(action.tolist())):
             return
     if isinstance(action, (tuple, list)) and action and not np.isscalar(action[0]):
         for part in action:
