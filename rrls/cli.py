@@ -292,15 +292,11 @@ def _split_rows(result: Any, split: str | None) -> list[tuple[str, str]]:
 
     return [
         (
-            f"in distribution ({split})",
-            f"worst {fmt(scores['worst_case_id'])}, average {fmt(scores['average_case_id'])} "
-            f"over {scores['points_id']} points",
-        ),
-        (
-            "out of distribution",
-            f"worst {fmt(scores['worst_case_ood'])}, average {fmt(scores['average_case_ood'])} "
-            f"over {scores['points_ood']} points",
-        ),
+            label,
+            f"worst {fmt(scores[f'worst_case_{tag}'])}, average "
+            f"{fmt(scores[f'average_case_{tag}'])} over {scores[f'points_{tag}']} points",
+        )
+        for tag, label in (("id", f"in distribution ({split})"), ("ood", "out of distribution"))
     ]
 
 
