@@ -85,6 +85,7 @@ class Learner(TD3Learner):
         self.opponent = self.opponent.to(device)
         self.opponent_target = copy.deepcopy(self.opponent).requires_grad_(False)
         self.opponent_opt = adam(self.opponent.parameters(), config.learning_rate, device)
+        self.opponent_pairs = [*self.opponent_target.parameters()], [*self.opponent.parameters()]
         self.fast = NumpyActor(self.opponent) if self.agent.fast is not None else None
         self.alpha, self.policy_steps = config.alpha, 0
         self.game = {"game": config.mode, "alpha": config.alpha}
@@ -149,7 +150,7 @@ class Learner(TD3Learner):
                 loss = -(1 - alpha) * q1(cat(s, agent.actor(s))).mean(-1)
             losses["actor_loss"] = agent.policy_step(agent.actor, agent.actor_opt, loss)
         agent.soft_update()
-        polyak(self.opponent_target, self.opponent, self.config.tau)
+        polyak(*self.opponent_pairs, self.config.tau)
         return losses
 
     def episode_end(self, k: int, episode_return: float, length: int) -> dict[str, float]:

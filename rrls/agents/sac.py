@@ -90,6 +90,7 @@ class Learner(_Learner):
         self.critic_target = copy.deepcopy(self.critic).requires_grad_(False)
         self.actor_opt = adam(self.actor.parameters(), config.policy_lr, device)
         self.critic_opt = adam(self.critic.parameters(), config.q_lr, device)
+        self.targets, self.sources = [*self.critic_target.parameters()], [*self.critic.parameters()]
         start = math.log(config.entropy_coef)
         self.log_alpha = torch.full((len(seeds),), start, device=device, requires_grad=True)
         self.alpha_opt = adam([self.log_alpha], config.q_lr, device)
@@ -151,7 +152,7 @@ class Learner(_Learner):
             min_q = self.critic(torch.cat((obs, action), -1)).amin(1)
             actor_loss = (alpha * log_pi - min_q).mean(-1)
             self.actor_opt.zero_grad()
-            actor_loss.sum().backward(inputs=list(self.actor.parameters()))
+            actor_loss.sum().backward(inputs=self.actor_opt.param_groups[0]["params"])
             self.actor_opt.step()
             losses["actor_loss"] = actor_loss.detach()
             if cfg.autotune:
@@ -165,7 +166,7 @@ class Learner(_Learner):
                 losses["alpha_loss"] = alpha_loss.detach()
             losses["alpha"] = self.log_alpha.detach().exp()
         if target:
-            polyak(self.critic_target, self.critic, cfg.tau)
+            polyak(self.targets, self.sources, cfg.tau)
         return losses
 
     def state_dict(self) -> dict[str, Any]:

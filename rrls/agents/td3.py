@@ -101,6 +101,8 @@ class TD3:
         self.critic_target = copy.deepcopy(self.critic).requires_grad_(False)
         self.actor_opt = adam(self.actor.parameters(), config.learning_rate, device)
         self.critic_opt = adam(self.critic.parameters(), config.learning_rate, device)
+        self.targets = [*self.actor_target.parameters(), *self.critic_target.parameters()]
+        self.sources = [*self.actor.parameters(), *self.critic.parameters()]
         self.noise = Generators(seeds, name + "noise")  # target policy smoothing
         self.low = torch.as_tensor(np.asarray(low, np.float32), device=device)
         self.high = torch.as_tensor(np.asarray(high, np.float32), device=device)
@@ -148,7 +150,7 @@ class TD3:
     def policy_step(self, actor: Actor, opt, loss: torch.Tensor) -> torch.Tensor:  # noqa: ANN001
         """One Adam step of ``actor`` on ``loss`` (``(K,)``), gradients into ``actor`` only."""
         opt.zero_grad()
-        loss.sum().backward(inputs=list(actor.parameters()))
+        loss.sum().backward(inputs=opt.param_groups[0]["params"])  # = actor.parameters()
         opt.step()
         return loss.detach()
 
@@ -158,8 +160,7 @@ class TD3:
         return self.policy_step(self.actor, self.actor_opt, loss)
 
     def soft_update(self) -> None:
-        polyak(self.actor_target, self.actor, self.config.tau)
-        polyak(self.critic_target, self.critic, self.config.tau)
+        polyak(self.targets, self.sources, self.config.tau)
 
     def state_dict(self) -> dict[str, Any]:
         return {
