@@ -60,9 +60,10 @@ def relu_mlp(layers: nn.ModuleList, x: torch.Tensor) -> torch.Tensor:
     """ReLU after every layer but the last, in place (``nn.ReLU(inplace=True)``): a layer's
     output is needed by nothing else, and writing it again instead of into a fresh
     activation-sized block saves memory traffic (measured: ~5 % of a TD3 update)."""
-    for layer in layers[:-1]:
+    *hidden, last = layers  # (slicing a ModuleList builds a new module: ~40 µs a call)
+    for layer in hidden:
         x = torch.relu_(layer(x))
-    return layers[-1](x)
+    return last(x)
 
 
 class Actor(nn.Module):
