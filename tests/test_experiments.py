@@ -418,7 +418,7 @@ def test_quickstart_is_the_quick_preset(tmp_path, capsys, monkeypatch):
     quick = spec_module.PRESETS["quick"]
     assert quick["tasks"] == ("invertedpendulum",) and quick["uncertainty"] == "1d"
     assert len(quick["algos"]) == 5 and quick["learning_rate"] == 1e-3
-    # the real pipeline on a smoke-sized "quick" preset (the real one takes ~10 minutes)
+    # the real pipeline on a smoke-sized "quick" preset (the real one takes ~20 minutes)
     small = {**spec_module.PRESETS["smoke"], "algos": ("td3", "m2td3")}
     monkeypatch.setitem(spec_module.PRESETS, "quick", small)
     assert main(["quickstart", "--out", str(tmp_path), "--steps", "200"]) == 0

@@ -29,7 +29,7 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:
     b.add_argument(
         "--preset",
         default="paper",
-        help="smoke (seconds, for tests), quick (~10 min on 2 cores, reduced budget), "
+        help="smoke (seconds, for tests), quick (~20 min on 2 cores, reduced budget), "
         "paper (the paper's protocol; default)",
     )
     b.add_argument(

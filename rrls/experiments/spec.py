@@ -143,7 +143,7 @@ PRESETS: dict[str, dict[str, Any]] = {
         batch_size=32,
         checkpoint_every=100,
     ),
-    # ~10 minutes on 2 cores (reduced budget, NOT the paper's protocol): InvertedPendulum is the
+    # ~20 minutes on 2 cores (reduced budget, NOT the paper's protocol): InvertedPendulum is the
     # one task where anything learns in 20 k steps, with Adam at 1e-3 (README "Small budgets").
     "quick": dict(
         algos=ALGOS,
