@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import io
 import json
 
 import numpy as np
@@ -59,9 +58,10 @@ def _cli_train(out, algo, steps=300, extra=()):
 
 
 def _checkpoint(run_dir):
-    from rrls.rundir import read_sealed
+    from rrls.agents.run import read_checkpoint
+    from rrls.rundir import CHECKPOINT
 
-    return torch.load(io.BytesIO(read_sealed(run_dir / "checkpoint.pt")), weights_only=True)
+    return read_checkpoint(run_dir / CHECKPOINT)
 
 
 @pytest.mark.parametrize("algo", ALGOS)
@@ -495,7 +495,6 @@ def test_nrmdp_adversary_lowers_the_shared_critics_value_more_than_a_random_one(
     # the two values tie (measured, seed 1: 19.719 vs 19.704; seeds 0 and 2 lower).
     import torch
 
-    from rrls import rundir
     from rrls.agents import nrmdp
     from rrls.agents.learner import stack_runs
     from rrls.agents.td3 import cat
@@ -503,8 +502,7 @@ def test_nrmdp_adversary_lowers_the_shared_critics_value_more_than_a_random_one(
     steps, lower = 15_000, {}
     for seed in (0, 1, 2):
         run = _train_ip(tmp_path, "nrmdp", "1d", steps, seed, checkpoint_every=steps)
-        data = rundir.read_sealed(run / rundir.CHECKPOINT)
-        state = torch.load(io.BytesIO(data), weights_only=True)
+        state = _checkpoint(run)
         assert state["step"] == steps
         config = nrmdp.Config(**json.loads((run / "run.json").read_text())["hyperparameters"])
         env = nrmdp.make_env("invertedpendulum", None, config)

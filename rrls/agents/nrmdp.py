@@ -85,7 +85,8 @@ class Learner(TD3Learner):
         self.opponent = self.opponent.to(device)
         self.opponent_target = copy.deepcopy(self.opponent).requires_grad_(False)
         self.opponent_opt = adam(self.opponent.parameters(), config.learning_rate, device)
-        self.opponent_pairs = [*self.opponent_target.parameters()], [*self.opponent.parameters()]
+        self.opponent_targets = [*self.opponent_target.parameters()]
+        self.opponent_sources = [*self.opponent.parameters()]
         self.fast = NumpyActor(self.opponent) if self.agent.fast is not None else None
         self.alpha, self.policy_steps = config.alpha, 0
         self.game = {"game": config.mode, "alpha": config.alpha}
@@ -150,7 +151,7 @@ class Learner(TD3Learner):
                 loss = -(1 - alpha) * q1(cat(s, agent.actor(s))).mean(-1)
             losses["actor_loss"] = agent.policy_step(agent.actor, agent.actor_opt, loss)
         agent.soft_update()
-        polyak(*self.opponent_pairs, self.config.tau)
+        polyak(self.opponent_targets, self.opponent_sources, self.config.tau)
         return losses
 
     def episode_end(self, k: int, episode_return: float, length: int) -> dict[str, float]:

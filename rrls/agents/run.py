@@ -122,6 +122,24 @@ def evaluate_policy(policy: Any, config: TrainConfig) -> dict[str, float]:
     return scores
 
 
+def read_checkpoint(path: Path) -> dict[str, Any]:
+    """A run's checkpoint, or a one-line error naming the file when it cannot be used."""
+    data = rundir.read_sealed(path)  # damaged bytes: refused here
+    try:
+        state = torch.load(io.BytesIO(data), weights_only=True, map_location="cpu")
+    except Exception as err:  # noqa: BLE001 - not a checkpoint: all say the same
+        raise ValueError(
+            f"cannot resume from {path}: the file is not a readable checkpoint "
+            f"({type(err).__name__}); delete it (or pass --overwrite) to start again"
+        ) from None
+    if not isinstance(state, dict) or "learner" not in state or "config" not in state:
+        raise ValueError(
+            f"cannot resume from {path}: it was written by another version of rrls "
+            "(another layout); pass --overwrite to start again"
+        )
+    return state
+
+
 class Run:
     """One run's directory: fresh start / resume / overwrite policy, checkpoints, final files."""
 
@@ -144,7 +162,7 @@ class Run:
                 )
             if config.steps <= done:
                 if self.checkpoint_path.exists():
-                    self._check_identity(self._read_checkpoint())
+                    self._check_identity(read_checkpoint(self.checkpoint_path))
                 if config.steps < done:
                     raise ValueError(
                         f"cannot resume {self.dir}: it has already trained {done} steps, "
@@ -166,24 +184,6 @@ class Run:
         self._t0, self._t0_step = time.perf_counter(), 0
 
     # -- checkpoints ------------------------------------------------------------------------
-    def _read_checkpoint(self) -> dict[str, Any]:
-        """The checkpoint, or a one-line error naming the file when it cannot be used."""
-        path = self.checkpoint_path
-        data = rundir.read_sealed(path)  # damaged bytes: refused here
-        try:
-            state = torch.load(io.BytesIO(data), weights_only=True, map_location="cpu")
-        except Exception as err:  # noqa: BLE001 - not a checkpoint: all say the same
-            raise ValueError(
-                f"cannot resume from {path}: the file is not a readable checkpoint "
-                f"({type(err).__name__}); delete it (or pass --overwrite) to start again"
-            ) from None
-        if not isinstance(state, dict) or "learner" not in state or "config" not in state:
-            raise ValueError(
-                f"cannot resume from {path}: it was written by another version of rrls "
-                "(another layout); pass --overwrite to start again"
-            )
-        return state
-
     def _check_identity(self, state: dict[str, Any]) -> None:
         saved = json.loads(state["config"])
         saved["physics"] = physics_label(saved.get("physics"))  # older checkpoints: rrls-v5
@@ -201,7 +201,7 @@ class Run:
         """The saved state when resuming (checked against this config), else ``None``."""
         if not self.resumed:
             return None
-        state = self._read_checkpoint()
+        state = read_checkpoint(self.checkpoint_path)
         self._check_identity(state)
         if int(state["step"]) > self.config.steps:
             raise ValueError(
