@@ -1,10 +1,13 @@
 """Policies as the evaluation engine sees them: a batch of observations in, a batch of actions out.
 
-Why fixed-size blocks: BLAS libraries pick different kernels for different batch sizes, so a row's
-output can change in the last bits with the number of rows next to it, and over 1 000 chaotic
-steps that becomes a different return. Running every call in zero-padded blocks of a fixed size
-makes each row's output independent of the batch, so the engine's lockstep batches give exactly
-what ``policy(obs[None])[0]`` gives one episode at a time.
+Why batch invariance matters: over 1 000 chaotic steps a last-bit difference in an action becomes
+another return, so a row's action must not depend on the rows around it, or an evaluation would
+depend on its batch size and worker count. rrls's own ``MLPPolicy`` computes every product in a
+summation order no BLAS kernel chooses (``rrls.evaluation.exact``): row ``i`` depends on
+``obs[i]`` alone, with the same bits on any CPU. Other policies (torch modules, SB3 models,
+callables) are wrapped in ``BatchInvariant``: fixed-shape zero-padded blocks, which makes a row
+independent of the batch *size* — exact on CPUs whose GEMM kernels treat every row position
+alike, not guaranteed on all (some AVX2 kernels compute a block's last rows in another order).
 
 >>> import numpy as np
 >>> policy = MLPPolicy.random(obs_dim=3, act_dim=2, hidden=(8, 8), seed=0)
@@ -23,6 +26,8 @@ from pathlib import Path
 from typing import Any, Protocol, runtime_checkable
 
 import numpy as np
+
+from rrls.evaluation.exact import ExactLinear
 
 BLOCK = 64  # rows per policy call inside BatchInvariant (invariance measured in tests)
 
@@ -99,7 +104,8 @@ class MLPPolicy:
         self.action_bias = np.broadcast_to(np.asarray(action_bias, dtype=dtype), (act_dim,)).copy()
         self.dtype = np.dtype(dtype)
         self.metadata = dict(metadata or {})
-        self._invariant = BatchInvariant(self._forward)
+        self._layers = [ExactLinear(w) for w in self.weights]
+        self._bias64 = [b.astype(np.float64) for b in self.biases]
 
     @property
     def obs_dim(self) -> int:
@@ -129,20 +135,23 @@ class MLPPolicy:
         return cls(weights, biases, dtype=dtype)
 
     def _forward(self, obs: np.ndarray) -> np.ndarray:
+        # Each layer: an exact-order product (rrls.evaluation.exact), the bias, one rounding to
+        # the policy's dtype (as the network it was trained as), ReLU. Row i depends on obs[i]
+        # alone, with the same bits on any CPU: no BLAS kernel chooses a summation order.
         h = obs.astype(self.dtype, copy=False)
-        last = len(self.weights) - 1
-        for i, (w, b) in enumerate(zip(self.weights, self.biases)):
-            h = h @ w
-            h += b
+        last = len(self._layers) - 1
+        for i, (layer, b) in enumerate(zip(self._layers, self._bias64)):
+            h = (layer(h) + b).astype(self.dtype)
             if i < last:
                 np.maximum(h, 0, out=h)
-        return np.tanh(h) * self.action_scale + self.action_bias
+        out = np.tanh(h.astype(np.float64)) * self.action_scale + self.action_bias
+        return out.astype(self.dtype)
 
     def __call__(self, obs: np.ndarray) -> np.ndarray:
         obs = np.asarray(obs)
         if obs.ndim != 2 or obs.shape[1] != self.obs_dim:
             raise ValueError(f"expected observations of shape (B, {self.obs_dim}), got {obs.shape}")
-        return self._invariant(obs)
+        return self._forward(obs)
 
     def save(self, path: str | Path) -> Path:
         """Write ``path`` (``.npz``) atomically."""
