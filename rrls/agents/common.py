@@ -143,7 +143,7 @@ class TrainConfig:
     physics: str = hp(
         "v5",
         "v5 (Gymnasium v5 envs, rrls's parameter semantics) or paper (the paper's Gymnasium v4 "
-        "envs, worldfriction on the floor only; the paper's six tasks)",
+        "envs, the original code's parameter writes; the paper's six tasks)",
         choices=["v5", "paper"],
     )
     track: bool = hp(False, "also log to Weights & Biases (needs wandb installed)")

@@ -16,6 +16,7 @@ import mujoco
 import numpy as np
 from gymnasium.utils import EzPickle
 
+from rrls.envs.paper import NO_SETCONST
 from rrls.params import SETCONST_FIELDS, ParamSpec
 from rrls.tasks import TaskSpec
 
@@ -68,7 +69,7 @@ class ModifiedParamsMixin:
 
     task: ClassVar[TaskSpec]
     param_specs: ClassVar[tuple[ParamSpec, ...]]
-    #: built on the paper's physics (the v4 env, ``worldfriction`` on the floor only)
+    #: built on the paper's physics (the v4 env and the original code's writes: rrls.envs.paper)
     paper: ClassVar[bool] = False
     #: the class of the same task and family on the paper's physics (None: there is none)
     paper_twin: ClassVar[Callable[[], type] | None] = None
@@ -104,11 +105,10 @@ class ModifiedParamsMixin:
         self.scale_inertia = bool(scale_inertia)
         model = self.model
         self._rows = {s.name: (s, s.resolve(model)) for s in self.param_specs}
-        if self.paper:  # the paper's code wrote worldfriction to the floor (first world geom) only
-            floor = np.flatnonzero(model.geom_bodyid == 0)[:1]
-            for name, (spec, _) in list(self._rows.items()):
-                if spec.field == "geom_friction" and spec.target == "*":
-                    self._rows[name] = (spec, floor)
+        # the paper's physics writes masses as the original did: body_mass alone (rrls.envs.paper)
+        self._setconst = SETCONST_FIELDS - NO_SETCONST if self.paper else SETCONST_FIELDS
+        if self.scale_inertia:  # a scaled inertia needs its derived constants, paper or not
+            self._setconst = SETCONST_FIELDS
         self._saved = {f: getattr(model, f).copy() for f in _SAVED}
         self._mass0 = self._saved["body_mass"]
         self._inertia0 = self._saved["body_inertia"]
@@ -161,7 +161,7 @@ class ModifiedParamsMixin:
         for name, value in updates.items():
             spec, idx = self._rows[name]
             self._write(spec, idx, value)
-            set_const |= spec.field in SETCONST_FIELDS
+            set_const |= spec.field in self._setconst
             friction |= spec.field in _FRICTION
         if set_const:
             try:

@@ -51,7 +51,7 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:
         "--physics",
         choices=["v5", "paper"],
         help="v5 (default: Gymnasium v5, rrls's parameter semantics) or paper (the paper's "
-        "Gymnasium v4 envs, worldfriction on the floor only, np.arange mesh) for training and "
+        "Gymnasium v4 envs, the original code's parameter writes, np.arange mesh) for training and "
         "evaluation; recorded in benchmark.json",
     )
     b.add_argument(
