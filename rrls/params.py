@@ -120,6 +120,42 @@ FIELDS: dict[str, FieldInfo] = {
 #: fields whose change needs MuJoCo's derived constants recomputed (``mj_setConst``)
 SETCONST_FIELDS = frozenset({"body_mass", "body_ipos", "dof_armature", "actuator_gear"})
 
+#: kind name -> the fields it covers, for ``get_params(kinds=...)``
+KINDS: dict[str, tuple[str, ...]] = {
+    "mass": ("body_mass",),
+    "friction": ("geom_friction", "body_friction"),
+    "com": ("body_ipos",),
+    "damping": ("dof_damping",),
+    "armature": ("dof_armature",),
+    "frictionloss": ("dof_frictionloss",),
+    "gear": ("actuator_gear",),
+    "gravity": ("opt_gravity",),
+    "timestep": ("opt_timestep",),
+    "viscosity": ("opt_viscosity",),
+    "force": ("xfrc_applied",),
+}
+#: the original RRLS code's kinds (masses, ``worldfriction``, forces): what ``get_params()``
+#: returns without arguments, so code written for the original runs unchanged
+ORIGINAL_FIELDS = frozenset({"body_mass", "geom_friction", "xfrc_applied"})
+
+
+def kind_fields(kinds: object) -> frozenset[str] | None:
+    """The fields ``get_params(kinds=...)`` returns: None for every field (``"all"``), the
+    original code's for ``None``/``"original"``, else those of the named kinds (a name or an
+    iterable of names of :data:`KINDS`); an unknown name is a ``ValueError`` listing the valid."""
+    if kinds is None or kinds == "original":
+        return ORIGINAL_FIELDS
+    if kinds == "all":
+        return None
+    names = [kinds] if isinstance(kinds, str) else list(kinds)  # type: ignore[call-overload]
+    unknown = [k for k in names if k not in KINDS]
+    if unknown:
+        raise ValueError(
+            f"unknown parameter kind(s) {unknown}; valid: 'all', 'original' or any of "
+            f"{', '.join(KINDS)}"
+        )
+    return frozenset(f for k in names for f in KINDS[k])
+
 
 @dataclass(frozen=True)
 class ParamSpec:

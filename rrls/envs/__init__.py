@@ -189,7 +189,7 @@ FAMILY_ENVS: dict[str, Mapping[str, type]] = {"robust": ROBUST_ENVS, "force": FO
 def _nominal(cls: type) -> tuple[tuple[str, float], ...]:
     env = cls()
     try:
-        return tuple(env.get_params().items())
+        return tuple(env.get_params(kinds="all").items())
     finally:
         env.close()
 

@@ -117,8 +117,9 @@ class Disruptor(ParamsForwarding, gym.utils.RecordConstructorArgs):
         value = float(np.asarray(value).item())
         return int(value) if self.kind == "steps" else value
 
-    def get_params(self) -> dict[str, float]:
-        return {**self.env.get_wrapper_attr("get_params")(), **self.own_params()}
+    def get_params(self, kinds: Any = None) -> dict[str, float]:
+        """The inner env's parameters (``kinds`` forwarded) and this wrapper's own, always."""
+        return {**ParamsForwarding.get_params(self, kinds), **self.own_params()}
 
     def set_params(self, **params: float) -> None:
         """Set this strength and forward the others; everything is validated before writing."""
