@@ -20,7 +20,10 @@ Fields understood (``FIELDS`` holds units and valid ranges; the README has the s
     ``ALL_GEOMS`` is the floor's.
 ``body_friction``
     the sliding friction ``geom_friction[g, 0]`` of every geom ``g`` of one body (its nominal
-    value is the body's first geom's).
+    value is the body's first geom's). Inert below the friction of what the body touches: MuJoCo
+    gives a contact the larger friction of its two geoms, so Hopper's ``footfriction`` at 0.1,
+    0.5 or 0.9 gives the same episodes as at 1.0, the floor's. To go below, lower the floor
+    first: ``set_params(worldfriction=0.1, footfriction=0.5)`` (in that order).
 ``body_ipos``
     the offset (m, in the body frame) of the body's centre of mass from the model's own
     (``body_ipos[body, component] = nominal + value``; nominal value 0). ``mj_setConst`` follows.
@@ -92,7 +95,13 @@ FIELDS: dict[str, FieldInfo] = {
     "body_mass": FieldInfo("mass", "body_mass[b]", "kg", 0.0, False, 1e9, "body"),
     "geom_friction": FieldInfo("friction", "geom_friction[g, 0]", "-", 0.0, True, 1e6, "geom"),
     "body_friction": FieldInfo(
-        "friction", "geom_friction[g, 0] (the body's geoms)", "-", 0.0, True, 1e6, "body"
+        "friction",
+        "geom_friction[g, 0] (the body's geoms; inert below the friction of the geom touched)",
+        "-",
+        0.0,
+        True,
+        1e6,
+        "body",
     ),
     "body_ipos": FieldInfo(
         "centre-of-mass offset", "body_ipos[b, k] (+ nominal)", "m", -10.0, True, 10.0, "body"

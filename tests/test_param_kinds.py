@@ -240,3 +240,24 @@ def test_info_reports_masses_always_and_other_kinds_once_set():
     env.reset_params()
     _, info = env.reset(seed=1)
     assert "gravity" not in info
+
+
+def test_part_friction_is_inert_below_the_friction_it_touches_as_documented():
+    """MuJoCo takes the larger friction of a contact's two geoms: Hopper's foot below the
+    floor's 1.0 changes nothing, unless the floor is lowered first (README, docs/tasks.md)."""
+    from rrls.envs import RobustHopper
+
+    actions = np.random.default_rng(0).uniform(-1, 1, (300, 3))
+
+    def qpos(**params):
+        env = RobustHopper(**params)
+        env.reset(seed=0)
+        for a in actions:
+            if env.step(a)[2]:
+                break
+        return env.data.qpos.copy()
+
+    inert = [qpos(footfriction=f) for f in (0.1, 0.5, 1.0)]
+    assert all(np.array_equal(q, inert[-1]) for q in inert)
+    acting = [qpos(worldfriction=0.1, footfriction=f) for f in (0.1, 0.9)]
+    assert not np.array_equal(*acting)
