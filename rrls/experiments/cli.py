@@ -64,7 +64,7 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:
     b.add_argument(
         "--split",
         metavar="extrapolation[:F]",
-        help="generalisation protocol (CARL's): every run trains on the inner box of the set (a "
+        help="rrls's own extrapolation split: every run trains on the inner box of the set (a "
         "centred fraction F of each axis, default 0.5), the evaluation covers the whole set and "
         "rrls report gives in- and out-of-distribution worst/average case apart",
     )
