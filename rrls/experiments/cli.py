@@ -51,7 +51,7 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:
         "--physics",
         choices=["v5", "paper"],
         help="v5 (default: Gymnasium v5, rrls's parameter semantics) or paper (the paper's "
-        "Gymnasium v4 envs, worldfriction on the floor only, np.arange mesh) for training and "
+        "Gymnasium v4 envs, the original code's parameter writes, np.arange mesh) for training and "
         "evaluation; recorded in benchmark.json",
     )
     b.add_argument(
@@ -64,7 +64,7 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:
     b.add_argument(
         "--split",
         metavar="extrapolation[:F]",
-        help="generalisation protocol (CARL's): every run trains on the inner box of the set (a "
+        help="rrls's own extrapolation split: every run trains on the inner box of the set (a "
         "centred fraction F of each axis, default 0.5), the evaluation covers the whole set and "
         "rrls report gives in- and out-of-distribution worst/average case apart",
     )

@@ -40,7 +40,7 @@ FORMAT = "rrls-reference"
 VERSION = 1
 #: rrls's default physics: Gymnasium v5 envs, rrls's parameter semantics (docs/differences.md)
 PHYSICS = V5
-#: the paper's: v4 envs, floor-only friction, the ``np.arange`` mesh
+#: the paper's: v4 envs, the original code's writes, the ``np.arange`` mesh
 PAPER_PHYSICS = PAPER
 METRICS = ("worst_case", "average_case", "dynamic")
 COMPARED = ("physics", "uncertainty", "mesh", "endpoint", "episodes")

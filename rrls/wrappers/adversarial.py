@@ -9,6 +9,7 @@ import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
+from rrls.interface import all_params
 from rrls.uncertainty import UncertaintySet
 from rrls.wrappers._checks import check_names, read_point, refuse_empty, split_pair
 from rrls.wrappers.access import ParamsForwarding
@@ -23,7 +24,7 @@ class DynamicAdversarial(ParamsForwarding, gym.utils.RecordConstructorArgs):
     the original's), sets those parameters, then steps with the agent's action. The agent's
     reward is unchanged; ``info["adversarial_reward"]`` is its negation. Parameters return to
     the env's nominal values at every reset. ``get_params()`` returns the game's parameters
-    (those of ``params_bound``), as the original did; ``env.unwrapped.get_params()`` all.
+    (those of ``params_bound``), as the original did; ``get_params(kinds="all")`` all.
 
     ``rate_limit=L`` is the game of Time-Constrained Robust MDPs (Zouitine et al., NeurIPS 2024):
     the adversary's action is still a target point of the box, but the parameter vector moves
@@ -113,13 +114,15 @@ class DynamicAdversarial(ParamsForwarding, gym.utils.RecordConstructorArgs):
         self._current = np.where(free, goal, moved)
         return {n: float(v) for n, v in zip(box.names, values)}
 
-    def get_params(self) -> dict[str, float]:
+    def get_params(self, kinds: Any = None) -> dict[str, float]:
         """The game's parameters: those the adversary controls, at their current values.
 
-        As in the original code, where the parameters nobody set read ``None``; every parameter
-        of the env is ``env.unwrapped.get_params()``.
+        As in the original code, where the parameters nobody set read ``None``; the env's own
+        are ``get_params(kinds="all")`` (or ``env.unwrapped.get_params(kinds="all")``).
         """
-        params = self.env.get_wrapper_attr("get_params")()
+        if kinds is not None:
+            return ParamsForwarding.get_params(self, kinds)
+        params = all_params(self.env)
         return {name: params[name] for name, _, _ in self._bounds if name in params}
 
     def params_of(self, adversary_action: Any) -> dict[str, float]:
