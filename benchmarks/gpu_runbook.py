@@ -63,8 +63,7 @@ class Book:
         tail = log.read_text().strip().splitlines()[-3:]
         self.write(
             f"## {title}: {'ok' if ok else f'FAILED ({code})'} in {wall:.0f} s\n\n"
-            f"`{' '.join(command)}` -> `{log.name}`\n\n"
-            + "".join(f"    {line}\n" for line in tail)
+            f"`{' '.join(command)}` -> `{log.name}`\n\n" + "".join(f"    {line}\n" for line in tail)
         )
         return ok
 
@@ -130,7 +129,8 @@ def main(argv: list[str] | None = None) -> int:
     book = Book(args.out)
     py = sys.executable
     tests = [py, "-m", "pytest", "-q", "-rs", "tests/test_group.py"]
-    book.step("CUDA tests", tests + (["--collect-only"] if args.tiny else []), args.out / "tests.log", 1200)
+    tests += ["--collect-only"] if args.tiny else []  # the dry run: the command, not the GPU
+    book.step("CUDA tests", tests, args.out / "tests.log", 1200)
     speed = [py, "benchmarks/train_speed.py", "--groups", "--algos", "td3", "m2td3"]
     speed += ["--device", args.device, "--ks", *(["1", "2"] if args.tiny else ["1", "8", "32"])]
     if args.tiny:
@@ -143,7 +143,8 @@ def main(argv: list[str] | None = None) -> int:
     menu = TINY_MENU if args.tiny else MENU
     with tempfile.TemporaryDirectory(prefix="rrls-runbook-") as tmp:
         try:
-            per_step = seconds_per_step(args.device, (150, 300) if args.tiny else (1000, 3000), Path(tmp))
+            probes = (150, 300) if args.tiny else (1000, 3000)
+            per_step = seconds_per_step(args.device, probes, Path(tmp))
         except subprocess.CalledProcessError as err:
             book.failed.append("probe")
             book.write(f"## probe: FAILED ({err.returncode}); the smallest budget is used\n")
@@ -165,8 +166,11 @@ def main(argv: list[str] | None = None) -> int:
         ran = book.step("Hopper preset", command, args.out / "hopper.log", 3600)
         if ran:
             report = [py, "-m", "rrls", "report", str(bench), "--export-reference"]
-            report += [str(bench / "reference.json"), "--label", f"rrls hopper preset on "
-                       f"{args.device} ({SEEDS} seeds x {steps:,} steps)"]
+            report += [
+                str(bench / "reference.json"),
+                "--label",
+                f"rrls hopper preset on {args.device} ({SEEDS} seeds x {steps:,} steps)",
+            ]
             book.step("report and reference", report, args.out / "report.log", 600)
         copy_small(bench, args.out / bench.name)
     summary = {"failed": book.failed, "steps": steps, "seconds_per_step": per_step}

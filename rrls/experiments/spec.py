@@ -368,9 +368,9 @@ TRAIN_STEPS_PER_S = {
     "sacdr": 57.0,
 }
 #: the share of a 256-256 learning step that does not scale with the network (dispatch, autograd
-#: nodes, the optimiser's loop, the env step): a step of hidden sizes h costs
-#: ``share + (1 - share) * work(h) / work(256-256)`` of a 256-256 one (``size_factor``) (calibrated on the quick
-#: preset's 64-64 runs against the 256-256 rates above)
+#: nodes, the optimiser's loop, the env step): a step of hidden sizes h costs ``share + (1 -
+#: share) * work(h) / work(256-256)`` of a 256-256 one (``size_factor``; calibrated on the
+#: quick preset's 64-64 runs against the 256-256 rates above)
 FIXED_SHARE = 0.25
 RANDOM_STEPS_PER_S = 2_000.0  # warm-up steps (random actions, no update): env, buffer, logging
 STARTUP_S = 5.0  # per run: a fresh process importing torch, building envs (measured 4-6 s)
@@ -411,6 +411,7 @@ def estimate(spec: Spec, jobs: int, max_episode_steps: int = 1000) -> dict[str, 
 
 def size_factor(hidden: tuple[int, ...]) -> float:
     """A learning step's cost at ``hidden`` relative to the paper's 256-256 (``FIXED_SHARE``)."""
+
     def work(h: tuple[int, ...]) -> int:  # hidden products, plus ~32 inputs and outputs
         return sum(a * b for a, b in zip(h[:-1], h[1:])) + 32 * (h[0] + h[-1]) if h else 64
 
