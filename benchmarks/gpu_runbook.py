@@ -8,11 +8,12 @@ reference at the largest budget that fits, in ~35 minutes, writing only small fi
    GPU) -> ``tests.log``;
 2. the GPU speed table (``benchmarks/train_speed.py --groups --ks 1 8 32 --algos td3 m2td3
    --device cuda``), against the targets of ``docs/protocol.md`` -> ``speed.md``;
-3. two short probes of the slowest baseline's group (M2TD3, 5 seeds of Hopper 3D in one process)
-   give seconds per learning step; with the evaluation's upper bound (every episode at full
-   length on the machine's cores), the largest budget of ``MENU`` whose whole ``hopper`` preset
-   (5 seeds) fits ``--minutes`` is run with ``rrls benchmark``, then ``rrls report`` writes its
-   report, figures and reference file -> ``hopper-<steps>/`` (run files without checkpoints);
+3. two short probes of the five baselines' groups trained at once (5 seeds of Hopper 3D each, as
+   ``rrls benchmark --device cuda`` packs them) give seconds per learning step; with the
+   evaluation's upper bound (every episode at full length, on all the machine's cores), the
+   largest budget of ``MENU`` whose whole ``hopper`` preset (5 seeds) fits ``--minutes`` is run
+   with ``rrls benchmark``, then ``rrls report`` writes its report, figures and reference file
+   -> ``hopper-<steps>/`` (run files without checkpoints);
 4. ``runbook.md``: the machine, each step's command, wall time and outcome.
 
 A step that fails is recorded and the next one still runs; the exit status is 1 if any failed.
@@ -34,7 +35,7 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 MENU = (1_000_000, 500_000, 200_000, 100_000, 50_000)  # steps per run, largest first
 TINY_MENU = (600, 300)
-SEEDS = 5
+SEEDS = 5  # the dry run: 1
 SMALL = 5_000_000  # bytes: run files above this (checkpoints, replay buffers) stay out of OUT
 
 
@@ -87,24 +88,29 @@ def machine() -> str:
     return "\n".join(lines) + "\n"
 
 
-def seconds_per_step(device: str, steps: tuple[int, int], tmp: Path) -> float:
-    """Wall seconds per learning step of a 5-seed M2TD3 group on Hopper 3D (two probes)."""
+def seconds_per_step(device: str, steps: tuple[int, int], seeds: int, tmp: Path) -> float:
+    """Wall seconds per learning step of the whole preset: the five baselines' groups (``seeds``
+    runs each, Hopper 3D) trained at once as ``rrls benchmark`` runs them, at two budgets."""
     walls = []
     for n in steps:
-        command = [sys.executable, "-m", "rrls", "train", "--algo", "m2td3", "--task", "hopper"]
-        command += ["--uncertainty", "3d", "--seeds", f"0-{SEEDS - 1}", "--steps", str(n)]
-        command += ["--learning-starts", "100", "--eval-every", "0", "--device", device]
-        command += ["--out", str(tmp / f"probe-{n}"), "--overwrite"]
         start = time.perf_counter()
-        subprocess.run(command, cwd=ROOT, check=True, capture_output=True)
+        procs = []
+        for algo in ("td3", "dr", "m2td3", "rarl", "nrmdp"):
+            command = [sys.executable, "-m", "rrls", "train", "--algo", algo, "--task", "hopper"]
+            command += ["--uncertainty", "3d", "--seeds", f"0-{seeds - 1}", "--steps", str(n)]
+            command += ["--learning-starts", "100", "--eval-every", "0", "--device", device]
+            command += ["--out", str(tmp / f"probe-{algo}-{n}"), "--overwrite"]
+            procs.append(subprocess.Popen(command, cwd=ROOT, stdout=subprocess.DEVNULL))
+        if any(p.wait() for p in procs):
+            raise RuntimeError("a probe run failed")
         walls.append(time.perf_counter() - start)
     return max(walls[1] - walls[0], 1e-6) / (steps[1] - steps[0])
 
 
 def choose(per_step: float, minutes: float, menu: tuple[int, ...], eval_s: float) -> int:
-    """The largest budget whose 5 cells (trained one after another: one GPU) and evaluation fit."""
+    """The largest budget whose training (the five groups at once) and evaluation fit."""
     for steps in menu:
-        if 5 * steps * per_step + eval_s <= minutes * 60:
+        if steps * per_step + eval_s <= minutes * 60:
             return steps
     return menu[-1]
 
@@ -132,10 +138,11 @@ def main(argv: list[str] | None = None) -> int:
     tests += ["--collect-only"] if args.tiny else []  # the dry run: the command, not the GPU
     book.step("CUDA tests", tests, args.out / "tests.log", 1200)
     speed = [py, "benchmarks/train_speed.py", "--groups", "--algos", "td3", "m2td3"]
-    speed += ["--device", args.device, "--ks", *(["1", "2"] if args.tiny else ["1", "8", "32"])]
+    speed += ["--device", args.device, "--ks", *(["1"] if args.tiny else ["1", "8", "32"])]
     if args.tiny:
         speed += ["--group-steps", "5", "--group-warmup", "5", "--process-steps", "5"]
         speed += ["--learning-starts", "20"]
+    seeds = 1 if args.tiny else SEEDS
     book.step("GPU speed table", speed, args.out / "speed.md", 900)
 
     from rrls.experiments.spec import estimate, make_spec
@@ -144,22 +151,23 @@ def main(argv: list[str] | None = None) -> int:
     with tempfile.TemporaryDirectory(prefix="rrls-runbook-") as tmp:
         try:
             probes = (150, 300) if args.tiny else (1000, 3000)
-            per_step = seconds_per_step(args.device, probes, Path(tmp))
-        except subprocess.CalledProcessError as err:
+            per_step = seconds_per_step(args.device, probes, seeds, Path(tmp))
+        except RuntimeError as err:
             book.failed.append("probe")
-            book.write(f"## probe: FAILED ({err.returncode}); the smallest budget is used\n")
+            book.write(f"## probe: FAILED ({err}); the smallest budget is used\n")
             per_step = float("inf")
-        spec = make_spec("hopper", seeds=SEEDS, steps=menu[-1])
+        spec = make_spec("hopper", seeds=seeds, steps=menu[-1])
         eval_s = estimate(spec, jobs=os.cpu_count() or 1)["eval_s"] / (os.cpu_count() or 1)
         steps = choose(per_step, args.minutes, menu, eval_s)
         book.write(
-            f"## budget\n\n{per_step * 1e3:.2f} ms per learning step of a 5-seed M2TD3 group; "
+            f"## budget\n\n{per_step * 1e3:.2f} ms per learning step of the five baselines' "
+            f"{seeds}-seed groups at once; "
             f"evaluation <= {eval_s / 60:.1f} min on {os.cpu_count()} CPUs: {steps:,} steps "
             f"per run (menu {', '.join(f'{m:,}' for m in menu)}; {args.minutes:g} min)\n"
         )
         bench = Path(tmp) / f"hopper-{steps}"
         command = [py, "-m", "rrls", "benchmark", "--preset", "hopper", "--out", str(bench)]
-        command += ["--seeds", str(SEEDS), "--steps", str(steps), "--device", args.device]
+        command += ["--seeds", str(seeds), "--steps", str(steps), "--device", args.device]
         if args.tiny:
             command += ["--learning-starts", "100", "--mesh", "2", "--episodes", "1"]
             command += ["--eval-every", "0"]
@@ -169,7 +177,7 @@ def main(argv: list[str] | None = None) -> int:
             report += [
                 str(bench / "reference.json"),
                 "--label",
-                f"rrls hopper preset on {args.device} ({SEEDS} seeds x {steps:,} steps)",
+                f"rrls hopper preset on {args.device} ({seeds} seeds x {steps:,} steps)",
             ]
             book.step("report and reference", report, args.out / "report.log", 600)
         copy_small(bench, args.out / bench.name)

@@ -47,6 +47,19 @@ def smoke(tmp_path_factory) -> Path:
 
 
 @needs_torch
+def test_an_exported_reference_says_where_it_came_from(smoke, tmp_path):
+    from rrls.experiments.reference import export_reference, load_reference
+
+    export_reference(smoke, tmp_path / "ref.json")
+    prov = load_reference(tmp_path / "ref.json").provenance
+    assert prov["preset"] == "smoke" and prov["physics"] == "rrls-v5" and prov["runs"] == 5
+    assert prov["seeds"] == [0] and prov["steps"] == 300 and prov["hidden"] == [16, 16]
+    assert all(prov["versions"][k] for k in ("rrls", "torch", "mujoco", "gymnasium", "numpy"))
+    assert prov["devices"] == ["cpu"] and len(prov["machines"]) == 1
+    assert {"cpu", "cores", "simd"} <= set(prov["machines"][0]) and "commits" in prov
+
+
+@needs_torch
 def test_smoke_benchmark_writes_store_and_report(smoke):
     runs = sorted(p.parent.name for p in smoke.glob("runs/*/result.json"))
     assert len(runs) == 5

@@ -242,6 +242,10 @@ def test_exported_reference_normalises_a_benchmark_without_baselines(bench, tmp_
     assert summary["aggregate"]["mine"]["poi_over_td3_worst_case"]["n_tasks"] == 1
     md = (empty / "report" / "report.md").read_text()
     assert "the reference **lab A**" in md and "## Reference: lab A" in md
+    # where the numbers came from: preset, budget, versions, commits, machines of the runs
+    prov = json.loads(Path(ref_path).read_text())["provenance"]
+    assert prov["preset"] == "smoke" and prov["steps"] == 300 and prov["runs"] == len(BASELINES)
+    assert prov["versions"]["mujoco"] and prov["versions"]["rrls"] and ref.provenance == prov
     # CSV holds the same reference
     ref.save(tmp_path / "ref.csv")
     assert load_reference(tmp_path / "ref.csv").rows == ref.rows
