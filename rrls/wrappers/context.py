@@ -1,7 +1,8 @@
 """Context in the observation: the agent sees where it is in the uncertainty set.
 
-TC-RMDP's "oracle" agent and CARL's visible context: the current values of a set's parameters,
-normalised to the set (``[-1, 1]`` per axis), are appended to the observation.
+A visible context: the current values of a set's parameters, normalised to the set (``[-1, 1]``
+per axis), are appended to the observation. TC-RMDP's Oracle protagonist, which sees ψ in
+``[0, 1]`` as its authors normalise it, is ``rrls.wrappers.tc_rmdp.View("oracle")``.
 """
 
 from __future__ import annotations
