@@ -411,9 +411,7 @@ def provenance(root: Path, spec: dict[str, Any], algos: list[str]) -> dict[str, 
     """Where a benchmark's numbers came from, from its spec and its runs' ``run.json``: the
     preset, budget and hyper-parameters, and every rrls commit, library version, machine and
     device that trained a run (more than one value: the runs were produced in pieces)."""
-    from rrls import __version__
-
-    from rrls import rundir
+    from rrls import __version__, rundir
 
     runs: dict[str, Any] = {}
     for directory in sorted(p for p in (root / "runs").glob("*") if p.is_dir()):

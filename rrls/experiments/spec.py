@@ -56,8 +56,14 @@ class Spec:
     device: str = "cpu"
     #: which physics trains and evaluates every run (``rrls.physics``: rrls-v5 or paper-v4)
     physics: str = V5
-    #: RARL's adversary moves at most this much per step (TC-RMDP's game); None: RARL's own
+    #: RARL plays TC-RMDP's game: its adversary moves each parameter by at most this much per
+    #: step, in raw parameter units (``rrls.wrappers.tc_rmdp``); None: RARL's own game
     rate_limit: float | None = None
+    #: the rate-limited game: ``tc`` (the authors') or ``target`` (rrls's earlier one; what a
+    #: benchmark.json written before ``rate_game`` existed played)
+    rate_game: str = "tc"
+    #: the RARL protagonist of the TC-RMDP game: vanilla, stacked or oracle
+    observe: str = "vanilla"
     #: a train/test split of the set (``extrapolation:F``): every run trains on the inner box,
     #: the evaluation covers the whole set and the report gives in/out of distribution apart
     split: str | None = None
@@ -95,6 +101,9 @@ class Spec:
             hyper["normalize_omega"] = self.normalize_omega
         if algo == "rarl" and self.rate_limit is not None:
             hyper["rate_limit"] = self.rate_limit
+            hyper["rate_game"] = self.rate_game
+            if self.observe != "vanilla":
+                hyper["observe"] = self.observe
         return hyper
 
     def protocol(self) -> dict[str, Any]:
@@ -109,6 +118,8 @@ class Spec:
         known = {f.name for f in fields(cls)}
         kw = {k: tuple(v) if isinstance(v, list) else v for k, v in data.items() if k in known}
         kw["physics"] = physics_label(kw.get("physics"))  # older labels read as today's
+        if kw.get("rate_limit") is not None and "rate_game" not in kw:
+            kw["rate_game"] = "target"  # written before TC-RMDP's game: rrls's earlier one
         return cls(**kw)
 
 
@@ -319,6 +330,16 @@ def validate(spec: Spec) -> None:
             raise SpecError(f"--rate-limit must be a finite number > 0, got {spec.rate_limit!r}")
         if "rarl" not in spec.algos:
             raise SpecError("--rate-limit applies to RARL's adversary: add rarl to --algos")
+    from rrls.wrappers.tc_rmdp import OBSERVE, RATE_GAMES
+
+    if spec.rate_game not in RATE_GAMES:
+        raise SpecError(f"rate_game must be one of {', '.join(RATE_GAMES)}, got {spec.rate_game!r}")
+    if spec.observe not in OBSERVE:
+        raise SpecError(f"--observe must be one of {', '.join(OBSERVE)}, got {spec.observe!r}")
+    if spec.observe != "vanilla" and (spec.rate_limit is None or spec.rate_game != "tc"):
+        raise SpecError(
+            f"--observe {spec.observe} is a protagonist of TC-RMDP's game: add --rate-limit R"
+        )
 
 
 def reconcile(out: Path, spec: Spec) -> Spec:

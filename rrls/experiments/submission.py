@@ -203,6 +203,7 @@ def submit(
     an empty one with that preset's protocol on ``task``.
     """
     from rrls.evaluation.policies import as_policy, policy_fingerprint, policy_source
+    from rrls.evaluation.stack import policy_view
     from rrls.tasks import get_task
 
     check_name(algo)
@@ -240,8 +241,11 @@ def submit(
     except (TypeError, ValueError, FileNotFoundError) as err:
         raise SubmitError(str(err)) from None
     obs_shape, act_shape, set_dim = _env_shapes(key, spec.uncertainty, is_paper(spec.physics))
-    check_shapes(adapted, obs_shape, act_shape, "policy", key)
+    view = policy_view(adapted)  # an rrls TC-RMDP Stacked/Oracle protagonist: what it sees
+    seen = obs_shape if view is None else (view.dim(obs_shape[0], act_shape[0]),)
+    check_shapes(adapted, seen, act_shape, "policy", key)
     adv = adv_source = None
+    adv_obs = obs_shape
     if adversary is not None:
         adv_source = policy_source(adversary)
         try:
@@ -253,8 +257,12 @@ def submit(
         if alpha is None:
             alpha = float(meta.get("alpha", 0.1))
         adv_act = (set_dim,) if game == "adversarial" else act_shape
-        check_shapes(adv, obs_shape, adv_act, f"adversary ({game} game)", key)
-    fingerprint = policy_fingerprint(adapted, obs_shape[0])
+        if game == "adversarial" and spec.rate_limit is not None and spec.rate_game == "tc":
+            # TC-RMDP: [ψ01, s], and the protagonist's action when omniscient (the default)
+            omniscient = bool(meta.get("omniscient", True))
+            adv_obs = (set_dim + obs_shape[0] + (act_shape[0] if omniscient else 0),)
+        check_shapes(adv, adv_obs, adv_act, f"adversary ({game} game)", key)
+    fingerprint = policy_fingerprint(adapted, seen[0])
     identity = _identity(source, fingerprint)
 
     run = RunKey(algo, key, seed).name(spec.uncertainty)
@@ -265,7 +273,7 @@ def submit(
         if record is None:
             raise SubmitError(f"{final} is a trained run, not a submission; it is never replaced")
         same_adv = (record.get("adversary") or {}).get("identity") == (
-            _adv_identity(adv_source, adv, obs_shape[0]) if adv is not None else None
+            _adv_identity(adv_source, adv, adv_obs[0]) if adv is not None else None
         )
         if record.get("identity") == identity and same_adv:  # the same policy: nothing to do
             return Submission(final, old, evaluated=False)
@@ -290,7 +298,7 @@ def submit(
         if adv is None
         else {
             **(adv_source or {}),
-            "identity": _adv_identity(adv_source, adv, obs_shape[0]),
+            "identity": _adv_identity(adv_source, adv, adv_obs[0]),
             "game": game,
             "alpha": alpha if game != "adversarial" else None,
         },
@@ -383,10 +391,28 @@ def _dynamic(
         seed=spec.eval_seed,
         alpha=0.1 if alpha is None else float(alpha),
         paper=is_paper(spec.physics),
-        rate_limit=spec.rate_limit if game == "adversarial" else None,
+        **_rate_game(spec, game, policy, adversary),
     )
     atomic_write_table(out / "dynamic.csv", result.episodes)
     return {"dynamic_mean": result.mean, "dynamic_std": result.std, "dynamic_env": result.env_id}
+
+
+def _rate_game(spec: Spec, game: str, policy: Any, adversary: Any) -> dict[str, Any]:
+    """The benchmark's rate-limited game for ``evaluate_dynamic``: TC-RMDP's (or rrls's earlier
+    target game), the protagonist's view and the adversary's omniscience as their files say."""
+    from rrls.evaluation.stack import policy_view
+
+    if game != "adversarial" or spec.rate_limit is None:
+        return {"rate_limit": None}
+    view = policy_view(policy)
+    meta = getattr(adversary, "metadata", None) or {}
+    return {
+        "rate_limit": spec.rate_limit,
+        "rate_game": spec.rate_game,
+        "observe": "vanilla" if view is None else view.observe,
+        "history": 1 if view is None else view.history,
+        "omniscient": bool(meta.get("omniscient", True)),
+    }
 
 
 def _install(root: Path, staging: Path, final: Path, result: dict[str, Any]) -> None:
