@@ -60,6 +60,19 @@ def test_an_exported_reference_says_where_it_came_from(smoke, tmp_path):
 
 
 @needs_torch
+def test_the_report_lists_every_run_with_its_final_nominal_return(smoke):
+    table = pd.read_csv(smoke / "report" / "tables" / "per_run.csv")
+    assert len(table) == 5 and set(table["algorithm"]) == {"td3", "dr", "rarl", "nrmdp", "m2td3"}
+    assert (table["steps"] == 300).all() and table["final_nominal_return"].notna().all()
+    curves = pd.read_parquet(smoke / "results" / "curves.parquet")
+    td3 = curves[(curves["algorithm"] == "td3")].dropna(subset=["eval_nominal_return"])
+    last = td3.sort_values("step")["eval_nominal_return"].iloc[-1]
+    assert table.set_index("algorithm").loc["td3", "final_nominal_return"] == pytest.approx(last)
+    md = (smoke / "report" / "report.md").read_text()
+    assert md.index("## Per run") < md.index("## Dynamic evaluation")
+
+
+@needs_torch
 def test_smoke_benchmark_writes_store_and_report(smoke):
     runs = sorted(p.parent.name for p in smoke.glob("runs/*/result.json"))
     assert len(runs) == 5
@@ -519,3 +532,15 @@ def test_benchmark_split_is_canonical_and_refuses_interpolation():
         make_spec("smoke", split="shell")
     with pytest.raises(SpecError, match="fraction of each axis"):
         make_spec("smoke", split="extrapolation:2")
+
+
+def test_a_benchmark_runs_every_algorithms_first_seed_first():
+    from rrls.experiments.pipeline import groups
+
+    spec = make_spec("smoke", seeds=3)
+    alone = [(k.algo, k.seed) for g in groups(spec.runs(), 1) for k in g]
+    assert alone[:5] == [(a, 0) for a in spec.algos] and alone[5] == (spec.algos[0], 1)
+    packed = groups(spec.runs(), 2)
+    assert [len(g) for g in packed] == [2] * 5 + [1] * 5
+    assert all(len({k.algo for k in g}) == 1 for g in packed)  # a group is one cell
+    assert sorted(k for g in packed for k in g) == sorted(spec.runs())

@@ -40,15 +40,19 @@ def run_dir(root: Path, spec: Spec, key: RunKey) -> Path:
 
 
 def groups(keys: list[RunKey], pack: int) -> list[tuple[RunKey, ...]]:
-    """``keys`` packed into groups of at most ``pack`` runs of one (algorithm, task) cell, in
-    order (``pack=1``: one run per group, the pool's behaviour before packing)."""
+    """``keys`` packed into groups of at most ``pack`` runs of one (algorithm, task) cell, the
+    cells taken in turn (every cell's first group, then every cell's second...), so that a
+    benchmark stopped part-way has every algorithm's first seeds (``pack=1``: ``keys``' order)."""
     cells: dict[tuple[str, str], list[RunKey]] = {}
     for key in keys:
         cells.setdefault((key.algo, key.task), []).append(key)
-    out: list[tuple[RunKey, ...]] = []
-    for members in cells.values():
-        out.extend(tuple(members[i : i + pack]) for i in range(0, len(members), pack))
-    return out
+    chunks = [
+        [tuple(members[i : i + pack]) for i in range(0, len(members), pack)]
+        for members in cells.values()
+    ]
+    return [
+        c[turn] for turn in range(max(map(len, chunks), default=0)) for c in chunks if turn < len(c)
+    ]
 
 
 def default_pack(spec: Spec, pack: int | None) -> int:

@@ -455,6 +455,7 @@ def make_report(root: str | Path, plots: bool = True, reference: Any = None) -> 
     out.mkdir(parents=True, exist_ok=True)
     atomic_write_json(out / "summary.json", summary)
     write_tables(summary, out / "tables", paper)
+    per_run = _per_run(root, out / "tables")
     figures: list[tuple[str, Path]] = []
     if plots:
         try:
@@ -465,8 +466,25 @@ def make_report(root: str | Path, plots: bool = True, reference: Any = None) -> 
         except ImportError as err:  # matplotlib is optional
             figures = []
             summary.setdefault("notes", []).append(f"figures skipped: {err}")
-    atomic_write_bytes(out / "report.md", _markdown(summary, paper, figures, out).encode())
+    text = _markdown(summary, paper, figures, out)
+    if per_run:  # after the static tables: each run's nominal return beside its scores
+        dynamic = "## Dynamic evaluation"
+        text = text.replace(dynamic, "\n".join(per_run) + "\n" + dynamic, 1)
+    atomic_write_bytes(out / "report.md", text.encode())
     return out / "report.md"
+
+
+def _per_run(root: Path, tables: Path) -> list[str]:
+    """``tables/per_run.csv`` and its ``report.md`` section (none for an empty store)."""
+    from rrls._io import atomic_write_table
+    from rrls.experiments.per_run import per_run_lines, per_run_table
+    from rrls.experiments.store import load_store
+
+    table = per_run_table(load_store(root))
+    if not len(table):
+        return []
+    atomic_write_table(tables / "per_run.csv", table)
+    return per_run_lines(table, list(ORDER))
 
 
 def _split_table(summary: dict[str, Any]) -> list[str]:
