@@ -34,8 +34,10 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
 MENU = (1_000_000, 500_000, 200_000, 100_000, 50_000)  # steps per run, largest first
-TINY_MENU = (600, 300)
+TINY_MENU = (400, 200)
 SEEDS = 5  # the dry run: 1
+ALGOS = ("td3", "dr", "m2td3", "rarl", "nrmdp")  # the dry run: TINY_ALGOS
+TINY_ALGOS = ("td3", "rarl")  # one learner, one two-player game (the dynamic evaluation)
 SMALL = 5_000_000  # bytes: run files above this (checkpoints, replay buffers) stay out of OUT
 
 
@@ -88,14 +90,16 @@ def machine() -> str:
     return "\n".join(lines) + "\n"
 
 
-def seconds_per_step(device: str, steps: tuple[int, int], seeds: int, tmp: Path) -> float:
+def seconds_per_step(
+    device: str, steps: tuple[int, int], seeds: int, tmp: Path, algos: tuple[str, ...] = ALGOS
+) -> float:
     """Wall seconds per learning step of the whole preset: the five baselines' groups (``seeds``
     runs each, Hopper 3D) trained at once as ``rrls benchmark`` runs them, at two budgets."""
     walls = []
     for n in steps:
         start = time.perf_counter()
         procs = []
-        for algo in ("td3", "dr", "m2td3", "rarl", "nrmdp"):
+        for algo in algos:
             command = [sys.executable, "-m", "rrls", "train", "--algo", algo, "--task", "hopper"]
             command += ["--uncertainty", "3d", "--seeds", f"0-{seeds - 1}", "--steps", str(n)]
             command += ["--learning-starts", "100", "--eval-every", "0", "--device", device]
@@ -150,8 +154,8 @@ def main(argv: list[str] | None = None) -> int:
     menu = TINY_MENU if args.tiny else MENU
     with tempfile.TemporaryDirectory(prefix="rrls-runbook-") as tmp:
         try:
-            probes = (150, 300) if args.tiny else (1000, 3000)
-            per_step = seconds_per_step(args.device, probes, seeds, Path(tmp))
+            probes, algos = ((150, 200), TINY_ALGOS) if args.tiny else ((1000, 3000), ALGOS)
+            per_step = seconds_per_step(args.device, probes, seeds, Path(tmp), algos)
         except RuntimeError as err:
             book.failed.append("probe")
             book.write(f"## probe: FAILED ({err}); the smallest budget is used\n")
@@ -170,7 +174,7 @@ def main(argv: list[str] | None = None) -> int:
         command += ["--seeds", str(seeds), "--steps", str(steps), "--device", args.device]
         if args.tiny:
             command += ["--learning-starts", "100", "--mesh", "2", "--episodes", "1"]
-            command += ["--eval-every", "0"]
+            command += ["--eval-every", "0", "--algos", ",".join(TINY_ALGOS)]
         ran = book.step("Hopper preset", command, args.out / "hopper.log", 3600)
         if ran:
             report = [py, "-m", "rrls", "report", str(bench), "--export-reference"]
