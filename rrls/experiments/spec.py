@@ -394,7 +394,12 @@ TRAIN_STEPS_PER_S = {
 #: quick preset's 64-64 runs against the 256-256 rates above)
 FIXED_SHARE = 0.25
 RANDOM_STEPS_PER_S = 2_000.0  # warm-up steps (random actions, no update): env, buffer, logging
-STARTUP_S = 5.0  # per run: a fresh process importing torch, building envs (measured 4-6 s)
+STARTUP_S = 8.0  # per run: a fresh process importing torch, building envs (4-6 s alone, ~8 s
+# with a second run starting beside it: the quick preset's 15 runs, 2 at a time, 2026-11-24)
+#: seconds per evaluation step spent in the policy (rrls's exact-order MLP at the lockstep
+#: batches an evaluation runs: ~20-60 us a row), on top of the env's own step
+POLICY_S_PER_STEP = 30e-6
+REPORT_S = 45.0  # once per benchmark: the store, the report and its figures
 ENV_STEPS_PER_S = {
     "ant": 3_600.0,
     "halfcheetah": 21_800.0,
@@ -422,11 +427,15 @@ def estimate(spec: Spec, jobs: int, max_episode_steps: int = 1000) -> dict[str, 
         periodic = n_periodic * (spec.eval_episodes + spec.eval_mesh**dims)
         final = spec.mesh**dims * spec.episodes
         dynamic = spec.dynamic_episodes if key.algo in ("rarl", "nrmdp") else 0
-        evals += (periodic + final + dynamic) * max_episode_steps / env_sps
+        evals += (
+            (periodic + final + dynamic) * max_episode_steps * (1 / env_sps + POLICY_S_PER_STEP)
+        )
     runs = len(spec.runs())
     total = train + evals
-    # whole runs are scheduled, so the wall time is at least the longest run
-    wall = max(total / max(1, min(jobs, runs)), total / runs if runs else 0.0)
+    # whole runs are scheduled, ``jobs`` at a time: ceil(runs / jobs) rounds of a mean run (the
+    # last round may leave cores idle), then the report
+    rounds = -(-runs // max(1, min(jobs, runs))) if runs else 0
+    wall = rounds * (total / runs if runs else 0.0) + REPORT_S
     return {"runs": runs, "train_s": train, "eval_s": evals, "cpu_s": total, "wall_s": wall}
 
 
