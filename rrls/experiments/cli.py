@@ -226,6 +226,16 @@ def _benchmark(args: argparse.Namespace) -> int:
         return _fail("benchmark", "training needs torch: pip install 'rrls[train]'")
     from pathlib import Path
 
+    from rrls.agents import algorithm
+    from rrls.experiments.spec import BUILT_IN
+
+    for name in spec.algos:  # a plug-in that is no learner: one line now, not in a worker
+        if name not in BUILT_IN:
+            try:
+                algorithm(name)
+            except ValueError as err:
+                return _fail("benchmark", str(err))
+
     from rrls.experiments.runner import benchmark
 
     code = benchmark(args.out, spec, jobs or 0, args.backend, args.ray_address, pack=args.pack)
