@@ -5,7 +5,8 @@ differ, the model constants that differ (per-geom friction, masses, damping, gea
 the reward terms reported in ``info``, and the effect on a fixed policy's return: the same
 open-loop action sequence (seeded uniform actions) from the same reset seeds, on the v4 env and
 on the v5 env, and on rrls's robust env with ``worldfriction`` moved away from nominal under each
-semantics (v5: every geom; paper: the floor only). Prints the tables in docs/differences.md.
+semantics (v5: every geom; paper: the original code's write, the floor only on Hopper and
+Walker2d, every geom on HalfCheetah). Prints the tables in docs/differences.md.
 
     python3 benchmarks/physics_differences.py [--episodes 3] [--steps 1000]
 """
@@ -122,7 +123,8 @@ def run(args: argparse.Namespace) -> None:
         if friction:
             print(
                 f"- same policy, worldfriction=0.3: v5 semantics (every geom) "
-                f"{friction[False]:,.1f}, paper semantics (floor only, v4) {friction[True]:,.1f}"
+                f"{friction[False]:,.1f}, paper semantics (the original's write, v4) "
+                f"{friction[True]:,.1f}"
             )
         print()
 

@@ -168,7 +168,7 @@ def build_parser(with_train: bool = True) -> argparse.ArgumentParser:
         choices=["v5", "paper"],
         default=None,
         help="v5 (Gymnasium v5, rrls's parameter semantics) or paper (the paper's Gymnasium v4 "
-        "envs, worldfriction on the floor only, np.arange mesh); default: the physics the "
+        "envs, the original code's parameter writes, np.arange mesh); default: the physics the "
         "policy was trained on (rrls train records it), else v5",
     )
     ev.add_argument(

@@ -20,7 +20,10 @@ Fields understood (``FIELDS`` holds units and valid ranges; the README has the s
     ``ALL_GEOMS`` is the floor's.
 ``body_friction``
     the sliding friction ``geom_friction[g, 0]`` of every geom ``g`` of one body (its nominal
-    value is the body's first geom's).
+    value is the body's first geom's). Inert below the friction of what the body touches: MuJoCo
+    gives a contact the larger friction of its two geoms, so Hopper's ``footfriction`` at 0.1,
+    0.5 or 0.9 gives the same episodes as at 1.0, the floor's. To go below, lower the floor
+    first: ``set_params(worldfriction=0.1, footfriction=0.5)`` (in that order).
 ``body_ipos``
     the offset (m, in the body frame) of the body's centre of mass from the model's own
     (``body_ipos[body, component] = nominal + value``; nominal value 0). ``mj_setConst`` follows.
@@ -92,7 +95,13 @@ FIELDS: dict[str, FieldInfo] = {
     "body_mass": FieldInfo("mass", "body_mass[b]", "kg", 0.0, False, 1e9, "body"),
     "geom_friction": FieldInfo("friction", "geom_friction[g, 0]", "-", 0.0, True, 1e6, "geom"),
     "body_friction": FieldInfo(
-        "friction", "geom_friction[g, 0] (the body's geoms)", "-", 0.0, True, 1e6, "body"
+        "friction",
+        "geom_friction[g, 0] (the body's geoms; inert below the friction of the geom touched)",
+        "-",
+        0.0,
+        True,
+        1e6,
+        "body",
     ),
     "body_ipos": FieldInfo(
         "centre-of-mass offset", "body_ipos[b, k] (+ nominal)", "m", -10.0, True, 10.0, "body"
@@ -119,6 +128,42 @@ FIELDS: dict[str, FieldInfo] = {
 
 #: fields whose change needs MuJoCo's derived constants recomputed (``mj_setConst``)
 SETCONST_FIELDS = frozenset({"body_mass", "body_ipos", "dof_armature", "actuator_gear"})
+
+#: kind name -> the fields it covers, for ``get_params(kinds=...)``
+KINDS: dict[str, tuple[str, ...]] = {
+    "mass": ("body_mass",),
+    "friction": ("geom_friction", "body_friction"),
+    "com": ("body_ipos",),
+    "damping": ("dof_damping",),
+    "armature": ("dof_armature",),
+    "frictionloss": ("dof_frictionloss",),
+    "gear": ("actuator_gear",),
+    "gravity": ("opt_gravity",),
+    "timestep": ("opt_timestep",),
+    "viscosity": ("opt_viscosity",),
+    "force": ("xfrc_applied",),
+}
+#: the original RRLS code's kinds (masses, ``worldfriction``, forces): what ``get_params()``
+#: returns without arguments, so code written for the original runs unchanged
+ORIGINAL_FIELDS = frozenset({"body_mass", "geom_friction", "xfrc_applied"})
+
+
+def kind_fields(kinds: object) -> frozenset[str] | None:
+    """The fields ``get_params(kinds=...)`` returns: None for every field (``"all"``), the
+    original code's for ``None``/``"original"``, else those of the named kinds (a name or an
+    iterable of names of :data:`KINDS`); an unknown name is a ``ValueError`` listing the valid."""
+    if kinds is None or kinds == "original":
+        return ORIGINAL_FIELDS
+    if kinds == "all":
+        return None
+    names = [kinds] if isinstance(kinds, str) else list(kinds)  # type: ignore[call-overload]
+    unknown = [k for k in names if k not in KINDS]
+    if unknown:
+        raise ValueError(
+            f"unknown parameter kind(s) {unknown}; valid: 'all', 'original' or any of "
+            f"{', '.join(KINDS)}"
+        )
+    return frozenset(f for k in names for f in KINDS[k])
 
 
 @dataclass(frozen=True)

@@ -4,8 +4,8 @@ Every result records which physics produced it (``summary.json``, ``run.json``, 
 metadata, ``benchmark.json``, reference files), always with one of these labels:
 
 - ``rrls-v5`` (default): Gymnasium v5 envs with rrls's corrected parameter semantics;
-- ``paper-v4``: the paper's physics (Gymnasium v4 envs, ``worldfriction`` on the floor only,
-  the ``np.arange`` mesh), what ``paper=True`` builds.
+- ``paper-v4``: the paper's physics (Gymnasium v4 envs, the original code's parameter writes:
+  :mod:`rrls.envs.paper`, the ``np.arange`` mesh), what ``paper=True`` builds.
 
 The short names users type (``--physics v5|paper``) and the labels older files wrote are read
 as the same two. Nothing here imports anything: every layer may use it.

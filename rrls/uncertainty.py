@@ -241,7 +241,9 @@ _MAX_REJECTIONS = 100_000_000
 
 @dataclass(frozen=True, eq=False)
 class Split:
-    """A train/test split of a set, declared as data (CARL's generalisation protocol).
+    """A train/test split of a set, declared as data: rrls's own interpolation/extrapolation
+    split, inspired by the generalisation protocols of contextual RL (CARL's code has no such
+    split: its train and test contexts are lists the user samples).
 
     ``region`` is a box inside ``box`` (same names). ``kind="interpolation"``: the region is a
     held-out interior, so training covers the set minus the region and testing the region;

@@ -532,20 +532,21 @@ def test_rarl_trains_against_a_rate_limited_adversary_and_is_evaluated_in_that_g
     )
     meta = MLPPolicy.load(out / "adversary.npz").metadata
     assert meta["rate_limit"] == 0.05 and meta["game"] == "adversarial"
+    assert meta["rate_game"] == "tc" and meta["omniscient"] is True  # the authors' defaults
+    assert meta["observe"] == "vanilla" and meta["obs_dim"] == 2 + 4 + 1  # [ψ01, s] and a
+    assert MLPPolicy.load(out / "policy.npz").obs_dim == 4
     assert json.loads((out / "run.json").read_text())["hyperparameters"]["rate_limit"] == 0.05
     result = evaluate_run_dynamic(out, episodes=1)
-    assert "rate_limit=0.05" in result.env_id
-    # the training game: the parameters move at most 0.05 per step, in normalised units
+    assert "rate_limit=0.05, rate_game=tc" in result.env_id
+    # the training game: each parameter moves at most 0.05 per step, in raw units
     game = rarl.make_env("invertedpendulum", "2d", rarl.Config(rate_limit=0.05))
     box = game.uncertainty_set
-    game.reset(seed=0)
-    before = box.normalize(box.to_array(game.get_params()))
-    for _ in range(20):
-        game.step((np.zeros(1), np.ones(2)))
-        now = box.normalize(box.to_array(game.get_params()))
-        assert np.abs(now - before).max() <= 0.05 + 1e-9
-        before = now
-    assert now.max() > 0.5  # it did move towards the corner
+    _, info = game.reset(seed=0)
+    start = info["psi"]
+    for t in range(1, 21):
+        *_, info = game.step((np.zeros(1), np.ones(2)))
+        assert np.allclose(info["psi"], np.minimum(start + 0.05 * t, box.high), atol=1e-12)
+        assert np.allclose(box.to_array(game.get_params()), info["psi"], atol=0)
 
 
 def test_rate_limit_is_refused_for_algorithms_without_an_adversary(tmp_path, capsys):

@@ -94,12 +94,22 @@ def test_observation_delay_shows_the_observation_of_k_steps_ago():
 
 def test_action_delay_executes_the_action_of_k_steps_ago():
     late = run(ActionDelay(RobustHopper(), steps=2))
-    assert np.all(late["ctrl"][:2] == 0)
+    # realworldrl_suite's buffer starts full of the first action (realworld_env.py:57-66)
+    np.testing.assert_array_equal(late["ctrl"][:3], [ACTIONS[0]] * 3)
     n = len(late["ctrl"])
     np.testing.assert_array_equal(late["ctrl"][2:], ACTIONS[: n - 2])
     # the physics is that of the delayed actions on the bare env
-    shifted = np.concatenate([np.zeros((2, 3)), ACTIONS[:-2]])
+    shifted = np.concatenate([[ACTIONS[0]] * 2, ACTIONS[:-2]])
     assert np.array_equal(run(RobustHopper(), actions=shifted)["qpos"][:n], late["qpos"])
+
+
+def test_action_delay_prefills_each_episode_with_its_own_first_action():
+    env = ActionDelay(RobustHopper(), steps=3)
+    for episode, first in enumerate((0.25, -0.75)):
+        env.reset(seed=episode)
+        acts = [first, 0.5, -0.5, 0.1, 0.2]
+        executed = [float(env.step(np.full(3, a))[-1]["executed_action"][0]) for a in acts]
+        assert executed == [first, first, first, first, 0.5], episode
 
 
 def test_action_noise_reaches_mujoco_and_stays_in_bounds():

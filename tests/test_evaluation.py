@@ -50,6 +50,7 @@ def plain_loop(env_id: str, policy, params: dict, seed: int, max_steps: int) -> 
 STEPS = {"ant": 150, "halfcheetah": 300, "humanoidstandup": 100}
 
 
+@pytest.mark.exactness
 @pytest.mark.parametrize("task", TASK_KEYS)
 def test_rows_equal_the_plain_loop(task):
     policy = _policy(task)
@@ -78,6 +79,7 @@ def test_force_set_and_nominal_equal_the_plain_loop(uncertainty):
         assert len(result.episodes) == 1 and result.param_names == []
 
 
+@pytest.mark.exactness
 def test_results_do_not_depend_on_workers_or_batch_size():
     policy = _policy("walker")
     runs = [
@@ -160,6 +162,7 @@ def test_work_stealing_keeps_every_worker_busy_and_balanced():
     assert len(rows[0]) > len(rows[15])  # the first to start stole from the last
 
 
+@pytest.mark.exactness
 def test_results_do_not_depend_on_the_work_split_or_chunk_size(tmp_path):
     """Rows depend only on their seed: any workers, lanes or saving chunk give the same columns."""
     policy = _policy("hopper")
@@ -353,6 +356,7 @@ def test_mlp_policy_file_round_trip_and_refusals(tmp_path):
         policy(np.zeros((2, 7)))
 
 
+@pytest.mark.exactness
 def test_mlp_policy_is_batch_invariant_at_large_batches():
     policy = MLPPolicy.random(17, 6, seed=0)  # 256-256, the benchmark's size
     obs = np.random.default_rng(4).normal(size=(1000, 17))
@@ -372,6 +376,7 @@ def test_bad_arguments():
 
 
 # -- worst-case search -------------------------------------------------------------------------
+@pytest.mark.exactness
 def test_search_worst_case_trace_budget_and_consistency():
     from rrls.evaluation import search_worst_case
 

@@ -40,6 +40,7 @@ def assert_rows_equal_plain_loop(result: EvaluationResult, wrap, policy) -> None
         assert (row.length, row[result.episodes.columns.get_loc("return")]) == (length, ret)
 
 
+@pytest.mark.exactness
 @pytest.mark.parametrize("workers", [1, 2])
 def test_disruptor_strengths_meshed_jointly_with_dynamics(workers):
     box = UncertaintySet.from_bounds({"torsomass": (1.0, 5.0), "obsnoise": (0.0, 0.2)})

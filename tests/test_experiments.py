@@ -47,6 +47,19 @@ def smoke(tmp_path_factory) -> Path:
 
 
 @needs_torch
+def test_an_exported_reference_says_where_it_came_from(smoke, tmp_path):
+    from rrls.experiments.reference import export_reference, load_reference
+
+    export_reference(smoke, tmp_path / "ref.json")
+    prov = load_reference(tmp_path / "ref.json").provenance
+    assert prov["preset"] == "smoke" and prov["physics"] == "rrls-v5" and prov["runs"] == 5
+    assert prov["seeds"] == [0] and prov["steps"] == 300 and prov["hidden"] == [16, 16]
+    assert all(prov["versions"][k] for k in ("rrls", "torch", "mujoco", "gymnasium", "numpy"))
+    assert prov["devices"] == ["cpu"] and len(prov["machines"]) == 1
+    assert {"cpu", "cores", "simd"} <= set(prov["machines"][0]) and "commits" in prov
+
+
+@needs_torch
 def test_smoke_benchmark_writes_store_and_report(smoke):
     runs = sorted(p.parent.name for p in smoke.glob("runs/*/result.json"))
     assert len(runs) == 5
@@ -434,6 +447,7 @@ def test_a_paper_physics_benchmark_trains_evaluates_and_records_it(tmp_path, cap
     # (with RARL against TC-RMDP's rate-limited adversary: trained and evaluated in that game)
     out = tmp_path / "paper"
     args = [*SMOKE, "--algos", "rarl", "--jobs", "1", "--out", str(out), "--rate-limit", "0.1"]
+    args += ["--observe", "oracle"]
     assert main([*args, "--physics", "paper"]) == 0
     assert json.loads((out / "benchmark.json").read_text())["physics"] == "paper-v4"
     (run,) = (out / "runs").iterdir()
@@ -442,8 +456,10 @@ def test_a_paper_physics_benchmark_trains_evaluates_and_records_it(tmp_path, cap
     assert summary["physics"] == "paper-v4" and summary["endpoint"] is False
     result = json.loads((run / "result.json").read_text())
     assert result["physics"] == "paper-v4" and result["dynamic_env"].endswith("[paper-v4]")
-    assert "rate_limit=0.1" in result["dynamic_env"]
-    assert json.loads((run / "run.json").read_text())["hyperparameters"]["rate_limit"] == 0.1
+    assert "rate_limit=0.1, rate_game=tc, observe=oracle" in result["dynamic_env"]
+    hyper = json.loads((run / "run.json").read_text())["hyperparameters"]
+    assert (hyper["rate_limit"], hyper["rate_game"], hyper["observe"]) == (0.1, "tc", "oracle")
+    assert "protagonist_view" in summary  # the static evaluation showed it [s, ψ01] too
     capsys.readouterr()
     assert main(args) == 2  # the same directory on rrls's physics: another protocol
     assert "physics: 'paper-v4' there, 'rrls-v5' now" in capsys.readouterr().err
@@ -458,6 +474,16 @@ def test_benchmark_rate_limit_is_rarls_alone_and_checked():
         make_spec("smoke", rate_limit=-1.0)
     with pytest.raises(SpecError, match="add rarl to --algos"):
         make_spec("smoke", algos="td3", rate_limit=0.1)
+    # TC-RMDP's game by default, its protagonist variants, rrls's earlier game for old files
+    spec = make_spec("smoke", rate_limit=0.05, observe="stacked")
+    assert spec.hyperparameters("rarl")["rate_game"] == "tc"
+    assert spec.hyperparameters("rarl")["observe"] == "stacked"
+    with pytest.raises(SpecError, match="--observe stacked is a protagonist of TC-RMDP's game"):
+        make_spec("smoke", observe="stacked")
+    old = {k: v for k, v in make_spec("smoke", rate_limit=0.05).to_json().items()}
+    del old["rate_game"], old["observe"]
+    assert Spec.from_json(old).rate_game == "target"
+    assert Spec.from_json({**old, "rate_limit": None}).rate_game == "tc"
 
 
 @needs_torch

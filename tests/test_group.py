@@ -26,6 +26,12 @@ from rrls.agents.seeds import RunSeeds  # noqa: E402
 
 ALGOS = ["td3", "dr", "rarl", "nrmdp", "m2td3", "sac", "sacdr"]
 TOL = 1e-5  # |alone - in a group| per parameter, after each update (measured: 0.0)
+# ... and after a whole 400-step run of 12-12 networks. Measured on AMD EPYC (AVX2): SAC-DR
+# 1.8e-7, the others <= 6e-8 (elementwise kernels such as fused Adam round a vector's tail apart
+# from its body, and a run's slice sits elsewhere in a group's tensor); before a lone run's
+# one-output layers took the batched kernel (rrls.agents.nets.Linear): 2.1e-4 (TD3, 1 000
+# updates of 32-32 networks).
+RUN_TOL = 1e-6
 
 
 def _config(tmp_path, algo, seed, name, steps=400, **extra):
@@ -68,13 +74,14 @@ def _close_run(a, b, tol) -> bool:
     return x.keys() == y.keys() and all(np.allclose(x[k], y[k], rtol=0, atol=tol) for k in x)
 
 
+@pytest.mark.exactness
 @pytest.mark.parametrize("algo", ALGOS)
 def test_a_run_alone_and_in_groups(tmp_path, algo):
     alone = train(_config(tmp_path, algo, 1, "alone", threads=1))
     group = train_group([_config(tmp_path, algo, s, "group", threads=2) for s in (0, 1, 2)])
     again = train_group([_config(tmp_path, algo, s, "again", threads=2) for s in (0, 1, 2)])
-    # 300 updates of tiny networks: the per-update tolerance, compounded, still holds here
-    assert _close_run(alone, group[1], 100 * TOL)
+    # a whole run (300 updates) alone and in a group: within RUN_TOL (docs/protocol.md)
+    assert _close_run(alone, group[1], RUN_TOL)
     assert all(_same_run(a, b) for a, b in zip(group, again))  # the same group: bit for bit
     assert not _close_run(group[0], group[1], 1e-3)  # the seeds do differ
 
@@ -129,6 +136,7 @@ def _transitions(seed, n=600, obs_dim=11, act_dim=3):
     )
 
 
+@pytest.mark.exactness
 @pytest.mark.parametrize("algo", ["td3", "sac"])
 @pytest.mark.parametrize("threads", [1, 2])
 def test_per_update_alone_vs_group_within_tolerance_at_the_papers_shapes(algo, threads):

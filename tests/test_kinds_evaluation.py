@@ -18,7 +18,7 @@ def _lane_params(cls) -> list[dict[str, float]]:
     first = {}
     for spec in cls.param_specs:
         first.setdefault(spec.field, spec.name)
-    nominal = cls().get_params()
+    nominal = cls().get_params(kinds="all")
     return [
         {"timestep": nominal["timestep"] * 1.3, "gravity": 7.0},
         {first["dof_damping"]: 3.0, first["actuator_gear"]: nominal[first["actuator_gear"]] * 0.6},

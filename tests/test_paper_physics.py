@@ -1,4 +1,4 @@
-"""paper=True: the paper's physics (Gymnasium v4 envs, worldfriction on the floor only, the
+"""paper=True: the paper's physics (Gymnasium v4 envs, the original code's writes, the
 np.arange mesh) on demand; the default stays v5 with rrls's semantics; results record which."""
 
 from __future__ import annotations

@@ -53,7 +53,7 @@ def _policy(obs: np.ndarray) -> np.ndarray:
 def test_registered_task_makes_every_id_with_nominal_values_from_the_model():
     env = gym.make("rrls/robust-usertask-v0")
     model = env.unwrapped.model
-    params = env.get_params()
+    params = env.get_params(kinds="all")
     assert params["pole2mass"] == model.body_mass[body_id(model, "pole2")]
     assert params["hingedamping"] == 0.05  # the XML's value, read, not declared
     assert type(env.unwrapped) is ROBUST_ENVS["usertask"]

@@ -138,7 +138,8 @@ def test_context_observation_appends_the_normalised_parameters():
 
 
 def test_context_follows_the_adversary_and_the_schedule():
-    seen = ContextObservation(DynamicAdversarial(RobustHopper(), BOX, rate_limit=0.1), BOX)
+    target = DynamicAdversarial(RobustHopper(), BOX, rate_limit=0.1, rate_game="target")
+    seen = ContextObservation(target, BOX)
     seen.reset(seed=0)
     for _ in range(5):
         obs, *_, info = seen.step((np.zeros(3), np.array([1.0, -1.0])))
@@ -157,7 +158,7 @@ def test_aliases_are_read_through_their_parameter():
     alias = {"torsoforce_z": (-2.0, 2.0)}  # on planar tasks _z is an alias of _y (vertical)
     seen = ContextObservation(ForceHopper(torsoforce_y=1.0), alias)
     assert seen.reset(seed=0)[0][-1] == 0.5
-    game = DynamicAdversarial(ForceHopper(), alias, rate_limit=0.1)
+    game = DynamicAdversarial(ForceHopper(), alias, rate_limit=0.1, rate_game="target")
     _, info = game.reset(seed=0)
     assert info["normalized_params"].tolist() == [0.0]
     drift = ScheduledParams(ForceHopper(), alias, Drift(rate=0.25))

@@ -223,6 +223,23 @@ def test_adversary_adds_the_dynamic_evaluation(bench):
         submit(bench, "other", "invertedpendulum", 0, linear(0, 5, 0, 1), wrong)
 
 
+def test_a_tc_benchmarks_adversary_sees_psi_the_state_and_the_action(tmp_path):
+    # TC-RMDP's game (--rate-limit): the omniscient adversary observes [ψ01, s, a]
+    root = tmp_path / "tc"
+    spec = create_benchmark(root, "smoke", ("invertedpendulum",), rate_limit=0.01)
+    assert spec.rate_game == "tc"
+    dim = 1 + 4 + 1  # the smoke set's one parameter, the state, the protagonist's action
+    adversary = MLPPolicy.random(obs_dim=dim, act_dim=1, hidden=(8,), seed=3)
+    done = submit(root, "mine", "invertedpendulum", 0, linear(0, 5, 0, 1), adversary, workers=1)
+    assert (
+        "rate_limit=0.01, rate_game=tc, observe=vanilla, omniscient=True"
+        in (done.result["dynamic_env"])
+    )
+    blind = MLPPolicy.random(obs_dim=4, act_dim=1, hidden=(8,), seed=3)
+    with pytest.raises(SubmitError, match=r"adversary .* observations \(B, 6\)"):
+        submit(root, "other", "invertedpendulum", 0, linear(0, 5, 0, 1), blind)
+
+
 # --- reference results ------------------------------------------------------------------------
 def test_exported_reference_normalises_a_benchmark_without_baselines(bench, tmp_path):
     report(bench)
@@ -242,6 +259,10 @@ def test_exported_reference_normalises_a_benchmark_without_baselines(bench, tmp_
     assert summary["aggregate"]["mine"]["poi_over_td3_worst_case"]["n_tasks"] == 1
     md = (empty / "report" / "report.md").read_text()
     assert "the reference **lab A**" in md and "## Reference: lab A" in md
+    # where the numbers came from: preset, budget, versions, commits, machines of the runs
+    prov = json.loads(Path(ref_path).read_text())["provenance"]
+    assert prov["preset"] == "smoke" and prov["steps"] == 300 and prov["runs"] == len(BASELINES)
+    assert prov["versions"]["mujoco"] and prov["versions"]["rrls"] and ref.provenance == prov
     # CSV holds the same reference
     ref.save(tmp_path / "ref.csv")
     assert load_reference(tmp_path / "ref.csv").rows == ref.rows

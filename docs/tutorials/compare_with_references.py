@@ -9,8 +9,8 @@ A reference file holds what someone measured under one protocol — per task, se
 the worst / average case over seeds — with the physics, mesh, episodes and budget it was
 measured on. rrls ships two:
 
-- ``paper``: the RRLS paper's tables. They were produced on *other physics* (v4 envs, floor-only
-  friction, the ``np.arange`` mesh; docs/differences.md), so rrls refuses them as a reference for
+- ``paper``: the RRLS paper's tables. They were produced on *other physics* (v4 envs, the original
+  code's parameter writes, the ``np.arange`` mesh; docs/differences.md), so rrls refuses them as a reference for
   a benchmark on its own physics — they are context, not a yardstick.
 - ``quick``: TD3, DR, RARL, NR-MDP and M2TD3 trained and evaluated by rrls itself with the
   ``quick`` preset (InvertedPendulum, 1D set, 20 k steps, mesh 10 x 5 episodes, 2 seeds).

@@ -137,7 +137,7 @@ class TrainConfig:
     split: str | None = hp(
         None,
         "train on the inner part of the set only: extrapolation[:F] (the centred box, a "
-        "fraction F of each axis, default 0.5; CARL's generalisation protocol): every algorithm "
+        "fraction F of each axis, default 0.5; rrls's own extrapolation split): every algorithm "
         "that trains on the set (DR, M2TD3, RARL, SAC-DR) sees only that box, and the "
         "evaluations still cover the whole set, the rest being out of distribution",
     )
@@ -174,7 +174,7 @@ class TrainConfig:
     physics: str = hp(
         "v5",
         "v5 (Gymnasium v5 envs, rrls's parameter semantics) or paper (the paper's Gymnasium v4 "
-        "envs, worldfriction on the floor only; the paper's six tasks)",
+        "envs, the original code's parameter writes; the paper's six tasks)",
         choices=["v5", "paper"],
     )
     track: bool = hp(False, "also log to Weights & Biases (needs wandb installed)")

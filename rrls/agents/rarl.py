@@ -14,10 +14,18 @@ only the adversary learns.
   ``n_pro_itr = n_adv_itr = 1`` TRPO iteration per player, each on a fresh batch of
   ``batch_size = 4000`` env steps collected with both players acting; here a phase is those
   4 000 env steps, each followed by one off-policy update of the learning player.
-- **Rate limit.** ``rate_limit=L`` (``rrls train --algo rarl --rate-limit L``) plays the game of
-  Time-Constrained Robust MDPs (Zouitine et al., NeurIPS 2024): the adversary's parameter vector
-  moves at most ``L`` per step in the set's normalised units (``DynamicAdversarial(...,
-  rate_limit=L)``); the saved adversary records ``L``, so the dynamic evaluation replays that game.
+- **Rate limit.** ``rate_limit=R`` (``rrls train --algo rarl --rate-limit R``) plays
+  Time-Constrained Robust MDPs (Zouitine et al., NeurIPS 2024) as the authors' code does
+  (``SuReLI/TCRMDP``, ``src/tc_mdp.py``; :mod:`rrls.wrappers.tc_rmdp`): the adversary moves
+  every parameter by ``a · R`` per step in raw units (``ψ ← clip(ψ + a · R, box)``; the
+  authors train with ``R = 0.001``), episodes start uniformly in the box, the adversary
+  observes ``[ψ01, s]`` and, ``omniscient`` (the authors' default), the protagonist's action of
+  the step (``trainer.py:369-414``; for a stored transition's next state, the protagonist's
+  noise-free action there, where the authors draw a fresh noisy one). The protagonist is the
+  paper's Vanilla (``s``), Stacked (``--observe stacked``, the last ``--history`` states and
+  actions) or Oracle (``--observe oracle``, ``s`` and ψ01). ``--rate-game target`` is rrls's
+  earlier game (``R`` in normalised units towards a target point). The saved policies record
+  the game, so the dynamic and static evaluations replay it.
 - The final adversary is saved (``adversary.npz``) for the dynamic evaluation (paper Table 6).
 """
 
@@ -36,6 +44,7 @@ from rrls.agents.nets import to_mlp_policy
 from rrls.agents.replay import ReplayBuffer, transition_fields
 from rrls.agents.seeds import NumpyGenerators, RunSeeds
 from rrls.agents.td3 import TD3, TD3Config
+from rrls.wrappers.tc_rmdp import OBSERVE, RATE_GAMES
 
 
 @dataclass
@@ -45,8 +54,28 @@ class Config(TD3Config):
     phase_steps: int = hp(4000, "env steps per phase (protagonist, then adversary, ...)")
     rate_limit: float | None = hp(
         None,
-        "TC-RMDP's rate-limited adversary: the parameters move at most this much per step, in "
-        "the set's normalised units (default: none, RARL's unconstrained game)",
+        "TC-RMDP's time-constrained adversary: each step it moves every parameter by at most "
+        "this much, in raw parameter units (psi <- clip(psi + a * R, box), a in [-1, 1]; the "
+        "authors train with 0.001); default: none, RARL's unconstrained game",
+    )
+    rate_game: str | None = hp(
+        None,
+        "the rate-limited game: tc (TC-RMDP's, as its authors play it; the default) or target "
+        "(rrls's earlier game: R in [-1, 1]-normalised units towards a target point, episodes "
+        "starting at the nominal point, both players seeing the state)",
+        choices=list(RATE_GAMES),
+    )
+    observe: str | None = hp(
+        None,
+        "TC-RMDP's protagonist: vanilla (the state; the default), stacked (the last --history "
+        "states and actions too) or oracle (the state and the parameters in [0, 1])",
+        choices=list(OBSERVE),
+    )
+    history: int | None = hp(None, "--observe stacked: states and actions kept (default 1)")
+    omniscient: bool | None = hp(
+        None,
+        "TC-RMDP's adversary also observes the protagonist's action of the step (default: on, "
+        "as in the authors' training scripts)",
     )
 
     def __post_init__(self) -> None:
@@ -59,17 +88,58 @@ class Config(TD3Config):
             and 0 < self.rate_limit < float("inf")
         ):
             raise ValueError(
-                f"rate_limit must be a finite number > 0 (normalised units per step), "
+                f"rate_limit must be a finite number > 0 (raw parameter units per step), "
                 f"got {self.rate_limit!r}"
             )
+        if self.rate_game not in (None, *RATE_GAMES):
+            raise ValueError(
+                f"rate_game must be one of {', '.join(RATE_GAMES)}, got {self.rate_game!r}"
+            )
+        if self.observe not in (None, *OBSERVE):
+            raise ValueError(f"observe must be one of {', '.join(OBSERVE)}, got {self.observe!r}")
+        h = self.history
+        if h is not None and (isinstance(h, bool) or not isinstance(h, int) or h < 1):
+            raise ValueError(f"history must be an integer >= 1, got {h!r}")
+        if self.rate_game is not None and self.rate_limit is None:
+            raise ValueError(f"rate_game={self.rate_game!r} needs rate_limit (--rate-limit R)")
+        tc_only = {
+            "observe": self.observe not in (None, "vanilla"),
+            "history": h is not None,
+            "omniscient": self.omniscient is not None,
+        }
+        for name in [n for n, given in tc_only.items() if given and not self.tc]:
+            raise ValueError(
+                f"{name}={getattr(self, name)!r} applies to TC-RMDP's game: give rate_limit "
+                "(--rate-limit R) with rate_game tc"
+            )
+        if h is not None and self.observe != "stacked":
+            raise ValueError(f"history={h!r} applies to observe='stacked', got {self.observe!r}")
+
+    @property
+    def tc(self) -> bool:
+        """Whether the game is TC-RMDP's (a rate limit, rate_game tc or default)."""
+        return self.rate_limit is not None and (self.rate_game or "tc") == "tc"
 
 
 def make_env(task: str, uncertainty: Any, config: Config, paper: bool = False) -> Any:
     """The two-player game over the set: parameters (``1d/2d/3d``) or forces (``rarl``), the
-    adversary's moves rate-limited if ``config.rate_limit`` is set."""
+    adversary's moves rate-limited if ``config.rate_limit`` is set (TC-RMDP)."""
+    from rrls.envs import resolve
     from rrls.wrappers import DynamicAdversarial
 
-    return DynamicAdversarial(*task_env(task, uncertainty, paper), rate_limit=config.rate_limit)
+    if config.observe == "oracle" and resolve(task, uncertainty).family == "force":
+        raise ValueError(
+            "observe='oracle' shows the protagonist the parameters it is evaluated on; the "
+            "force set (--uncertainty rarl) is evaluated on parameter sets, whose envs have no "
+            "forces: train the oracle on a parameter set (1d, 2d, 3d)"
+        )
+    return DynamicAdversarial(
+        *task_env(task, uncertainty, paper),
+        rate_limit=config.rate_limit,
+        rate_game=config.rate_game or "tc",
+        observe=config.observe or "vanilla",
+        history=config.history or 1,
+    )
 
 
 PLAYERS = ("", "adversary.")  # generator names: the protagonist's, the adversary's
@@ -79,48 +149,73 @@ class Learner(_Learner):
     """Two TD3 players, one replay buffer each (the adversary's rewards negated), per run."""
 
     def __init__(self, env: Any, config: Config, seeds: list[RunSeeds], device: Any) -> None:
-        obs_dim = env.observation_space.shape[0]
+        n = env.observation_space.shape[0]
         self.spaces = env.action_space.spaces
         self.config = config
+        try:  # each player's part of the observation (TC-RMDP: the env's ``views``)
+            views = env.get_wrapper_attr("views")
+        except AttributeError:
+            views = ((0, n), (0, n))
+        self.slices = tuple(slice(lo, hi) for lo, hi in views)
+        self.omniscient = config.tc and config.omniscient is not False
+        extra = self.spaces[0].shape[0] if self.omniscient else 0
+        self.obs_dims = (views[0][1] - views[0][0], views[1][1] - views[1][0] + extra)
         self.players = [
-            TD3(obs_dim, s.low, s.high, config, seeds, device, name=name)
-            for s, name in zip(self.spaces, PLAYERS)
+            TD3(dim, s.low, s.high, config, seeds, device, name=name)
+            for dim, s, name in zip(self.obs_dims, self.spaces, PLAYERS)
         ]
         self.buffers = [
             ReplayBuffer(
                 config.buffer_size,
-                transition_fields(obs_dim, s.shape),
+                transition_fields(dim, s.shape),
                 device,
                 seeds,
                 purpose=name + "replay",
             )
-            for s, name in zip(self.spaces, PLAYERS)
+            for dim, s, name in zip(self.obs_dims, self.spaces, PLAYERS)
         ]
         self.rngs = [NumpyGenerators(seeds, name + "explore") for name in PLAYERS]
         self._update = Update(self._compute, device)
         # the game the policies record (the set: the run's ``uncertainty``); the dynamic
-        # evaluation (``evaluate_run_dynamic``) reads it back to replay the same game
+        # evaluation (``evaluate_run_dynamic``) reads it back to replay the same game, the
+        # static one the protagonist's view
         self.game: dict[str, Any] = {"game": "adversarial"}
         if config.rate_limit is not None:
             self.game["rate_limit"] = float(config.rate_limit)
+            self.game["rate_game"] = config.rate_game or "tc"
+        if config.tc:
+            self.game.update(env.get_wrapper_attr("view").to_metadata())
+            self.game["omniscient"] = self.omniscient
+
+    def _seen(self, i: int, obs: np.ndarray, agent: np.ndarray | None) -> np.ndarray:
+        """Player ``i``'s observations (the omniscient adversary's with ``agent``'s actions)."""
+        part = np.ascontiguousarray(obs[:, self.slices[i]])
+        if i == 1 and self.omniscient:
+            part = np.concatenate([part, agent], axis=1)
+        return part
 
     def act(self, obs: np.ndarray) -> list[Any]:
         cfg, per_player = self.config, []
-        for player, rngs, space in zip(self.players, self.rngs, self.spaces):
+        for i, (player, rngs, space) in enumerate(zip(self.players, self.rngs, self.spaces)):
             sigma = (space.high - space.low) / 2 * cfg.exploration_noise
             noise = np.stack([rng.normal(0.0, sigma) for rng in rngs])
-            action = np.clip(player.act(obs) + noise, space.low, space.high)
+            seen = self._seen(i, obs, per_player[0] if per_player else None)
+            action = np.clip(player.act(seen) + noise, space.low, space.high)
             per_player.append(action.astype(np.float32))
         return list(zip(*per_player))
 
     def observe(self, obs, actions, rewards, next_obs, terminated, infos) -> None:  # noqa: ANN001
         # zero-sum: the adversary learns from -reward; truncation bootstraps for both
+        agent = np.stack([a[0] for a in actions]).astype(np.float32)
+        after = None
+        if self.omniscient:  # the protagonist's noise-free action at the next state
+            after = self.players[0].act(self._seen(0, next_obs, None)).astype(np.float32)
         for i, (buffer, sign) in enumerate(zip(self.buffers, (1.0, -1.0))):
             buffer.add(
-                obs=obs,
+                obs=self._seen(i, obs, agent),
                 action=np.stack([a[i] for a in actions]),
                 reward=sign * rewards,
-                next_obs=next_obs,
+                next_obs=self._seen(i, next_obs, after),
                 terminated=terminated,
             )
 
@@ -165,6 +260,6 @@ class Learner(_Learner):
 
     def export(self, k: int) -> dict[str, Any]:
         return {
-            name: to_mlp_policy(p.actor, k, self.game)
-            for name, p in zip(("policy", "adversary"), self.players)
+            name: to_mlp_policy(p.actor, k, {**self.game, "obs_dim": dim})
+            for name, p, dim in zip(("policy", "adversary"), self.players, self.obs_dims)
         }

@@ -27,6 +27,7 @@ from rrls import rundir
 from rrls._io import atomic_write_json
 from rrls.agents.common import Interrupted, TrainConfig, benchmark_set, jsonable
 from rrls.physics import is_paper, physics_label
+from rrls.provenance import machine, source_commit
 
 
 def versions() -> dict[str, str]:
@@ -306,6 +307,11 @@ class Run:
             "seed": self.config.seed,
             "run_dir": str(self.dir),
             "versions": versions(),
+            "provenance": {
+                "commit": source_commit(),
+                "machine": machine(),
+                "device": self.config.device,
+            },
         }
 
     # -- the end ----------------------------------------------------------------------------

@@ -7,7 +7,10 @@ the nominal task and evaluated over the uncertainty set like TD3.
   loss ``Σ_i mean((Q_i(s, a) - y)²)``.
 - Actor, every ``policy_frequency`` updates, as many steps (CleanRL's delayed update):
   ``mean(α log π(ã|s) - min_i Q_i(s, ã))``, ``ã ~ π(s)`` reparameterised.
-- Temperature (``autotune``): ``log α`` descends ``-α (log π(ã|s) + H̄)``, ``H̄ = -dim(A)``.
+- Temperature (``autotune``): ``log α`` descends ``-α (log π(ã|s) + H̄)``, ``H̄ = -dim(A)``,
+  from ``log α = 0`` (α₀ = 1), as CleanRL (``sac_continuous_action.py:205``, ``log_alpha =
+  torch.zeros(1)``); without ``autotune`` α stays at ``entropy_coef`` (CleanRL's ``alpha``,
+  0.2, used only then: ``:63``, ``:209``).
 - Targets: Polyak averaging every ``target_network_frequency`` updates.
 - Acting: a sample of the squashed Gaussian policy (the loop does the uniform warm-up); the
   exported policy for evaluation is its mean, ``tanh(μ(s))`` scaled to the box.
@@ -42,7 +45,9 @@ class Config:
     learning_starts: int = hp(5_000, "uniformly random steps before learning starts")
     policy_frequency: int = hp(2, "critic updates per (burst of) policy updates")
     target_network_frequency: int = hp(1, "critic updates per Polyak step")
-    entropy_coef: float = hp(0.2, "SAC's temperature α (initial value when autotuned)")
+    entropy_coef: float = hp(
+        0.2, "SAC's temperature α with --no-autotune (autotuned runs start at α = 1, as CleanRL)"
+    )
     autotune: bool = hp(True, "learn α towards the target entropy -dim(A)")
     batch_size: int = hp(256, "replay batch size")
     buffer_size: int = hp(1_000_000, "replay capacity (transitions)")
@@ -91,7 +96,8 @@ class Learner(_Learner):
         self.actor_opt = adam(self.actor.parameters(), config.policy_lr, device)
         self.critic_opt = adam(self.critic.parameters(), config.q_lr, device)
         self.targets, self.sources = [*self.critic_target.parameters()], [*self.critic.parameters()]
-        start = math.log(config.entropy_coef)
+        # CleanRL: autotuned from log α = 0 (α₀ = 1); the fixed α only without autotune
+        start = 0.0 if config.autotune else math.log(config.entropy_coef)
         self.log_alpha = torch.full((len(seeds),), start, device=device, requires_grad=True)
         self.alpha_opt = adam([self.log_alpha], config.q_lr, device)
         self.target_entropy = -float(act_dim)

@@ -5,8 +5,8 @@ further kind of its task table (friction, centre of mass, joints, gears, gravity
 ``Force<Task>`` exposes ``<body>force_x/_y/_z`` external forces. Both are the Gymnasium v5 env
 with a ``set_params``/``get_params`` interface on top (see :mod:`rrls.envs.base`); the classes
 are built from the task declarations (:func:`rrls.register_task`) on first use.
-``Robust<Task>(paper=True)`` builds ``PaperRobust<Task>``: the paper's physics (the v4 env,
-``worldfriction`` on the floor only) for the paper's six tasks.
+``Robust<Task>(paper=True)`` builds ``PaperRobust<Task>``: the paper's physics (the v4 env and
+the original code's writes, :mod:`rrls.envs.paper`) for the paper's six tasks.
 
 >>> from rrls.envs import RobustHopper, HopperParamsBound
 >>> env = RobustHopper(torsomass=2.0)
@@ -27,6 +27,7 @@ from typing import Any
 import numpy as np
 
 from rrls.envs.base import ModifiedParamsMixin
+from rrls.envs.paper import paper_specs
 from rrls.params import check_bounds
 from rrls.tasks import TASKS, TaskSpec, get_task
 from rrls.uncertainty import UncertaintySet
@@ -40,12 +41,15 @@ _CLASSES: dict[tuple[str, str, bool], tuple[TaskSpec, type]] = {}
 
 def _env_class(task: TaskSpec, kind: str, paper: bool = False) -> type:
     """``Robust<Task>`` (kind "robust") or ``Force<Task>`` (kind "force"), built once per task;
-    ``paper``: ``PaperRobust<Task>``/``PaperForce<Task>`` on the paper's physics (v4 env,
-    ``worldfriction`` on the floor only), what ``Robust<Task>(paper=True)`` builds."""
+    ``paper``: ``PaperRobust<Task>``/``PaperForce<Task>`` on the paper's physics (v4 env, the
+    original code's writes: :mod:`rrls.envs.paper`), what ``Robust<Task>(paper=True)`` builds."""
     cached = _CLASSES.get((task.key, kind, paper))
     if cached is not None and cached[0] is task:
         return cached[1]
-    specs = task.params if kind == "robust" else task.forces
+    if paper:
+        specs = paper_specs(task, kind)
+    else:
+        specs = task.params if kind == "robust" else task.forces
     name = f"{'Paper' if paper else ''}{kind.capitalize()}{task.name}"
     what = "physical parameters" if kind == "robust" else "external forces (world frame, N)"
     masses = [s.name for s in specs if s.field in ("body_mass", "xfrc_applied")]
@@ -185,7 +189,7 @@ FAMILY_ENVS: dict[str, Mapping[str, type]] = {"robust": ROBUST_ENVS, "force": FO
 def _nominal(cls: type) -> tuple[tuple[str, float], ...]:
     env = cls()
     try:
-        return tuple(env.get_params().items())
+        return tuple(env.get_params(kinds="all").items())
     finally:
         env.close()
 

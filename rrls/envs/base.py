@@ -9,14 +9,15 @@ bit-identical to ``gym.make("Hopper-v5")``.
 from __future__ import annotations
 
 import contextlib
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Iterable, Iterator
 from typing import Any, ClassVar
 
 import mujoco
 import numpy as np
 from gymnasium.utils import EzPickle
 
-from rrls.params import SETCONST_FIELDS, ParamSpec
+from rrls.envs.paper import NO_SETCONST
+from rrls.params import SETCONST_FIELDS, ParamSpec, kind_fields
 from rrls.tasks import TaskSpec
 
 _FORCES = "xfrc_applied"
@@ -58,8 +59,9 @@ class ModifiedParamsMixin:
     """Adds the ``ModifiedParamsEnv`` interface to a Gymnasium MuJoCo env.
 
     Parameters are set by constructor keywords, :meth:`set_params` (partial updates) or
-    ``reset(options={...})``; :meth:`get_params` returns all of them. ``info`` at reset and at
-    every step carries the current values of the original code's kinds (masses,
+    ``reset(options={...})``; :meth:`get_params` returns the original code's kinds (masses,
+    ``worldfriction``, forces), ``get_params(kinds="all")`` every parameter. ``info`` at reset
+    and at every step carries the current values of the original code's kinds (masses,
     ``worldfriction``, forces) and of every parameter set since the model was built: copying
     all ~30-140 rows into every step's ``info`` would cost up to 10 % of a step.
     ``scale_inertia=True`` scales a body's inertia with its mass (default: the paper's
@@ -68,7 +70,7 @@ class ModifiedParamsMixin:
 
     task: ClassVar[TaskSpec]
     param_specs: ClassVar[tuple[ParamSpec, ...]]
-    #: built on the paper's physics (the v4 env, ``worldfriction`` on the floor only)
+    #: built on the paper's physics (the v4 env and the original code's writes: rrls.envs.paper)
     paper: ClassVar[bool] = False
     #: the class of the same task and family on the paper's physics (None: there is none)
     paper_twin: ClassVar[Callable[[], type] | None] = None
@@ -104,11 +106,10 @@ class ModifiedParamsMixin:
         self.scale_inertia = bool(scale_inertia)
         model = self.model
         self._rows = {s.name: (s, s.resolve(model)) for s in self.param_specs}
-        if self.paper:  # the paper's code wrote worldfriction to the floor (first world geom) only
-            floor = np.flatnonzero(model.geom_bodyid == 0)[:1]
-            for name, (spec, _) in list(self._rows.items()):
-                if spec.field == "geom_friction" and spec.target == "*":
-                    self._rows[name] = (spec, floor)
+        # the paper's physics writes masses as the original did: body_mass alone (rrls.envs.paper)
+        self._setconst = SETCONST_FIELDS - NO_SETCONST if self.paper else SETCONST_FIELDS
+        if self.scale_inertia:  # a scaled inertia needs its derived constants, paper or not
+            self._setconst = SETCONST_FIELDS
         self._saved = {f: getattr(model, f).copy() for f in _SAVED}
         self._mass0 = self._saved["body_mass"]
         self._inertia0 = self._saved["body_inertia"]
@@ -144,9 +145,29 @@ class ModifiedParamsMixin:
         return tuple(s.name for s in cls.param_specs)
 
     # -- the ModifiedParamsEnv interface ------------------------------------------------------
-    def get_params(self) -> dict[str, float]:
-        """All parameters and their current values."""
-        return dict(self._values)
+    def get_params(self, kinds: str | Iterable[str] | None = None) -> dict[str, float]:
+        """Parameters and their current values: by default the original code's kinds (masses,
+        ``worldfriction``, forces), so code written for it runs unchanged (setting every value
+        it returns to 1 stays valid); ``kinds="all"`` every parameter, or the kinds named
+        (``"damping"``, ``("mass", "gear")``: :data:`rrls.params.KINDS`).
+
+        On the planar force envs the original's ``<part>force_z`` is listed too, by default (an
+        alias of ``_y``: both push along the vertical axis). A task with none of the original's
+        kinds (a user's task of joint rows only) returns every parameter by default.
+        """
+        fields = kind_fields(kinds)
+        values = self._values
+        if fields is None:
+            return dict(values)
+        original = kinds is None or kinds == "original"
+        out: dict[str, float] = {}
+        for spec in self.param_specs:
+            if spec.field in fields:
+                out[spec.name] = values[spec.name]
+                if original:  # the original's spelling of every row
+                    for alias in spec.aliases:
+                        out[alias] = values[spec.name]
+        return out if out or not original else dict(values)
 
     def set_params(self, **params: float) -> None:
         """Set some parameters; the others keep their values.
@@ -161,7 +182,7 @@ class ModifiedParamsMixin:
         for name, value in updates.items():
             spec, idx = self._rows[name]
             self._write(spec, idx, value)
-            set_const |= spec.field in SETCONST_FIELDS
+            set_const |= spec.field in self._setconst
             friction |= spec.field in _FRICTION
         if set_const:
             try:
@@ -181,6 +202,8 @@ class ModifiedParamsMixin:
                     info[spec.name] = value
         for name in updates:
             info[name] = self._values[name]
+            for alias in self._rows[name][0].aliases:  # the original's spelling too (_z)
+                info[alias] = info[name]
         for name, value in updates.items():  # latest last, so copies replay in the same order
             self._overrides.pop(name, None)
             self._overrides[name] = value
@@ -206,7 +229,14 @@ class ModifiedParamsMixin:
             self.set_params(**self._init_params)
 
     def _info_values(self) -> dict[str, float]:
-        return {s.name: self._values[s.name] for s in self.param_specs if s.field in _INFO_FIELDS}
+        """The original code's kinds, as ``get_params()`` names them (planar ``_z`` included)."""
+        info = {}
+        for s in self.param_specs:
+            if s.field in _INFO_FIELDS:
+                info[s.name] = self._values[s.name]
+                for alias in s.aliases:
+                    info[alias] = info[s.name]
+        return info
 
     def _validate(self, params: dict[str, Any]) -> dict[str, float]:
         names = self._names()

@@ -5,7 +5,8 @@ parameter set or the RARL force set) or perturbing the action (``ProbabilisticAc
 NR-MDP/PR-MDP). Episodes run in lockstep (both policies called once per step on the batch);
 each episode ``e`` starts from ``reset(seed=seeds[e])``, so a row equals the one-episode loop
 ``env.reset(seed=seed)`` then ``env.step((protagonist(obs[None])[0], adversary(obs[None])[0]))``
-on ``make_dynamic_env(...)``.
+on ``make_dynamic_env(...)`` (in the TC-RMDP game each player on its part of ``obs``,
+``env.views``, the omniscient adversary also on the protagonist's action).
 """
 
 from __future__ import annotations
@@ -71,26 +72,47 @@ def make_dynamic_env(
     rate_limit: float | None = None,
     context: bool = False,
     paper: bool = False,
+    *,
+    rate_game: str = "tc",
+    observe: str = "vanilla",
+    history: int = 1,
 ) -> Any:
     """The two-player env: the registered id, or ``ProbabilisticActionRobust`` with ``alpha``.
 
-    For the parameter game, ``rate_limit=L`` is TC-RMDP's rate-limited adversary (the parameters
-    move at most ``L`` per step in the set's normalised units) and ``context=True`` appends the
-    parameters in force, normalised to the set, to the shared observation (TC-RMDP's oracle);
-    ``uncertainty`` may then also be an ``UncertaintySet``. This is the env both training (RARL
-    ``--rate-limit``) and :func:`evaluate_dynamic` play. ``paper=True``: on the paper's physics.
+    For the parameter game, ``rate_limit=r`` is TC-RMDP's game as its authors play it
+    (``DynamicAdversarial``, ``rate_game="tc"``): the adversary moves ψ by ``a · r`` per step
+    in raw units, episodes start uniformly in the box, the flat observation holds the
+    protagonist's view (``observe``: vanilla, stacked with ``history``, oracle) then the
+    adversary's ``[ψ01, s]`` (``env.views``). ``rate_game="target"``: rrls's earlier game
+    (``r`` in normalised units towards a target point). ``context=True`` appends the
+    parameters in force, normalised to ``[-1, 1]``, to the shared observation of the other
+    parameter games (in the TC game the Oracle protagonist is ``observe="oracle"``);
+    ``uncertainty`` may then also be an ``UncertaintySet``. This is the env both training
+    (RARL ``--rate-limit``) and :func:`evaluate_dynamic` play. ``paper=True``: the paper's
+    physics.
 
-    >>> env = make_dynamic_env("hopper", uncertainty="2d", rate_limit=0.05, context=True)
-    >>> env.observation_space.shape, env.get_wrapper_attr("rate_limit")
-    ((13,), 0.05)
+    >>> env = make_dynamic_env("hopper", uncertainty="2d", rate_limit=0.01, observe="oracle")
+    >>> env.observation_space.shape, env.get_wrapper_attr("views")
+    ((26,), ((0, 13), (13, 26)))
     """
     import gymnasium as gym
 
     kw = {"paper": True} if paper else {}
-    if game != "adversarial" and (rate_limit is not None or context):
-        raise ValueError("rate_limit and context apply to the parameter game (game='adversarial')")
+    tc = rate_limit is not None and rate_game == "tc"
+    if game != "adversarial" and (rate_limit is not None or context or observe != "vanilla"):
+        raise ValueError(
+            "rate_limit, observe and context apply to the parameter game (game='adversarial')"
+        )
+    if tc and context:
+        raise ValueError(
+            "context=True is not part of the TC-RMDP game: its Oracle protagonist is "
+            "observe='oracle' (ψ in [0, 1]); the adversary always sees ψ"
+        )
     if game == "adversarial" and (
-        rate_limit is not None or context or not isinstance(uncertainty, str)
+        rate_limit is not None
+        or context
+        or observe != "vanilla"
+        or not isinstance(uncertainty, str)
     ):
         from rrls.envs import resolve
         from rrls.wrappers import ContextObservation, DynamicAdversarial
@@ -99,7 +121,14 @@ def make_dynamic_env(
         if resolved.is_nominal:
             raise ValueError("the nominal model has no parameters for an adversary to play")
         base = gym.make(f"rrls/{resolved.family}-{resolved.task}-v0", **kw)
-        env = DynamicAdversarial(base, resolved.box, rate_limit=rate_limit)
+        env = DynamicAdversarial(
+            base,
+            resolved.box,
+            rate_limit=rate_limit,
+            rate_game=rate_game,
+            observe=observe,
+            history=history,
+        )
         return ContextObservation(env, resolved.box) if context else env
     env_id = dynamic_env_id(task, game, uncertainty)
     if game == "adversarial":
@@ -124,13 +153,21 @@ def evaluate_dynamic(
     rate_limit: float | None = None,
     context: bool = False,
     paper: bool = False,
+    *,
+    rate_game: str = "tc",
+    observe: str = "vanilla",
+    history: int = 1,
+    omniscient: bool = True,
 ) -> DynamicResult:
     """Mean ± std return of ``protagonist`` while ``adversary`` plays the game every step.
 
     Both are policies ``obs[B, obs_dim] -> actions``: the adversary's actions live in its own
     space (``[-1, 1]^k`` for the parameter game, the agent's action box for NR/PR-MDP).
-    ``rate_limit`` and ``context``: see :func:`make_dynamic_env` (TC-RMDP's game and oracle);
-    ``paper=True``: on the paper's physics (``env_id`` then ends in ``[paper-v4]``).
+    ``rate_limit``, ``rate_game``, ``observe``, ``history`` and ``context``: see
+    :func:`make_dynamic_env`. In the TC-RMDP game each player gets its part of the flat
+    observation, and an ``omniscient`` adversary (the authors' default) also the protagonist's
+    action of the step: ``adversary([ψ01, s, a])``. ``paper=True``: on the paper's physics
+    (``env_id`` then ends in ``[paper-v4]``).
     """
     import pandas as pd
 
@@ -139,11 +176,28 @@ def evaluate_dynamic(
 
     if episodes < 1:
         raise ValueError(f"episodes must be >= 1, got {episodes}")
-    extras = {"rate_limit": rate_limit, "context": context}
-    if rate_limit is None and not context and isinstance(uncertainty, str):
+    tc = game == "adversarial" and rate_limit is not None and rate_game == "tc"
+    extras = {
+        "rate_limit": rate_limit,
+        "context": context,
+        "rate_game": rate_game,
+        "observe": observe,
+        "history": history,
+    }
+    if rate_limit is None and not context and observe == "vanilla" and isinstance(uncertainty, str):
         env_id = dynamic_env_id(task, game, uncertainty)
+    elif tc:
+        shown = f"stacked, history={history}" if observe == "stacked" else observe
+        env_id = (
+            f"{task}-adversarial ({uncertainty}, rate_limit={rate_limit}, rate_game=tc, "
+            f"observe={shown}, omniscient={bool(omniscient)})"
+        )
     else:
-        env_id = f"{task}-adversarial ({uncertainty}, rate_limit={rate_limit}, context={context})"
+        target = "" if rate_limit is None else ", rate_game=target"
+        env_id = (
+            f"{task}-adversarial ({uncertainty}, rate_limit={rate_limit}{target}, "
+            f"context={context})"
+        )
     if paper:
         env_id += f" [{PAPER}]"
     extras["paper"] = paper
@@ -151,6 +205,7 @@ def evaluate_dynamic(
     seeds = episode_seeds(seed, 1, episodes)[0]
     n_lanes = max(1, min(batch_size, episodes))
     envs = [make_dynamic_env(task, game, uncertainty, alpha, **extras) for _ in range(n_lanes)]
+    (p0, p1), (a0, a1) = envs[0].get_wrapper_attr("views") if tc else ((0, None), (0, None))
     returns, lengths = np.zeros(episodes), np.zeros(episodes, dtype=np.int64)
     queue = iter(range(episodes))
     lane_ep = np.full(n_lanes, -1)
@@ -167,8 +222,11 @@ def evaluate_dynamic(
     while (lane_ep >= 0).any():
         live = np.flatnonzero(lane_ep >= 0)
         batch = np.stack([obs[lane] for lane in live])
-        agent = _actions(protagonist(batch), "protagonist", len(live))
-        adv = _actions(adversary(batch), "adversary", len(live))
+        agent = _actions(protagonist(batch[:, p0:p1]), "protagonist", len(live))
+        seen = batch[:, a0:a1]
+        if tc and omniscient:  # the authors' omniscient adversary (trainer.py:407-414)
+            seen = np.concatenate([seen, agent], axis=1)
+        adv = _actions(adversary(seen), "adversary", len(live))
         for j, lane in enumerate(live):
             e = lane_ep[lane]
             obs[lane], reward, terminated, truncated, _ = envs[lane].step((agent[j], adv[j]))
@@ -187,6 +245,24 @@ def evaluate_dynamic(
     return DynamicResult(env_id, frame)
 
 
+def game_options(meta: dict[str, Any]) -> dict[str, Any]:
+    """The rate-limited game a saved adversary records, as :func:`evaluate_dynamic` keywords.
+
+    A run of rrls before the TC-RMDP game recorded ``rate_limit`` alone: its game is
+    ``rate_game="target"``, replayed as it was trained.
+    """
+    if meta.get("rate_limit") is None:
+        return {"rate_limit": None, "context": bool(meta.get("context", False))}
+    return {
+        "rate_limit": float(meta["rate_limit"]),
+        "context": bool(meta.get("context", False)),
+        "rate_game": meta.get("rate_game") or "target",
+        "observe": meta.get("observe") or "vanilla",
+        "history": int(meta.get("history") or 1),
+        "omniscient": bool(meta.get("omniscient", True)),
+    }
+
+
 def evaluate_run_dynamic(
     run_dir: str | Path, episodes: int = 10, seed: int = 0, batch_size: int = 64
 ) -> DynamicResult:
@@ -194,8 +270,9 @@ def evaluate_run_dynamic(
 
     ``run_dir`` is a RARL or NR-/PR-MDP run of ``rrls train``: ``policy.npz`` and
     ``adversary.npz``, whose metadata name the task, the game and the set (or alpha) it played,
-    and, for a rate-limited adversary (TC-RMDP), ``rate_limit`` (and ``context`` if the policies
-    observed the parameters), and its ``physics``: it is evaluated in the game it was trained in.
+    and, for a rate-limited adversary (TC-RMDP), ``rate_limit``, ``rate_game``, ``observe``,
+    ``history`` and ``omniscient`` (:func:`game_options`), and its ``physics``: it is evaluated
+    in the game it was trained in.
     """
     from rrls.evaluation.policies import MLPPolicy
 
@@ -219,9 +296,8 @@ def evaluate_run_dynamic(
         seed=seed,
         alpha=float(meta.get("alpha", 0.1)),
         batch_size=batch_size,
-        rate_limit=None if meta.get("rate_limit") is None else float(meta["rate_limit"]),
-        context=bool(meta.get("context", False)),
         paper=is_paper(meta.get("physics")),
+        **game_options(meta),
     )
 
 

@@ -235,6 +235,7 @@ def evaluate(
     context: bool = False,
     split: Split | None = None,
     paper: bool = False,
+    view: Any = None,
 ) -> EvaluationResult:
     """Evaluate ``policy`` over a uniform mesh of ``task``'s uncertainty set (paper §4).
 
@@ -246,10 +247,10 @@ def evaluate(
     same arguments resumes; ``summary.json`` and the episode table are written at the end.
     ``max_episode_steps`` defaults to the task's episode length (1000 for the paper's tasks).
     ``paper=True`` runs the paper's protocol on the paper's physics: the Gymnasium v4 envs with
-    ``worldfriction`` on the floor only, and (unless ``endpoint`` says otherwise) the original
-    code's ``np.arange`` mesh, which stops short of the upper bounds. The default is Gymnasium
-    v5 with rrls's parameter semantics and a mesh reaching both bounds; ``summary.json`` records
-    which (``physics``).
+    the original code's parameter writes (:mod:`rrls.envs.paper`), and (unless ``endpoint`` says
+    otherwise) the original code's ``np.arange`` mesh, which stops short of the upper bounds. The
+    default is Gymnasium v5 with rrls's parameter semantics and a mesh reaching both bounds;
+    ``summary.json`` records which (``physics``).
 
     Beyond static dynamics (the README section of that name):
 
@@ -261,16 +262,24 @@ def evaluate(
     * ``context=True`` appends the set's normalised parameters to the observation (a policy
       trained with :class:`~rrls.wrappers.ContextObservation`);
     * ``split``: a :class:`~rrls.uncertainty.Split` of the set; rows get ``in_distribution`` and
-      the result the worst/average case in and out of distribution.
+      the result the worst/average case in and out of distribution;
+    * ``view``: what a TC-RMDP Stacked or Oracle protagonist observes
+      (:class:`~rrls.wrappers.tc_rmdp.View`); by default the one the policy's metadata records
+      (``rrls train --algo rarl --rate-limit R --observe ...``), so it sees what it trained on.
 
     Rows stay equal to the one-episode loop on the same wrapper stack
     (``env.set_params(**point); env.reset(seed=seed)``).
     """
     from rrls.envs import paper_class
     from rrls.evaluation import runner
+    from rrls.evaluation.policies import as_policy
+    from rrls.evaluation.stack import policy_view
     from rrls.tasks import get_task
 
-    mesh_box, resolved, stack = _plan(task, uncertainty, disruptors, schedule, context)
+    policy = as_policy(policy)
+    if view is None:
+        view = policy_view(policy)
+    mesh_box, resolved, stack = _plan(task, uncertainty, disruptors, schedule, context, view)
     if max_episode_steps is None:
         max_episode_steps = get_task(resolved.task).max_episode_steps
     if endpoint is None:
@@ -341,6 +350,7 @@ def _plan(
     disruptors: Mapping[str, float | Sequence[float]] | None,
     schedule: Any,
     context: bool,
+    view: Any = None,
 ) -> tuple[UncertaintySet, Any, Any]:
     """(the box of the mesh's names, the resolved physical set, the wrapper stack).
 
@@ -424,6 +434,7 @@ def _plan(
         schedule=None if schedule is None else schedule.schedule,
         schedule_set=None if schedule is None else resolved.box,
         context=(resolved.box if schedule is not None else mesh_box) if context else None,
+        view=view,
     )
     if context and stack.context.dim == 0:
         raise ValueError("context=True needs a non-empty set whose parameters to show")

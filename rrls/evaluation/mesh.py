@@ -15,6 +15,7 @@ from typing import Any
 
 import numpy as np
 
+from rrls.interface import all_params
 from rrls.uncertainty import UncertaintySet
 
 Bounds = Mapping[str, Sequence[float]] | UncertaintySet
@@ -88,7 +89,7 @@ class EvaluationSet(MutableSequence):
         slot = self._slots[i]
         if isinstance(slot, _Lazy):
             return dict(slot.params)
-        return dict(slot.get_params())
+        return dict(all_params(slot))
 
     def __len__(self) -> int:
         return len(self._slots)

@@ -97,13 +97,20 @@ def _search(
 
     from rrls.evaluation import runner
     from rrls.evaluation.evaluate import prepare_policy, rollout_table
+    from rrls.evaluation.policies import as_policy
+    from rrls.evaluation.stack import EnvStack, policy_view
 
     key, box, kind = resolved.task, resolved.box, resolved.family
+    policy = as_policy(policy)
+    view = policy_view(policy)  # a TC-RMDP Stacked/Oracle protagonist sees what it trained on
+    stack = None if view is None else EnvStack(view=view)
     dim = box.dim
     size = int(popsize or max(8, 5 * dim))
     size = min(size, budget)
     common = runner.episode_seeds(seed, 1, episodes)  # the same seeds for every candidate
-    probe = runner.RolloutSpec(key, kind, box.names, box.nominal[None], common, max_episode_steps)
+    probe = runner.RolloutSpec(
+        key, kind, box.names, box.nominal[None], common, max_episode_steps, stack
+    )
     policy, _ = prepare_policy(policy, probe)
     records: list[dict[str, Any]] = []
 
@@ -113,9 +120,8 @@ def _search(
         values = np.full(len(points), np.inf)  # over budget: never selected
         run = box.clip(points[: max(0, left)])
         if len(run):
-            spec = runner.RolloutSpec(
-                key, kind, box.names, run, np.repeat(common, len(run), axis=0), max_episode_steps
-            )
+            seeds = np.repeat(common, len(run), axis=0)
+            spec = runner.RolloutSpec(key, kind, box.names, run, seeds, max_episode_steps, stack)
             table = rollout_table(spec, policy, workers)
             means = table.groupby("point")["return"].mean().to_numpy()
             generation = len(records) and records[-1]["generation"] + 1

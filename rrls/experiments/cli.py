@@ -51,20 +51,28 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:
         "--physics",
         choices=["v5", "paper"],
         help="v5 (default: Gymnasium v5, rrls's parameter semantics) or paper (the paper's "
-        "Gymnasium v4 envs, worldfriction on the floor only, np.arange mesh) for training and "
+        "Gymnasium v4 envs, the original code's parameter writes, np.arange mesh) for training and "
         "evaluation; recorded in benchmark.json",
     )
     b.add_argument(
         "--rate-limit",
         type=float,
         metavar="L",
-        help="RARL trains against (and is evaluated with) TC-RMDP's rate-limited adversary: "
-        "the parameters move at most L per step in the set's normalised units",
+        help="RARL trains against (and is evaluated with) TC-RMDP's time-constrained adversary, "
+        "as its authors play it: each step it moves every parameter by at most L in raw "
+        "parameter units (psi <- clip(psi + a * L, box); the authors train with 0.001), "
+        "episodes start uniformly in the box, the adversary sees psi and the state",
+    )
+    b.add_argument(
+        "--observe",
+        choices=["vanilla", "stacked", "oracle"],
+        help="with --rate-limit: RARL's protagonist is TC-RMDP's vanilla (the state; default), "
+        "stacked (the previous state and action too) or oracle (the state and psi in [0, 1])",
     )
     b.add_argument(
         "--split",
         metavar="extrapolation[:F]",
-        help="generalisation protocol (CARL's): every run trains on the inner box of the set (a "
+        help="rrls's own extrapolation split: every run trains on the inner box of the set (a "
         "centred fraction F of each axis, default 0.5), the evaluation covers the whole set and "
         "rrls report gives in- and out-of-distribution worst/average case apart",
     )
@@ -207,6 +215,7 @@ def _spec_from(args: argparse.Namespace) -> tuple:
         device=args.device,
         physics=getattr(args, "physics", None),
         rate_limit=getattr(args, "rate_limit", None),
+        observe=getattr(args, "observe", None),
         split=getattr(args, "split", None),
     )
     jobs = args.jobs or (None if args.backend == "ray" else default_jobs())

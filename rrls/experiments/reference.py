@@ -40,7 +40,7 @@ FORMAT = "rrls-reference"
 VERSION = 1
 #: rrls's default physics: Gymnasium v5 envs, rrls's parameter semantics (docs/differences.md)
 PHYSICS = V5
-#: the paper's: v4 envs, floor-only friction, the ``np.arange`` mesh
+#: the paper's: v4 envs, the original code's writes, the ``np.arange`` mesh
 PAPER_PHYSICS = PAPER
 METRICS = ("worst_case", "average_case", "dynamic")
 COMPARED = ("physics", "uncertainty", "mesh", "endpoint", "episodes")
@@ -70,6 +70,9 @@ class Reference:
     notes: str = ""
     rows: list[dict[str, Any]] = field(default_factory=list)
     path: str | None = None
+    #: where the numbers came from: preset, budget, hyper-parameters, rrls commit, the library
+    #: versions and machines of the runs (``export_reference``); shown by the report
+    provenance: dict[str, Any] = field(default_factory=dict)
 
     @property
     def sets(self) -> list[str]:
@@ -109,6 +112,7 @@ class Reference:
             "eval_seed": self.eval_seed,
             "versions": dict(self.versions),
             "file": self.path,
+            "provenance": dict(self.provenance),
         }
 
     # --- files ---------------------------------------------------------------------------------
@@ -119,6 +123,7 @@ class Reference:
             **{k: getattr(self, k) for k in _META},
             "versions": dict(self.versions),
             "notes": self.notes,
+            "provenance": self.provenance,
             "rows": [_clean_row(r) for r in self.rows],
         }
 
@@ -231,6 +236,7 @@ def _from_json(data: Any, path: Any) -> Reference:
         versions={k: str(v) for k, v in (data.get("versions") or {}).items()},
         notes=str(data.get("notes", "")),
         rows=_check_rows(list(data["rows"]), path),
+        provenance=dict(data.get("provenance") or {}),
     )
 
 
@@ -394,10 +400,64 @@ def export_reference(
         versions=versions,
         notes=f"exported by `rrls report --export-reference` from {root.resolve().name}",
         rows=rows,
+        provenance=provenance(root, spec, wanted),
     )
     ref.save(path)
     ref.path = str(path)
     return ref
+
+
+def provenance(root: Path, spec: dict[str, Any], algos: list[str]) -> dict[str, Any]:
+    """Where a benchmark's numbers came from, from its spec and its runs' ``run.json``: the
+    preset, budget and hyper-parameters, and every rrls commit, library version, machine and
+    device that trained a run (more than one value: the runs were produced in pieces)."""
+    from rrls import __version__, rundir
+
+    runs: dict[str, Any] = {}
+    for directory in sorted(p for p in (root / "runs").glob("*") if p.is_dir()):
+        run: dict[str, Any] = {}
+        for name in (rundir.RESULT, "run.json"):  # run.json (training) has the machine
+            try:
+                run.update(json.loads((directory / name).read_text()))
+            except (OSError, ValueError):
+                continue
+        if run.get("algorithm") in algos:
+            runs[directory.name] = run
+
+    def distinct(values: Any) -> list[Any]:
+        out: list[Any] = []
+        for v in values:
+            if v is not None and v not in out:
+                out.append(v)
+        return out
+
+    versions: dict[str, list[str]] = {}
+    for run in runs.values():
+        for key, value in (run.get("versions") or {}).items():
+            versions.setdefault(key, [])
+            if value not in versions[key]:
+                versions[key].append(value)
+    prov = [run.get("provenance") or {} for run in runs.values()]
+    return {
+        "preset": spec.get("preset"),
+        "physics": spec.get("physics"),
+        "uncertainty": spec.get("uncertainty"),
+        "steps": spec.get("steps"),
+        "seeds": spec.get("seeds"),
+        "learning_starts": spec.get("learning_starts"),
+        "hidden": spec.get("hidden"),
+        "learning_rate": spec.get("learning_rate"),
+        "batch_size": spec.get("batch_size"),
+        "mesh": spec.get("mesh"),
+        "episodes": spec.get("episodes"),
+        "dynamic_episodes": spec.get("dynamic_episodes"),
+        "runs": len(runs),
+        "exported_with_rrls": __version__,
+        "versions": {k: sorted(map(str, v)) for k, v in sorted(versions.items())},
+        "commits": distinct(p.get("commit") for p in prov),
+        "machines": distinct(p.get("machine") for p in prov),
+        "devices": distinct(p.get("device") for p in prov),
+    }
 
 
 def _row(task: str, uncertainty: str, algo: str, metric: str, values: Any) -> dict[str, Any]:

@@ -240,15 +240,16 @@ def _load(what: str, obj: Any) -> tuple[dict[str, Any], Any]:
         ) from None
 
 
-def _identity(policy: Any, obs_dim: int) -> str:
-    """What "the same policy" means: the same actions (on 64 probe observations), whatever
-    file or module holds it (a module whose weights file changed is another policy)."""
+def _identity(policy: Any, obs_dim: int, what: str = "policy") -> str:
+    """What "the same policy" means: the same actions (on 64 probe observations of the size
+    it sees: a TC-RMDP stacked/oracle protagonist's or adversary's input), whatever file or
+    module holds it (a module whose weights file changed is another policy)."""
     from rrls.evaluation.policies import policy_fingerprint
 
     try:
         return f"actions:{policy_fingerprint(policy, obs_dim, n=64)}"
     except Exception as err:  # noqa: BLE001 - the submitter's code
-        raise SubmitError(f"the policy fails on probe observations ({_first_line(err)})") from None
+        raise SubmitError(f"the {what} fails on probe observations ({_first_line(err)})") from None
 
 
 def _same(
@@ -324,6 +325,7 @@ def submit(
     from dataclasses import replace
 
     from rrls.evaluation.policies import policy_fingerprint
+    from rrls.evaluation.stack import policy_view
     from rrls.experiments import benchfile
     from rrls.tasks import get_task
 
@@ -348,8 +350,11 @@ def submit(
 
     source, adapted = _load("policy", policy)
     obs_shape, act_shape, set_dim = _env_shapes(key, spec.uncertainty, is_paper(spec.physics))
-    check_shapes(adapted, obs_shape, act_shape, "policy", key)
+    view = policy_view(adapted)  # an rrls TC-RMDP Stacked/Oracle protagonist: what it sees
+    seen = obs_shape if view is None else (view.dim(obs_shape[0], act_shape[0]),)
+    check_shapes(adapted, seen, act_shape, "policy", key)
     adv = adv_source = adv_identity = None
+    adv_obs = obs_shape
     if adversary is not None:
         adv_source, adv = _load("adversary", adversary)
         meta = getattr(adv, "metadata", None) or {}
@@ -357,10 +362,14 @@ def submit(
         if alpha is None:
             alpha = float(meta.get("alpha", 0.1))
         adv_act = (set_dim,) if game == "adversarial" else act_shape
-        check_shapes(adv, obs_shape, adv_act, f"adversary ({game} game)", key)
-        adv_identity = _identity(adv, obs_shape[0])
-    identity = _identity(adapted, obs_shape[0])
-    fingerprint = policy_fingerprint(adapted, obs_shape[0])
+        if game == "adversarial" and spec.rate_limit is not None and spec.rate_game == "tc":
+            # TC-RMDP: [ψ01, s], and the protagonist's action when omniscient (the default)
+            omniscient = bool(meta.get("omniscient", True))
+            adv_obs = (set_dim + obs_shape[0] + (act_shape[0] if omniscient else 0),)
+        check_shapes(adv, adv_obs, adv_act, f"adversary ({game} game)", key)
+        adv_identity = _identity(adv, adv_obs[0], "adversary")
+    identity = _identity(adapted, seen[0])
+    fingerprint = policy_fingerprint(adapted, seen[0])
 
     final = root / "runs" / RunKey(algo, key, seed).name(spec.uncertainty)
     done = _existing(final, identity, fingerprint, adv_identity, overwrite)

@@ -86,10 +86,28 @@ def run_dynamic(
         seed=spec.eval_seed,
         alpha=0.1 if alpha is None else float(alpha),
         paper=is_paper(spec.physics),
-        rate_limit=spec.rate_limit if game == "adversarial" else None,
+        **_rate_game(spec, game, policy, adversary),
     )
     write_checked_table(out / "dynamic.csv", result.episodes)
     return {"dynamic_mean": result.mean, "dynamic_std": result.std, "dynamic_env": result.env_id}
+
+
+def _rate_game(spec: Spec, game: str, policy: Any, adversary: Any) -> dict[str, Any]:
+    """The benchmark's rate-limited game for ``evaluate_dynamic``: TC-RMDP's (or rrls's earlier
+    target game), the protagonist's view and the adversary's omniscience as their files say."""
+    from rrls.evaluation.stack import policy_view
+
+    if game != "adversarial" or spec.rate_limit is None:
+        return {"rate_limit": None}
+    view = policy_view(policy)
+    meta = getattr(adversary, "metadata", None) or {}
+    return {
+        "rate_limit": spec.rate_limit,
+        "rate_game": spec.rate_game,
+        "observe": "vanilla" if view is None else view.observe,
+        "history": 1 if view is None else view.history,
+        "omniscient": bool(meta.get("omniscient", True)),
+    }
 
 
 def install(root: Path, staging: Path, final: Path, result: dict[str, Any]) -> None:

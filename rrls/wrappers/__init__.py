@@ -1,5 +1,5 @@
 """Robust-RL wrappers: domain randomization, the adversarial game, action-robust mixing,
-disruptors, schedules over time and context in the observation."""
+disruptors, schedules over time, context in the observation, TC-RMDP's protagonist views."""
 
 from rrls.wrappers.access import ParamsAccess, ParamsForwarding
 from rrls.wrappers.action_robust import ConcatenateActions, ProbabilisticActionRobust
@@ -26,6 +26,7 @@ from rrls.wrappers.schedules import (
     Sinusoid,
     StepChange,
 )
+from rrls.wrappers.tc_rmdp import ProtagonistObservation, View
 
 #: the original code's (misspelt) names
 ProbalistActionRobustWrapper = ProbabilisticActionRobust
@@ -57,4 +58,6 @@ __all__ = [
     "ProbabilisticActionRobust",
     "ProbalistActionRobustWrapper",
     "ProbalisticActionRobust",
+    "ProtagonistObservation",
+    "View",
 ]

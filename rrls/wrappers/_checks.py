@@ -9,6 +9,7 @@ import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
+from rrls.interface import all_params
 from rrls.uncertainty import UncertaintySet
 
 
@@ -21,7 +22,7 @@ def check_names(env: gym.Env, box: UncertaintySet) -> None:
     """
     from rrls.params import check_bounds
 
-    valid = env.get_wrapper_attr("get_params")()
+    valid = all_params(env)
     specs = getattr(env.unwrapped, "param_specs", ())
     aliases = {a for s in specs for a in s.aliases}
     unknown = [n for n in box.names if n not in valid and n not in aliases]
@@ -40,7 +41,7 @@ def check_names(env: gym.Env, box: UncertaintySet) -> None:
 
 def read_point(env: gym.Env, box: UncertaintySet) -> np.ndarray:
     """The current values of ``box``'s parameters in ``env`` (aliases read their parameter)."""
-    params = env.get_wrapper_attr("get_params")()
+    params = all_params(env)
     specs = getattr(env.unwrapped, "param_specs", ())
     canonical = {a: s.name for s in specs for a in s.aliases}
     return np.array([params[canonical.get(n, n)] for n in box.names], dtype=np.float64)
@@ -59,7 +60,7 @@ def wrapper_param_problem(env: gym.Env, name: str, value: float) -> str | None:
 def refuse_empty(box: UncertaintySet, who: str, env: gym.Env) -> None:
     """An empty set would make ``who`` a silent no-op: refuse it, naming the valid parameters."""
     if box.dim == 0:
-        valid = ", ".join(env.get_wrapper_attr("get_params")())
+        valid = ", ".join(all_params(env))
         raise ValueError(
             f"{who} needs at least one parameter, got an empty uncertainty set; valid names: "
             f"{valid}"

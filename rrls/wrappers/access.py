@@ -19,8 +19,10 @@ class ParamsForwarding(gym.Wrapper):
     def set_params(self, **params: float) -> None:
         self.env.get_wrapper_attr("set_params")(**params)
 
-    def get_params(self) -> dict[str, float]:
-        return self.env.get_wrapper_attr("get_params")()
+    def get_params(self, kinds: Any = None) -> dict[str, float]:
+        """The inner env's ``get_params`` (``kinds`` forwarded when given: see the envs')."""
+        get = self.env.get_wrapper_attr("get_params")
+        return get() if kinds is None else get(kinds=kinds)
 
     def reset_params(self) -> None:
         self.env.get_wrapper_attr("reset_params")()

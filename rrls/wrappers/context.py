@@ -1,7 +1,10 @@
 """Context in the observation: the agent sees where it is in the uncertainty set.
 
-TC-RMDP's "oracle" agent and CARL's visible context: the current values of a set's parameters,
-normalised to the set (``[-1, 1]`` per axis), are appended to the observation.
+The current values of a set's parameters, normalised to the set (``[-1, 1]`` per axis), are
+appended to the observation. The idea is TC-RMDP's "oracle" agent and CARL's visible context;
+the scaling is rrls's own: CARL appends the raw values (optionally divided by their mean or
+default, ``scale_context_features``), the TC-RMDP oracle sees them normalised to ``[0, 1]``.
+TC-RMDP's Oracle protagonist itself is ``rrls.wrappers.tc_rmdp.View("oracle")``.
 """
 
 from __future__ import annotations

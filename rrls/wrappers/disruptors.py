@@ -1,4 +1,12 @@
-"""Disruptors: what goes wrong between the agent and the physics (realworldrl_suite's list).
+"""Disruptors: what goes wrong between the agent and the physics.
+
+Six of realworldrl_suite's perturbations (Dulac-Arnold et al., ``realworld_env.py`` at be7a51c),
+with its semantics: Gaussian observation and action noise (``:439``, ``:551``), dropped and
+stuck observations (``:446``, ``:468``), observation and action delays, both pre-filled with the
+episode's first observation or action (``delayed_buffer_item``, ``:57-66``; realworldrl_suite
+keeps its buffers across episodes, rrls starts each episode afresh). Reward noise is rrls's own:
+realworldrl_suite has none. realworldrl_suite's reward delay (``:521``), dropped and stuck
+actions (``:556``, ``:573``) and action repetition (``:598``) are not in rrls.
 
 One wrapper per behaviour. Each adds **one parameter**, its strength, to the env's
 ``set_params``/``get_params`` (so an :class:`~rrls.uncertainty.UncertaintySet` can span it, and
@@ -19,8 +27,9 @@ parameter       wrapper               meaning (units)                           
 ``actionnoise`` ActionNoise           std of Gaussian noise on every action         [0, 1e6]
                                       component (action units, clipped to bounds)
 ``actiondelay`` ActionDelay           the env executes the action of ``k`` steps    whole >= 0
-                                      ago; zeros before the first (steps)
-``rewardnoise`` RewardNoise           std of Gaussian noise on the reward           [0, 1e6]
+                                      ago; the first one before that (steps)
+``rewardnoise`` RewardNoise           std of Gaussian noise on the reward (rrls's   [0, 1e6]
+                                      own)
 ==============  ====================  ============================================  ===========
 
 Every strength defaults to 0: a disruptor at strength 0 changes nothing (and draws nothing), so
@@ -140,8 +149,9 @@ class Disruptor(ParamsForwarding, gym.utils.RecordConstructorArgs):
         value = float(np.asarray(value).item())
         return int(value) if self.kind == "steps" else value
 
-    def get_params(self) -> dict[str, float]:
-        return {**self.env.get_wrapper_attr("get_params")(), **self.own_params()}
+    def get_params(self, kinds: Any = None) -> dict[str, float]:
+        """The inner env's parameters (``kinds`` forwarded) and this wrapper's own, always."""
+        return {**ParamsForwarding.get_params(self, kinds), **self.own_params()}
 
     def set_params(self, **params: float) -> None:
         """Set this strength and forward the others; everything is validated before writing
@@ -386,33 +396,37 @@ class ActionNoise(_ActionDisruptor):
 
 
 class ActionDelay(_ActionDisruptor):
-    """Execute the action given ``steps`` steps ago; zeros (clipped to the bounds) before the
-    first. ``info["executed_action"]`` holds what the env executed.
+    """Execute the action given ``steps`` steps ago; the episode's first action until then (it
+    is executed ``steps + 1`` times), as realworldrl_suite's delay buffer, which starts full of
+    the first item (``delayed_buffer_item``). ``info["executed_action"]`` holds what the env
+    executed. If the delay grows within an episode, the oldest action kept is executed until
+    enough have arrived.
 
     >>> import numpy as np
     >>> from rrls.envs import RobustHopper
     >>> from rrls.wrappers.disruptors import ActionDelay
     >>> env = ActionDelay(RobustHopper(), steps=1)
     >>> _ = env.reset(seed=0)
-    >>> [float(env.step(np.full(3, a))[-1]["executed_action"][0]) for a in (0.5, -0.5)]
-    [0.0, 0.5]
+    >>> [float(env.step(np.full(3, a))[-1]["executed_action"][0]) for a in (0.5, -0.5, 0.1)]
+    [0.5, 0.5, -0.5]
     """
 
     param, kind = "actiondelay", "steps"
 
     def __init__(self, env: gym.Env, steps: int = 0) -> None:
         super().__init__(env, steps, steps=steps)
-        space = self.action_space
-        self._idle = np.clip(np.zeros(space.shape), space.low, space.high).astype(space.dtype)
         self._pending: deque[np.ndarray] = deque()
 
     def on_reset(self, obs: Any) -> Any:
-        self._pending = deque([self._idle] * int(self.strength))
+        self._pending = deque()
         return obs
 
     def step(self, action: Any):
         pending = self._pending
-        pending.append(self._checked(action))
+        arr = self._checked(action)
+        if self._step == 1:  # the first action stands in for the ones before the episode
+            pending.extend([arr] * int(self.strength))
+        pending.append(arr)
         while len(pending) > self.strength + 1:
             pending.popleft()
         executed = pending[0]
@@ -424,7 +438,7 @@ class ActionDelay(_ActionDisruptor):
 # -- rewards ---------------------------------------------------------------------------------
 class RewardNoise(Disruptor):
     """Add Gaussian noise of standard deviation ``std`` to the reward the agent receives;
-    ``info["true_reward"]`` keeps the env's.
+    ``info["true_reward"]`` keeps the env's. rrls's own: realworldrl_suite has no reward noise.
 
     >>> import numpy as np
     >>> from rrls.envs import RobustHopper

@@ -19,6 +19,8 @@ from typing import Any
 import gymnasium as gym
 from gymnasium import spaces
 
+from rrls.interface import all_params
+
 try:
     from pettingzoo import ParallelEnv
 except ImportError as exc:  # pragma: no cover - exercised only without the extra
@@ -44,7 +46,7 @@ class TwoPlayerParallelEnv(ParallelEnv):
         self.possible_agents = [PROTAGONIST, ADVERSARY]
         self.agents: list[str] = []
         self._action_spaces = dict(zip(self.possible_agents, space.spaces))
-        self._param_names = set(env.get_wrapper_attr("get_params")())
+        self._param_names = set(all_params(env))
         self.render_mode = env.render_mode
 
     def observation_space(self, agent: str) -> spaces.Space:

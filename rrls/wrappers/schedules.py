@@ -259,8 +259,9 @@ class ScheduledParams(ParamsForwarding, gym.utils.RecordConstructorArgs):
             return str(err)
         return None
 
-    def get_params(self) -> dict[str, float]:
-        return {**self.env.get_wrapper_attr("get_params")(), **self.own_params()}
+    def get_params(self, kinds: Any = None) -> dict[str, float]:
+        """The inner env's parameters (``kinds`` forwarded) and this wrapper's own, always."""
+        return {**ParamsForwarding.get_params(self, kinds), **self.own_params()}
 
     def set_params(self, **params: float) -> None:
         fields = {f"{self.schedule.prefix}_{f.name}" for f in dataclasses.fields(self.schedule)}

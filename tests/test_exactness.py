@@ -1,0 +1,78 @@
+"""The same bits on any CPU: rrls's own policy and products do not depend on the BLAS kernel.
+
+``.ci/run`` runs every ``exactness`` test twice: with the machine's own kernels and with numpy's
+and OpenBLAS's AVX-512 paths disabled (and once more on baseline SSE kernels), so a result that
+depends on a kernel's blocking fails CI on any machine, not only on the CPU it was written on.
+"""
+
+from __future__ import annotations
+
+import hashlib
+
+import numpy as np
+import pytest
+
+from rrls.evaluation.exact import ExactLinear, slice_bits
+from rrls.evaluation.policies import MLPPolicy
+
+pytestmark = pytest.mark.exactness
+
+# sha256 of a fixed random 17-256-256-6 MLPPolicy's float32 actions on 300 fixed observations,
+# measured on AMD EPYC (AVX2) with numpy's X86_V3 / OpenBLAS Haswell kernels, and equal there
+# with baseline X86_V2 / Sandybridge and Nehalem kernels. A plain float32 sgemm forward gives
+# a938b14fa4d6af0b and 78b880e4a7d4d47b on the first and last of those (the test can fail).
+GOLDEN = "fa460b1c3f9d1e23"
+
+
+def test_mlp_policy_actions_are_the_same_bits_on_any_cpu():
+    policy = MLPPolicy.random(17, 6, (256, 256), seed=7)
+    obs = np.random.default_rng(3).normal(scale=3.0, size=(300, 17))
+    actions = np.ascontiguousarray(policy(obs))
+    assert actions.dtype == np.float32
+    assert hashlib.sha256(actions.tobytes()).hexdigest()[:16] == GOLDEN
+
+
+@pytest.mark.parametrize("batch", [1, 7, 64, 65, 300])
+def test_a_row_depends_on_its_observation_alone(batch):
+    policy = MLPPolicy.random(11, 3, (64, 64), seed=1)
+    obs = np.random.default_rng(batch).normal(size=(batch, 11))
+    rows = policy(obs)
+    for i in {0, batch // 2, batch - 1}:
+        alone = policy(obs[i : i + 1])[0]
+        assert np.array_equal(rows[i], alone)
+        # at any position of another batch: the same bits
+        other = np.random.default_rng(99).normal(size=(130, 11))
+        other[-1] = obs[i]
+        assert np.array_equal(policy(other)[-1], alone)
+
+
+@pytest.mark.parametrize("k", [1, 3, 11, 256, 376, 1024])
+def test_exact_linear_is_order_free_and_accurate(k):
+    rng = np.random.default_rng(k)
+    w = rng.normal(size=(k, 5)) * np.exp(rng.normal(scale=3, size=(k, 1)))  # wide exponents
+    x = rng.normal(size=(40, k)).astype(np.float32)
+    lin = ExactLinear(w)
+    out = lin(x)
+    ref = x.astype(np.float64) @ w
+    # what is dropped (lo @ w_lo, the rests): below k + 2 terms of 2**-2beta of the line scales
+    scale = np.abs(x).max(axis=1, keepdims=True) * np.abs(w).max(axis=0)
+    assert np.all(np.abs(out - ref) <= 4 * (k + 2) * scale * 2.0 ** (-2 * slice_bits(k)))
+    # the order of the rows and of the terms does not change a bit
+    perm = rng.permutation(k)
+    assert np.array_equal(ExactLinear(w[perm])(x[:, perm]), out)
+    assert np.array_equal(lin(x[::-1])[::-1], out)
+
+
+def test_exact_linear_non_finite_rows_are_nan_and_do_not_spread():
+    lin = ExactLinear(np.ones((3, 2)))
+    x = np.array([[1.0, 2.0, 3.0], [np.inf, 0.0, 0.0], [np.nan, 1.0, 1.0], [0.0, 0.0, 0.0]])
+    out = lin(x)
+    assert np.array_equal(out[0], [6.0, 6.0]) and np.array_equal(out[3], [0.0, 0.0])
+    assert np.isnan(out[1:3]).all()
+
+
+def test_exact_linear_refuses_bad_shapes():
+    with pytest.raises(ValueError, match=r"\[k, n\]"):
+        ExactLinear(np.ones(3))
+    with pytest.raises(ValueError, match=r"shape \(B, 3\)"):
+        ExactLinear(np.ones((3, 2)))(np.ones((2, 4)))
