@@ -6,6 +6,8 @@ import io
 import json
 import os
 import tempfile
+from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
@@ -41,8 +43,13 @@ def atomic_write_bytes(path: str | Path, data: bytes) -> Path:
     return path
 
 
+def json_bytes(obj: Any) -> bytes:
+    """How rrls writes JSON files (indented, keys sorted, a final newline)."""
+    return (json.dumps(obj, indent=2, sort_keys=True) + "\n").encode()
+
+
 def atomic_write_json(path: str | Path, obj: Any) -> Path:
-    return atomic_write_bytes(path, (json.dumps(obj, indent=2, sort_keys=True) + "\n").encode())
+    return atomic_write_bytes(path, json_bytes(obj))
 
 
 def atomic_save_npz(path: str | Path, **arrays: np.ndarray) -> Path:
@@ -51,15 +58,39 @@ def atomic_save_npz(path: str | Path, **arrays: np.ndarray) -> Path:
     return atomic_write_bytes(path, buf.getvalue())
 
 
-def atomic_write_table(path: str | Path, frame: Any) -> Path:
+def table_bytes(path: str | Path, frame: Any) -> bytes:
     """A pandas DataFrame as Parquet (``.parquet``, needs pyarrow) or CSV (any other suffix)."""
-    path = Path(path)
     buf = io.BytesIO()
-    if path.suffix == ".parquet":
+    if Path(path).suffix == ".parquet":
         frame.to_parquet(buf, index=False)
     else:
         frame.to_csv(buf, index=False, float_format="%.17g")
-    return atomic_write_bytes(path, buf.getvalue())
+    return buf.getvalue()
+
+
+def atomic_write_table(path: str | Path, frame: Any) -> Path:
+    """A pandas DataFrame as Parquet (``.parquet``, needs pyarrow) or CSV (any other suffix)."""
+    return atomic_write_bytes(path, table_bytes(path, frame))
+
+
+@contextmanager
+def waiting_lock(path: str | Path) -> Iterator[None]:
+    """Hold an exclusive ``flock`` on ``path`` (created if missing), waiting for the holder:
+    read-modify-write of a shared file (``benchmark.json``) by concurrent commands loses no
+    update. A killed holder releases it (the lock belongs to the open file)."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd = os.open(path, os.O_RDWR | os.O_CREAT, 0o666)
+    try:
+        try:
+            import fcntl
+        except ImportError:  # pragma: no cover - not POSIX: no locking
+            yield
+            return
+        fcntl.flock(fd, fcntl.LOCK_EX)
+        yield
+    finally:
+        os.close(fd)  # closing the descriptor releases the flock
 
 
 class DirectoryLock:

@@ -42,6 +42,7 @@ from typing import Any
 from gymnasium.envs.registration import WrapperSpec, register, registry
 
 from rrls.params import ParamSpec, force_params
+from rrls.uncertainty import UncertaintySet
 
 Bounds = dict[str, tuple[float, float]]
 
@@ -124,6 +125,8 @@ class TaskSpec:
 TASKS: dict[str, TaskSpec] = {}
 #: accepted spellings of the task keys (the CLI and ``evaluate`` take any of them)
 TASK_ALIASES: dict[str, str] = {}
+#: the keys of the tasks rrls ships (filled by :mod:`rrls.tasks`): never replaced
+BUILTIN_TASKS: set[str] = set()
 
 _plugins_loaded = False
 
@@ -232,6 +235,19 @@ def register_task(
         if paper_env not in registry:
             raise ValueError(f"no Gymnasium env {paper_env!r} is registered")
         spec = TaskSpec(**{**spec.__dict__, "paper_id": paper_env})
+    owner = TASK_ALIASES.get(spec.key)
+    if owner not in (None, spec.key):  # gym.make would build the new task, get_task the old
+        raise ValueError(
+            f"task key {spec.key!r} is an alias of the task {owner!r}; choose another key "
+            f"(taken: {', '.join([*TASKS, *TASK_ALIASES])})"
+        )
+    existing = TASKS.get(spec.key)
+    if existing is not None and replace and spec.key in BUILTIN_TASKS and existing != spec:
+        raise ValueError(
+            f"task {spec.key!r} is built into rrls and cannot be replaced (its results are the "
+            f"benchmark's); register yours under another key (built-in: "
+            f"{', '.join(sorted(BUILTIN_TASKS))})"
+        )
     existing = TASKS.get(spec.key)
     if existing is not None and not replace:
         if existing == spec:
@@ -352,17 +368,11 @@ def _build_spec(
         table = {s.name: s for s in spec.specs(families[set_name])}
         table.update({a: s for s in spec.specs(families[set_name]) for a in s.aliases})
         box: Bounds = {}
-        for pname, pair in bounds.items():
-            try:
-                low, high = (float(v) for v in pair)
-            except (TypeError, ValueError):
-                raise ValueError(
-                    f"task {key!r}: set {set_name!r}: {pname} needs (low, high), got {pair!r}"
-                ) from None
-            if low > high:
-                raise ValueError(
-                    f"task {key!r}: set {set_name!r}: {pname} has low {low} > high {high}"
-                )
+        try:  # the bounds rules of every set (a string "12" is not (1, 2))
+            parsed = UncertaintySet.from_bounds(bounds)
+        except (TypeError, ValueError) as err:
+            raise ValueError(f"task {key!r}: set {set_name!r}: {err}") from None
+        for pname, low, high in zip(parsed.names, parsed.low.tolist(), parsed.high.tolist()):
             for v in (low, high):
                 problem = table[pname].check(v)
                 if problem:
@@ -480,8 +490,11 @@ def _unregister_ids(spec: TaskSpec) -> None:
 
 
 def unregister_task(key: str) -> None:
-    """Forget a registered task and its Gymnasium ids (tests, notebooks re-declaring a task)."""
+    """Forget a registered task and its Gymnasium ids (tests, notebooks re-declaring a task);
+    the built-in tasks stay (they could otherwise be replaced through this door)."""
     spec = get_task(key)
+    if spec.key in BUILTIN_TASKS:
+        raise ValueError(f"task {spec.key!r} is built into rrls and cannot be unregistered")
     _unregister_ids(spec)
     del TASKS[spec.key]
     for alias in [a for a, k in TASK_ALIASES.items() if k == spec.key]:

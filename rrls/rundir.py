@@ -14,6 +14,14 @@ store read::
     RUN/error.txt        (benchmark) the traceback of a failed stage
 
 No torch here: the sealed checkpoint is bytes in, bytes out.
+
+Results files (``result.json``, ``scalars.csv``, ``dynamic.csv``, the evaluation's
+``episodes.parquet``/``.csv`` and ``summary.json``, the benchmark's ``benchmark.json``) are
+sealed too, without changing their format: beside each, ``NAME.sha256`` holds its SHA-256 in
+``sha256sum``'s format (``sha256sum -c NAME.sha256`` checks it by hand). Readers check it
+(``read_checked``): a damaged file is a one-line ``DamagedFile`` error naming it, never numbers.
+A file without a seal (written by an older rrls, or by a write killed between the file and its
+seal) is read as it is.
 """
 
 from __future__ import annotations
@@ -22,6 +30,7 @@ import hashlib
 import json
 import shutil
 from pathlib import Path
+from typing import Any
 
 from rrls._io import atomic_write_bytes
 
@@ -62,6 +71,110 @@ def read_sealed(path: Path) -> bytes:
     return data
 
 
+SEAL_SUFFIX = ".sha256"
+
+
+class DamagedFile(ValueError):
+    """A results file whose bytes are not those rrls wrote (one line, naming the file)."""
+
+
+def seal_path(path: Path) -> Path:
+    """Where ``path``'s seal lives (``NAME.sha256`` beside it)."""
+    path = Path(path)
+    return path.with_name(path.name + SEAL_SUFFIX)
+
+
+def _seal_line(path: Path, data: bytes) -> bytes:
+    return f"{hashlib.sha256(data).hexdigest()}  {Path(path).name}\n".encode()
+
+
+def write_checked(path: Path, data: bytes) -> Path:
+    """Write ``data`` atomically, then its seal. The old seal goes first, so a write killed
+    half-way leaves an unsealed file (read as is), never a false alarm."""
+    path = Path(path)
+    seal_path(path).unlink(missing_ok=True)
+    atomic_write_bytes(path, data)
+    atomic_write_bytes(seal_path(path), _seal_line(path, data))
+    return path
+
+
+def seal(path: Path) -> None:
+    """Seal a file written in place (``scalars.csv``, appended to while training)."""
+    atomic_write_bytes(seal_path(path), _seal_line(path, Path(path).read_bytes()))
+
+
+def _expected(path: Path) -> str | None:
+    """The digest ``path``'s seal records (None: no seal); a damaged seal is damage."""
+    side = seal_path(path)
+    try:
+        text = side.read_bytes().decode("ascii")
+    except FileNotFoundError:
+        return None
+    except UnicodeDecodeError:
+        text = ""
+    digest = text.split(" ", 1)[0].strip()
+    if len(digest) != 64 or any(c not in "0123456789abcdef" for c in digest):
+        raise DamagedFile(f"{side} is damaged (not a SHA-256 line); {_ADVICE}")
+    return digest
+
+
+_ADVICE = "the results in it cannot be trusted: restore it from a copy or re-run that step"
+
+
+def read_checked(path: Path) -> bytes:
+    """``path``'s bytes, checked against its seal (``DamagedFile`` if they differ)."""
+    path = Path(path)
+    data = path.read_bytes()
+    digest = _expected(path)
+    if digest is not None and hashlib.sha256(data).hexdigest() != digest:
+        raise DamagedFile(
+            f"{path} is damaged (its SHA-256 does not match {seal_path(path).name}); {_ADVICE}"
+        )
+    return data
+
+
+def read_checked_json(path: Path) -> dict[str, Any]:
+    """A sealed (or older unsealed) JSON object file; damage is a one-line ``DamagedFile``."""
+    data = read_checked(path)
+    try:
+        obj = json.loads(data.decode("utf-8"))
+    except (UnicodeDecodeError, ValueError) as err:
+        raise DamagedFile(f"{path} is damaged (not valid JSON: {err}); {_ADVICE}") from None
+    if not isinstance(obj, dict):
+        raise DamagedFile(
+            f"{path} is damaged (it holds a JSON {type(obj).__name__}, not an object); {_ADVICE}"
+        )
+    return obj
+
+
+def read_checked_table(path: Path) -> Any:
+    """A sealed (or older unsealed) Parquet / CSV table as a DataFrame; damage is one line."""
+    import io
+
+    import pandas as pd
+
+    data = read_checked(path)
+    try:
+        if Path(path).suffix == ".parquet":
+            return pd.read_parquet(io.BytesIO(data))
+        return pd.read_csv(io.BytesIO(data))
+    except Exception as err:  # noqa: BLE001 - any unreadable table: name the file
+        first = (str(err).strip().splitlines() or [type(err).__name__])[0]
+        raise DamagedFile(f"{path} is damaged (unreadable: {first}); {_ADVICE}") from None
+
+
+def write_checked_json(path: Path, obj: Any) -> Path:
+    from rrls._io import json_bytes
+
+    return write_checked(path, json_bytes(obj))
+
+
+def write_checked_table(path: Path, frame: Any) -> Path:
+    from rrls._io import table_bytes
+
+    return write_checked(path, table_bytes(path, frame))
+
+
 def finished_steps(run_dir: Path) -> int | None:
     """The steps of the finished run in ``run_dir`` (policy and run.json written), else None."""
     try:
@@ -76,6 +189,7 @@ def remove_run_files(run_dir: Path) -> None:
     """What a previous run left (its checkpoint, policies, logs)."""
     for name in RUN_FILES:
         (run_dir / name).unlink(missing_ok=True)
+        seal_path(run_dir / name).unlink(missing_ok=True)
     shutil.rmtree(run_dir / TENSORBOARD, ignore_errors=True)
 
 
@@ -85,10 +199,37 @@ def remove_temporary_files(run_dir: Path) -> None:
         path.unlink(missing_ok=True)
 
 
+def _sealed_prefix(path: Path, data: bytes) -> bytes:
+    """The part of an append-only file its seal covers: rows appended after the last seal
+    (a checkpoint) are rows the resumed run redoes. ``DamagedFile`` where no prefix ending at
+    a line matches the seal."""
+    digest = _expected(path)
+    if digest is None:
+        return data  # an older run: no seal
+    running = hashlib.sha256()
+    start = 0
+    while True:
+        if running.hexdigest() == digest:
+            return data[:start]
+        end = data.find(b"\n", start)
+        if end < 0:
+            raise DamagedFile(
+                f"{path} is damaged (its SHA-256 matches no part of it recorded in "
+                f"{seal_path(path).name}); {_ADVICE}"
+            )
+        running.update(data[start : end + 1])
+        start = end + 1
+
+
 def truncate_scalars(path: Path, step: int) -> None:
-    """Drop curve rows written after the checkpoint being resumed (they will be redone)."""
+    """Drop curve rows written after the checkpoint being resumed (they will be redone);
+    damaged rows are a one-line ``DamagedFile`` naming the file."""
     if not path.exists():
         return
-    lines = path.read_text(encoding="utf-8").splitlines(keepends=True)
-    rows = [ln for ln in lines[1:] if ln.endswith("\n") and int(ln.split(",", 1)[0]) <= step]
-    atomic_write_bytes(path, "".join(lines[:1] + rows).encode())
+    data = _sealed_prefix(path, path.read_bytes())
+    try:
+        lines = data.decode("utf-8").splitlines(keepends=True)
+        rows = [ln for ln in lines[1:] if ln.endswith("\n") and int(ln.split(",", 1)[0]) <= step]
+    except ValueError as err:  # not UTF-8, or a step that is no integer
+        raise DamagedFile(f"{path} is damaged ({err}); {_ADVICE}") from None
+    write_checked(path, "".join(lines[:1] + rows).encode())

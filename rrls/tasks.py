@@ -21,7 +21,15 @@ from rrls.params import (
     mass_params,
     physics_params,
 )
-from rrls.registry import TASK_ALIASES, TASKS, Bounds, TaskSpec, get_task, register_task
+from rrls.registry import (
+    BUILTIN_TASKS,
+    TASK_ALIASES,
+    TASKS,
+    Bounds,
+    TaskSpec,
+    get_task,
+    register_task,
+)
 
 WORLD_FRICTION = ParamSpec("worldfriction", "geom_friction", ALL_GEOMS)
 
@@ -61,6 +69,7 @@ def _task(
     )
     # the built-in tables are checked against the compiled models by the tests, not at import
     # (``import rrls`` builds no model)
+    BUILTIN_TASKS.add(key)
     return register_task(
         key,
         f"{cls.removesuffix('Env')}-v5",

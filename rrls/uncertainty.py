@@ -232,6 +232,13 @@ class UncertaintySet:
         return f"UncertaintySet({label}{rows})"
 
 
+#: the smallest training part an interpolation split may leave (a share of the set's volume):
+#: below it, rejection sampling would take millions of draws per episode
+_MIN_TRAIN_FRACTION = 1e-6
+#: draws ``Split.sample_train`` tries before refusing (unreachable above the minimum share)
+_MAX_REJECTIONS = 100_000_000
+
+
 @dataclass(frozen=True, eq=False)
 class Split:
     """A train/test split of a set, declared as data: rrls's own interpolation/extrapolation
@@ -280,6 +287,23 @@ class Split:
         ]
         if outside:
             raise ValueError(f"the split's region leaves the set along {outside}")
+        if self.kind == "interpolation" and self.train_fraction() < _MIN_TRAIN_FRACTION:
+            # nothing (or a sliver) left to train on: sample_train would never return
+            raise ValueError(
+                f"the split's training part is empty: the held-out region "
+                f"{self.region.as_bounds()} covers the whole set {self.box.as_bounds()} (or "
+                f"all but under {_MIN_TRAIN_FRACTION:g} of it); hold out a smaller region (a "
+                "fraction of each axis in (0, 1))"
+            )
+
+    def train_fraction(self) -> float:
+        """The training part's share of the set's volume (flat axes count as full)."""
+        width = self.box.high - self.box.low
+        held = np.where(
+            width > 0, (self.region.high - self.region.low) / np.where(width > 0, width, 1), 1.0
+        )
+        inner = float(np.prod(held))
+        return inner if self.kind == "extrapolation" else 1.0 - inner
 
     @classmethod
     def _region(cls, box: UncertaintySet, inner: float | Mapping[str, Sequence[float]]) -> Any:
@@ -362,10 +386,14 @@ class Split:
         ``DomainRandomization(env, split.box, randomize_fn=split.sample_train)``."""
         if self.kind == "extrapolation":
             return self.region.sample(rng)
-        while True:  # rejection: the held-out interior is a strict part of the set
+        for _ in range(_MAX_REJECTIONS):  # rejection: the held-out interior is a strict part
             x = rng.uniform(self.box.low, self.box.high)
             if self.in_distribution(x):
                 return self.box.to_dict(x)
+        raise ValueError(  # a sliver of a training part: say so rather than loop for hours
+            f"no draw in the training part of {self!r} after {_MAX_REJECTIONS} tries: the "
+            "held-out region covers almost the whole set; hold out a smaller region"
+        )
 
     def to_json(self) -> dict[str, Any]:
         return {

@@ -323,9 +323,12 @@ def test_damaged_result_files_are_named(tmp_path, capsys):
     evaluate(_ip_policy(), "invertedpendulum", "1d", nb_mesh_dim=2, episodes=1, out_dir=out)
     (out / "summary.json").write_text("{ truncated")
     code, err = _run(["plot", str(out)], capsys)
-    assert code == 2 and f"{out / 'summary.json'} is not valid JSON" in err
+    assert code == 2 and f"{out / 'summary.json'} is damaged" in err
+    (out / "summary.json.sha256").unlink()  # an unsealed (older) file: still checked as JSON
+    code, err = _run(["plot", str(out)], capsys)
+    assert code == 2 and f"{out / 'summary.json'} is damaged (not valid JSON" in err
     (out / "evaluation.json").write_text("[]")
-    with pytest.raises(ValueError, match="evaluation.json does not hold a JSON object"):
+    with pytest.raises(ValueError, match="evaluation.json is damaged .*JSON list, not an object"):
         evaluate(_ip_policy(), "invertedpendulum", "1d", nb_mesh_dim=2, episodes=1, out_dir=out)
 
 

@@ -37,11 +37,11 @@ def test_tutorial_a_submits_an_sb3_agent_into_a_benchmark(tmp_path):
     out = run_tutorial(
         "submit_sb3_agent.py", "--steps", "200", "--mesh", "2", "--episodes", "1", cwd=tmp_path
     )
-    assert "submitted: bench-hopper/runs/sac-dr-hopper-3d-seed0" in out
+    assert "submitted: bench-hopper/runs/sb3-sac-dr-hopper-3d-seed0" in out
     summary = json.loads((tmp_path / "bench-hopper" / "report" / "summary.json").read_text())
-    assert summary["results"]["hopper"]["sac-dr"]["worst_case"]["n_seeds"] == 1
+    assert summary["results"]["hopper"]["sb3-sac-dr"]["worst_case"]["n_seeds"] == 1
     assert summary["submitted"][0]["policy_kind"] == "sb3-zip"
-    assert "| sac-dr (submitted) |" in (tmp_path / "bench-hopper/report/report.md").read_text()
+    assert "| sb3-sac-dr (submitted) |" in (tmp_path / "bench-hopper/report/report.md").read_text()
 
 
 def test_tutorial_c_compares_a_method_with_the_shipped_quick_reference(tmp_path):

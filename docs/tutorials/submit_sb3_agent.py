@@ -8,8 +8,8 @@ Hopper 3D uncertainty set, submit it into a benchmark and get its column in the 
 The same from the shell, once the agent is saved:
 
     rrls evaluate sac-hopper.zip --task hopper --uncertainty 3d      # worst / average case
-    rrls submit bench-hopper --algo sac-dr --task hopper --seed 0 sac-hopper.zip
-    rrls report bench-hopper          # sac-dr beside TD3, DR, M2TD3, ... in every table
+    rrls submit bench-hopper --algo sb3-sac-dr --task hopper --seed 0 sac-hopper.zip
+    rrls report bench-hopper          # sb3-sac-dr beside TD3, DR, M2TD3, ... in every table
 
 ``bench-hopper`` is a ``rrls benchmark --out bench-hopper --tasks hopper ...`` directory (its
 baselines are trained there), or, as this script does when it does not exist, an empty benchmark
@@ -34,7 +34,7 @@ def main(argv: list[str] | None = None) -> dict:
     parser.add_argument("--out", default=".", help="where to save the agent")
     parser.add_argument("--mesh", type=int, default=10, help="new benchmark: points per dim")
     parser.add_argument("--episodes", type=int, default=5, help="new benchmark: episodes/point")
-    parser.add_argument("--name", default="sac-dr", help="the algorithm's name in the report")
+    parser.add_argument("--name", default="sb3-sac-dr", help="the algorithm's name in the report")
     args = parser.parse_args(argv)
 
     import gymnasium as gym

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 from rrls.agents.common import (
     ALGOS,
+    Diverged,
     Interrupted,
     TrainConfig,
     algorithm,
@@ -23,6 +24,7 @@ from rrls.agents.loop import train, train_group
 
 __all__ = [
     "ALGOS",
+    "Diverged",
     "Interrupted",
     "Learner",
     "TrainConfig",

@@ -21,6 +21,8 @@ from rrls.physics import is_paper, physics_label
 #: the built-in algorithms (the paper's five, then SAC and SAC on the randomised env)
 ALGOS = ("td3", "dr", "rarl", "nrmdp", "m2td3", "sac", "sacdr")
 ENTRY_POINTS = "rrls.algorithms"
+#: what the training loop calls on a learner (``rrls.agents.learner``)
+LEARNER_METHODS = ("act", "observe", "update", "state_dict", "load_state_dict", "export")
 
 
 def hp(default: Any, help: str, **extra: Any) -> Any:  # noqa: A002 - argparse's word
@@ -53,13 +55,42 @@ def algorithm(name: str) -> Algorithm:
     try:
         module = importlib.import_module(module_name)
         learner = getattr(module, attr or "Learner")
-    except (ImportError, AttributeError) as err:
-        raise ValueError(f"algorithm {name!r}: cannot load {target} ({err})") from None
+    except Exception as err:  # noqa: BLE001 - a plug-in's import may raise anything: one line
+        first = (str(err).strip().splitlines() or [""])[0]
+        raise ValueError(
+            f"algorithm {name!r}: cannot load {target} ({type(err).__name__}: {first})"
+        ) from None
     from rrls.agents import td3
 
     config = getattr(learner, "Config", None) or getattr(module, "Config", td3.Config)
     make_env = getattr(learner, "make_env", None) or getattr(module, "make_env", td3.make_env)
+    _check_learner(name, target, learner, config, make_env)
     return Algorithm(name, config, make_env, learner)
+
+
+def _check_learner(name: str, target: str, learner: Any, config: Any, make_env: Any) -> None:
+    """Refuse what cannot be a learner (``json:loads``, a class without the protocol) in one
+    line, before the loop calls it with arguments it does not take."""
+    import dataclasses
+
+    missing = [m for m in LEARNER_METHODS if not callable(getattr(learner, m, None))]
+    if not isinstance(learner, type) or missing:
+        what = (
+            f"lacks {', '.join(missing)}"
+            if isinstance(learner, type)
+            else f"is a {type(learner).__name__}"
+        )
+        raise ValueError(
+            f"algorithm {name!r}: {target} {what}: not a learner (a class with the methods "
+            f"{', '.join(LEARNER_METHODS)}; docs/algorithms.md)"
+        )
+    if not (isinstance(config, type) and dataclasses.is_dataclass(config)):
+        raise ValueError(
+            f"algorithm {name!r}: its Config must be a dataclass of hyper-parameters, got "
+            f"{config!r}"
+        )
+    if not callable(make_env):
+        raise ValueError(f"algorithm {name!r}: its make_env must be callable, got {make_env!r}")
 
 
 def hyperparameters(config: TrainConfig) -> Any:
@@ -258,6 +289,11 @@ def training_split(task: str, uncertainty: str, text: str) -> str:
 
 class Interrupted(Exception):
     """Raised by ``stop_at`` (a test aid): the run stops right after a checkpoint."""
+
+
+class Diverged(ValueError):
+    """A learner produced a NaN/inf action or policy: training stops before writing it (the
+    CLI prints it on one line); the last checkpoint stays, so nothing trained so far is lost."""
 
 
 def rng_state(gen: np.random.Generator) -> str:

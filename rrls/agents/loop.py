@@ -25,6 +25,7 @@ import torch
 from rrls.agents import graphs
 from rrls.agents.common import (
     Algorithm,
+    Diverged,
     TrainConfig,
     algorithm,
     env_factory,
@@ -231,6 +232,7 @@ def _collect(
                 actions = [uniform(template.action_space, rng) for rng in warmup]
             else:
                 actions = learner.act(obs)
+                _check_actions(actions, step + 1, runs)
             results = envs.step(actions)
             next_obs = np.stack([r[0] for r in results])
             rewards = np.array([r[1] for r in results], dtype=np.float64)
@@ -284,10 +286,42 @@ def _collect(
         run.finish(_policies(learner, k, metas[k]), {"steps": run.step, "episodes": run.episodes})
 
 
+def _finite(action: Any) -> bool:
+    if isinstance(action, (tuple, list)) and action and not np.isscalar(action[0]):
+        return all(_finite(part) for part in action)  # a two-player action: (agent, adversary)
+    try:
+        return bool(np.all(np.isfinite(np.asarray(action, dtype=np.float64))))
+    except (TypeError, ValueError):
+        return True  # not numbers: the env says what is wrong with it
+
+
+def _check_actions(actions: Any, step: int, runs: list[Run]) -> None:
+    """Stop at the first NaN/inf action a learner returns (MuJoCo would warn, reset its state
+    and go on, and the run would end with a NaN policy written as if trained)."""
+    for k, action in enumerate(actions):
+        if not _finite(action):
+            config = runs[k].config
+            raise Diverged(
+                f"training stopped at step {step}: {config.algo} returned a non-finite action "
+                f"for seed {config.seed} ({np.asarray(action, dtype=object).tolist()}); nothing "
+                "was written past the last checkpoint (the learner diverged: lower its learning "
+                "rate or check its update)"
+            )
+
+
 def _policies(learner: Any, k: int, metadata: dict[str, Any]) -> dict[str, Any]:
-    """Run ``k``'s exported policies, their metadata completed with the run's."""
+    """Run ``k``'s exported policies, their metadata completed with the run's; a policy with
+    NaN/inf weights is refused (``Diverged``), never written."""
     out = learner.export(k)
     for name, policy in out.items():
+        arrays = [*getattr(policy, "weights", []), *getattr(policy, "biases", [])]
+        if not all(np.all(np.isfinite(a)) for a in arrays):
+            seed = metadata.get("seed")
+            raise Diverged(
+                f"training stopped: the {name} of seed {seed} has non-finite (NaN/inf) weights; "
+                "it is not written (the learner diverged: lower its learning rate or check its "
+                "update)"
+            )
         own = dict(policy.metadata)
         policy.metadata = {**metadata, "act_dim": policy.act_dim, **own}
         if name != "policy":

@@ -89,8 +89,10 @@ class Metrics:
         self._csv.writelines(f"{step},{key},{float(value)!r}\n" for key, value in values.items())
 
     def flush(self) -> None:
+        """Write the curves out and seal them (at every checkpoint: a resume checks them)."""
         if self._csv is not None:
             self._csv.flush()
+            rundir.seal(self.csv_path)
 
     def close(self) -> None:
         if self._tb:
@@ -99,6 +101,7 @@ class Metrics:
         if self._csv is not None:
             self._csv.close()
             self._csv = None
+            rundir.seal(self.csv_path)
         if self._wandb is not None:
             self._wandb.finish()
             self._wandb = None

@@ -12,7 +12,6 @@ True
 
 from __future__ import annotations
 
-import json
 import platform
 import warnings
 from collections.abc import Callable, Mapping, Sequence
@@ -113,16 +112,16 @@ class EvaluationResult:
 
     def save(self, out_dir: str | Path) -> Path:
         """Write ``summary.json`` and ``episodes.parquet`` (``.csv`` without pyarrow) atomically."""
-        from rrls._io import atomic_write_json, atomic_write_table
+        from rrls.rundir import write_checked_json, write_checked_table
 
         out_dir = Path(out_dir)
-        atomic_write_table(out_dir / _table_name(), self.episodes)
-        atomic_write_json(out_dir / "summary.json", self.summary())
+        write_checked_table(out_dir / _table_name(), self.episodes)  # sealed: damage is seen
+        write_checked_json(out_dir / "summary.json", self.summary())
         return out_dir
 
     @classmethod
     def load(cls, out_dir: str | Path) -> EvaluationResult:
-        import pandas as pd
+        from rrls.rundir import read_checked_table
 
         out_dir = Path(out_dir)
         summary_path = out_dir / "summary.json"
@@ -133,11 +132,9 @@ class EvaluationResult:
         if not table.exists():
             table = out_dir / "episodes.csv"
         try:
-            episodes = pd.read_parquet(table) if table.suffix == ".parquet" else pd.read_csv(table)
+            episodes = read_checked_table(table)  # a damaged table: one line naming it
         except FileNotFoundError:
             raise FileNotFoundError(f"{out_dir} holds no episodes table") from None
-        except Exception as err:  # noqa: BLE001 - any unreadable table: name the file
-            raise ValueError(f"{table} is unreadable: {err}") from None
         box = summary.get("uncertainty")
         box = UncertaintySet(**box) if box and box.get("names") else None
         config = {k: summary[k] for k in summary if k not in _DERIVED}
@@ -179,15 +176,9 @@ _DERIVED = {
 
 def _read_json(path: Path) -> dict[str, Any]:
     """A JSON object from ``path``; a damaged file is named in the error."""
-    try:
-        data = json.loads(path.read_text())
-    except (ValueError, UnicodeDecodeError) as err:
-        raise ValueError(
-            f"{path} is not valid JSON ({err}); remove it or use another directory"
-        ) from None
-    if not isinstance(data, dict):
-        raise ValueError(f"{path} does not hold a JSON object")
-    return data
+    from rrls.rundir import read_checked_json
+
+    return read_checked_json(path)
 
 
 def _table_name() -> str:

@@ -235,6 +235,16 @@ def _benchmark(args: argparse.Namespace) -> int:
         return _fail("benchmark", "training needs torch: pip install 'rrls[train]'")
     from pathlib import Path
 
+    from rrls.agents import algorithm
+    from rrls.experiments.spec import BUILT_IN
+
+    for name in spec.algos:  # a plug-in that is no learner: one line now, not in a worker
+        if name not in BUILT_IN:
+            try:
+                algorithm(name)
+            except ValueError as err:
+                return _fail("benchmark", str(err))
+
     from rrls.experiments.runner import benchmark
 
     code = benchmark(args.out, spec, jobs or 0, args.backend, args.ray_address, pack=args.pack)
@@ -345,6 +355,9 @@ def _submit(args: argparse.Namespace) -> int:
         )
     except (SubmitError, PolicyError) as err:
         return _fail("submit", str(err))
+    except OSError as err:  # the file system refuses a path (a name too long, no space, ...)
+        where = f" ({str(err.filename)[:80]})" if err.filename else ""
+        return _fail("submit", f"{err.strerror or err}{where}")
     r = done.result
     what = "submitted" if done.evaluated else "already submitted (same policy; nothing to do)"
     print(

@@ -91,7 +91,7 @@ def execute_group(
     results: dict[int, dict[str, Any]] = {}
     for i, out in enumerate(outs):
         if (out / rundir.RESULT).exists():
-            results[i] = json.loads((out / rundir.RESULT).read_text())
+            results[i] = rundir.read_checked_json(out / rundir.RESULT)
     todo = [i for i in range(len(runs)) if i not in results]
     if not todo:
         return [results[i] for i in range(len(runs))]
@@ -104,7 +104,7 @@ def execute_group(
         errors = _group_stages(spec, [runs[i] for i in todo], [outs[i] for i in todo])
         for i in todo:
             if i not in errors:
-                results[i] = json.loads((outs[i] / rundir.RESULT).read_text())
+                results[i] = rundir.read_checked_json(outs[i] / rundir.RESULT)
     if errors:
         first = next(iter(errors.values()))
         lines = str(first).strip().splitlines() or [type(first).__name__]
@@ -115,7 +115,6 @@ def execute_group(
 def _group_stages(spec: Spec, runs: list[RunKey], outs: list[Path]) -> dict[int, BaseException]:
     """The stages of ``runs`` (training shared, the rest per run); returns each failed run's
     error (its traceback is in its ``error.txt``)."""
-    from rrls._io import atomic_write_json
 
     start = time.time()
     errors: dict[int, BaseException] = {}
@@ -158,7 +157,7 @@ def _group_stages(spec: Spec, runs: list[RunKey], outs: list[Path]) -> dict[int,
                 result.update(_dynamic(spec, out))
             # this execution's (a resumed run: since resuming; a group: since the group began)
             result["seconds"] = time.time() - start
-            atomic_write_json(out / rundir.RESULT, result)
+            rundir.write_checked_json(out / rundir.RESULT, result)
             progress[i].write("done", spec.steps)
             # The checkpoint only serves to resume training (its replay buffer is up to ~250 MB
             # at 5 M steps: 60 GB for the paper's grid); a finished run keeps its policies,
@@ -240,11 +239,10 @@ def _evaluate(spec: Spec, run: RunKey, out: Path) -> dict[str, Any]:
 
 
 def _dynamic(spec: Spec, out: Path) -> dict[str, Any]:
-    from rrls._io import atomic_write_table
     from rrls.evaluation import evaluate_run_dynamic
 
     result = evaluate_run_dynamic(out, episodes=spec.dynamic_episodes, seed=spec.eval_seed)
-    atomic_write_table(out / "dynamic.csv", result.episodes)
+    rundir.write_checked_table(out / "dynamic.csv", result.episodes)
     return {"dynamic_mean": result.mean, "dynamic_std": result.std, "dynamic_env": result.env_id}
 
 

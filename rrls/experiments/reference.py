@@ -354,11 +354,11 @@ def export_reference(
 ) -> Reference:
     """Write the results of the benchmark in ``root`` (every algorithm, or ``algos``) as a
     reference file another lab can normalise and compare with; returns it."""
-    from rrls.experiments import stats
+    from rrls.experiments import benchfile, stats
     from rrls.experiments.store import load_store
 
     root = Path(root)
-    spec = json.loads((root / "benchmark.json").read_text())
+    spec = benchfile.read_spec_json(root)
     tables = load_store(root)
     ev, dyn = tables["evaluations"], tables["dynamic"]
     if not len(ev):

@@ -79,8 +79,10 @@ def summarise(root: str | Path, reference: Any = None) -> dict[str, Any]:
 
     root = Path(root)
     tables = load_store(root)
-    spec_path = root / "benchmark.json"
-    spec = json.loads(spec_path.read_text()) if spec_path.exists() else None
+    from rrls.experiments import benchfile
+
+    spec_path = benchfile.spec_path(root)
+    spec = benchfile.read_spec_json(root) if spec_path.exists() else None
     ev = tables["evaluations"]
     scores = stats.per_seed_scores(ev) if len(ev) else None
     present_tasks = list(dict.fromkeys(ev["task"])) if len(ev) else []
@@ -445,10 +447,11 @@ def make_report(root: str | Path, plots: bool = True, reference: Any = None) -> 
 
         if not isinstance(reference, Reference):
             reference = load_reference(reference)
-        spec_path = root / "benchmark.json"
-        if not spec_path.exists():
+        from rrls.experiments import benchfile
+
+        if not benchfile.spec_path(root).exists():
             raise ValueError(f"{root} holds no benchmark.json: a reference needs its protocol")
-        check_compatible(reference, json.loads(spec_path.read_text()))
+        check_compatible(reference, benchfile.read_spec_json(root))
     summary = summarise(root, reference)
     paper = paper_results()
     out = root / "report"

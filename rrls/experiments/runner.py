@@ -180,13 +180,14 @@ def benchmark(
     failed (the others still ran), 130 when interrupted (finished work is kept: the same
     command resumes).
     """
-    from rrls._io import atomic_write_json
+    from rrls.experiments import benchfile
 
     stream = stream or sys.stderr
     root = Path(out)
-    stored = reconcile(root, spec)  # refuses another protocol; the grid may grow
     root.mkdir(parents=True, exist_ok=True)
-    atomic_write_json(root / "benchmark.json", stored.to_json())
+    with benchfile.locked(root):  # a concurrent `rrls submit` adding a task loses nothing
+        stored = reconcile(root, spec)  # refuses another protocol; the grid may grow
+        benchfile.write_spec(root, stored)
     todo, finished = pending_runs(root, spec)  # this command's grid only
     pack = default_pack(spec, pack)
     print(plan(root, spec, len(todo), finished, jobs, backend, pack), file=stream, flush=True)

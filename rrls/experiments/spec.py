@@ -8,7 +8,6 @@ tasks, seeds) may grow: the stored spec becomes the union and only the new runs 
 
 from __future__ import annotations
 
-import json
 from dataclasses import asdict, dataclass, fields, replace
 from pathlib import Path
 from typing import Any
@@ -347,13 +346,11 @@ def reconcile(out: Path, spec: Spec) -> Spec:
 
     Refuses (``SpecError``) a directory whose stored protocol differs, naming the fields.
     """
-    path = Path(out) / "benchmark.json"
-    if not path.exists():
+    from rrls.experiments import benchfile
+
+    if not benchfile.spec_path(out).exists():
         return spec
-    try:
-        stored = Spec.from_json(json.loads(path.read_text()))
-    except (ValueError, TypeError) as err:
-        raise SpecError(f"{path} is not a benchmark spec ({err})") from None
+    stored = benchfile.read_spec(out)  # damaged / not a spec: one line naming the file
     old, new = stored.protocol(), spec.protocol()
     diff = [k for k in sorted(set(old) | set(new)) if old.get(k) != new.get(k)]
     if diff:

@@ -17,7 +17,6 @@ always give the same files.
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 from typing import Any
 
@@ -29,14 +28,18 @@ KEY = ["algorithm", "task", "uncertainty", "seed"]
 
 def write_result(run: str | Path, result: dict[str, Any]) -> Path:
     """Mark ``run`` finished: its ``result.json`` (algorithm, task, uncertainty, seed, steps,
-    worst_case, average_case, versions; optional dynamic_*, submitted), written atomically."""
-    from rrls._io import atomic_write_json
-
+    worst_case, average_case, versions; optional dynamic_*, submitted), written atomically and
+    sealed (``rundir.write_checked``)."""
     missing = [k for k in ("algorithm", "task", "uncertainty", "seed", "steps") if k not in result]
     missing += [k for k in ("worst_case", "average_case") if k not in result]
     if missing:
         raise ValueError(f"a run result needs {', '.join(missing)}")
-    return atomic_write_json(Path(run) / "result.json", result)
+    return rundir.write_checked_json(Path(run) / rundir.RESULT, result)
+
+
+def read_result(run: str | Path) -> dict[str, Any]:
+    """A finished run's ``result.json``, checked against its seal (damage: one line)."""
+    return rundir.read_checked_json(Path(run) / rundir.RESULT)
 
 
 def _parquet() -> bool:
@@ -63,11 +66,10 @@ def _columns(result: dict[str, Any]) -> dict[str, Any]:
 
 
 def _read_table(base: Path) -> Any:
-    import pandas as pd
-
+    """A run's table (Parquet, else CSV), checked against its seal."""
     if base.with_suffix(".parquet").exists():
-        return pd.read_parquet(base.with_suffix(".parquet"))
-    return pd.read_csv(base.with_suffix(".csv"))
+        return rundir.read_checked_table(base.with_suffix(".parquet"))
+    return rundir.read_checked_table(base.with_suffix(".csv"))
 
 
 def _curves(run: Path) -> Any:
@@ -77,7 +79,7 @@ def _curves(run: Path) -> Any:
     path = run / rundir.SCALARS
     if not path.exists():
         return pd.DataFrame({"step": []})
-    long = pd.read_csv(path)
+    long = rundir.read_checked_table(path)
     long["metric"] = long["metric"].str.replace("/", "_", regex=False)
     long["metric"] = long["metric"].str.removeprefix("charts_")
     wide = long.pivot_table(index="step", columns="metric", values="value", aggfunc="last")
@@ -95,13 +97,14 @@ def build_store(root: str | Path) -> Path:
     frames: dict[str, list[Any]] = {name: [] for name in TABLES}
     for done in sorted((root / "runs").glob("*/result.json")):
         run = done.parent
-        result = json.loads(done.read_text())
+        result = read_result(run)
         cols = _columns(result)
         episodes = _read_table(run / "eval" / "episodes").rename(columns={"seed": "episode_seed"})
         frames["evaluations"].append(episodes.assign(**cols))
         frames["curves"].append(_curves(run).assign(**cols))
         if (run / "dynamic.csv").exists():
-            dynamic = pd.read_csv(run / "dynamic.csv").rename(columns={"seed": "episode_seed"})
+            dynamic = rundir.read_checked_table(run / "dynamic.csv")
+            dynamic = dynamic.rename(columns={"seed": "episode_seed"})
             frames["dynamic"].append(dynamic.assign(**cols))
         frames["runs"].append(
             pd.DataFrame(

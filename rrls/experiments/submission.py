@@ -5,27 +5,28 @@ episodes and episode seeds; with an adversary also the dynamic evaluation) and w
 directory ``DIR/runs/<name>-<task>-<set>-seed<S>/`` in the layout the result store reads
 (``eval/``, ``dynamic.csv``, ``result.json`` last). ``rrls report DIR`` then shows the algorithm
 in every table and figure like a baseline. ``result.json`` records where the policy came from
-(``submitted``: kind, source, SHA-256 of the file), so a report can say which rows were trained
-here and which were brought.
+(``submitted``: kind, source, SHA-256 of the file, and its identity: the fingerprint of its
+actions), so a report can say which rows were trained here and which were brought.
 
 Nothing of the benchmark's spec changes: ``rrls benchmark`` over the same directory neither
 trains nor touches a submitted algorithm, and rebuilding the store keeps it.
 
 >>> from rrls.experiments.submission import check_name
->>> check_name("sac-dr")
-'sac-dr'
->>> try:
-...     check_name("TD3")
-... except ValueError as err:
-...     print(str(err).split(" (")[0])
+>>> check_name("my-sac")
+'my-sac'
+>>> for name in ("TD3", "SAC-DR"):
+...     try:
+...         check_name(name)
+...     except ValueError as err:
+...         print(str(err).split(" (")[0])
 --algo 'TD3' is a built-in algorithm
+--algo 'SAC-DR' is a built-in algorithm
 """
 
 from __future__ import annotations
 
-import json
+import os
 import re
-import shutil
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -33,15 +34,23 @@ from typing import Any
 
 import numpy as np
 
-from rrls.experiments.spec import ALGOS, RunKey, Spec, SpecError
+from rrls.experiments.names import NAMES
+from rrls.experiments.spec import BUILT_IN, RunKey, Spec, SpecError
+from rrls.experiments.submitted import discard, install, jsonable, run_dynamic, run_evaluation
 from rrls.physics import is_paper
 
-#: names a submission may not take: the built-in algorithms, their display names, and "paper"
-#: (the paper's published numbers in the report)
-RESERVED = (*ALGOS, "nr-mdp", "pr-mdp", "prmdp", "paper")
+#: names a submission may not take (in any case): every built-in algorithm, their display
+#: names, and "paper" (the paper's published numbers in the report); installed plug-ins'
+#: names are reserved too (``reserved_names``)
+RESERVED = tuple(
+    dict.fromkeys([*BUILT_IN, *(n.lower() for n in NAMES.values()), "pr-mdp", "prmdp", "paper"])
+)
 _NAME = re.compile(r"^[A-Za-z][A-Za-z0-9_.+-]{0,39}$")
 _NAME_RULE = "a letter, then up to 39 letters, digits or _ . + -"
 GAMES = ("adversarial", "nr", "pr")
+#: the largest seed: numpy's SeedSequence takes any, but the result store keeps 64-bit integers
+#: and rrls seeds its runs with 32-bit ones
+MAX_SEED = 2**32 - 1
 
 
 class SubmitError(ValueError):
@@ -65,31 +74,74 @@ class Submission:
         return float(self.result["average_case"])
 
 
+def reserved_names() -> tuple[str, ...]:
+    """``RESERVED`` and the installed plug-in algorithms (entry point group
+    ``rrls.algorithms``), lower-case."""
+    from importlib.metadata import entry_points
+
+    plugins = [ep.name.lower() for ep in entry_points(group="rrls.algorithms")]
+    return tuple(dict.fromkeys([*RESERVED, *plugins]))
+
+
 def check_name(name: str) -> str:
     """``name`` if it can name a submitted algorithm, else ``SubmitError`` with the rules."""
     if not isinstance(name, str) or not _NAME.match(name):
         raise SubmitError(f"--algo {name!r} is not a valid algorithm name: {_NAME_RULE}")
-    if name.lower() in RESERVED:
+    reserved = reserved_names()
+    if name.lower() in reserved:
+        what = "a built-in algorithm" if name.lower() in RESERVED else "an installed plug-in"
         raise SubmitError(
-            f"--algo {name!r} is a built-in algorithm (reserved: {', '.join(RESERVED)}); "
+            f"--algo {name!r} is {what} (reserved: {', '.join(reserved)}; in any case); "
             f"choose another name: {_NAME_RULE}"
         )
     return name
 
 
+def check_seed(seed: Any) -> int:
+    """``seed`` as an int if it is one in ``0..MAX_SEED``, else ``SubmitError`` (one line)."""
+    if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)):
+        raise SubmitError(f"--seed must be an integer in 0..{MAX_SEED}, got {seed!r}")
+    if not 0 <= int(seed) <= MAX_SEED:
+        text = str(int(seed))
+        shown = text if len(text) <= 24 else f"{text[:10]}...{text[-4:]} ({len(text)} digits)"
+        raise SubmitError(f"--seed must be an integer in 0..{MAX_SEED}, got {shown}")
+    return int(seed)
+
+
 def load_spec(bench_dir: str | Path) -> Spec:
     """The benchmark's protocol (``DIR/benchmark.json``), or ``SubmitError`` naming the file."""
-    path = Path(bench_dir) / "benchmark.json"
-    if not path.is_file():
+    from rrls.experiments import benchfile
+
+    path = benchfile.spec_path(bench_dir)
+    try:
+        exists = path.is_file()
+    except OSError as err:  # a name the file system refuses (too long, ...)
+        raise SubmitError(
+            f"cannot use {bench_dir!s:.80} as a benchmark directory: {err.strerror}"
+        ) from None
+    if not exists:
         raise SubmitError(
             f"{bench_dir} is not a benchmark directory (no benchmark.json): create one with "
             f"`rrls benchmark --out {bench_dir} ...`, or pass --preset to `rrls submit` to "
             "start an empty one with that preset's protocol"
         )
     try:
-        return Spec.from_json(json.loads(path.read_text()))
-    except (ValueError, TypeError) as err:
-        raise SubmitError(f"{path} is not a benchmark spec ({err})") from None
+        return benchfile.read_spec(bench_dir)
+    except (SpecError, ValueError, OSError) as err:
+        raise SubmitError(str(err)) from None
+
+
+def _preset_spec(preset: str, tasks: tuple[str, ...], **overrides: Any) -> Spec:
+    """``preset``'s protocol on ``tasks`` without built-in algorithms (nothing written)."""
+    from dataclasses import replace
+
+    from rrls.experiments.spec import make_spec
+
+    try:
+        base = make_spec(preset, tasks=",".join(tasks), **overrides)
+    except SpecError as err:
+        raise SubmitError(str(err)) from None
+    return replace(base, algos=())
 
 
 def create_benchmark(
@@ -100,16 +152,16 @@ def create_benchmark(
     submissions compare against a reference file (``rrls report --reference``), and
     ``rrls benchmark --out DIR --preset P`` (same options) may later add the baselines to it.
     A directory already holding a benchmark is refused."""
-    from dataclasses import replace
+    from rrls.experiments import benchfile
 
-    from rrls._io import atomic_write_json
-    from rrls.experiments.spec import make_spec
-
-    if (Path(bench_dir) / "benchmark.json").exists():
+    if benchfile.spec_path(bench_dir).exists():
         raise SubmitError(f"{bench_dir} already holds a benchmark (benchmark.json)")
-    base = make_spec(preset, tasks=",".join(tasks), **overrides)
-    spec = replace(base, algos=())
-    atomic_write_json(Path(bench_dir) / "benchmark.json", spec.to_json())
+    spec = _preset_spec(preset, tasks, **overrides)
+    Path(bench_dir).mkdir(parents=True, exist_ok=True)
+    with benchfile.locked(bench_dir):
+        if benchfile.spec_path(bench_dir).exists():  # created meanwhile by another command
+            raise SubmitError(f"{bench_dir} already holds a benchmark (benchmark.json)")
+        benchfile.write_spec(bench_dir, spec)
     return spec
 
 
@@ -167,9 +219,74 @@ def check_shapes(
         )
 
 
-def _identity(source: dict[str, Any], fingerprint: str) -> str:
-    """What "the same policy" means: the file's SHA-256, else its actions on probe inputs."""
-    return f"sha256:{source['sha256']}" if source.get("sha256") else f"actions:{fingerprint}"
+def _first_line(err: BaseException) -> str:
+    lines = str(err).strip().splitlines()
+    return f"{type(err).__name__}: {lines[0]}" if lines else type(err).__name__
+
+
+def _load(what: str, obj: Any) -> tuple[dict[str, Any], Any]:
+    """``obj``'s source record and adapted policy; whatever loading raises (a module raising
+    on import included) is a one-line ``SubmitError``."""
+    from rrls.evaluation.policies import as_policy, policy_source
+
+    prefix = "" if what == "policy" else f"--{what}: "
+    try:
+        return policy_source(obj), as_policy(obj)
+    except (TypeError, ValueError, FileNotFoundError) as err:
+        raise SubmitError(f"{prefix}{err}") from None
+    except Exception as err:  # noqa: BLE001 - code of the submitter's: any failure, one line
+        raise SubmitError(
+            f"{prefix}cannot load the {what} {obj!s:.200} ({_first_line(err)})"
+        ) from None
+
+
+def _identity(policy: Any, obs_dim: int, what: str = "policy") -> str:
+    """What "the same policy" means: the same actions (on 64 probe observations of the size
+    it sees: a TC-RMDP stacked/oracle protagonist's or adversary's input), whatever file or
+    module holds it (a module whose weights file changed is another policy)."""
+    from rrls.evaluation.policies import policy_fingerprint
+
+    try:
+        return f"actions:{policy_fingerprint(policy, obs_dim, n=64)}"
+    except Exception as err:  # noqa: BLE001 - the submitter's code
+        raise SubmitError(f"the {what} fails on probe observations ({_first_line(err)})") from None
+
+
+def _same(
+    record: dict[str, Any], identity: str, fingerprint: str, adv_identity: str | None
+) -> bool:
+    """Whether a stored submission is this one (older records: by their action fingerprint)."""
+    mine = record.get("identity") == identity or (
+        str(record.get("identity", "")).startswith("sha256:")
+        and record.get("fingerprint") == fingerprint
+    )
+    return mine and (record.get("adversary") or {}).get("identity") == adv_identity
+
+
+def _existing(
+    final: Path, identity: str, fingerprint: str, adv_identity: str | None, overwrite: bool
+) -> Submission | None:
+    """The stored submission if it is this one; ``SubmitError`` if it must not be replaced."""
+    from rrls import rundir
+
+    if not (final / rundir.RESULT).exists():
+        return None
+    try:
+        old = rundir.read_checked_json(final / rundir.RESULT)
+    except ValueError as err:
+        raise SubmitError(str(err)) from None
+    record = old.get("submitted")
+    if record is None:
+        raise SubmitError(f"{final} is a trained run, not a submission; it is never replaced")
+    if _same(record, identity, fingerprint, adv_identity):  # the same policy: nothing to do
+        return Submission(final, old, evaluated=False)
+    if not overwrite:
+        raise SubmitError(
+            f"{old.get('algorithm')}/{old.get('task')}/seed {old.get('seed')} was already "
+            f"submitted with another policy ({record.get('source')}); pass --overwrite to "
+            "replace it"
+        )
+    return None
 
 
 def submit(
@@ -198,60 +315,48 @@ def submit(
     ``adversarial`` (the adversary picks the benchmark set's parameters every step, actions in
     ``[-1, 1]^dim``), ``nr`` or ``pr`` (action-robust, ``alpha``, default 0.1); by default the
     game an rrls adversary file records, else ``adversarial``.
-    The same (algo, task, seed) again with the same policy does nothing; with another policy it
-    is refused unless ``overwrite``. ``preset``: if ``bench_dir`` holds no benchmark yet, start
-    an empty one with that preset's protocol on ``task``.
+    The same (algo, task, seed) again with the same policy (the same actions) does nothing;
+    with another policy it is refused unless ``overwrite``. ``preset``: if ``bench_dir`` holds
+    no benchmark yet, start an empty one with that preset's protocol on ``task``.
+
+    A refused submission changes nothing: the benchmark (its task list included) and the run
+    directory are written only once the evaluation succeeded, under the benchmark's lock.
     """
-    from rrls.evaluation.policies import as_policy, policy_fingerprint, policy_source
+    from dataclasses import replace
+
+    from rrls.evaluation.policies import policy_fingerprint
     from rrls.evaluation.stack import policy_view
+    from rrls.experiments import benchfile
     from rrls.tasks import get_task
 
     check_name(algo)
-    if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
-        raise SubmitError(f"--seed must be an integer >= 0, got {seed!r}")
-    seed = int(seed)
+    seed = check_seed(seed)
     try:
         key = get_task(task).key
     except ValueError as err:
         raise SubmitError(str(err)) from None
     root = Path(bench_dir)
-    if preset is not None and not (root / "benchmark.json").exists():
-        try:
-            spec = create_benchmark(root, preset, (key,))
-        except SpecError as err:
-            raise SubmitError(str(err)) from None
+    if preset is not None and not benchfile.spec_path(root).exists():
+        spec = _preset_spec(preset, (key,))
     else:
         spec = load_spec(root)
     if key not in spec.tasks:
-        if spec.algos:  # a benchmark with baselines: only its tasks compare
-            raise SubmitError(
-                f"task {key!r} is not in the benchmark {root} (its tasks: "
-                f"{', '.join(spec.tasks)}); add it with `rrls benchmark --out {root} --tasks "
-                f"{','.join((*spec.tasks, key))} ...`"
-            )
-        spec = _add_task(root, spec, key)  # a submissions-only benchmark grows its tasks
+        _check_new_task(root, spec, key)
+        spec = replace(spec, tasks=(*spec.tasks, key))  # written once the submission is in
     if game is not None and game not in GAMES:
         raise SubmitError(f"unknown game {game!r}; valid: {', '.join(GAMES)}")
     if adversary is None and (game is not None or alpha is not None):
         raise SubmitError("--game and --alpha need --adversary (the dynamic evaluation)")
 
-    source = policy_source(policy)
-    try:
-        adapted = as_policy(policy)
-    except (TypeError, ValueError, FileNotFoundError) as err:
-        raise SubmitError(str(err)) from None
+    source, adapted = _load("policy", policy)
     obs_shape, act_shape, set_dim = _env_shapes(key, spec.uncertainty, is_paper(spec.physics))
     view = policy_view(adapted)  # an rrls TC-RMDP Stacked/Oracle protagonist: what it sees
     seen = obs_shape if view is None else (view.dim(obs_shape[0], act_shape[0]),)
     check_shapes(adapted, seen, act_shape, "policy", key)
-    adv = adv_source = None
+    adv = adv_source = adv_identity = None
     adv_obs = obs_shape
     if adversary is not None:
-        adv_source = policy_source(adversary)
-        try:
-            adv = as_policy(adversary)
-        except (TypeError, ValueError, FileNotFoundError) as err:
-            raise SubmitError(f"--adversary: {err}") from None
+        adv_source, adv = _load("adversary", adversary)
         meta = getattr(adv, "metadata", None) or {}
         game = game or meta.get("game") or "adversarial"
         if alpha is None:
@@ -262,172 +367,93 @@ def submit(
             omniscient = bool(meta.get("omniscient", True))
             adv_obs = (set_dim + obs_shape[0] + (act_shape[0] if omniscient else 0),)
         check_shapes(adv, adv_obs, adv_act, f"adversary ({game} game)", key)
+        adv_identity = _identity(adv, adv_obs[0], "adversary")
+    identity = _identity(adapted, seen[0])
     fingerprint = policy_fingerprint(adapted, seen[0])
-    identity = _identity(source, fingerprint)
 
-    run = RunKey(algo, key, seed).name(spec.uncertainty)
-    final = root / "runs" / run
-    if (final / "result.json").exists():
-        old = json.loads((final / "result.json").read_text())
-        record = old.get("submitted")
-        if record is None:
-            raise SubmitError(f"{final} is a trained run, not a submission; it is never replaced")
-        same_adv = (record.get("adversary") or {}).get("identity") == (
-            _adv_identity(adv_source, adv, adv_obs[0]) if adv is not None else None
-        )
-        if record.get("identity") == identity and same_adv:  # the same policy: nothing to do
-            return Submission(final, old, evaluated=False)
-        if not overwrite:
-            raise SubmitError(
-                f"{algo}/{key}/seed {seed} was already submitted with another policy "
-                f"({record.get('source')}); pass --overwrite to replace it"
-            )
+    final = root / "runs" / RunKey(algo, key, seed).name(spec.uncertainty)
+    done = _existing(final, identity, fingerprint, adv_identity, overwrite)
+    if done is not None:
+        return done
 
-    staging = root / "submissions" / ".staging" / f"{run}-{identity.split(':')[1][:12]}"
-    staging.mkdir(parents=True, exist_ok=True)
-    result = _evaluate(spec, algo, key, seed, adapted, staging, workers, progress)
-    if adv is not None:
-        result.update(_dynamic(spec, key, adapted, adv, game or "adversarial", alpha, staging))
+    staging = root / "submissions" / ".staging" / f"{final.name}-{os.getpid()}-{time.time_ns()}"
+    made = [p for p in (root, root / "submissions", staging.parent) if not p.exists()]
+    try:
+        staging.mkdir(parents=True)
+        result = run_evaluation(spec, algo, key, seed, adapted, staging, workers, progress)
+        if adv is not None:
+            game = game or "adversarial"
+            result.update(run_dynamic(spec, key, adapted, adv, game, alpha, staging))
+    except Exception as err:  # noqa: BLE001 - the submitter's code raised mid-evaluation
+        discard(staging, made)
+        raise SubmitError(
+            f"the evaluation failed ({_first_line(err)}); nothing was submitted"
+        ) from None
     result["submitted"] = {
         **source,
         "identity": identity,
         "fingerprint": fingerprint,
-        "metadata": _jsonable(getattr(adapted, "metadata", None) or {}),
+        "metadata": jsonable(getattr(adapted, "metadata", None) or {}),
         "submitted_at": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime()),
         "adversary": None
         if adv is None
         else {
             **(adv_source or {}),
-            "identity": _adv_identity(adv_source, adv, adv_obs[0]),
+            "identity": adv_identity,
             "game": game,
             "alpha": alpha if game != "adversarial" else None,
         },
     }
-    _install(root, staging, final, result)
+    try:
+        with benchfile.locked(root):  # concurrent submissions: one at a time from here
+            _record_task(root, spec, key)
+            done = _existing(final, identity, fingerprint, adv_identity, overwrite)
+            if done is not None:  # the same policy, submitted meanwhile
+                discard(staging, [])
+                return done
+            install(root, staging, final, result)
+    except BaseException:
+        discard(staging, [])
+        raise
     return Submission(final, result, evaluated=True)
 
 
-def _adv_identity(source: dict[str, Any] | None, adv: Any, obs_dim: int) -> str:
-    from rrls.evaluation.policies import policy_fingerprint
-
-    return _identity(source or {}, policy_fingerprint(adv, obs_dim))
-
-
-def _jsonable(meta: dict[str, Any]) -> dict[str, Any]:
-    return json.loads(json.dumps(meta, default=str))
-
-
-def _add_task(root: Path, spec: Spec, key: str) -> Spec:
-    from dataclasses import replace
-
-    from rrls._io import atomic_write_json
+def _check_new_task(root: Path, spec: Spec, key: str) -> None:
+    """Whether ``key`` may join ``spec`` (a submissions-only benchmark grows its tasks)."""
     from rrls.envs import get_uncertainty_set
+    from rrls.tasks import TASKS, get_task
 
+    if is_paper(spec.physics) and get_task(key).paper_id is None:
+        valid = ", ".join(k for k, t in TASKS.items() if t.paper_id is not None)
+        raise SubmitError(f"task {key!r} has no paper physics; valid in this benchmark: {valid}")
+    if spec.algos:  # a benchmark with baselines: only its tasks compare
+        raise SubmitError(
+            f"task {key!r} is not in the benchmark {root} (its tasks: "
+            f"{', '.join(spec.tasks)}); add it with `rrls benchmark --out {root} --tasks "
+            f"{','.join((*spec.tasks, key))} ...`"
+        )
     try:
         get_uncertainty_set(key, spec.uncertainty)
     except ValueError as err:
         raise SubmitError(str(err)) from None
-    spec = replace(spec, tasks=(*spec.tasks, key))
-    atomic_write_json(root / "benchmark.json", spec.to_json())
-    return spec
 
 
-def _evaluate(
-    spec: Spec,
-    algo: str,
-    task: str,
-    seed: int,
-    policy: Any,
-    out: Path,
-    workers: int | None,
-    progress: bool | None,
-) -> dict[str, Any]:
-    """The final mesh evaluation of the benchmark's runs (``pipeline``'s), into ``out/eval``."""
-    from rrls.evaluation import evaluate
+def _record_task(root: Path, spec: Spec, key: str) -> None:
+    """Under the lock: write the benchmark (new) or add ``key`` to the stored one, re-read now
+    (another command may have added tasks or baselines meanwhile: nothing of theirs is lost)."""
+    from dataclasses import replace
 
-    meta = getattr(policy, "metadata", None) or {}
-    result = evaluate(
-        policy,
-        task,
-        spec.uncertainty,
-        nb_mesh_dim=spec.mesh,
-        episodes=spec.episodes,
-        seed=spec.eval_seed,
-        workers=workers,
-        out_dir=out / "eval",
-        paper=is_paper(spec.physics),
-        split=spec.split_of(task),
-        progress=progress,
-    )
-    return {
-        "algorithm": algo,
-        "task": task,
-        "uncertainty": spec.uncertainty,
-        "train_set": str(meta.get("uncertainty") or "unknown"),
-        **({"split": spec.split, **result.split_scores()} if spec.split else {}),
-        "seed": seed,
-        "steps": int(meta.get("steps") or 0),  # the training budget when the policy records it
-        "physics": spec.physics,
-        "worst_case": result.worst_case,
-        "average_case": result.average_case,
-        "versions": result.config.get("versions", {}),
-    }
+    from rrls.experiments import benchfile
 
-
-def _dynamic(
-    spec: Spec, task: str, policy: Any, adversary: Any, game: str, alpha: float | None, out: Path
-) -> dict[str, Any]:
-    """The dynamic evaluation as the benchmark's RARL / NR-MDP runs play it (``dynamic.csv``)."""
-    from rrls._io import atomic_write_table
-    from rrls.evaluation import evaluate_dynamic
-
-    result = evaluate_dynamic(
-        policy,
-        adversary,
-        task,
-        game=game,
-        uncertainty=spec.uncertainty,
-        episodes=spec.dynamic_episodes,
-        seed=spec.eval_seed,
-        alpha=0.1 if alpha is None else float(alpha),
-        paper=is_paper(spec.physics),
-        **_rate_game(spec, game, policy, adversary),
-    )
-    atomic_write_table(out / "dynamic.csv", result.episodes)
-    return {"dynamic_mean": result.mean, "dynamic_std": result.std, "dynamic_env": result.env_id}
-
-
-def _rate_game(spec: Spec, game: str, policy: Any, adversary: Any) -> dict[str, Any]:
-    """The benchmark's rate-limited game for ``evaluate_dynamic``: TC-RMDP's (or rrls's earlier
-    target game), the protagonist's view and the adversary's omniscience as their files say."""
-    from rrls.evaluation.stack import policy_view
-
-    if game != "adversarial" or spec.rate_limit is None:
-        return {"rate_limit": None}
-    view = policy_view(policy)
-    meta = getattr(adversary, "metadata", None) or {}
-    return {
-        "rate_limit": spec.rate_limit,
-        "rate_game": spec.rate_game,
-        "observe": "vanilla" if view is None else view.observe,
-        "history": 1 if view is None else view.history,
-        "omniscient": bool(meta.get("omniscient", True)),
-    }
-
-
-def _install(root: Path, staging: Path, final: Path, result: dict[str, Any]) -> None:
-    """Move the evaluated ``staging`` directory to ``final`` (replacing a previous submission
-    only once the new one is complete); ``result.json`` goes in last, as for trained runs."""
-    from rrls.experiments.store import write_result
-
-    (staging / "eval" / ".lock").unlink(missing_ok=True)
-    final.parent.mkdir(parents=True, exist_ok=True)
-    trash = None
-    if final.exists():
-        trash = root / "submissions" / ".replaced" / f"{final.name}-{time.time_ns()}"
-        trash.parent.mkdir(parents=True, exist_ok=True)
-        final.rename(trash)
-    staging.rename(final)
-    write_result(final, result)
-    if trash is not None:
-        shutil.rmtree(trash, ignore_errors=True)
+    if not benchfile.spec_path(root).exists():
+        benchfile.write_spec(root, spec)
+        return
+    stored = load_spec(root)
+    if stored.protocol() != spec.protocol():
+        raise SubmitError(
+            f"{benchfile.spec_path(root)} changed during the evaluation (another protocol); "
+            "nothing was submitted: submit again"
+        )
+    if key not in stored.tasks:
+        _check_new_task(root, stored, key)
+        benchfile.write_spec(root, replace(stored, tasks=(*stored.tasks, key)))

@@ -16,7 +16,7 @@ like a mass or a friction):
 ==============  ====================  ============================================  ===========
 parameter       wrapper               meaning (units)                               valid
 ==============  ====================  ============================================  ===========
-``obsnoise``    ObservationNoise      std of Gaussian noise on every observation    >= 0
+``obsnoise``    ObservationNoise      std of Gaussian noise on every observation    [0, 1e6]
                                       component (observation units)
 ``obsdropout``  ObservationDropout    probability that a component reads 0 at a     [0, 1]
                                       step (for ``duration`` steps)
@@ -24,17 +24,19 @@ parameter       wrapper               meaning (units)                           
                                       last value (for ``duration`` steps)
 ``obsdelay``    ObservationDelay      the agent sees the observation of ``k``       whole >= 0
                                       steps ago (steps)
-``actionnoise`` ActionNoise           std of Gaussian noise on every action         >= 0
+``actionnoise`` ActionNoise           std of Gaussian noise on every action         [0, 1e6]
                                       component (action units, clipped to bounds)
 ``actiondelay`` ActionDelay           the env executes the action of ``k`` steps    whole >= 0
                                       ago; the first one before that (steps)
-``rewardnoise`` RewardNoise           std of Gaussian noise on the reward (rrls's   >= 0
+``rewardnoise`` RewardNoise           std of Gaussian noise on the reward (rrls's   [0, 1e6]
                                       own)
 ==============  ====================  ============================================  ===========
 
 Every strength defaults to 0: a disruptor at strength 0 changes nothing (and draws nothing), so
 its episodes equal the bare env's bit for bit. ``reset_params()`` restores the constructor's
-strength; ``reset(options={"obsnoise": 0.1})`` sets it for the episode.
+strength; ``reset(options={"obsnoise": 0.1})`` sets it for the episode. A strength is a number
+(``None`` is refused), each disruptor wraps a stack once, and a refused ``set_params`` or
+``reset`` changes nothing.
 
 Randomness: each disruptor has its own generator, spawned at every ``reset`` from the seed
 sequence of the env's ``np_random`` (which ``reset(seed=...)`` seeds). So a seed fixes every
@@ -61,6 +63,11 @@ from rrls.wrappers.access import ParamsForwarding
 
 #: longest delay accepted (steps): a longer one is almost surely a unit mistake
 MAX_DELAY = 10_000
+#: largest standard deviation accepted: beyond it noise is no longer a disturbance but an
+#: overflow (1e308 made observations infinite by step 3); 1e6 is ten times HumanoidStandup's
+#: largest per-step reward
+MAX_STD = 1e6
+_UNSET: Any = object()
 
 
 def spawn_generator(env: gym.Env) -> np.random.Generator:
@@ -73,6 +80,14 @@ def spawn_generator(env: gym.Env) -> np.random.Generator:
     if isinstance(seq, np.random.SeedSequence):
         return np.random.default_rng(seq.spawn(1)[0])
     return np.random.default_rng(int(rng.integers(2**63)))  # pragma: no cover - other seedings
+
+
+def _inner_params(env: gym.Env) -> dict[str, float]:
+    """The parameters ``env``'s stack already has (none for an env without the interface)."""
+    try:
+        return dict(env.get_wrapper_attr("get_params")())
+    except AttributeError:
+        return {}
 
 
 class Disruptor(ParamsForwarding, gym.utils.RecordConstructorArgs):
@@ -88,6 +103,12 @@ class Disruptor(ParamsForwarding, gym.utils.RecordConstructorArgs):
     def __init__(self, env: gym.Env, strength: float, **record: Any) -> None:
         gym.utils.RecordConstructorArgs.__init__(self, **record)
         super().__init__(env)
+        inner = _inner_params(env)
+        if self.param in inner:  # a second copy: set_params would reach only the outer one
+            raise ValueError(
+                f"{type(self).__name__}: the env already has the parameter {self.param!r} (it "
+                f"is wrapped in {type(self).__name__} already); wrap each disruptor once"
+            )
         problem = self.check_param(self.param, strength)
         if problem:
             raise ValueError(problem)
@@ -113,8 +134,10 @@ class Disruptor(ParamsForwarding, gym.utils.RecordConstructorArgs):
             return f"{name} must be finite, got {value!r}"
         if cls.kind == "probability" and not 0.0 <= value <= 1.0:
             return f"{name} is a probability and must be in [0, 1], got {value!r}"
-        if cls.kind == "std" and value < 0:
-            return f"{name} is a standard deviation and must be >= 0, got {value!r}"
+        if cls.kind == "std" and not 0.0 <= value <= MAX_STD:
+            return (
+                f"{name} is a standard deviation and must be in [0, {MAX_STD:.0f}], got {value!r}"
+            )
         if cls.kind == "steps" and not (value.is_integer() and 0 <= value <= MAX_DELAY):
             return (
                 f"{name} is a number of steps and must be a whole number in [0, {MAX_DELAY}]"
@@ -131,15 +154,16 @@ class Disruptor(ParamsForwarding, gym.utils.RecordConstructorArgs):
         return {**ParamsForwarding.get_params(self, kinds), **self.own_params()}
 
     def set_params(self, **params: float) -> None:
-        """Set this strength and forward the others; everything is validated before writing."""
-        mine = params.pop(self.param, None)
-        if mine is not None:
+        """Set this strength and forward the others; everything is validated before writing
+        (``None`` is refused: it is not a strength)."""
+        mine = params.pop(self.param, _UNSET)
+        if mine is not _UNSET:
             problem = self.check_param(self.param, mine)
             if problem:
                 raise ValueError(problem)
         if params:
             self.env.get_wrapper_attr("set_params")(**params)
-        if mine is not None:
+        if mine is not _UNSET:
             self.strength = self._convert(mine)
 
     def reset_params(self) -> None:
@@ -148,10 +172,15 @@ class Disruptor(ParamsForwarding, gym.utils.RecordConstructorArgs):
 
     # -- Gymnasium hooks ----------------------------------------------------------------------
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
+        before = self.strength
         if options and self.param in options:
             options = dict(options)
             self.set_params(**{self.param: options.pop(self.param)})
-        obs, info = self.env.reset(seed=seed, options=options or None)
+        try:
+            obs, info = self.env.reset(seed=seed, options=options or None)
+        except BaseException:  # the inner env refused its options: a refused reset changes
+            self.strength = before  # nothing, this strength included
+            raise
         self.rng = spawn_generator(self.env)
         self._step = 0
         return self.on_reset(obs), info

@@ -229,12 +229,24 @@ class ScheduledParams(ParamsForwarding, gym.utils.RecordConstructorArgs):
         refuse_empty(self.uncertainty_set, "ScheduledParams", self.env)
         check_names(self.env, self.uncertainty_set)
         schedule._check_dims(self.uncertainty_set.dim)
+        taken = [n for n in schedule.params() if n in self.env.get_wrapper_attr("get_params")()]
+        if taken:  # a second schedule of one kind: set_params would reach only the outer one
+            raise ValueError(
+                f"ScheduledParams: the env already has the parameter(s) {taken} (it is "
+                f"scheduled by a {type(schedule).__name__} already); schedule each kind once"
+            )
         self._initial = schedule
         self.schedule = schedule
         self.rng = np.random.default_rng(0)  # replaced at every reset
         self._t = 0
         self._start = self._x = np.zeros(self.uncertainty_set.dim)
         self._start_values = self._start
+        self._raw_start: dict[str, float] = {}
+        #: the values the schedule overwrote (the episode's start, as read at reset), put back
+        #: at the next reset so that each episode starts where it would without the schedule
+        self._moved: dict[str, float] = {}
+        specs = getattr(self.env.unwrapped, "param_specs", ())
+        self._canonical = {a: s.name for s in specs for a in s.aliases}
 
     # -- parameters ---------------------------------------------------------------------------
     def own_params(self) -> dict[str, float]:
@@ -257,6 +269,10 @@ class ScheduledParams(ParamsForwarding, gym.utils.RecordConstructorArgs):
         schedule = self.schedule.with_params(**mine) if mine else self.schedule  # validates
         if params:
             self.env.get_wrapper_attr("set_params")(**params)
+            given = {self._canonical.get(k, k) for k in params}  # set by the caller: kept
+            self._moved = {
+                k: v for k, v in self._moved.items() if self._canonical.get(k, k) not in given
+            }
         self.schedule = schedule
 
     def reset_params(self) -> None:
@@ -265,14 +281,30 @@ class ScheduledParams(ParamsForwarding, gym.utils.RecordConstructorArgs):
 
     # -- Gymnasium hooks ----------------------------------------------------------------------
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
+        """A new episode: the schedule restarts from the values in force before it moved them
+        (or from ``options`` / an inner draw); a refused reset changes nothing."""
+        schedule, moved = self.schedule, self._moved
         if options:
             mine = set(self.own_params())
             if mine & set(options):
                 self.set_params(**{k: v for k, v in options.items() if k in mine})
                 options = {k: v for k, v in options.items() if k not in mine} or None
-        obs, info = self.env.reset(seed=seed, options=options)
         box = self.uncertainty_set
-        self._start_values = box.clip(read_point(self.env, box))
+        inner_set = self.env.get_wrapper_attr("set_params")
+        scheduled = box.to_dict(read_point(self.env, box)) if moved else {}
+        try:
+            if moved:
+                inner_set(**moved)
+            obs, info = self.env.reset(seed=seed, options=options)
+        except BaseException:  # put back the schedule and its point
+            self.schedule = schedule
+            if scheduled:
+                inner_set(**scheduled)
+            raise
+        self._moved = {}
+        raw = read_point(self.env, box)
+        self._start_values = box.clip(raw)
+        self._raw_start = box.to_dict(raw)
         self._start = self._x = box.normalize(self._start_values)
         self.rng = spawn_generator(self.env)
         self._t = 0
@@ -287,6 +319,8 @@ class ScheduledParams(ParamsForwarding, gym.utils.RecordConstructorArgs):
         # where the point is the start, the start's own values (no normalisation round trip)
         values = np.where(x == self._start, self._start_values, box.denormalize(x))
         point = box.to_dict(np.clip(values, box.low, box.high))
+        if not self._moved:
+            self._moved = self._raw_start
         self.env.get_wrapper_attr("set_params")(**point)
         obs, reward, terminated, truncated, info = self.env.step(action)
         info["scheduled_params"] = point

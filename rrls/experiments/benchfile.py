@@ -1,0 +1,53 @@
+"""``DIR/benchmark.json``, the benchmark's protocol: sealed like every results file (a damaged
+one is a one-line error naming it, never a report of wrong numbers) and changed only under a
+lock, so that commands adding tasks or runs at the same time (``rrls benchmark``, concurrent
+``rrls submit``) lose no update."""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+from contextlib import contextmanager
+from pathlib import Path
+from typing import Any
+
+from rrls import rundir
+
+NAME = "benchmark.json"
+#: the lock file beside it (an ``flock``: a killed holder releases it)
+LOCK = ".benchmark.lock"
+
+
+def spec_path(root: str | Path) -> Path:
+    return Path(root) / NAME
+
+
+def read_spec_json(root: str | Path) -> dict[str, Any]:
+    """The stored protocol as a JSON object (``FileNotFoundError`` if there is none,
+    ``DamagedFile`` if its bytes are not those written)."""
+    return rundir.read_checked_json(spec_path(root))
+
+
+def read_spec(root: str | Path) -> Any:
+    """The stored ``Spec``; a file that is not one is a ``SpecError`` naming it."""
+    from rrls.experiments.spec import Spec, SpecError
+
+    data = read_spec_json(root)
+    try:
+        return Spec.from_json(data)
+    except (ValueError, TypeError, KeyError, AttributeError) as err:
+        raise SpecError(f"{spec_path(root)} is not a benchmark spec ({err})") from None
+
+
+def write_spec(root: str | Path, spec: Any) -> Path:
+    """Write (and seal) ``spec`` as the directory's protocol; hold :func:`locked` around the
+    read that it updates."""
+    return rundir.write_checked_json(spec_path(root), spec.to_json())
+
+
+@contextmanager
+def locked(root: str | Path) -> Iterator[None]:
+    """Hold the benchmark's lock (waiting for another command to release it)."""
+    from rrls._io import waiting_lock
+
+    with waiting_lock(Path(root) / LOCK):
+        yield
