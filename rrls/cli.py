@@ -211,7 +211,7 @@ def build_parser(with_train: bool = True) -> argparse.ArgumentParser:
     quick = sub.add_parser(
         "quickstart",
         help="the `quick` benchmark preset: five algorithms on InvertedPendulum's 1D set, "
-        "evaluated, reported, plotted (~20 min on 2 cores)",
+        "evaluated, reported, plotted (~18 min on 2 cores)",
     )
     quick.add_argument("--out", default="quickstart", help="output directory")
     quick.add_argument("--steps", type=int, default=None, help="steps per algorithm")

@@ -29,8 +29,8 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:
     b.add_argument(
         "--preset",
         default="paper",
-        help="smoke (seconds, for tests), quick (~20 min on 2 cores, reduced budget), "
-        "paper (the paper's protocol; default)",
+        help="smoke (seconds, for tests), quick (~18 min on 2 cores, reduced protocol), "
+        "hopper (~9.5 CPU-hours: the locomotion reference), paper (the paper's protocol; default)",
     )
     b.add_argument(
         "--algos",

@@ -154,7 +154,7 @@ PRESETS: dict[str, dict[str, Any]] = {
         batch_size=32,
         checkpoint_every=100,
     ),
-    # ~20 minutes on 2 cores (a reduced protocol, NOT the paper's): InvertedPendulum, whose
+    # ~18 minutes on 2 cores (a reduced protocol, NOT the paper's): InvertedPendulum, whose
     # nominal task TD3 learns on every seed within 25 k steps with 64-64 networks and Adam at
     # 1e-3 (measured per seed, docs/results/quick/README.md), 3 seeds x 30 k steps, so every
     # normalised score is against a TD3 that balances the pole.
