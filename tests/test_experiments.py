@@ -22,6 +22,8 @@ from rrls.experiments import stats
 from rrls.experiments.report import make_report, paper_results, summarise
 from rrls.experiments.runner import Display, plan
 from rrls.experiments.spec import (
+    RANDOM_STEPS_PER_S,
+    REPORT_S,
     STARTUP_S,
     TRAIN_STEPS_PER_S,
     Spec,
@@ -300,10 +302,17 @@ def test_paper_preset_is_the_protocol_and_prints_an_estimate(tmp_path):
     assert (spec.mesh, spec.episodes, spec.dynamic_episodes) == (10, 5, 10)
     assert spec.learning_rate is None and spec.hidden == (256, 256)  # the paper's 3e-4
     est = estimate(spec, jobs=2)
-    assert est["runs"] == 250 and est["wall_s"] == pytest.approx(est["cpu_s"] / 2)
-    # each run: the start-up plus its steps at its algorithm's calibrated single-thread rate
+    # 125 rounds of 2 runs, then the report
+    assert est["runs"] == 250 and est["wall_s"] == pytest.approx(est["cpu_s"] / 2 + REPORT_S)
+    # each run: the start-up, its random warm-up, then its learning steps at its algorithm's
+    # calibrated single-thread rate (256-256: the calibration's size)
     rates = [TRAIN_STEPS_PER_S[a] for a in spec.algos]
-    assert est["train_s"] == pytest.approx(50 * 5e6 * sum(1 / r for r in rates) + 250 * STARTUP_S)
+    learning = 50 * (5e6 - 25_000) * sum(1 / r for r in rates)
+    warmup = 250 * 25_000 / RANDOM_STEPS_PER_S
+    assert est["train_s"] == pytest.approx(learning + warmup + 250 * STARTUP_S)
+    # a 15-run preset on 2 cores: 8 rounds (the last leaves a core idle)
+    quick = estimate(make_spec("quick"), jobs=2)
+    assert quick["wall_s"] == pytest.approx(8 * quick["cpu_s"] / 15 + REPORT_S)
     text = plan(tmp_path, spec, 250, 0, 2, "local")
     assert "250 runs" in text and "estimate" in text and "days" in text
     # explicit options override the preset
