@@ -30,6 +30,7 @@ from typing import Any
 import numpy as np
 
 from rrls.experiments import stats
+from rrls.experiments.caveats import FEW, FEW_SEEDS_NOTE, few_seeds, unstable_normalisation
 from rrls.experiments.names import NAMES, ORDER, sort_algos, task_name  # noqa: F401 - re-exported
 
 METRICS = ("worst_case", "average_case")
@@ -250,7 +251,11 @@ def _fmt(value: float | None, digits: int = 2) -> str:
 def _pm(cell: dict[str, Any] | None, digits: int = 2) -> str:
     if not cell or cell.get("mean") is None:
         return "–"
-    return f"{_fmt(cell['mean'], digits)} ± {_fmt(cell['std'], digits)}"
+    if cell.get("n_seeds") == 1:  # one seed: its value, no "± 0.00"
+        return f"{_fmt(cell['mean'], digits)}{FEW}"
+    return f"{_fmt(cell['mean'], digits)} ± {_fmt(cell['std'], digits)}" + (
+        FEW if few_seeds(cell) else ""
+    )
 
 
 def _tex_pm(cell: dict[str, Any] | None, digits: int = 2, bold: bool = False) -> str:
@@ -258,6 +263,10 @@ def _tex_pm(cell: dict[str, Any] | None, digits: int = 2, bold: bool = False) ->
         return "--"
     mean, std = (round(cell[k], digits) + 0.0 for k in ("mean", "std"))
     body = f"{mean:.{digits}f} \\pm {std:.{digits}f}"
+    if cell.get("n_seeds") == 1:
+        body = f"{mean:.{digits}f}^{{\\dagger}}"
+    elif few_seeds(cell):
+        body += "^{\\dagger}"
     return f"$\\mathbf{{{body}}}$" if bold else f"${body}$"
 
 
@@ -559,6 +568,15 @@ def _markdown(
         lines += ["## Missing cells", ""] + [f"- {m}" for m in summary["missing"]] + [""]
     lines += _normalisation_lines(summary)
     lines += ["## Static evaluation", ""]
+    cells = [
+        c
+        for by_algo in summary["results"].values()
+        for metrics in by_algo.values()
+        for c in metrics.values()
+        if isinstance(c, dict)
+    ]
+    if any(few_seeds(c) for c in cells):
+        lines += [FEW_SEEDS_NOTE, ""]
     for name in ("raw_worst_case", "raw_average_case", "normalised_worst_case"):
         lines += _md_table(summary, name, paper)
     lines += _md_table(summary, "normalised_average_case", paper)
@@ -639,6 +657,7 @@ def _normalisation_lines(summary: dict[str, Any]) -> list[str]:
             + (" nor in the reference" if ref else "; `rrls report DIR --reference FILE`")
             + f"): {', '.join(sources['-'])}"
         )
+    lines += unstable_normalisation(summary)
     return [*lines, ""]
 
 
