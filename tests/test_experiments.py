@@ -553,3 +553,14 @@ def test_a_benchmark_runs_every_algorithms_first_seed_first():
     assert [len(g) for g in packed] == [2] * 5 + [1] * 5
     assert all(len({k.algo for k in g}) == 1 for g in packed)  # a group is one cell
     assert sorted(k for g in packed for k in g) == sorted(spec.runs())
+
+
+def test_a_dry_run_prints_the_plan_and_writes_nothing(tmp_path, capsys):
+    out = tmp_path / "bench"
+    assert main(["benchmark", "--preset", "hopper", "--out", str(out), "--dry-run"]) == 0
+    text = capsys.readouterr().out
+    assert not out.exists()  # nothing written, nothing trained
+    assert "15 runs (0 finished, 15 to run)" in text and "estimate" in text
+    order = [line.split(". ", 1)[1] for line in text.splitlines() if line.strip()[:1].isdigit()]
+    assert order[:2] == ["td3-hopper-3d-seed0", "dr-hopper-3d-seed0"] and len(order) == 15
+    assert "report/" in text and "dry run: nothing written" in text

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import argparse
 import sys
+from typing import Any
 
 from rrls.experiments.spec import PAPER_TASKS, PRESETS, SpecError
 
@@ -94,6 +95,12 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:
         "--ray-address", metavar="ADDR", help="Ray cluster address (default: RAY_ADDRESS or local)"
     )
     b.add_argument("--device", help="cpu (default) or cuda (Ray: a quarter GPU per process)")
+    b.add_argument(
+        "--dry-run",
+        action="store_true",
+        help="print the runs in the order they would start, the compute estimate and the "
+        "output layout, then stop (nothing is written or trained)",
+    )
     b.add_argument(
         "--pack",
         type=int,
@@ -245,12 +252,40 @@ def _benchmark(args: argparse.Namespace) -> int:
             except ValueError as err:
                 return _fail("benchmark", str(err))
 
+    if args.dry_run:
+        return _dry_run(Path(args.out), spec, jobs or 0, args.backend, args.pack)
+
     from rrls.experiments.runner import benchmark
 
     code = benchmark(args.out, spec, jobs or 0, args.backend, args.ray_address, pack=args.pack)
     if code in (0, 1) and (Path(args.out) / "report" / "summary.json").exists():
         print(_table(args.out))
     return code
+
+
+def _dry_run(root: Any, spec: Any, jobs: int, backend: str, pack: int | None) -> int:
+    """What ``rrls benchmark`` would do in ``root``, without doing any of it."""
+    from rrls.experiments.pipeline import default_pack, groups
+    from rrls.experiments.runner import pending_runs, plan
+    from rrls.experiments.spec import reconcile
+
+    if (root / "benchmark.json").exists():
+        spec = reconcile(root, spec)  # another protocol there: refused now, as it would be
+        todo, finished = pending_runs(root, spec)
+    else:
+        todo, finished = spec.runs(), 0
+    pack = default_pack(spec, pack)
+    print(plan(root, spec, len(todo), finished, jobs, backend, pack))
+    print(f"\nruns to start, in order ({len(todo)}):")
+    for i, group in enumerate(groups(todo, pack), 1):
+        names = ", ".join(key.name(spec.uncertainty) for key in group)
+        print(f"  {i:>4}. {names}")
+    print(
+        f"\nlayout: {root}/benchmark.json (the protocol), {root}/runs/<run>/ (policy.npz, "
+        f"run.json, result.json, scalars.csv, eval/), {root}/results/ (the store), "
+        f"{root}/report/ (report.md, tables/, figures/)\n(dry run: nothing written)"
+    )
+    return 0
 
 
 def _report(args: argparse.Namespace) -> int:
