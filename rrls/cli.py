@@ -8,6 +8,34 @@ from typing import Any
 
 #: what a command may raise for bad input: reported as ``rrls <command>: <message>``, exit 2
 USAGE_ERRORS = (ValueError, FileNotFoundError, FileExistsError, NotADirectoryError)
+
+
+class Parser(argparse.ArgumentParser):
+    """``argparse`` without abbreviations: ``--learning-start`` must not silently mean
+    ``--learning-starts`` (a typo would train with a value nobody chose). Subcommands inherit
+    it; ``subcommands`` maps each name to its parser, for ``unknown_option``."""
+
+    subcommands: dict[str, argparse.ArgumentParser]
+
+    def __init__(self, *args: Any, **kwargs: Any) -> None:
+        kwargs.setdefault("allow_abbrev", False)
+        super().__init__(*args, **kwargs)
+
+
+def unknown_option(parser: argparse.ArgumentParser, command: str, extras: list[str]) -> str:
+    """One line for options ``rrls COMMAND`` does not know, with the closest valid flag."""
+    import difflib
+    import re
+
+    flag = extras[0].split("=", 1)[0]
+    if not flag.startswith("-"):
+        return f"rrls {command}: unexpected argument {flag!r}; see rrls {command} --help"
+    options = sorted(set(re.findall(r"--[\w-]+", parser.format_help())))
+    close = difflib.get_close_matches(flag, options, n=1, cutoff=0.75)
+    hint = f" (did you mean {close[0]}?)" if close else ""
+    return f"rrls {command}: unknown option {flag}{hint}; see rrls {command} --help"
+
+
 #: the paper's tasks, for help texts; any registered task is accepted (``rrls.tasks.get_task``)
 TASK_CHOICES = ["ant", "halfcheetah", "hopper", "humanoidstandup", "invertedpendulum", "walker"]
 SET_CHOICES = ["1d", "2d", "3d", "rarl", "nominal"]
@@ -85,7 +113,7 @@ def _task_keys() -> list[str]:
 def build_parser(with_train: bool = True) -> argparse.ArgumentParser:
     from rrls import __version__
 
-    parser = argparse.ArgumentParser(prog="rrls", description="Robust Reinforcement Learning Suite")
+    parser = Parser(prog="rrls", description="Robust Reinforcement Learning Suite")
     parser.add_argument("--version", action="version", version=f"rrls {__version__}")
     sub = parser.add_subparsers(dest="command", required=True)
 
@@ -230,6 +258,7 @@ def build_parser(with_train: bool = True) -> argparse.ArgumentParser:
     )
     plot.add_argument("dir", help="an `rrls evaluate` output directory")
     plot.add_argument("--out", help="PNG path (default DIR/returns.png)")
+    parser.subcommands = dict(sub.choices)
     return parser
 
 
@@ -246,7 +275,12 @@ def main(argv: list[str] | None = None) -> int:
         except ImportError as err:
             print(f"rrls train needs torch: pip install 'rrls[train]' ({err})", file=sys.stderr)
             return 2
-    args = build_parser(with_train).parse_args(argv)
+    parser = build_parser(with_train)
+    args, extras = parser.parse_known_args(argv)
+    if extras:
+        sub = parser.subcommands.get(args.command, parser)
+        print(unknown_option(sub, args.command, extras), file=sys.stderr)
+        return 2
     try:
         return _dispatch(args)
     except USAGE_ERRORS as err:

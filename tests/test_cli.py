@@ -34,3 +34,18 @@ def test_unknown_task_is_a_clear_error(capsys):
         main(["check", "--task", "cartpole"])
     assert stop.value.code == 2
     assert "valid tasks" in capsys.readouterr().err
+
+
+def test_flags_are_never_abbreviated_and_an_unknown_one_is_named_with_a_suggestion(capsys):
+    from rrls.cli import main
+
+    # argparse would have taken --mes as --mesh; rrls refuses, naming the command and the flag
+    assert main(["evaluate", "x", "--mes", "2"]) == 2
+    err = capsys.readouterr().err.strip()
+    hint = "(did you mean --mesh?); see rrls evaluate --help"
+    assert err == f"rrls evaluate: unknown option --mes {hint}"
+    assert main(["benchmark", "--preset", "quick", "--out", "x", "--dryrun"]) == 2
+    assert "did you mean --dry-run?" in capsys.readouterr().err
+    assert main(["evaluate", "x", "--zzz"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.startswith("rrls evaluate: unknown option --zzz;") and len(err.splitlines()) == 1
