@@ -434,6 +434,13 @@ def _train(args: argparse.Namespace) -> int:
         print(f"{stop}; continue with --resume")
         return 3
     config = configs[0]
+    warm_up = _warm_up(run_dirs[0])
+    if warm_up is not None and config.steps <= warm_up:  # a policy nobody trained: say so
+        print(
+            f"rrls train: warning: --steps {config.steps} <= the warm-up of {warm_up} random "
+            "steps (--learning-starts): no update was made and the policy is untrained",
+            file=sys.stderr,
+        )
     if args.seeds is not None:
         seeds = ", ".join(str(c.seed) for c in configs)
         print(f"trained {config.algo} on {config.task}/{config.uncertainty}, seeds {seeds}:")
@@ -451,6 +458,17 @@ def _train(args: argparse.Namespace) -> int:
     if (run_dir / "adversary.npz").exists():
         print(f"against its own adversary (paper Table 6): rrls evaluate-dynamic {run_dir}")
     return 0
+
+
+def _warm_up(run_dir: Any) -> int | None:
+    """The run's random warm-up (``learning_starts``) as its ``run.json`` records it."""
+    import json
+
+    try:
+        hyper = json.loads((run_dir / "run.json").read_text()).get("hyperparameters") or {}
+        return int(hyper["learning_starts"])
+    except (OSError, ValueError, KeyError, TypeError):
+        return None
 
 
 def _evaluate_dynamic(args: argparse.Namespace) -> int:

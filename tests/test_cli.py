@@ -49,3 +49,16 @@ def test_flags_are_never_abbreviated_and_an_unknown_one_is_named_with_a_suggesti
     assert main(["evaluate", "x", "--zzz"]) == 2
     err = capsys.readouterr().err.strip()
     assert err.startswith("rrls evaluate: unknown option --zzz;") and len(err.splitlines()) == 1
+
+
+def test_train_warns_when_the_budget_ends_inside_the_warm_up(tmp_path, capsys):
+    pytest.importorskip("torch")
+    from rrls.cli import main
+
+    base = ["train", "--algo", "td3", "--task", "invertedpendulum", "--eval-every", "0"]
+    assert main([*base, "--steps", "40", "--out", str(tmp_path / "a")]) == 0
+    err = capsys.readouterr().err
+    assert "--steps 40 <= the warm-up of 25000 random steps" in err and "untrained" in err
+    small = ["--hidden", "8", "8", "--batch-size", "8", "--learning-starts", "20"]
+    assert main([*base, "--steps", "40", *small, "--out", str(tmp_path / "b")]) == 0
+    assert "warm-up" not in capsys.readouterr().err  # 20 updates were made
