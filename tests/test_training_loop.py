@@ -406,6 +406,15 @@ def test_track_logs_to_weights_and_biases_when_installed(tmp_path, monkeypatch, 
     logged = {key for kind, v in calls if kind == "log" for key in v[0]}
     csv = (out / "scalars.csv").read_text().splitlines()[1:]
     assert {line.split(",")[1] for line in csv} <= logged  # every curve reaches W&B too
+
+    def no_login(**kwargs):  # noqa: ANN003 - what wandb raises without a login and no tty
+        raise RuntimeError("api_key not configured (no-tty). call wandb.login(key=[your_api_key])")
+
+    monkeypatch.setitem(sys.modules, "wandb", types.SimpleNamespace(init=no_login))
+    assert _cli(tmp_path / "nologin", "td3", 50, "--track") == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "wandb login" in err and "WANDB_MODE=offline" in err
+    assert "api_key not configured" in err
     monkeypatch.setitem(sys.modules, "wandb", None)  # not installed: one line naming the fix
     with pytest.raises(ValueError, match="pip install wandb"):
         train(

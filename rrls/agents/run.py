@@ -52,14 +52,21 @@ class Metrics:
                 import wandb
             except ImportError:
                 raise ValueError("--track logs to Weights & Biases: pip install wandb") from None
-            self._wandb = wandb.init(
-                project=config.wandb_project,
-                name=directory.name,
-                config=asdict(config),
-                dir=str(directory),
-                resume="allow",
-                reinit=True,
-            )
+            try:
+                self._wandb = wandb.init(
+                    project=config.wandb_project,
+                    name=directory.name,
+                    config=asdict(config),
+                    dir=str(directory),
+                    resume="allow",
+                    reinit=True,
+                )
+            except Exception as err:  # noqa: BLE001 - no login, no network...: one line
+                reason = (str(err).strip().splitlines() or [type(err).__name__])[0]
+                raise ValueError(
+                    f"--track: Weights & Biases did not start ({reason}); log in with "
+                    "`wandb login` (or set WANDB_API_KEY), or log offline with WANDB_MODE=offline"
+                ) from None
 
     def log(self, values: dict[str, float], step: int) -> None:
         """TensorBoard (and W&B) only (losses: frequent, not part of the curves table)."""
