@@ -209,7 +209,8 @@ def build_parser(with_train: bool = True) -> argparse.ArgumentParser:
     )
     ev.add_argument(
         "--out",
-        help="output directory (default: evaluations/<task>-<uncertainty>-mesh<M>-ep<E>-seed<S>)",
+        help="output directory (default: evaluations/<policy>-<task>-<uncertainty>-mesh<M>-ep<E>"
+        "-seed<S>)",
     )
     ev.add_argument("--plot", action="store_true", help="also write DIR/returns.png")
 
@@ -366,7 +367,8 @@ def _evaluate(args: argparse.Namespace) -> int:
             raise UsageError(str(err)) from None
     out = Path(
         args.out
-        or f"evaluations/{task}-{uncertainty}-mesh{args.mesh}-ep{args.episodes}-seed{args.seed}"
+        or f"evaluations/{_policy_name(args.policy)}-{task}-{uncertainty}-mesh{args.mesh}"
+        f"-ep{args.episodes}-seed{args.seed}"
         + ("-paper" if args.physics == "paper" else "")
     )
     result = evaluate(
@@ -458,6 +460,18 @@ def _train(args: argparse.Namespace) -> int:
     if (run_dir / "adversary.npz").exists():
         print(f"against its own adversary (paper Table 6): rrls evaluate-dynamic {run_dir}")
     return 0
+
+
+def _policy_name(policy: str) -> str:
+    """A folder-safe name for ``rrls evaluate``'s default output: a run directory's or file's
+    name (``td3-hopper-3d-seed0``, ``agent``), or ``module.attr`` — so evaluating a second
+    policy does not land in the first one's folder (refused there: another fingerprint)."""
+    import re
+    from pathlib import Path
+
+    text = str(policy).rstrip("/")
+    name = text.replace(":", ".") if ":" in text and not Path(text).exists() else Path(text).stem
+    return re.sub(r"[^\w.-]+", "_", name)[:80] or "policy"
 
 
 def _warm_up(run_dir: Any) -> int | None:

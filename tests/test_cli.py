@@ -62,3 +62,18 @@ def test_train_warns_when_the_budget_ends_inside_the_warm_up(tmp_path, capsys):
     small = ["--hidden", "8", "8", "--batch-size", "8", "--learning-starts", "20"]
     assert main([*base, "--steps", "40", *small, "--out", str(tmp_path / "b")]) == 0
     assert "warm-up" not in capsys.readouterr().err  # 20 updates were made
+
+
+def test_evaluate_default_folders_are_per_policy(tmp_path, monkeypatch):
+    from rrls.evaluation.policies import MLPPolicy
+
+    monkeypatch.chdir(tmp_path)
+    for seed in (0, 1):
+        MLPPolicy.random(4, 1, (8,), seed=seed).save(tmp_path / f"pol{seed}.npz")
+        args = ["evaluate", f"pol{seed}.npz", "--task", "invertedpendulum", "--mesh", "2"]
+        assert main([*args, "--episodes", "1", "--uncertainty", "1d", "--workers", "1"]) == 0
+    folders = sorted(p.name for p in (tmp_path / "evaluations").iterdir())
+    assert folders == [
+        "pol0-invertedpendulum-1d-mesh2-ep1-seed0",
+        "pol1-invertedpendulum-1d-mesh2-ep1-seed0",
+    ]
