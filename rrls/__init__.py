@@ -61,11 +61,6 @@ from rrls._registration import register_envs  # noqa: E402
 
 register_envs()
 
-__all__ = [
-    "UncertaintySet",
-    "__version__",
-    "get_uncertainty_set",
-    "make_wrapped_env",
-    "register_envs",
-    *_LAZY,
-]
+# every public name once (UncertaintySet and get_uncertainty_set are also lazy names)
+_EAGER = ["UncertaintySet", "__version__", "get_uncertainty_set", "make_wrapped_env"]
+__all__ = list(dict.fromkeys([*_EAGER, "register_envs", *_LAZY]))
