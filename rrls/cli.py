@@ -216,7 +216,8 @@ def build_parser(with_train: bool = True) -> argparse.ArgumentParser:
 
     tr = sub.add_parser(
         "train",
-        help="train a baseline (td3, dr, rarl, nrmdp, m2td3); needs the `train` extra",
+        help="train a baseline (td3, dr, rarl, nrmdp, m2td3, sac, sacdr) or a plug-in; needs "
+        "the `train` extra",
         description="Train a baseline with the paper's hyper-parameters. Checkpoints are written "
         "to --out; --resume continues a killed run exactly where it stopped.",
     )
@@ -228,6 +229,9 @@ def build_parser(with_train: bool = True) -> argparse.ArgumentParser:
     ed = sub.add_parser(
         "evaluate-dynamic",
         help="a RARL / NR-MDP run's policy against its own trained adversary (paper Table 6)",
+        description="Play a two-player run's final protagonist (policy.npz) against its own final "
+        "adversary (adversary.npz) for --episodes episodes, in the game the run trained in "
+        "(RARL's, TC-RMDP's rate-limited one, or NR-MDP's action mixing): the paper's Table 6.",
     )
     ed.add_argument("run_dir", help="an `rrls train` run directory holding adversary.npz")
     ed.add_argument(
@@ -241,10 +245,17 @@ def build_parser(with_train: bool = True) -> argparse.ArgumentParser:
         "quickstart",
         help="the `quick` benchmark preset: five algorithms on InvertedPendulum's 1D set, "
         "evaluated, reported, plotted (~18 min on 2 cores)",
+        description="The README's main command: `rrls benchmark --preset quick` in --out. TD3, "
+        "DR, M2TD3, RARL and NR-MDP on InvertedPendulum's 1D set, 3 seeds x 30 k steps with "
+        "64-64 networks (a reduced protocol at which TD3 learns the nominal task on every seed), "
+        "each evaluated over a 10-point mesh x 5 episodes, then the report, its tables and a "
+        "plot. Resumable: the same command continues where it stopped.",
     )
-    quick.add_argument("--out", default="quickstart", help="output directory")
-    quick.add_argument("--steps", type=int, default=None, help="steps per algorithm")
-    quick.add_argument("--seed", type=int, default=0)
+    quick.add_argument("--out", default="quickstart", help="output directory (default quickstart)")
+    quick.add_argument(
+        "--steps", type=int, default=None, help="steps per run (default: the preset's 30 000)"
+    )
+    quick.add_argument("--seed", type=int, default=0, help="the first seed (default 0: seeds 0-2)")
 
     from rrls.experiments.cli import add_parsers
 

@@ -78,7 +78,13 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:
         "rrls report gives in- and out-of-distribution worst/average case apart",
     )
     b.add_argument("--steps", type=int, metavar="N", help="training steps per run")
-    b.add_argument("--learning-starts", type=int, metavar="N")
+    b.add_argument(
+        "--learning-starts",
+        type=int,
+        metavar="N",
+        help="random steps before learning (default: the preset's; paper 25 000, quick 1 000; "
+        "with --steps alone, at most a fifth of the budget)",
+    )
     b.add_argument(
         "--eval-every",
         type=int,
@@ -90,7 +96,12 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:
     b.add_argument(
         "--jobs", type=int, metavar="N", help="parallel runs (default: the number of cores)"
     )
-    b.add_argument("--backend", default="local", help="local (process pool) or ray")
+    b.add_argument(
+        "--backend",
+        default="local",
+        choices=("local", "ray"),
+        help="local (a process pool on this machine; default) or ray (a Ray cluster)",
+    )
     b.add_argument(
         "--ray-address", metavar="ADDR", help="Ray cluster address (default: RAY_ADDRESS or local)"
     )
@@ -156,6 +167,7 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:
     )
     s.add_argument(
         "--game",
+        choices=("adversarial", "nr", "pr"),
         help="the adversary's game: adversarial (picks the set's parameters; default unless an "
         "rrls adversary file records another), nr or pr (action-robust)",
     )
