@@ -99,8 +99,7 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:
     b.add_argument(
         "--backend",
         default="local",
-        choices=("local", "ray"),
-        help="local (a process pool on this machine; default) or ray (a Ray cluster)",
+        help="choices: local (a process pool on this machine; default), ray (a Ray cluster)",
     )
     b.add_argument(
         "--ray-address", metavar="ADDR", help="Ray cluster address (default: RAY_ADDRESS or local)"
@@ -167,8 +166,7 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:
     )
     s.add_argument(
         "--game",
-        choices=("adversarial", "nr", "pr"),
-        help="the adversary's game: adversarial (picks the set's parameters; default unless an "
+        help="the adversary's game, one of adversarial, nr, pr: adversarial (picks the set's parameters; default unless an "
         "rrls adversary file records another), nr or pr (action-robust)",
     )
     s.add_argument("--alpha", type=float, help="nr/pr: the adversary's probability (0.1)")
