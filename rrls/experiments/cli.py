@@ -166,8 +166,9 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:
     )
     s.add_argument(
         "--game",
-        help="the adversary's game, one of adversarial, nr, pr: adversarial (picks the set's parameters; default unless an "
-        "rrls adversary file records another), nr or pr (action-robust)",
+        help="the adversary's game, one of adversarial, nr, pr: adversarial (picks the set's "
+        "parameters; default unless an rrls adversary file records another), nr or pr "
+        "(action-robust)",
     )
     s.add_argument("--alpha", type=float, help="nr/pr: the adversary's probability (0.1)")
     s.add_argument(
