@@ -73,7 +73,6 @@ def test_the_package_is_typed_and_its_public_names_are_listed_once():
     import collections
     from pathlib import Path
 
-
     assert (Path(rrls.__file__).parent / "py.typed").is_file()  # PEP 561: type hints ship
     twice = [n for n, k in collections.Counter(rrls.__all__).items() if k > 1]
     assert twice == [] and all(hasattr(rrls, n) for n in rrls.__all__)
