@@ -61,7 +61,6 @@ import argparse
 import importlib.util
 import multiprocessing
 import os
-import platform
 import queue
 import statistics
 import tempfile
@@ -487,14 +486,9 @@ def separate_processes(
 
 def machine() -> str:
     """One line naming the CPU (and GPU) the table was measured on."""
-    model = platform.processor() or platform.machine()
-    try:
-        for line in Path("/proc/cpuinfo").read_text().splitlines():
-            if line.startswith("model name"):
-                model = line.split(":", 1)[1].strip()
-                break
-    except OSError:
-        pass
+    from rrls.provenance import machine as cpu
+
+    model = cpu()["cpu"]
     cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count()
     gpu = torch.cuda.get_device_name(0) if torch.cuda.is_available() else "no GPU"
     return f"{model}, {cores} cores, {gpu}; torch {torch.__version__}"

@@ -9,11 +9,12 @@ A reference file holds what someone measured under one protocol — per task, se
 the worst / average case over seeds — with the physics, mesh, episodes and budget it was
 measured on. rrls ships two:
 
-- ``paper``: the RRLS paper's tables. They were produced on *other physics* (v4 envs, the original
-  code's parameter writes, the ``np.arange`` mesh; docs/differences.md), so rrls refuses them as a reference for
-  a benchmark on its own physics — they are context, not a yardstick.
+- ``paper``: the RRLS paper's tables. They were produced on *other physics* (v4 envs, the
+  original code's parameter writes, the ``np.arange`` mesh; docs/differences.md), so rrls refuses
+  them as a reference for a benchmark on its own physics — they are context, not a yardstick.
 - ``quick``: TD3, DR, RARL, NR-MDP and M2TD3 trained and evaluated by rrls itself with the
-  ``quick`` preset (InvertedPendulum, 1D set, 20 k steps, mesh 10 x 5 episodes, 2 seeds).
+  ``quick`` preset (InvertedPendulum, 1D set, 30 k steps, 64-64 networks, mesh 10 x 5 episodes,
+  3 seeds).
 
 Your method is submitted into an empty benchmark with the reference's protocol and the report
 normalises it with the reference's TD3 and M2TD3, and compares it with the reference's rows.
