@@ -76,7 +76,7 @@ import torch.nn.functional as F  # noqa: N812
 from torch import nn
 
 from rrls.agents import TrainConfig, train
-from rrls.agents.common import task_env
+from rrls.agents.envs import task_env
 from rrls.agents.loop import train_group
 
 

@@ -19,6 +19,7 @@ import pytest
 
 from rrls.cli import main
 from rrls.experiments import stats
+from rrls.experiments.benchfile import reconcile
 from rrls.experiments.report import make_report, paper_results, summarise
 from rrls.experiments.runner import Display, plan
 from rrls.experiments.spec import (
@@ -30,7 +31,6 @@ from rrls.experiments.spec import (
     SpecError,
     estimate,
     make_spec,
-    reconcile,
 )
 
 needs_torch = pytest.mark.skipif(

@@ -122,8 +122,8 @@ def test_physics_labels_are_one_vocabulary_and_old_ones_read_as_today():
 
 def test_train_physics_paper_uses_the_v4_twin_and_records_it(tmp_path):
     pytest.importorskip("torch")
-    from rrls.agents import TrainConfig, hyperparameters, train
-    from rrls.agents.common import algorithm, env_factory
+    from rrls.agents import TrainConfig, algorithm, hyperparameters, train
+    from rrls.agents.envs import env_factory
     from rrls.evaluation.policies import MLPPolicy
 
     small = {"hidden": (8, 8), "batch_size": 16, "learning_starts": 50}
@@ -171,8 +171,8 @@ def test_a_reference_of_other_physics_is_refused_for_a_paper_benchmark():
 
 def test_a_plugin_make_env_without_paper_is_refused_on_the_papers_physics():
     pytest.importorskip("torch")
-    from rrls.agents import TrainConfig
-    from rrls.agents.common import algorithm, env_factory
+    from rrls.agents import TrainConfig, algorithm
+    from rrls.agents.envs import env_factory
 
     def make_env(task, uncertainty, config):
         raise AssertionError("not called")

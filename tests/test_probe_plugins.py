@@ -99,7 +99,7 @@ def test_a_learner_with_nan_actions_stops_without_writing_a_policy(modules, tmp_
 def test_a_learner_exporting_nan_weights_is_refused(modules, tmp_path):
     import numpy as np
 
-    from rrls.agents.common import Diverged
+    from rrls.agents import Diverged
     from rrls.agents.loop import _policies
     from rrls.evaluation.policies import MLPPolicy
 

@@ -10,7 +10,7 @@ import pytest
 torch = pytest.importorskip("torch")
 F = torch.nn.functional
 
-from rrls.agents.common import task_env  # noqa: E402
+from rrls.agents.envs import task_env  # noqa: E402
 from rrls.agents.seeds import RunSeeds  # noqa: E402
 from rrls.agents.td3 import Config, Learner  # noqa: E402
 

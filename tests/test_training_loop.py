@@ -345,7 +345,8 @@ def test_extending_a_finished_run_equals_the_longer_run(tmp_path):
 
 
 def test_a_split_run_trains_on_the_inner_box_only(tmp_path):
-    from rrls.agents.common import algorithm, env_factory
+    from rrls.agents import algorithm
+    from rrls.agents.envs import env_factory
     from rrls.envs import get_uncertainty_set
     from rrls.uncertainty import Split
 

@@ -10,17 +10,13 @@ holding its paper reference, its hyper-parameters (``Config``) and its ``Learner
 
 from __future__ import annotations
 
-from rrls.agents.common import (
-    ALGOS,
-    Diverged,
-    Interrupted,
-    TrainConfig,
-    algorithm,
-    benchmark_set,
-    hyperparameters,
-)
+from rrls.agents.config import Diverged, Interrupted, TrainConfig, benchmark_set
 from rrls.agents.learner import Learner
+from rrls.agents.lookup import algorithm, hyperparameters
 from rrls.agents.loop import train, train_group
+from rrls.algorithms import built_in
+
+ALGOS = built_in()  # the built-in algorithms' names (rrls.algorithms.ALGORITHMS is the table)
 
 __all__ = [
     "ALGOS",

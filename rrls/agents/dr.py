@@ -12,7 +12,7 @@ from __future__ import annotations
 
 from typing import Any
 
-from rrls.agents.common import task_env
+from rrls.agents.envs import task_env
 from rrls.agents.td3 import Config, Learner
 
 

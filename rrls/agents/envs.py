@@ -15,7 +15,8 @@ from typing import Any
 
 import numpy as np
 
-from rrls.agents.common import rng_state, set_rng_state
+from rrls.agents.seeds import rng_state, set_rng_state
+from rrls.physics import is_paper
 
 
 class LocalEnvs:
@@ -124,3 +125,32 @@ class WorkerEnvs:
 def make_envs(make: Callable[[], Any], n: int, workers: int) -> LocalEnvs | WorkerEnvs:
     """``workers`` 0: in this process; else that many worker processes (at most ``n``)."""
     return LocalEnvs(make, n) if workers <= 0 else WorkerEnvs(make, n, workers)
+
+
+def task_env(task: str, uncertainty: Any = "nominal", paper: bool = False) -> tuple[Any, Any]:
+    """A bare env of ``task`` (no time limit: the loop truncates) of the family ``uncertainty``
+    needs (``rrls.envs.resolve``, the one place that decides), and the set's box (``None`` for
+    the nominal task). ``paper``: on the paper's physics (the v4 twin, ``paper_class``)."""
+    from rrls.envs import paper_class, resolve
+
+    resolved = resolve(task, uncertainty)
+    cls = paper_class(resolved.env_class) if paper else resolved.env_class
+    return cls(), (None if resolved.is_nominal else resolved.box)
+
+
+def env_factory(algo: Any, config: Any, hyper: Any) -> Any:
+    """What builds ``config``'s training env (picklable, for worker processes): the algorithm's
+    ``make_env(task, uncertainty, hyper)``, with ``paper=True`` on the paper's physics (a
+    plug-in whose ``make_env`` takes no ``paper`` keyword cannot train there: refused)."""
+    import functools
+    import inspect
+
+    if not is_paper(config.physics):
+        return functools.partial(algo.make_env, config.task, config.training_set(), hyper)
+
+    if "paper" not in inspect.signature(algo.make_env).parameters:
+        raise ValueError(
+            f"algorithm {algo.name!r}: its make_env takes no 'paper' keyword, so it cannot "
+            "train on the paper's physics (--physics paper)"
+        )
+    return functools.partial(algo.make_env, config.task, config.training_set(), hyper, paper=True)

@@ -23,20 +23,12 @@ import numpy as np
 import torch
 
 from rrls.agents import graphs
-from rrls.agents.common import (
-    Algorithm,
-    Diverged,
-    TrainConfig,
-    algorithm,
-    env_factory,
-    hyperparameters,
-    rng_state,
-    set_rng_state,
-)
-from rrls.agents.envs import make_envs
+from rrls.agents.config import Diverged, TrainConfig
+from rrls.agents.envs import env_factory, make_envs
 from rrls.agents.learner import run_slice, stack_runs
+from rrls.agents.lookup import Algorithm, algorithm, hyperparameters
 from rrls.agents.run import Run, process_settings
-from rrls.agents.seeds import RunSeeds
+from rrls.agents.seeds import RunSeeds, rng_state, set_rng_state
 
 
 def train(

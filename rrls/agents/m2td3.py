@@ -42,8 +42,9 @@ import numpy as np
 import torch
 from torch import nn
 
-from rrls.agents.common import hp, task_env
+from rrls.agents.envs import task_env
 from rrls.agents.graphs import Update
+from rrls.agents.hparams import hp
 from rrls.agents.replay import ReplayBuffer, transition_fields
 from rrls.agents.seeds import NumpyGenerators, RunSeeds
 from rrls.agents.td3 import TD3, TD3Config

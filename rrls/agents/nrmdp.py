@@ -34,8 +34,9 @@ from typing import Any
 import numpy as np
 import torch
 
-from rrls.agents.common import hp, task_env
+from rrls.agents.envs import task_env
 from rrls.agents.graphs import Update, adam
+from rrls.agents.hparams import hp
 from rrls.agents.nets import Actor, NumpyActor, deterministic, polyak, to_mlp_policy
 from rrls.agents.seeds import Generators, RunSeeds
 from rrls.agents.td3 import Learner as TD3Learner

@@ -15,7 +15,9 @@ from dataclasses import fields, replace
 from pathlib import Path
 from typing import Any
 
-from rrls.agents.common import ALGOS, TrainConfig, algorithm
+from rrls.agents.config import TrainConfig
+from rrls.agents.lookup import algorithm
+from rrls.algorithms import built_in
 
 _SKIP = {"progress", "hyper", "stop_at"}
 
@@ -23,7 +25,7 @@ _SKIP = {"progress", "hyper", "stop_at"}
 def _algos(args: argparse.Namespace | None = None) -> list[str]:
     """The built-in algorithms, plus the one named on the command line if it is a plug-in."""
     extra = getattr(args, "algo", None)
-    return [*ALGOS, *([extra] if extra and extra not in ALGOS else [])]
+    return [*built_in(), *([extra] if extra and extra not in built_in() else [])]
 
 
 def _kind(hint: Any) -> Any:
@@ -49,7 +51,7 @@ def _add(parser: argparse._ActionsContainer, name: str, kind: Any, **kwargs: Any
 def hyperparameter_table(algos: list[str] | None = None) -> dict[str, dict[str, Any]]:
     """name -> {"kind", "help", "choices", "defaults": {algo: default}} over the algorithms."""
     table: dict[str, dict[str, Any]] = {}
-    for algo in algos or ALGOS:
+    for algo in algos or built_in():
         cls = algorithm(algo).Config
         hints = typing.get_type_hints(cls)
         for f in fields(cls):
@@ -127,7 +129,7 @@ def add_train_arguments(parser: argparse.ArgumentParser) -> None:
     for name, entry in hyperparameter_table().items():
         defaults = entry["defaults"]
         values = set(map(_show, defaults.values()))
-        if len(values) == 1 and len(defaults) == len(ALGOS):
+        if len(values) == 1 and len(defaults) == len(built_in()):
             shown = f"default {values.pop()}"
         else:
             shown = ", ".join(f"{a}: {_show(v)}" for a, v in defaults.items())

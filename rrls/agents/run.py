@@ -25,7 +25,8 @@ import torch
 
 from rrls import rundir
 from rrls._io import atomic_write_json
-from rrls.agents.common import Interrupted, TrainConfig, benchmark_set, jsonable
+from rrls.agents.config import Interrupted, TrainConfig, benchmark_set
+from rrls.agents.hparams import jsonable
 from rrls.physics import is_paper, physics_label
 from rrls.provenance import machine, source_commit
 

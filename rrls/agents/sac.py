@@ -26,8 +26,9 @@ from typing import Any
 import numpy as np
 import torch
 
-from rrls.agents.common import hp, task_env
+from rrls.agents.envs import task_env
 from rrls.agents.graphs import Update, adam
+from rrls.agents.hparams import hp
 from rrls.agents.learner import Learner as _Learner
 from rrls.agents.nets import Critic, GaussianActor, polyak, to_mlp_policy
 from rrls.agents.replay import ReplayBuffer, transition_fields

@@ -11,6 +11,7 @@ one. Why not ``seed, seed + 1, ...``: run ``s``'s second stream would be run ``s
 
 from __future__ import annotations
 
+import json
 import zlib
 
 import numpy as np
@@ -112,3 +113,12 @@ class NumpyGenerators:
                 "has_uint32": int(row[8]),
                 "uinteger": int(row[9]),
             }
+
+
+def rng_state(gen: np.random.Generator) -> str:
+    """A numpy generator's state as JSON (checkpoints keep it, so a resume draws on)."""
+    return json.dumps(gen.bit_generator.state)
+
+
+def set_rng_state(gen: np.random.Generator, state: str) -> None:
+    gen.bit_generator.state = json.loads(state)

@@ -24,6 +24,7 @@ from rrls.evaluation.policies import (
     as_policy,
     load_policy,
 )
+from rrls.evaluation.protocol import Protocol
 from rrls.evaluation.runner import PolicyError
 from rrls.evaluation.search import WorstCaseSearch, search_worst_case
 
@@ -40,6 +41,7 @@ __all__ = [
     "EvaluationSet",
     "MLPPolicy",
     "PolicyError",
+    "Protocol",
     "SB3Policy",
     "TorchPolicy",
     "as_policy",

@@ -21,6 +21,7 @@ from typing import Any
 
 import numpy as np
 
+from rrls.evaluation.protocol import Protocol, check_counts
 from rrls.physics import physics_label
 from rrls.uncertainty import Split, UncertaintySet
 
@@ -236,6 +237,7 @@ def evaluate(
     split: Split | None = None,
     paper: bool = False,
     view: Any = None,
+    protocol: Protocol | None = None,
 ) -> EvaluationResult:
     """Evaluate ``policy`` over a uniform mesh of ``task``'s uncertainty set (paper §4).
 
@@ -267,226 +269,67 @@ def evaluate(
       (:class:`~rrls.wrappers.tc_rmdp.View`); by default the one the policy's metadata records
       (``rrls train --algo rarl --rate-limit R --observe ...``), so it sees what it trained on.
 
+    ``protocol``: a :class:`~rrls.evaluation.Protocol` holding all of the above (the set, mesh,
+    episodes, seed, physics, split, disruptors, schedule, context), as a benchmark stores it; the
+    keyword arguments build one for interactive use and are ignored when it is given.
+
     Rows stay equal to the one-episode loop on the same wrapper stack
     (``env.set_params(**point); env.reset(seed=seed)``).
     """
-    from rrls.envs import paper_class
     from rrls.evaluation import runner
     from rrls.evaluation.policies import as_policy
     from rrls.evaluation.stack import policy_view
-    from rrls.tasks import get_task
 
+    if protocol is None:
+        protocol = Protocol(
+            uncertainty,
+            mesh=nb_mesh_dim,
+            episodes=episodes,
+            seed=seed,
+            physics=physics_label(bool(paper)),
+            endpoint=endpoint,
+            split=split,
+            disruptors=tuple(dict(disruptors or {}).items()),
+            schedule=schedule,
+            context=context,
+            max_episode_steps=max_episode_steps,
+        )
+    elif not isinstance(protocol, Protocol):
+        raise TypeError(f"protocol must be an rrls.evaluation.Protocol, got {protocol!r}")
     policy = as_policy(policy)
     if view is None:
         view = policy_view(policy)
-    mesh_box, resolved, stack = _plan(task, uncertainty, disruptors, schedule, context, view)
-    if max_episode_steps is None:
-        max_episode_steps = get_task(resolved.task).max_episode_steps
-    if endpoint is None:
-        endpoint = not paper
-    if paper:
-        paper_class(resolved.env_class)  # a task without paper physics: refused now
-    _check_counts(episodes=episodes, nb_mesh_dim=nb_mesh_dim, max_episode_steps=max_episode_steps)
+    plan = protocol.plan(task, view)
     if workers is not None:
-        _check_counts(workers=workers)
+        check_counts(workers=workers)
     if batch_size is not None:
-        _check_counts(batch_size=batch_size)
-    if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
-        raise ValueError(f"seed must be an integer >= 0, got {seed!r}")
-    if schedule is None:
-        points = mesh_box.mesh(nb_mesh_dim, endpoint=endpoint)
-    else:
-        points = _product(
-            schedule.points(), _ranged(mesh_box, schedule).mesh(nb_mesh_dim, endpoint)
-        )
-    _check_strengths(mesh_box, points)
-    seeds = runner.episode_seeds(seed, len(points), episodes)
+        check_counts(batch_size=batch_size)
+    seeds = runner.episode_seeds(protocol.seed, len(plan.points), protocol.episodes)
     spec = runner.RolloutSpec(
-        resolved.task,
-        resolved.family,
-        mesh_box.names,
-        points,
+        plan.resolved.task,
+        plan.resolved.family,
+        plan.mesh_box.names,
+        plan.points,
         seeds,
-        max_episode_steps,
-        None if stack.empty else stack,
-        paper=bool(paper),
+        plan.max_episode_steps,
+        None if plan.stack.empty else plan.stack,
+        paper=plan.paper,
     )
-    settings = {
-        "physics": physics_label(bool(paper)),
-        "mesh": nb_mesh_dim,
-        "endpoint": endpoint,
-        "episodes": episodes,
-        "seed": seed,
-        "max_episode_steps": max_episode_steps,
-        **stack.to_json(),
-    }
-    if schedule is not None:  # what was meshed: the family's grid
-        settings["schedule"] = schedule.to_json()
-    if split is not None:
-        in_dist = _split_mask(split, mesh_box, points, schedule)
-        settings["split"] = split.to_json()
-    else:
-        in_dist = None
     try:  # the engine's env cache lives only as long as this evaluation
         return _evaluate(
             policy,
-            resolved,
+            plan.resolved,
             spec,
-            settings,
+            dict(plan.settings),
             workers,
             batch_size,
             out_dir,
             progress,
-            mesh_box,
-            in_dist,
+            plan.mesh_box,
+            plan.in_distribution,
         )
     finally:
         runner.clear_env_cache()
-
-
-def _plan(
-    task: str,
-    uncertainty: str | UncertaintySet,
-    disruptors: Mapping[str, float | Sequence[float]] | None,
-    schedule: Any,
-    context: bool,
-    view: Any = None,
-) -> tuple[UncertaintySet, Any, Any]:
-    """(the box of the mesh's names, the resolved physical set, the wrapper stack).
-
-    The mesh's names are the set's (physical ones first resolved as usual, disruptor strengths
-    kept) plus the meshed ``disruptors``; under a ``schedule`` the schedule's fields come first.
-    """
-    from rrls.envs import resolve
-    from rrls.evaluation.stack import EnvStack
-    from rrls.wrappers import DISRUPTORS, ScheduleFamily
-
-    fixed: dict[str, float] = {}
-    ranged: dict[str, tuple[float, float]] = {}
-    if isinstance(uncertainty, UncertaintySet) and set(uncertainty.names) & set(DISRUPTORS):
-        box = uncertainty
-        names = [n for n in box.names if n not in DISRUPTORS]
-        for n, lo, hi in zip(box.names, box.low, box.high):
-            if n in DISRUPTORS:
-                ranged[n] = (float(lo), float(hi))
-        physical = (
-            UncertaintySet(
-                tuple(names),
-                [box.low[box.names.index(n)] for n in names],
-                [box.high[box.names.index(n)] for n in names],
-                None if box.nominal is None else [box.nominal[box.names.index(n)] for n in names],
-                box.label,
-                box.family,
-            )
-            if names
-            else "nominal"
-        )
-    else:
-        physical = uncertainty
-    for name, value in dict(disruptors or {}).items():
-        if name not in DISRUPTORS:
-            raise ValueError(f"unknown disruptor {name!r}; valid: {', '.join(DISRUPTORS)}")
-        if name in ranged:
-            raise ValueError(f"{name} is both in the set and in disruptors; give it once")
-        if isinstance(value, (tuple, list, np.ndarray)):
-            if len(value) != 2:
-                raise ValueError(f"disruptor {name} takes a strength or (low, high), got {value!r}")
-            ranged[name] = (float(value[0]), float(value[1]))
-        else:
-            fixed[name] = value
-    for name, (lo, hi) in ranged.items():
-        for v in (lo, hi):
-            problem = DISRUPTORS[name].check_param(name, v)
-            if problem:
-                raise ValueError(problem)
-    for name, v in fixed.items():
-        problem = DISRUPTORS[name].check_param(name, v)
-        if problem:
-            raise ValueError(problem)
-    resolved = resolve(task, physical)
-    extra = UncertaintySet.from_bounds(
-        {n: list(b) for n, b in ranged.items()}, {n: 0.0 for n in ranged}
-    )
-    if schedule is not None:
-        if not isinstance(schedule, ScheduleFamily):
-            raise TypeError(
-                f"schedule must be a ScheduleFamily (the grid to mesh over), got "
-                f"{type(schedule).__name__}"
-            )
-        if resolved.is_nominal:
-            raise ValueError("a schedule needs a set to move in; give a non-empty uncertainty set")
-        grid = schedule.points()
-        head = UncertaintySet(schedule.names, grid.min(axis=0), grid.max(axis=0), grid[0])
-    else:
-        head = resolved.box
-    mesh_box = UncertaintySet(
-        head.names + extra.names,
-        np.r_[head.low, extra.low],
-        np.r_[head.high, extra.high],
-        np.r_[head.nominal, extra.nominal],
-        head.label or resolved.label,
-        resolved.family,
-    )
-    stack = EnvStack(
-        disruptors=tuple(
-            (n, float(fixed.get(n, 0.0))) for n in DISRUPTORS if n in fixed or n in ranged
-        ),
-        schedule=None if schedule is None else schedule.schedule,
-        schedule_set=None if schedule is None else resolved.box,
-        context=(resolved.box if schedule is not None else mesh_box) if context else None,
-        view=view,
-    )
-    if context and stack.context.dim == 0:
-        raise ValueError("context=True needs a non-empty set whose parameters to show")
-    return mesh_box, resolved, stack
-
-
-def _check_strengths(mesh_box: UncertaintySet, points: np.ndarray) -> None:
-    """Refuse, before any episode, a mesh whose disruptor strengths are invalid (a delay of
-    1.5 steps: a mesh over a delay needs points that are whole numbers)."""
-    from rrls.wrappers import DISRUPTORS
-
-    for i, name in enumerate(mesh_box.names):
-        if name not in DISRUPTORS:
-            continue
-        for value in np.unique(points[:, i]).tolist():
-            problem = DISRUPTORS[name].check_param(name, value)
-            if problem:
-                raise ValueError(
-                    f"the mesh has {name}={value:g}: {problem}; choose the bounds and mesh size "
-                    "so every point is valid (e.g. (0, 3) with 4 points for a delay)"
-                )
-
-
-def _ranged(mesh_box: UncertaintySet, schedule: Any) -> UncertaintySet:
-    """The meshed disruptor axes that follow a schedule's fields in ``mesh_box``."""
-    k = len(schedule.names)
-    return UncertaintySet(mesh_box.names[k:], mesh_box.low[k:], mesh_box.high[k:])
-
-
-def _product(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """Every row of ``a`` with every row of ``b`` (``a`` varying slowest)."""
-    return np.hstack([np.repeat(a, len(b), axis=0), np.tile(b, (len(a), 1))])
-
-
-def _split_mask(split: Split, mesh_box: UncertaintySet, points: np.ndarray, schedule: Any) -> Any:
-    """``in_distribution`` of each mesh point (the split's names are a part of the mesh's)."""
-    if not isinstance(split, Split):
-        raise TypeError(f"split must be an rrls.uncertainty.Split, got {type(split).__name__}")
-    if schedule is not None:
-        raise ValueError("a split divides a set's mesh; it does not apply to a schedule family")
-    missing = [n for n in split.box.names if n not in mesh_box.names]
-    if missing:
-        raise ValueError(f"the split names {missing}, which the mesh does not vary")
-    cols = [mesh_box.names.index(n) for n in split.box.names]
-    return np.asarray(split.in_distribution(points[:, cols]), dtype=bool).reshape(len(points))
-
-
-def _check_counts(**values: Any) -> None:
-    """Refuse counts below 1 (and non-integers), naming the argument."""
-    for name, value in values.items():
-        if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 1:
-            raise ValueError(f"{name} must be an integer >= 1, got {value!r}")
 
 
 def _evaluate(

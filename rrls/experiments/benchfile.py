@@ -7,10 +7,13 @@ from __future__ import annotations
 
 from collections.abc import Iterator
 from contextlib import contextmanager
+from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
 from rrls import rundir
+from rrls._io import waiting_lock
+from rrls.experiments.spec import Spec, SpecError
 
 NAME = "benchmark.json"
 #: the lock file beside it (an ``flock``: a killed holder releases it)
@@ -27,10 +30,8 @@ def read_spec_json(root: str | Path) -> dict[str, Any]:
     return rundir.read_checked_json(spec_path(root))
 
 
-def read_spec(root: str | Path) -> Any:
+def read_spec(root: str | Path) -> Spec:
     """The stored ``Spec``; a file that is not one is a ``SpecError`` naming it."""
-    from rrls.experiments.spec import Spec, SpecError
-
     data = read_spec_json(root)
     try:
         return Spec.from_json(data)
@@ -38,7 +39,7 @@ def read_spec(root: str | Path) -> Any:
         raise SpecError(f"{spec_path(root)} is not a benchmark spec ({err})") from None
 
 
-def write_spec(root: str | Path, spec: Any) -> Path:
+def write_spec(root: str | Path, spec: Spec) -> Path:
     """Write (and seal) ``spec`` as the directory's protocol; hold :func:`locked` around the
     read that it updates."""
     return rundir.write_checked_json(spec_path(root), spec.to_json())
@@ -47,7 +48,30 @@ def write_spec(root: str | Path, spec: Any) -> Path:
 @contextmanager
 def locked(root: str | Path) -> Iterator[None]:
     """Hold the benchmark's lock (waiting for another command to release it)."""
-    from rrls._io import waiting_lock
-
     with waiting_lock(Path(root) / LOCK):
         yield
+
+
+def reconcile(out: Path, spec: Spec) -> Spec:
+    """The spec to store in ``out``: ``spec`` itself, or the union with the stored one.
+
+    Refuses (``SpecError``) a directory whose stored protocol differs, naming the fields.
+    """
+    if not spec_path(out).exists():
+        return spec
+    stored = read_spec(out)  # damaged / not a spec: one line naming the file
+    old, new = stored.protocol(), spec.protocol()
+    diff = [k for k in sorted(set(old) | set(new)) if old.get(k) != new.get(k)]
+    if diff:
+        detail = "; ".join(f"{k}: {old.get(k)!r} there, {new.get(k)!r} now" for k in diff)
+        raise SpecError(
+            f"{out} holds a benchmark with another protocol ({detail}); use another --out or "
+            "the same options (adding algorithms, tasks or seeds is allowed)"
+        )
+    return replace(
+        stored,
+        algos=tuple(dict.fromkeys(stored.algos + spec.algos)),
+        tasks=tuple(dict.fromkeys(stored.tasks + spec.tasks)),
+        seeds=tuple(sorted(set(stored.seeds) | set(spec.seeds))),
+        device=spec.device,
+    )

@@ -276,9 +276,9 @@ def _benchmark(args: argparse.Namespace) -> int:
 
 def _dry_run(root: Any, spec: Any, jobs: int, backend: str, pack: int | None) -> int:
     """What ``rrls benchmark`` would do in ``root``, without doing any of it."""
+    from rrls.experiments.benchfile import reconcile
     from rrls.experiments.pipeline import default_pack, groups
     from rrls.experiments.runner import pending_runs, plan
-    from rrls.experiments.spec import reconcile
 
     if (root / "benchmark.json").exists():
         spec = reconcile(root, spec)  # another protocol there: refused now, as it would be

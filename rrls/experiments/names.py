@@ -3,18 +3,12 @@ read this; neither imports the other for it)."""
 
 from __future__ import annotations
 
-from collections.abc import Iterable
+from rrls.algorithms import ALGORITHMS, sort_algos
 
-ORDER = ("td3", "dr", "m2td3", "rarl", "nrmdp", "sac", "sacdr")  # the paper's rows, then SAC's
-NAMES = {
-    "td3": "TD3",
-    "dr": "DR",
-    "m2td3": "M2TD3",
-    "rarl": "RARL",
-    "nrmdp": "NR-MDP",
-    "sac": "SAC",
-    "sacdr": "SAC-DR",
-}
+#: the built-in algorithms in the paper's row order, then SAC's (``rrls.algorithms``: the table)
+ORDER = tuple(sort_algos(ALGORITHMS))
+#: their display names (a registered plug-in's row: ``rrls.algorithms.display_name``)
+NAMES = {a.name: a.display for a in ALGORITHMS.values()}
 #: the paper's column headings where they differ from the registered class-name stem
 PAPER_TASK_NAMES = {"humanoidstandup": "HumanoidStandup", "walker": "Walker"}
 
@@ -28,9 +22,3 @@ def task_name(task: str) -> str:
 
     spec = TASKS.get(task)
     return spec.name if spec is not None else task
-
-
-def sort_algos(algos: Iterable[str]) -> list[str]:
-    """The paper's order first, then the others alphabetically (duplicates dropped)."""
-    algos = list(dict.fromkeys(algos))
-    return sorted(algos, key=lambda a: (ORDER.index(a) if a in ORDER else len(ORDER), a))

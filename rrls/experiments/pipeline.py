@@ -29,10 +29,9 @@ from typing import Any
 
 from rrls import rundir
 from rrls._proc import THREAD_ENV, exclusive
+from rrls.algorithms import plays_adversary
 from rrls.experiments.spec import RunKey, Spec
-from rrls.physics import is_paper
-
-DYNAMIC_ALGOS = ("rarl", "nrmdp")
+from rrls.experiments.stages import run_dynamic, run_evaluation
 
 
 def run_dir(root: Path, spec: Spec, key: RunKey) -> Path:
@@ -152,9 +151,9 @@ def _group_stages(spec: Spec, runs: list[RunKey], outs: list[Path]) -> dict[int,
         try:
             progress[i].write("evaluate", spec.steps)
             result = _evaluate(spec, run, out)
-            if run.algo in DYNAMIC_ALGOS:
+            if plays_adversary(run.algo):
                 progress[i].write("dynamic", spec.steps)
-                result.update(_dynamic(spec, out))
+                result.update(_dynamic(spec, run, out))
             # this execution's (a resumed run: since resuming; a group: since the group began)
             result["seconds"] = time.time() - start
             rundir.write_checked_json(out / rundir.RESULT, result)
@@ -206,44 +205,23 @@ def _train(spec: Spec, runs: list[RunKey], outs: list[Path], progress: list[Prog
 
 
 def _evaluate(spec: Spec, run: RunKey, out: Path) -> dict[str, Any]:
-    from rrls.evaluation import MLPPolicy, evaluate
+    from rrls.evaluation import MLPPolicy
 
     policy = MLPPolicy.load(out / rundir.POLICY)
-    result = evaluate(
-        policy,
-        run.task,
-        spec.uncertainty,
-        nb_mesh_dim=spec.mesh,
-        episodes=spec.episodes,
-        seed=spec.eval_seed,
-        workers=1,
-        out_dir=out / "eval",
-        paper=is_paper(spec.physics),
-        split=spec.split_of(run.task),
-        progress=False,
-    )
-    meta = policy.metadata
-    return {
-        "algorithm": run.algo,
-        "task": run.task,
-        "uncertainty": spec.uncertainty,
-        "train_set": spec.train_set(run.algo),
-        **({"split": spec.split, **result.split_scores()} if spec.split else {}),
-        "seed": run.seed,
-        "steps": spec.steps,
-        "physics": spec.physics,
-        "worst_case": result.worst_case,
-        "average_case": result.average_case,
-        "versions": meta.get("versions", {}),
-    }
+    trained = {"train_set": spec.train_set(run.algo), "steps": spec.steps}
+    return run_evaluation(spec, run.algo, run.task, run.seed, policy, out, 1, False, trained)
 
 
-def _dynamic(spec: Spec, out: Path) -> dict[str, Any]:
-    from rrls.evaluation import evaluate_run_dynamic
+def _dynamic(spec: Spec, run: RunKey, out: Path) -> dict[str, Any]:
+    """The run's protagonist against its own final adversary, in the game it trained in (the
+    adversary's metadata names it: RARL's, or NR-MDP's with its alpha)."""
+    from rrls.evaluation import MLPPolicy
 
-    result = evaluate_run_dynamic(out, episodes=spec.dynamic_episodes, seed=spec.eval_seed)
-    rundir.write_checked_table(out / "dynamic.csv", result.episodes)
-    return {"dynamic_mean": result.mean, "dynamic_std": result.std, "dynamic_env": result.env_id}
+    policy = MLPPolicy.load(out / rundir.POLICY)
+    adversary = MLPPolicy.load(out / rundir.ADVERSARY)
+    meta = adversary.metadata
+    game, alpha = meta.get("game", "adversarial"), meta.get("alpha")
+    return run_dynamic(spec, run.task, policy, adversary, game, alpha, out)
 
 
 class ProgressFile:

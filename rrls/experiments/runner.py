@@ -10,8 +10,9 @@ from typing import Any, TextIO
 
 from rrls import rundir
 from rrls.experiments.backends import run_local, run_ray
+from rrls.experiments.benchfile import reconcile
 from rrls.experiments.pipeline import default_pack, groups, read_progress, run_dir
-from rrls.experiments.spec import RunKey, Spec, estimate, format_duration, reconcile
+from rrls.experiments.spec import RunKey, Spec, estimate, format_duration
 
 
 class Display:

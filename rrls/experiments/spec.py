@@ -8,16 +8,17 @@ tasks, seeds) may grow: the stored spec becomes the union and only the new runs 
 
 from __future__ import annotations
 
-from dataclasses import asdict, dataclass, fields, replace
-from pathlib import Path
+from dataclasses import asdict, dataclass, fields
 from typing import Any
 
+from rrls.algorithms import built_in, paper_five
+from rrls.evaluation.protocol import Protocol
 from rrls.physics import V5, is_paper, physics_label
 
-ALGOS = ("td3", "dr", "rarl", "nrmdp", "m2td3")  # the paper's five (the presets' default)
-# every built-in of rrls.agents.ALGOS (not imported: no torch); plug-ins are accepted by name
-# (entry point group "rrls.algorithms") or as package.module:Learner
-BUILT_IN = (*ALGOS, "sac", "sacdr")
+ALGOS = paper_five()  # the paper's five (the presets' default)
+# every built-in algorithm (rrls.algorithms, the table); plug-ins are accepted by name (entry
+# point group "rrls.algorithms", or a registered row) or as package.module:Learner
+BUILT_IN = built_in()
 PAPER_TASKS = ("ant", "halfcheetah", "hopper", "humanoidstandup", "walker")
 GRID = ("algos", "tasks", "seeds")  # may grow between invocations
 LABELS = ("preset", "device")  # do not change the numbers' meaning (device: see README)
@@ -85,6 +86,22 @@ class Spec:
         from rrls.uncertainty import Split
 
         return Split.parse(get_uncertainty_set(task, self.uncertainty), self.split)
+
+    def evaluation_protocol(self) -> Protocol:
+        """The final evaluation's protocol: what every run and submitted policy of this
+        benchmark is evaluated under (the mesh, the dynamic evaluation's episodes, the rate-
+        limited game)."""
+        return Protocol(
+            self.uncertainty,
+            mesh=self.mesh,
+            episodes=self.episodes,
+            seed=self.eval_seed,
+            physics=self.physics,
+            split=self.split or None,
+            dynamic_episodes=self.dynamic_episodes,
+            rate_limit=self.rate_limit,
+            rate_game=self.rate_game,
+        )
 
     def hyperparameters(self, algo: str) -> dict[str, Any]:
         """The preset's overrides of ``algo``'s paper hyper-parameters (``TrainConfig.hyper``)."""
@@ -258,7 +275,7 @@ def make_spec(preset: str = "paper", **overrides: Any) -> Spec:
         raise SpecError(str(err)) from None
     values["tasks"] = tuple(dict.fromkeys(_task_key(t) for t in values["tasks"]))
     if values.get("split"):  # canonical (extrapolation:0.5), so two spellings are one protocol
-        from rrls.agents.common import training_split
+        from rrls.agents.config import training_split
 
         try:
             values["split"] = training_split(
@@ -317,7 +334,7 @@ def validate(spec: Spec) -> None:
     if spec.checkpoint_every < 1:
         raise SpecError("checkpoint_every must be >= 1")
     if spec.split:
-        from rrls.agents.common import training_split
+        from rrls.agents.config import training_split
 
         for task in spec.tasks:
             try:
@@ -339,33 +356,6 @@ def validate(spec: Spec) -> None:
         raise SpecError(
             f"--observe {spec.observe} is a protagonist of TC-RMDP's game: add --rate-limit R"
         )
-
-
-def reconcile(out: Path, spec: Spec) -> Spec:
-    """The spec to store in ``out``: ``spec`` itself, or the union with the stored one.
-
-    Refuses (``SpecError``) a directory whose stored protocol differs, naming the fields.
-    """
-    from rrls.experiments import benchfile
-
-    if not benchfile.spec_path(out).exists():
-        return spec
-    stored = benchfile.read_spec(out)  # damaged / not a spec: one line naming the file
-    old, new = stored.protocol(), spec.protocol()
-    diff = [k for k in sorted(set(old) | set(new)) if old.get(k) != new.get(k)]
-    if diff:
-        detail = "; ".join(f"{k}: {old.get(k)!r} there, {new.get(k)!r} now" for k in diff)
-        raise SpecError(
-            f"{out} holds a benchmark with another protocol ({detail}); use another --out or "
-            "the same options (adding algorithms, tasks or seeds is allowed)"
-        )
-    return replace(
-        stored,
-        algos=tuple(dict.fromkeys(stored.algos + spec.algos)),
-        tasks=tuple(dict.fromkeys(stored.tasks + spec.tasks)),
-        seeds=tuple(sorted(set(stored.seeds) | set(spec.seeds))),
-        device=spec.device,
-    )
 
 
 # --- compute estimate ------------------------------------------------------------------------

@@ -34,9 +34,11 @@ from typing import Any
 
 import numpy as np
 
+from rrls.algorithms import ALGORITHMS, plugin_entry_points
 from rrls.experiments.names import NAMES
 from rrls.experiments.spec import BUILT_IN, RunKey, Spec, SpecError
-from rrls.experiments.submitted import discard, install, jsonable, run_dynamic, run_evaluation
+from rrls.experiments.stages import run_dynamic, run_evaluation
+from rrls.experiments.submitted import discard, install, jsonable
 from rrls.physics import is_paper
 
 #: names a submission may not take (in any case): every built-in algorithm, their display
@@ -75,12 +77,11 @@ class Submission:
 
 
 def reserved_names() -> tuple[str, ...]:
-    """``RESERVED`` and the installed plug-in algorithms (entry point group
-    ``rrls.algorithms``), lower-case."""
-    from importlib.metadata import entry_points
-
-    plugins = [ep.name.lower() for ep in entry_points(group="rrls.algorithms")]
-    return tuple(dict.fromkeys([*RESERVED, *plugins]))
+    """``RESERVED``, the registered rows of the algorithm table and the installed plug-in
+    algorithms (entry point group ``rrls.algorithms``), lower-case."""
+    rows = [n for a in ALGORITHMS.values() for n in (a.name.lower(), a.display.lower())]
+    plugins = [name.lower() for name in plugin_entry_points()]
+    return tuple(dict.fromkeys([*RESERVED, *rows, *plugins]))
 
 
 def check_name(name: str) -> str:
@@ -89,7 +90,13 @@ def check_name(name: str) -> str:
         raise SubmitError(f"--algo {name!r} is not a valid algorithm name: {_NAME_RULE}")
     reserved = reserved_names()
     if name.lower() in reserved:
-        what = "a built-in algorithm" if name.lower() in RESERVED else "an installed plug-in"
+        what = (
+            "a built-in algorithm"
+            if name.lower() in RESERVED
+            else "an installed plug-in"
+            if name.lower() in {p.lower() for p in plugin_entry_points()}
+            else "a registered algorithm"
+        )
         raise SubmitError(
             f"--algo {name!r} is {what} (reserved: {', '.join(reserved)}; in any case); "
             f"choose another name: {_NAME_RULE}"

@@ -1,109 +1,19 @@
-"""What every training run is configured by, and how an algorithm is found by name.
-
-An algorithm is a ``Learner`` class (``rrls.agents.learner``), a ``Config`` dataclass of its
-hyper-parameters and ``make_env(task, uncertainty, config)``. Built-in ones are modules of this
-package; others are found by entry point (group ``rrls.algorithms``, value
-``package.module:Learner``) or named directly as ``package.module:Learner``; the ``Config`` and
-``make_env`` come from the class if it has them, else from its module, else TD3's.
-"""
+"""What every training run is configured by (``TrainConfig``: what, where, how long), the
+paper's default set of a task, and the exceptions a run stops with."""
 
 from __future__ import annotations
 
-import importlib
-import json
 from dataclasses import asdict, dataclass, field
-from typing import Any, NamedTuple
+from typing import Any
 
 import numpy as np
 
+from rrls.agents.hparams import hp, jsonable
+from rrls.agents.lookup import algorithm
+from rrls.algorithms import ENTRY_POINTS, built_in
 from rrls.physics import is_paper, physics_label
 
-#: the built-in algorithms (the paper's five, then SAC and SAC on the randomised env)
-ALGOS = ("td3", "dr", "rarl", "nrmdp", "m2td3", "sac", "sacdr")
-ENTRY_POINTS = "rrls.algorithms"
-#: what the training loop calls on a learner (``rrls.agents.learner``)
-LEARNER_METHODS = ("act", "observe", "update", "state_dict", "load_state_dict", "export")
-
-
-def hp(default: Any, help: str, **extra: Any) -> Any:  # noqa: A002 - argparse's word
-    """An option's default and its ``rrls train --help`` text (the CLI reads both from here)."""
-    return field(default=default, metadata={"help": help, **extra})
-
-
-class Algorithm(NamedTuple):
-    name: str
-    Config: type
-    make_env: Any
-    Learner: type
-
-
-def _plugins() -> dict[str, str]:
-    from importlib.metadata import entry_points
-
-    return {ep.name: ep.value for ep in entry_points(group=ENTRY_POINTS)}
-
-
-def algorithm(name: str) -> Algorithm:
-    """The algorithm ``name``: built-in, an entry point, or ``package.module:Learner``."""
-    target = f"rrls.agents.{name}:Learner" if name in ALGOS else None
-    if target is None:
-        target = _plugins().get(name) or (name if ":" in name else None)
-    if target is None:
-        valid = ", ".join([*ALGOS, *_plugins()])
-        raise ValueError(f"unknown algorithm {name!r}; valid: {valid}, or package.module:Learner")
-    module_name, _, attr = target.partition(":")
-    try:
-        module = importlib.import_module(module_name)
-        learner = getattr(module, attr or "Learner")
-    except Exception as err:  # noqa: BLE001 - a plug-in's import may raise anything: one line
-        first = (str(err).strip().splitlines() or [""])[0]
-        raise ValueError(
-            f"algorithm {name!r}: cannot load {target} ({type(err).__name__}: {first})"
-        ) from None
-    from rrls.agents import td3
-
-    config = getattr(learner, "Config", None) or getattr(module, "Config", td3.Config)
-    make_env = getattr(learner, "make_env", None) or getattr(module, "make_env", td3.make_env)
-    _check_learner(name, target, learner, config, make_env)
-    return Algorithm(name, config, make_env, learner)
-
-
-def _check_learner(name: str, target: str, learner: Any, config: Any, make_env: Any) -> None:
-    """Refuse what cannot be a learner (``json:loads``, a class without the protocol) in one
-    line, before the loop calls it with arguments it does not take."""
-    import dataclasses
-
-    missing = [m for m in LEARNER_METHODS if not callable(getattr(learner, m, None))]
-    if not isinstance(learner, type) or missing:
-        what = (
-            f"lacks {', '.join(missing)}"
-            if isinstance(learner, type)
-            else f"is a {type(learner).__name__}"
-        )
-        raise ValueError(
-            f"algorithm {name!r}: {target} {what}: not a learner (a class with the methods "
-            f"{', '.join(LEARNER_METHODS)}; docs/algorithms.md)"
-        )
-    if not (isinstance(config, type) and dataclasses.is_dataclass(config)):
-        raise ValueError(
-            f"algorithm {name!r}: its Config must be a dataclass of hyper-parameters, got "
-            f"{config!r}"
-        )
-    if not callable(make_env):
-        raise ValueError(f"algorithm {name!r}: its make_env must be callable, got {make_env!r}")
-
-
-def hyperparameters(config: TrainConfig) -> Any:
-    """The algorithm's ``Config`` with the run's overrides (``config.hyper``), validated."""
-    cls = algorithm(config.algo).Config
-    valid = set(cls.__dataclass_fields__)
-    unknown = sorted(set(config.hyper) - valid)
-    if unknown:
-        raise ValueError(
-            f"{config.algo} has no hyper-parameter {', '.join(map(repr, unknown))}; "
-            f"valid: {', '.join(sorted(valid))}"
-        )
-    return cls(**config.hyper)
+__all__ = ["Diverged", "Interrupted", "TrainConfig", "benchmark_set", "training_split"]
 
 
 def benchmark_set(task: str) -> str:
@@ -124,7 +34,7 @@ class TrainConfig:
 
     algo: str = hp(
         "td3",
-        f"the algorithm: {', '.join(ALGOS)}, an installed plug-in (entry point group "
+        f"the algorithm: {', '.join(built_in())}, an installed plug-in (entry point group "
         f"{ENTRY_POINTS!r}) or package.module:Learner",
     )
     task: str = hp("hopper", "the task")
@@ -294,44 +204,3 @@ class Interrupted(Exception):
 class Diverged(ValueError):
     """A learner produced a NaN/inf action or policy: training stops before writing it (the
     CLI prints it on one line); the last checkpoint stays, so nothing trained so far is lost."""
-
-
-def rng_state(gen: np.random.Generator) -> str:
-    return json.dumps(gen.bit_generator.state)
-
-
-def set_rng_state(gen: np.random.Generator, state: str) -> None:
-    gen.bit_generator.state = json.loads(state)
-
-
-def task_env(task: str, uncertainty: Any = "nominal", paper: bool = False) -> tuple[Any, Any]:
-    """A bare env of ``task`` (no time limit: the loop truncates) of the family ``uncertainty``
-    needs (``rrls.envs.resolve``, the one place that decides), and the set's box (``None`` for
-    the nominal task). ``paper``: on the paper's physics (the v4 twin, ``paper_class``)."""
-    from rrls.envs import paper_class, resolve
-
-    resolved = resolve(task, uncertainty)
-    cls = paper_class(resolved.env_class) if paper else resolved.env_class
-    return cls(), (None if resolved.is_nominal else resolved.box)
-
-
-def env_factory(algo: Algorithm, config: TrainConfig, hyper: Any) -> Any:
-    """What builds ``config``'s training env (picklable, for worker processes): the algorithm's
-    ``make_env(task, uncertainty, hyper)``, with ``paper=True`` on the paper's physics (a
-    plug-in whose ``make_env`` takes no ``paper`` keyword cannot train there: refused)."""
-    import functools
-    import inspect
-
-    if not is_paper(config.physics):
-        return functools.partial(algo.make_env, config.task, config.training_set(), hyper)
-
-    if "paper" not in inspect.signature(algo.make_env).parameters:
-        raise ValueError(
-            f"algorithm {algo.name!r}: its make_env takes no 'paper' keyword, so it cannot "
-            "train on the paper's physics (--physics paper)"
-        )
-    return functools.partial(algo.make_env, config.task, config.training_set(), hyper, paper=True)
-
-
-def jsonable(fields: dict[str, Any]) -> dict[str, Any]:
-    return {k: (list(v) if isinstance(v, tuple) else v) for k, v in fields.items()}

@@ -1,0 +1,129 @@
+"""The table of algorithms: every name the CLI, the benchmark spec, the pipeline, the report and
+``rrls submit`` know, declared once (torch-free: the report and the spec read it without
+importing training code).
+
+A row says what the rest of rrls needs to know about an algorithm without loading it: its
+display name, whether it is one of the paper's five baselines, whether it trains an adversary
+(then the benchmark also plays it against its own adversary: the dynamic evaluation), whether it
+trains over the uncertainty set, and where its ``Learner`` lives. ``rrls.agents.algorithm(name)``
+loads it. Plug-ins add rows with ``register_algorithm`` (an installed entry point of group
+``rrls.algorithms`` is found without a row; it then reads as its own name).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable
+from dataclasses import dataclass
+
+__all__ = [
+    "ALGORITHMS",
+    "ENTRY_POINTS",
+    "AlgorithmInfo",
+    "algorithm_info",
+    "built_in",
+    "display_name",
+    "paper_five",
+    "plays_adversary",
+    "plugin_entry_points",
+    "register_algorithm",
+    "sort_algos",
+]
+
+#: the entry point group of installed learner plug-ins (value ``package.module:Learner``)
+ENTRY_POINTS = "rrls.algorithms"
+
+
+@dataclass(frozen=True)
+class AlgorithmInfo:
+    """One row of the table (``learner``: ``package.module:Class``)."""
+
+    name: str
+    display: str
+    learner: str
+    paper: bool = False  # one of the paper's five baselines (its default grid)
+    adversary: bool = False  # trains an adversary: the benchmark's dynamic evaluation plays it
+    needs_set: bool = False  # trains over the uncertainty set (not only on the nominal task)
+    row: int = 100  # position in tables and figures (the paper's row order), then by name
+
+    def __post_init__(self) -> None:
+        if not self.name or self.name != self.name.strip():
+            raise ValueError(f"algorithm name {self.name!r}: a non-empty word")
+        if self.learner.count(":") != 1:
+            raise ValueError(
+                f"algorithm {self.name!r}: learner {self.learner!r} must be package.module:Class"
+            )
+
+
+def _row(name: str, display: str, row: int, **flags: bool) -> AlgorithmInfo:
+    return AlgorithmInfo(name, display, f"rrls.agents.{name}:Learner", row=row, **flags)
+
+
+#: built-in rows, in the CLI's and the benchmark's order (the paper's five first)
+ALGORITHMS: dict[str, AlgorithmInfo] = {
+    a.name: a
+    for a in (
+        _row("td3", "TD3", 0, paper=True),
+        _row("dr", "DR", 1, paper=True, needs_set=True),
+        _row("rarl", "RARL", 3, paper=True, adversary=True, needs_set=True),
+        _row("nrmdp", "NR-MDP", 4, paper=True, adversary=True),
+        _row("m2td3", "M2TD3", 2, paper=True, needs_set=True),
+        _row("sac", "SAC", 5),
+        _row("sacdr", "SAC-DR", 6, needs_set=True),
+    )
+}
+_BUILT_IN = tuple(ALGORITHMS)
+
+
+def register_algorithm(info: AlgorithmInfo) -> AlgorithmInfo:
+    """Add a plug-in's row (its display name and flags reach the report and the benchmark);
+    a built-in's row cannot be replaced."""
+    if info.name in _BUILT_IN:
+        raise ValueError(f"algorithm {info.name!r} is built in; pick another name")
+    ALGORITHMS[info.name] = info
+    return info
+
+
+def built_in() -> tuple[str, ...]:
+    """The built-in algorithms' names (the paper's five, then SAC and SAC-DR)."""
+    return _BUILT_IN
+
+
+def paper_five() -> tuple[str, ...]:
+    """The paper's five baselines, in the benchmark's order (its presets' default grid)."""
+    return tuple(a.name for a in ALGORITHMS.values() if a.paper)
+
+
+def plugin_entry_points() -> dict[str, str]:
+    """Installed learner plug-ins: ``{name: "package.module:Learner"}``."""
+    from importlib.metadata import entry_points
+
+    return {ep.name: ep.value for ep in entry_points(group=ENTRY_POINTS)}
+
+
+def algorithm_info(name: str) -> AlgorithmInfo | None:
+    """``name``'s row: a declared one, an installed plug-in's (read as its own name), or
+    ``package.module:Learner`` named directly; ``None`` for a name nothing declares."""
+    if name in ALGORITHMS:
+        return ALGORITHMS[name]
+    target = plugin_entry_points().get(name) or (name if name.count(":") == 1 else None)
+    if target is None:
+        return None
+    return AlgorithmInfo(name, name, target)
+
+
+def display_name(name: str) -> str:
+    """How tables and figures name ``name`` (a name no row declares reads as itself)."""
+    info = ALGORITHMS.get(name)
+    return info.display if info is not None else name
+
+
+def plays_adversary(name: str) -> bool:
+    """Whether ``name`` trains an adversary (the benchmark's dynamic evaluation plays it)."""
+    info = ALGORITHMS.get(name)
+    return info is not None and info.adversary
+
+
+def sort_algos(algos: Iterable[str]) -> list[str]:
+    """The paper's row order first, then the others alphabetically (duplicates dropped)."""
+    names = list(dict.fromkeys(algos))
+    return sorted(names, key=lambda a: (ALGORITHMS[a].row if a in ALGORITHMS else 100, a))

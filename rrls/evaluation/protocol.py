@@ -1,0 +1,342 @@
+"""The evaluation protocol as one frozen, serialisable object: what a benchmark stores, a run
+records, a submitted policy is evaluated under and a reference file is compared against.
+
+>>> from rrls.evaluation import Protocol
+>>> protocol = Protocol("2d", mesh=3, episodes=2)
+>>> Protocol.from_json(protocol.to_json()) == protocol
+True
+>>> protocol.plan("invertedpendulum").points.shape
+(9, 2)
+
+``Protocol.plan(task)`` turns it into what the engine runs for one task: the mesh's box and
+points, the env family, the wrapper stack (disruptors, schedule, context, the protagonist's
+view), each point's in/out-of-distribution flag under a split, and the settings
+``summary.json`` records. ``rrls.evaluation.evaluate(policy, task, protocol=...)`` evaluates a
+policy under it; its keyword arguments (``uncertainty``, ``mesh``, ``episodes``...) build one
+for interactive use.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from dataclasses import asdict, dataclass, replace
+from typing import Any, NamedTuple
+
+import numpy as np
+
+from rrls.physics import is_paper, physics_label
+from rrls.uncertainty import Split, UncertaintySet
+
+__all__ = ["Plan", "Protocol", "check_counts"]
+
+
+def check_counts(**values: Any) -> None:
+    """Refuse counts below 1 (and non-integers), naming the argument."""
+    for name, value in values.items():
+        if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 1:
+            raise ValueError(f"{name} must be an integer >= 1, got {value!r}")
+
+
+class Plan(NamedTuple):
+    """A protocol applied to one task: what the engine runs."""
+
+    mesh_box: UncertaintySet  # the meshed axes (physical, disruptor strengths, schedule fields)
+    resolved: Any  # ``rrls.envs.resolve``'s answer: task, env family, physical box
+    stack: Any  # ``rrls.evaluation.stack.EnvStack``: the wrappers every episode runs in
+    points: np.ndarray  # (n_points, n_axes)
+    in_distribution: np.ndarray | None  # per point, under a split
+    max_episode_steps: int
+    paper: bool
+    settings: dict[str, Any]  # what ``summary.json`` records of the protocol
+
+
+@dataclass(frozen=True)
+class Protocol:
+    """How a policy is evaluated (paper §4, and rrls's extensions beyond static dynamics).
+
+    ``uncertainty``: a set's name or an ``UncertaintySet``; ``mesh``: points per dimension;
+    ``endpoint``: whether the mesh reaches the upper bounds (default: yes, except on the paper's
+    physics, whose ``np.arange`` mesh stops short); ``episodes`` per point, their seeds drawn
+    from ``seed``; ``physics``: ``v5`` or ``paper``; ``split``: a ``Split`` or its text
+    (``extrapolation:0.5``, resolved against each task's set); ``disruptors``: fixed strengths
+    or meshed ``(low, high)`` ranges; ``schedule``: a ``ScheduleFamily`` (the mesh is then its
+    grid); ``context``: the set's normalised parameters appended to the observation;
+    ``max_episode_steps``: default the task's. The dynamic evaluation (RARL/NR-MDP against their
+    own adversary) plays ``dynamic_episodes``, under TC-RMDP's ``rate_limit``/``rate_game``
+    when set.
+    """
+
+    uncertainty: str | UncertaintySet = "3d"
+    mesh: int = 10
+    episodes: int = 5
+    seed: int = 0
+    physics: str = "v5"
+    endpoint: bool | None = None
+    split: str | Split | None = None
+    disruptors: tuple[tuple[str, Any], ...] = ()
+    schedule: Any = None
+    context: bool = False
+    max_episode_steps: int | None = None
+    dynamic_episodes: int = 10
+    rate_limit: float | None = None
+    rate_game: str = "tc"
+
+    def __post_init__(self) -> None:
+        check_counts(mesh=self.mesh, episodes=self.episodes)
+        check_counts(dynamic_episodes=self.dynamic_episodes)
+        if self.max_episode_steps is not None:
+            check_counts(max_episode_steps=self.max_episode_steps)
+        seed = self.seed
+        if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
+            raise ValueError(f"seed must be an integer >= 0, got {seed!r}")
+        object.__setattr__(self, "physics", physics_label(self.physics))
+        if isinstance(self.disruptors, Mapping):
+            object.__setattr__(self, "disruptors", tuple(self.disruptors.items()))
+        pairs = tuple(
+            (str(n), tuple(float(x) for x in v) if isinstance(v, (list, tuple, np.ndarray)) else v)
+            for n, v in self.disruptors
+        )
+        object.__setattr__(self, "disruptors", pairs)
+
+    @property
+    def paper(self) -> bool:
+        return is_paper(self.physics)
+
+    def replace(self, **changes: Any) -> Protocol:
+        return replace(self, **changes)
+
+    # --- serialisation ---------------------------------------------------------------------
+
+    def to_json(self) -> dict[str, Any]:
+        data = asdict(self)
+        if isinstance(self.uncertainty, UncertaintySet):
+            box = self.uncertainty
+            data["uncertainty"] = {
+                "names": list(box.names),
+                "low": box.low.tolist(),
+                "high": box.high.tolist(),
+                "nominal": None if box.nominal is None else np.asarray(box.nominal).tolist(),
+                "label": box.label,
+                "family": box.family,
+            }
+        if isinstance(self.split, Split):
+            data["split"] = self.split.to_json()
+        if self.schedule is not None:
+            data["schedule"] = self.schedule.to_json()
+        data["disruptors"] = [
+            [n, list(v) if isinstance(v, tuple) else v] for n, v in self.disruptors
+        ]
+        return data
+
+    @classmethod
+    def from_json(cls, data: Mapping[str, Any]) -> Protocol:
+        """The inverse of ``to_json`` (unknown keys are refused)."""
+        known = set(cls.__dataclass_fields__)
+        unknown = sorted(set(data) - known)
+        if unknown:
+            raise ValueError(f"not protocol fields: {', '.join(unknown)}; valid: {sorted(known)}")
+        kw = dict(data)
+        box = kw.get("uncertainty")
+        if isinstance(box, Mapping):
+            kw["uncertainty"] = UncertaintySet(
+                tuple(box["names"]),
+                box["low"],
+                box["high"],
+                box.get("nominal"),
+                box.get("label", ""),
+                box.get("family"),
+            )
+        if isinstance(kw.get("split"), Mapping):
+            kw["split"] = Split.from_json(kw["split"])
+        if kw.get("schedule") is not None:
+            raise ValueError(
+                "a protocol over a schedule family is recorded as JSON but not rebuilt from it: "
+                "pass the ScheduleFamily again (Protocol(..., schedule=family))"
+            )
+        kw["disruptors"] = tuple(
+            (n, tuple(v) if isinstance(v, list) else v) for n, v in kw.get("disruptors", ())
+        )
+        return cls(**kw)
+
+    # --- planning ----------------------------------------------------------------------------
+
+    def plan(self, task: str, view: Any = None) -> Plan:
+        """This protocol on ``task``: every check made before any episode runs."""
+        from rrls.envs import paper_class
+        from rrls.tasks import get_task
+
+        mesh_box, resolved, stack = _stack(
+            task, self.uncertainty, dict(self.disruptors), self.schedule, self.context, view
+        )
+        steps = self.max_episode_steps or get_task(resolved.task).max_episode_steps
+        endpoint = (not self.paper) if self.endpoint is None else self.endpoint
+        if self.paper:
+            paper_class(resolved.env_class)  # a task without paper physics: refused now
+        if self.schedule is None:
+            points = mesh_box.mesh(self.mesh, endpoint=endpoint)
+        else:
+            points = _product(
+                self.schedule.points(), _ranged(mesh_box, self.schedule).mesh(self.mesh, endpoint)
+            )
+        _check_strengths(mesh_box, points)
+        settings = {
+            "physics": physics_label(self.paper),
+            "mesh": self.mesh,
+            "endpoint": endpoint,
+            "episodes": self.episodes,
+            "seed": self.seed,
+            "max_episode_steps": steps,
+            **stack.to_json(),
+        }
+        if self.schedule is not None:  # what was meshed: the family's grid
+            settings["schedule"] = self.schedule.to_json()
+        in_dist = None
+        split = self.split
+        if isinstance(split, str):
+            split = Split.parse(resolved.box, split)
+        if split is not None:
+            in_dist = _split_mask(split, mesh_box, points, self.schedule)
+            settings["split"] = split.to_json()
+        return Plan(mesh_box, resolved, stack, points, in_dist, steps, self.paper, settings)
+
+
+def _stack(
+    task: str,
+    uncertainty: str | UncertaintySet,
+    disruptors: Mapping[str, float | Sequence[float]],
+    schedule: Any,
+    context: bool,
+    view: Any,
+) -> tuple[UncertaintySet, Any, Any]:
+    """(the box of the mesh's names, the resolved physical set, the wrapper stack).
+
+    The mesh's names are the set's (physical ones first resolved as usual, disruptor strengths
+    kept) plus the meshed ``disruptors``; under a ``schedule`` the schedule's fields come first.
+    """
+    from rrls.envs import resolve
+    from rrls.evaluation.stack import EnvStack
+    from rrls.wrappers import DISRUPTORS, ScheduleFamily
+
+    physical, ranged = _physical_part(uncertainty, DISRUPTORS)
+    fixed: dict[str, float] = {}
+    for name, value in disruptors.items():
+        if name not in DISRUPTORS:
+            raise ValueError(f"unknown disruptor {name!r}; valid: {', '.join(DISRUPTORS)}")
+        if name in ranged:
+            raise ValueError(f"{name} is both in the set and in disruptors; give it once")
+        if isinstance(value, (tuple, list, np.ndarray)):
+            if len(value) != 2:
+                raise ValueError(f"disruptor {name} takes a strength or (low, high), got {value!r}")
+            ranged[name] = (float(value[0]), float(value[1]))
+        else:
+            fixed[name] = value
+    checks = [(n, v) for n, (lo, hi) in ranged.items() for v in (lo, hi)] + list(fixed.items())
+    for name, v in checks:
+        problem = DISRUPTORS[name].check_param(name, v)
+        if problem:
+            raise ValueError(problem)
+    resolved = resolve(task, physical)
+    extra = UncertaintySet.from_bounds(
+        {n: list(b) for n, b in ranged.items()}, {n: 0.0 for n in ranged}
+    )
+    if schedule is not None:
+        if not isinstance(schedule, ScheduleFamily):
+            raise TypeError(
+                f"schedule must be a ScheduleFamily (the grid to mesh over), got "
+                f"{type(schedule).__name__}"
+            )
+        if resolved.is_nominal:
+            raise ValueError("a schedule needs a set to move in; give a non-empty uncertainty set")
+        grid = schedule.points()
+        head = UncertaintySet(schedule.names, grid.min(axis=0), grid.max(axis=0), grid[0])
+    else:
+        head = resolved.box
+    mesh_box = UncertaintySet(
+        head.names + extra.names,
+        np.r_[head.low, extra.low],
+        np.r_[head.high, extra.high],
+        np.r_[head.nominal, extra.nominal],
+        head.label or resolved.label,
+        resolved.family,
+    )
+    stack = EnvStack(
+        disruptors=tuple(
+            (n, float(fixed.get(n, 0.0))) for n in DISRUPTORS if n in fixed or n in ranged
+        ),
+        schedule=None if schedule is None else schedule.schedule,
+        schedule_set=None if schedule is None else resolved.box,
+        context=(resolved.box if schedule is not None else mesh_box) if context else None,
+        view=view,
+    )
+    if context and stack.context.dim == 0:
+        raise ValueError("context=True needs a non-empty set whose parameters to show")
+    return mesh_box, resolved, stack
+
+
+def _physical_part(
+    uncertainty: str | UncertaintySet, disruptors: Mapping[str, Any]
+) -> tuple[str | UncertaintySet, dict[str, tuple[float, float]]]:
+    """A set naming disruptor strengths split into its physical part and the strengths' ranges."""
+    if not (isinstance(uncertainty, UncertaintySet) and set(uncertainty.names) & set(disruptors)):
+        return uncertainty, {}
+    box = uncertainty
+    ranged = {
+        n: (float(lo), float(hi))
+        for n, lo, hi in zip(box.names, box.low, box.high)
+        if n in disruptors
+    }
+    names = [n for n in box.names if n not in disruptors]
+    if not names:
+        return "nominal", ranged
+    at = [box.names.index(n) for n in names]
+    nominal = None if box.nominal is None else [box.nominal[i] for i in at]
+    physical = UncertaintySet(
+        tuple(names),
+        [box.low[i] for i in at],
+        [box.high[i] for i in at],
+        nominal,
+        box.label,
+        box.family,
+    )
+    return physical, ranged
+
+
+def _check_strengths(mesh_box: UncertaintySet, points: np.ndarray) -> None:
+    """Refuse, before any episode, a mesh whose disruptor strengths are invalid (a delay of
+    1.5 steps: a mesh over a delay needs points that are whole numbers)."""
+    from rrls.wrappers import DISRUPTORS
+
+    for i, name in enumerate(mesh_box.names):
+        if name not in DISRUPTORS:
+            continue
+        for value in np.unique(points[:, i]).tolist():
+            problem = DISRUPTORS[name].check_param(name, value)
+            if problem:
+                raise ValueError(
+                    f"the mesh has {name}={value:g}: {problem}; choose the bounds and mesh size "
+                    "so every point is valid (e.g. (0, 3) with 4 points for a delay)"
+                )
+
+
+def _ranged(mesh_box: UncertaintySet, schedule: Any) -> UncertaintySet:
+    """The meshed disruptor axes that follow a schedule's fields in ``mesh_box``."""
+    k = len(schedule.names)
+    return UncertaintySet(mesh_box.names[k:], mesh_box.low[k:], mesh_box.high[k:])
+
+
+def _product(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Every row of ``a`` with every row of ``b`` (``a`` varying slowest)."""
+    return np.hstack([np.repeat(a, len(b), axis=0), np.tile(b, (len(a), 1))])
+
+
+def _split_mask(split: Split, mesh_box: UncertaintySet, points: np.ndarray, schedule: Any) -> Any:
+    """``in_distribution`` of each mesh point (the split's names are a part of the mesh's)."""
+    if not isinstance(split, Split):
+        raise TypeError(f"split must be an rrls.uncertainty.Split, got {type(split).__name__}")
+    if schedule is not None:
+        raise ValueError("a split divides a set's mesh; it does not apply to a schedule family")
+    missing = [n for n in split.box.names if n not in mesh_box.names]
+    if missing:
+        raise ValueError(f"the split names {missing}, which the mesh does not vary")
+    cols = [mesh_box.names.index(n) for n in split.box.names]
+    return np.asarray(split.in_distribution(points[:, cols]), dtype=bool).reshape(len(points))

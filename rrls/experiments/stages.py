@@ -1,0 +1,103 @@
+"""The stages every entry of a benchmark goes through after training, on one code path for the
+benchmark's own runs (``pipeline``) and submitted policies (``submission``), so the two cannot
+drift: the final evaluation over the mesh under the benchmark's ``Protocol``, and the dynamic
+evaluation of a protagonist against an adversary (RARL, NR-MDP)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+from rrls.evaluation.protocol import Protocol
+from rrls.experiments.spec import Spec
+
+__all__ = ["run_dynamic", "run_evaluation"]
+
+
+def run_evaluation(
+    spec: Spec,
+    algo: str,
+    task: str,
+    seed: int,
+    policy: Any,
+    out: Path,
+    workers: int | None,
+    progress: bool | None,
+    trained: dict[str, Any] | None = None,
+) -> dict[str, Any]:
+    """The final mesh evaluation under the benchmark's protocol, into ``out/eval``; the
+    ``result.json`` fields it gives. ``trained``: what the benchmark knows of the training
+    (its ``train_set`` and ``steps``); a submitted policy's own metadata says it otherwise."""
+    from rrls.evaluation import evaluate
+
+    meta = getattr(policy, "metadata", None) or {}
+    result = evaluate(
+        policy,
+        task,
+        protocol=spec.evaluation_protocol(),
+        workers=workers,
+        out_dir=out / "eval",
+        progress=progress,
+    )
+    trained = trained or {
+        "train_set": str(meta.get("uncertainty") or "unknown"),
+        "steps": int(meta.get("steps") or 0),  # the training budget when the policy records it
+    }
+    return {
+        "algorithm": algo,
+        "task": task,
+        "uncertainty": spec.uncertainty,
+        "train_set": trained["train_set"],
+        **({"split": spec.split, **result.split_scores()} if spec.split else {}),
+        "seed": seed,
+        "steps": trained["steps"],
+        "physics": spec.physics,
+        "worst_case": result.worst_case,
+        "average_case": result.average_case,
+        # the training's record (torch included) where the policy carries one
+        "versions": meta.get("versions") or result.config.get("versions", {}),
+    }
+
+
+def run_dynamic(
+    spec: Spec, task: str, policy: Any, adversary: Any, game: str, alpha: float | None, out: Path
+) -> dict[str, Any]:
+    """The dynamic evaluation (paper Table 6): ``policy`` against ``adversary`` in ``game``
+    (``adversarial``: RARL's; ``nr``/``pr``: NR-/PR-MDP's with ``alpha``), under the protocol's
+    rate-limited game if it has one; writes ``out/dynamic.csv``."""
+    from rrls.evaluation import evaluate_dynamic
+    from rrls.rundir import write_checked_table
+
+    protocol = spec.evaluation_protocol()
+    result = evaluate_dynamic(
+        policy,
+        adversary,
+        task,
+        game=game,
+        uncertainty=protocol.uncertainty,
+        episodes=protocol.dynamic_episodes,
+        seed=protocol.seed,
+        alpha=0.1 if alpha is None else float(alpha),
+        paper=protocol.paper,
+        **_rate_game(protocol, game, policy, adversary),
+    )
+    write_checked_table(out / "dynamic.csv", result.episodes)
+    return {"dynamic_mean": result.mean, "dynamic_std": result.std, "dynamic_env": result.env_id}
+
+
+def _rate_game(protocol: Protocol, game: str, policy: Any, adversary: Any) -> dict[str, Any]:
+    """The benchmark's rate-limited game for ``evaluate_dynamic``: TC-RMDP's (or rrls's earlier
+    target game), the protagonist's view and the adversary's omniscience as their files say."""
+    from rrls.evaluation.stack import policy_view
+
+    if game != "adversarial" or protocol.rate_limit is None:
+        return {"rate_limit": None}
+    view = policy_view(policy)
+    meta = getattr(adversary, "metadata", None) or {}
+    return {
+        "rate_limit": protocol.rate_limit,
+        "rate_game": protocol.rate_game,
+        "observe": "vanilla" if view is None else view.observe,
+        "history": 1 if view is None else view.history,
+        "omniscient": bool(meta.get("omniscient", True)),
+    }
