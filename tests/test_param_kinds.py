@@ -216,11 +216,11 @@ def test_field_table_lists_units_and_ranges():
         assert info.low < info.high, name
 
 
-def test_readme_documents_every_kind():
+def test_docs_document_every_kind():
     from pathlib import Path
 
-    readme = (Path(__file__).resolve().parents[1] / "README.md").read_text()
-    table = readme.split("### Parameter kinds", 1)[1].split("\n\n", 2)[1]
+    page = (Path(__file__).resolve().parents[1] / "docs" / "concepts.md").read_text()
+    table = page.split("\n## Parameter kinds", 1)[1].split("\n\n", 2)[1]
     for name, info in FIELDS.items():
         field = info.mujoco.split("[")[0].split(" ")[0]
         assert f"`{field}" in table, (name, field)
@@ -244,7 +244,7 @@ def test_info_reports_masses_always_and_other_kinds_once_set():
 
 def test_part_friction_is_inert_below_the_friction_it_touches_as_documented():
     """MuJoCo takes the larger friction of a contact's two geoms: Hopper's foot below the
-    floor's 1.0 changes nothing, unless the floor is lowered first (README, docs/tasks.md)."""
+    floor's 1.0 changes nothing, unless the floor is lowered first (docs/concepts.md, tasks.md)."""
     from rrls.envs import RobustHopper
 
     actions = np.random.default_rng(0).uniform(-1, 1, (300, 3))

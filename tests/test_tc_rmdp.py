@@ -157,7 +157,7 @@ def test_a_stacked_or_oracle_protagonist_is_evaluated_on_what_it_saw():
 
 
 def test_the_worked_example_of_the_docs():
-    # README and docs/differences.md: Hopper 3D, R = 0.1, ψ = (1.0, 2.0, 3.95), a = (1, -0.5, 1)
+    # perturbations.md, differences.md: Hopper 3D, R = 0.1, ψ = (1.0, 2.0, 3.95), a = (1, -0.5, 1)
     game = _game(0.1)
     start = {"worldfriction": 1.0, "torsomass": 2.0, "thighmass": 3.95}
     game.reset(seed=0, options=start)

@@ -42,6 +42,7 @@ def main(argv: list[str] | None = None) -> dict:
     args = parser.parse_args(argv)
 
     import gymnasium as gym
+    import torch
     from stable_baselines3 import SAC
 
     import rrls  # noqa: F401  (registers the rrls/ ids)
@@ -85,6 +86,7 @@ def main(argv: list[str] | None = None) -> dict:
 
     # 3. Your method: here SAC (Stable-Baselines3) with domain randomisation over the set, one
     #    agent per seed; any policy works (a callable, an nn.Module, a .zip, module:attribute).
+    torch.set_num_threads(1)  # SB3's default (a thread per core) oversubscribes a shared machine
     for seed in range(args.seeds):
         env = gym.make(f"rrls/robust-{task}-domain-randomization-{uncertainty}-v0")
         model = SAC(

@@ -35,9 +35,16 @@ def main(argv: list[str] | None = None) -> dict:
     parser.add_argument("--mesh", type=int, default=10, help="new benchmark: points per dim")
     parser.add_argument("--episodes", type=int, default=5, help="new benchmark: episodes/point")
     parser.add_argument("--name", default="sb3-sac-dr", help="the algorithm's name in the report")
+    parser.add_argument(
+        "--threads",
+        type=int,
+        default=1,
+        help="torch threads (default 1: more oversubscribe a shared machine)",
+    )
     args = parser.parse_args(argv)
 
     import gymnasium as gym
+    import torch
     from stable_baselines3 import SAC
 
     import rrls  # noqa: F401  (registers the rrls/ ids)
@@ -46,6 +53,11 @@ def main(argv: list[str] | None = None) -> dict:
     from rrls.experiments.report import make_report
     from rrls.experiments.store import build_store
     from rrls.experiments.submission import create_benchmark
+
+    # SB3 trains with torch's default of one thread per core; on a machine shared with other
+    # work (or with few cores) those threads oversubscribe it and a 200-step smoke run takes
+    # minutes instead of seconds.
+    torch.set_num_threads(args.threads)
 
     # 1. Train: SAC on Hopper whose torso, thigh masses and friction are redrawn every episode
     #    from the paper's 3D set (DomainRandomization inside the registered id).
