@@ -7,6 +7,7 @@ from rrls.evaluation.dynamic import (
     make_dynamic_env,
 )
 from rrls.evaluation.evaluate import EvaluationResult, evaluate
+from rrls.evaluation.lanes import PolicyError
 from rrls.evaluation.mesh import (
     EvaluationSet,
     default_evaluation_set,
@@ -25,7 +26,6 @@ from rrls.evaluation.policies import (
     load_policy,
 )
 from rrls.evaluation.protocol import Protocol
-from rrls.evaluation.runner import PolicyError
 from rrls.evaluation.search import WorstCaseSearch, search_worst_case
 
 __all__ = [

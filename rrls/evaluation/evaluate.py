@@ -21,6 +21,8 @@ from typing import Any
 
 import numpy as np
 
+from rrls.evaluation import engine, lanes
+from rrls.evaluation.chunks import CHUNK
 from rrls.evaluation.protocol import Protocol, check_counts
 from rrls.physics import physics_label
 from rrls.uncertainty import Split, UncertaintySet
@@ -276,11 +278,11 @@ def evaluate(
     Rows stay equal to the one-episode loop on the same wrapper stack
     (``env.set_params(**point); env.reset(seed=seed)``).
     """
-    from rrls.evaluation import runner
     from rrls.evaluation.policies import as_policy
     from rrls.evaluation.stack import policy_view
 
     if protocol is None:
+        check_counts(episodes=episodes, nb_mesh_dim=nb_mesh_dim)  # named as the caller gave them
         protocol = Protocol(
             uncertainty,
             mesh=nb_mesh_dim,
@@ -304,8 +306,8 @@ def evaluate(
         check_counts(workers=workers)
     if batch_size is not None:
         check_counts(batch_size=batch_size)
-    seeds = runner.episode_seeds(protocol.seed, len(plan.points), protocol.episodes)
-    spec = runner.RolloutSpec(
+    seeds = lanes.episode_seeds(protocol.seed, len(plan.points), protocol.episodes)
+    spec = lanes.RolloutSpec(
         plan.resolved.task,
         plan.resolved.family,
         plan.mesh_box.names,
@@ -329,7 +331,7 @@ def evaluate(
             plan.in_distribution,
         )
     finally:
-        runner.clear_env_cache()
+        lanes.clear_env_cache()
 
 
 def _evaluate(
@@ -344,7 +346,6 @@ def _evaluate(
     mesh_box: UncertaintySet,
     in_dist: np.ndarray | None,
 ) -> EvaluationResult:
-    from rrls.evaluation import runner
     from rrls.evaluation.policies import as_policy, policy_fingerprint
 
     key, kind = resolved.task, resolved.family
@@ -360,7 +361,7 @@ def _evaluate(
         "uncertainty_name": resolved.name or resolved.label,
         "env": f"rrls/{kind}-{key}-v0" + (" (paper=True)" if spec.paper else ""),
         **settings,
-        "chunk": runner.CHUNK,
+        "chunk": CHUNK,
         "policy_fingerprint": policy_fingerprint(policy, obs_dim),
     }
     if out_dir is None:
@@ -433,13 +434,11 @@ def rollout_table(
     ``in_distribution`` (one flag per point), a column of it."""
     import pandas as pd
 
-    from rrls.evaluation import runner
-
-    cols = runner.run(
+    cols = engine.run(
         spec,
         policy,
         workers=workers,
-        lanes=batch_size or runner.LANES,
+        lanes=batch_size or lanes.LANES,
         chunk_dir=chunk_dir,
         progress=progress,
     )
@@ -455,7 +454,7 @@ def rollout_table(
 
 
 def _dims(spec: Any) -> tuple[int, int]:
-    from rrls.evaluation.runner import make_rollout_envs
+    from rrls.evaluation.lanes import make_rollout_envs
 
     env = make_rollout_envs(spec, 1)[0]
     return env.observation_space.shape[0], env.action_space.shape[0]
@@ -463,7 +462,7 @@ def _dims(spec: Any) -> tuple[int, int]:
 
 def _check_policy(policy: Callable, obs_dim: int, act_dim: int) -> None:
     """Fail before any rollout if the policy cannot map observations to actions."""
-    from rrls.evaluation.runner import PolicyError
+    from rrls.evaluation.lanes import PolicyError
 
     try:
         out = np.asarray(policy(np.zeros((2, obs_dim))))
