@@ -95,8 +95,9 @@ def _search(
     import pandas as pd
     from scipy.optimize import differential_evolution
 
-    from rrls.evaluation.evaluate import prepare_policy, rollout_table
+    from rrls.evaluation.evaluate import rollout_table
     from rrls.evaluation.policies import as_policy
+    from rrls.evaluation.prepare import prepare_policy
     from rrls.evaluation.stack import EnvStack, policy_view
 
     key, box, kind = resolved.task, resolved.box, resolved.family
@@ -110,7 +111,7 @@ def _search(
     probe = lanes.RolloutSpec(
         key, kind, box.names, box.nominal[None], common, max_episode_steps, stack
     )
-    policy, _ = prepare_policy(policy, probe)
+    policy = prepare_policy(policy, probe).policy
     records: list[dict[str, Any]] = []
 
     def objective(x: np.ndarray) -> np.ndarray:
