@@ -42,7 +42,7 @@ import numpy as np
 
 import rrls  # noqa: F401  (registers the ids)
 from rrls.evaluation import MLPPolicy, evaluate, resolve_uncertainty
-from rrls.evaluation.runner import episode_seeds
+from rrls.evaluation.lanes import episode_seeds
 
 
 def plain_loop(task: str, policy, points: np.ndarray, names, seeds: np.ndarray):

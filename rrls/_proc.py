@@ -8,7 +8,6 @@ import sys
 import time
 from collections.abc import Iterator
 from contextlib import contextmanager
-from pathlib import Path
 
 #: environment of a process that must use one BLAS/OpenMP thread (set before numpy loads)
 THREAD_ENV = {
@@ -27,48 +26,37 @@ def cores() -> int:
         return os.cpu_count() or 1
 
 
-def die_with_parent() -> None:
-    """Exit when the parent goes away (killed included): no orphan keeps working."""
-    parent = os.getppid()
+def die_with_parent(parent: int | None = None) -> None:
+    """Make this process die with its parent, even after ``kill -9``: no orphan keeps working
+    (or stays blocked on a queue). ``parent``: the pid the parent had when it started this
+    process (default: the current parent), so a parent that died before this call is seen.
+
+    Linux: ``prctl(PR_SET_PDEATHSIG, SIGKILL)``; elsewhere (or if that fails) a daemon thread
+    that polls the parent pid.
+    """
+    parent = os.getppid() if parent is None else parent
     if sys.platform.startswith("linux"):
         try:
             import ctypes
             import signal
 
-            libc = ctypes.CDLL("libc.so.6", use_errno=True)
-            libc.prctl(1, signal.SIGKILL)  # PR_SET_PDEATHSIG
-        except OSError:
+            libc = ctypes.CDLL(None, use_errno=True)
+            if libc.prctl(1, int(signal.SIGKILL), 0, 0, 0) == 0:  # PR_SET_PDEATHSIG
+                if os.getppid() != parent:  # the parent died before prctl took effect
+                    os._exit(1)
+                return
+        except (OSError, AttributeError):  # pragma: no cover - no libc/prctl: poll instead
             pass
     import threading
 
-    def watch() -> None:
+    def watch() -> None:  # pragma: no cover - non-Linux fallback
         while os.getppid() == parent:
             time.sleep(1.0)
         os._exit(1)
 
-    threading.Thread(target=watch, daemon=True).start()
+    threading.Thread(target=watch, name="rrls-parent-watch", daemon=True).start()
     if os.getppid() != parent:
         os._exit(1)
-
-
-@contextmanager
-def exclusive(directory: Path) -> Iterator[None]:
-    """Hold ``directory/.lock``: a second process on the same directory (or an orphan of a
-    killed one) is refused with a one-line error instead of writing it twice at once."""
-    try:
-        import fcntl
-    except ImportError:  # not POSIX: no lock
-        yield
-        return
-    with open(Path(directory) / ".lock", "w") as handle:
-        try:
-            fcntl.flock(handle, fcntl.LOCK_EX | fcntl.LOCK_NB)
-        except OSError:
-            raise RuntimeError(f"{directory} is being run by another process") from None
-        try:
-            yield
-        finally:
-            fcntl.flock(handle, fcntl.LOCK_UN)
 
 
 @contextmanager

@@ -9,7 +9,7 @@ import subprocess
 from pathlib import Path
 from typing import Any
 
-__all__ = ["machine", "source_commit"]
+__all__ = ["machine", "source_commit", "versions"]
 
 
 def source_commit() -> str | None:
@@ -58,4 +58,21 @@ def machine() -> dict[str, Any]:
         "cores": os.cpu_count(),
         "simd": simd,
         "system": f"{platform.system()} {platform.machine()}",
+    }
+
+
+def versions() -> dict[str, str]:
+    """The versions an evaluation depends on (training adds torch's)."""
+    import gymnasium
+    import mujoco
+    import numpy as np
+
+    from rrls import __version__
+
+    return {
+        "rrls": __version__,
+        "gymnasium": gymnasium.__version__,
+        "mujoco": mujoco.__version__,
+        "numpy": np.__version__,
+        "python": platform.python_version(),
     }

@@ -162,12 +162,12 @@ def test_an_evaluation_directory_is_locked_while_in_use(tmp_path):
 
 @pytest.mark.parametrize("damage", [b"", b"PK\x03\x04 truncated", b"garbage", "wrong-shape"])
 def test_a_damaged_chunk_is_named_and_recomputed(tmp_path, damage):
-    from rrls.evaluation import runner
+    from rrls.evaluation.chunks import CHUNK
 
     kwargs = dict(nb_mesh_dim=3, episodes=40, workers=1, out_dir=tmp_path / "ev")
     first = evaluate(_ip_policy(), "invertedpendulum", "1d", **kwargs)
     chunk = tmp_path / "ev" / "chunks" / "000001.npz"
-    assert chunk.exists() and runner.CHUNK < 120
+    assert chunk.exists() and CHUNK < 120
     if damage == "wrong-shape":
         np.savez(chunk, **{k: np.zeros(3) for k in ("return", "length", "terminated", "diverged")})
     else:
@@ -176,7 +176,7 @@ def test_a_damaged_chunk_is_named_and_recomputed(tmp_path, damage):
     with pytest.warns(UserWarning, match=f"chunk file {chunk} is unreadable.*recomputing"):
         again = evaluate(_ip_policy(), "invertedpendulum", "1d", **kwargs)
     assert again.episodes.equals(first.episodes)
-    assert np.load(chunk)["return"].shape == (runner.CHUNK,)
+    assert np.load(chunk)["return"].shape == (CHUNK,)
 
 
 def test_files_respect_the_umask(tmp_path):

@@ -16,12 +16,14 @@ from rrls.evaluation import (
     EvaluationResult,
     MLPPolicy,
     PolicyError,
+    engine,
     evaluate,
+    lanes,
     load_policy,
     resolve_uncertainty,
-    runner,
+    scheduling,
 )
-from rrls.evaluation.runner import episode_seeds
+from rrls.evaluation.lanes import episode_seeds
 from rrls.uncertainty import UncertaintySet
 
 
@@ -95,25 +97,25 @@ def test_results_do_not_depend_on_workers_or_batch_size():
 @pytest.mark.parametrize(("n", "workers"), [(512, 16), (5000, 16), (125, 2), (3, 8), (50, 16)])
 def test_plan_work_gives_every_worker_a_balanced_share(n, workers):
     """Fixed 50-row units gave 512 rows to only 11 of 16 workers; shares now differ by <= 1."""
-    plan = runner.plan_work(n, workers)
+    plan = scheduling.plan_work(n, workers)
     assert plan.workers == min(n, workers)
     sizes = [stop - start for start, stop in plan.shares]
     assert min(sizes) >= 1 and max(sizes) - min(sizes) <= 1 and sum(sizes) == n
     assert [s[0] for s in plan.shares[1:]] == [s[1] for s in plan.shares[:-1]]  # contiguous
-    assert plan.lanes == min(runner.LANES, max(sizes))  # no lane without an episode
+    assert plan.lanes == min(lanes.LANES, max(sizes))  # no lane without an episode
     with pytest.raises(ValueError, match="workers must be >= 1"):
-        runner.plan_work(n, 0)
+        scheduling.plan_work(n, 0)
 
 
-def _simulate(lengths, workers, lanes=runner.LANES, late=0, max_steps=1000):
+def _simulate(lengths, workers, lanes=lanes.LANES, late=0, max_steps=1000):
     """Lockstep rounds of ``take_row``: worker ``w`` starts ``w * late`` rounds late.
 
     Returns each worker's rows and the rounds it ran; checks that every row runs exactly once and
     that a worker is refused a row only when none is left or its owner will start it soon.
     """
-    plan = runner.plan_work(len(lengths), workers, lanes)
-    bounds = runner.shared_bounds(plan, max_steps)
-    horizon = runner.steal_horizon(max_steps)
+    plan = scheduling.plan_work(len(lengths), workers, lanes)
+    bounds = scheduling.shared_bounds(plan, max_steps)
+    horizon = scheduling.steal_horizon(max_steps)
     live = [[] for _ in range(plan.workers)]  # (steps left, steps done) of each live lane
     rows = [[] for _ in range(plan.workers)]
     busy = [0] * plan.workers
@@ -124,7 +126,7 @@ def _simulate(lengths, workers, lanes=runner.LANES, late=0, max_steps=1000):
                 continue
             live[w] = [(k - 1, d + 1) for k, d in live[w] if k > 1]  # one lockstep step
             while len(live[w]) < plan.lanes:
-                r = runner.take_row(bounds, w, len(live[w]), horizon)
+                r = scheduling.take_row(bounds, w, len(live[w]), horizon)
                 if r < 0:
                     for v in range(plan.workers):
                         left = bounds[3 * v + 1] - bounds[3 * v]
@@ -168,11 +170,11 @@ def test_results_do_not_depend_on_the_work_split_or_chunk_size(tmp_path):
     policy = _policy("hopper")
     box = resolve_uncertainty("hopper", "2d")
     points = box.mesh(3)
-    spec = runner.RolloutSpec(
+    spec = lanes.RolloutSpec(
         "hopper", "robust", box.names, points, episode_seeds(4, len(points), 3), 200
     )
     runs = [
-        runner.run(spec, policy, workers=w, lanes=b, chunk=c, chunk_dir=tmp_path / f"{w}{b}{c}")
+        engine.run(spec, policy, workers=w, lanes=b, chunk=c, chunk_dir=tmp_path / f"{w}{b}{c}")
         for w, b, c in [(1, 64, 50), (2, 3, 50), (3, 2, 7), (2, 64, 5)]
     ]
     for other in runs[1:]:

@@ -106,7 +106,7 @@ def test_one_flipped_byte_in_a_results_file_is_named_by_the_report(bench, capsys
     _flip(path, where)
     capsys.readouterr()
     if name == "summary.json":  # read by `rrls evaluate`'s loader, not by the report
-        from rrls.evaluation.evaluate import EvaluationResult
+        from rrls.evaluation import EvaluationResult
 
         with pytest.raises(rundir.DamagedFile, match="summary.json is damaged"):
             EvaluationResult.load(path.parent)

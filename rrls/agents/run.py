@@ -33,7 +33,7 @@ from rrls.provenance import machine, source_commit
 
 def versions() -> dict[str, str]:
     """The evaluation's version record plus torch (saved with every policy)."""
-    from rrls.evaluation.evaluate import versions as evaluation_versions
+    from rrls.provenance import versions as evaluation_versions
 
     return {**evaluation_versions(), "torch": torch.__version__}
 

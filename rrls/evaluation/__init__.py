@@ -6,7 +6,8 @@ from rrls.evaluation.dynamic import (
     evaluate_run_dynamic,
     make_dynamic_env,
 )
-from rrls.evaluation.evaluate import EvaluationResult, evaluate
+from rrls.evaluation.evaluate import evaluate
+from rrls.evaluation.lanes import PolicyError
 from rrls.evaluation.mesh import (
     EvaluationSet,
     default_evaluation_set,
@@ -25,7 +26,7 @@ from rrls.evaluation.policies import (
     load_policy,
 )
 from rrls.evaluation.protocol import Protocol
-from rrls.evaluation.runner import PolicyError
+from rrls.evaluation.result import EvaluationResult
 from rrls.evaluation.search import WorstCaseSearch, search_worst_case
 
 __all__ = [

@@ -171,8 +171,8 @@ def evaluate_dynamic(
     """
     import pandas as pd
 
+    from rrls.evaluation.lanes import episode_seeds
     from rrls.evaluation.policies import as_policy
-    from rrls.evaluation.runner import episode_seeds
 
     if episodes < 1:
         raise ValueError(f"episodes must be >= 1, got {episodes}")
@@ -303,7 +303,7 @@ def evaluate_run_dynamic(
 
 def _actions(out: Any, who: str, n: int) -> np.ndarray:
     """A policy's batch of actions, or a ``PolicyError`` naming which policy misbehaved."""
-    from rrls.evaluation.runner import PolicyError
+    from rrls.evaluation.lanes import PolicyError
 
     actions = np.asarray(out)
     if actions.dtype.kind not in "biuf":

@@ -12,197 +12,21 @@ True
 
 from __future__ import annotations
 
-import platform
 import warnings
 from collections.abc import Callable, Mapping, Sequence
-from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from rrls.evaluation import engine, evaldir, lanes
+from rrls.evaluation.chunks import CHUNK
+from rrls.evaluation.prepare import policy_record, prepare_policy
 from rrls.evaluation.protocol import Protocol, check_counts
+from rrls.evaluation.result import EvaluationResult
 from rrls.physics import physics_label
+from rrls.provenance import versions
 from rrls.uncertainty import Split, UncertaintySet
-
-EPISODE_COLUMNS = ("point", "episode", "seed", "return", "length", "terminated", "diverged")
-
-
-@dataclass
-class EvaluationResult:
-    """Per-episode table plus the paper's two numbers.
-
-    ``worst_case`` is the minimum over mesh points of the mean return over that point's episodes,
-    ``average_case`` the mean over points of that same per-point mean.
-    """
-
-    task: str
-    uncertainty: UncertaintySet | None
-    episodes: Any  # pandas.DataFrame, one row per (point, episode)
-    config: dict[str, Any] = field(default_factory=dict)
-
-    @property
-    def param_names(self) -> list[str]:
-        return list(self.uncertainty.names) if self.uncertainty is not None else []
-
-    @property
-    def per_point(self) -> Any:
-        """One row per mesh point: its parameters and the mean/std/min return over its episodes
-        (and ``in_distribution`` when the evaluation was given a split)."""
-        cols = ["point", *self.param_names]
-        if "in_distribution" in self.episodes:
-            cols.append("in_distribution")
-        grouped = self.episodes.groupby(cols, sort=True)["return"]
-        table = grouped.agg(["mean", "std", "min", "count"]).reset_index()
-        return table.rename(
-            columns={
-                "mean": "mean_return",
-                "std": "std_return",
-                "min": "min_return",
-                "count": "episodes",
-            }
-        )
-
-    @property
-    def worst_case(self) -> float:
-        return float(self.per_point["mean_return"].min())
-
-    @property
-    def average_case(self) -> float:
-        return float(self.per_point["mean_return"].mean())
-
-    @property
-    def worst_point(self) -> dict[str, float]:
-        """Parameters of the mesh point with the lowest mean return."""
-        table = self.per_point
-        row = table.loc[table["mean_return"].idxmin()]
-        return {name: float(row[name]) for name in self.param_names}
-
-    @property
-    def n_diverged(self) -> int:
-        return int(self.episodes["diverged"].sum())
-
-    def split_scores(self) -> dict[str, float | int | None]:
-        """Worst and average case over the in-distribution (training part) and the
-        out-of-distribution (test part) mesh points separately; empty without a split."""
-        if "in_distribution" not in self.episodes:
-            return {}
-        table = self.per_point
-        out: dict[str, float | int | None] = {}
-        for tag, mask in (("id", table["in_distribution"]), ("ood", ~table["in_distribution"])):
-            means = table.loc[mask, "mean_return"]
-            out[f"worst_case_{tag}"] = float(means.min()) if len(means) else None
-            out[f"average_case_{tag}"] = float(means.mean()) if len(means) else None
-            out[f"points_{tag}"] = int(mask.sum())
-        return out
-
-    def summary(self) -> dict[str, Any]:
-        """What ``summary.json`` holds."""
-        return {
-            "task": self.task,
-            "uncertainty": self.config.get("uncertainty"),
-            "worst_case": self.worst_case,
-            "average_case": self.average_case,
-            "worst_point": self.worst_point,
-            "points": int(self.episodes["point"].nunique()),
-            "episodes_total": len(self.episodes),
-            "diverged": self.n_diverged,
-            **self.split_scores(),
-            **{k: v for k, v in self.config.items() if k not in ("uncertainty",)},
-        }
-
-    def save(self, out_dir: str | Path) -> Path:
-        """Write ``summary.json`` and ``episodes.parquet`` (``.csv`` without pyarrow) atomically."""
-        from rrls.rundir import write_checked_json, write_checked_table
-
-        out_dir = Path(out_dir)
-        write_checked_table(out_dir / _table_name(), self.episodes)  # sealed: damage is seen
-        write_checked_json(out_dir / "summary.json", self.summary())
-        return out_dir
-
-    @classmethod
-    def load(cls, out_dir: str | Path) -> EvaluationResult:
-        from rrls.rundir import read_checked_table
-
-        out_dir = Path(out_dir)
-        summary_path = out_dir / "summary.json"
-        if not summary_path.exists():
-            raise FileNotFoundError(f"{out_dir} holds no summary.json: not an rrls evaluation")
-        summary = _read_json(summary_path)
-        table = out_dir / "episodes.parquet"
-        if not table.exists():
-            table = out_dir / "episodes.csv"
-        try:
-            episodes = read_checked_table(table)  # a damaged table: one line naming it
-        except FileNotFoundError:
-            raise FileNotFoundError(f"{out_dir} holds no episodes table") from None
-        box = summary.get("uncertainty")
-        box = UncertaintySet(**box) if box and box.get("names") else None
-        config = {k: summary[k] for k in summary if k not in _DERIVED}
-        config["uncertainty"] = summary.get("uncertainty")
-        return cls(summary["task"], box, episodes, config)
-
-    def __repr__(self) -> str:
-        label = self.uncertainty.label if self.uncertainty is not None else f"{self.task}/nominal"
-        split = self.split_scores()
-        extra = (
-            f", ID worst/average={_fmt(split['worst_case_id'])}/{_fmt(split['average_case_id'])}"
-            f", OOD worst/average={_fmt(split['worst_case_ood'])}/"
-            f"{_fmt(split['average_case_ood'])}"
-            if split
-            else ""
-        )
-        return (
-            f"EvaluationResult({label}: worst_case={self.worst_case:.2f}, "
-            f"average_case={self.average_case:.2f}{extra}, {len(self.episodes)} episodes)"
-        )
-
-
-def _fmt(value: float | None) -> str:
-    return "-" if value is None else f"{value:.2f}"
-
-
-_DERIVED = {
-    "task",
-    "uncertainty",
-    "worst_case",
-    "average_case",
-    "worst_point",
-    "points",
-    "episodes_total",
-    "diverged",
-    *(f"{m}_{t}" for m in ("worst_case", "average_case", "points") for t in ("id", "ood")),
-}
-
-
-def _read_json(path: Path) -> dict[str, Any]:
-    """A JSON object from ``path``; a damaged file is named in the error."""
-    from rrls.rundir import read_checked_json
-
-    return read_checked_json(path)
-
-
-def _table_name() -> str:
-    try:
-        import pyarrow  # noqa: F401
-    except ImportError:
-        return "episodes.csv"
-    return "episodes.parquet"
-
-
-def versions() -> dict[str, str]:
-    import gymnasium
-    import mujoco
-
-    from rrls import __version__
-
-    return {
-        "rrls": __version__,
-        "gymnasium": gymnasium.__version__,
-        "mujoco": mujoco.__version__,
-        "numpy": np.__version__,
-        "python": platform.python_version(),
-    }
 
 
 def _box_json(box: UncertaintySet | None) -> dict[str, Any] | None:
@@ -276,11 +100,11 @@ def evaluate(
     Rows stay equal to the one-episode loop on the same wrapper stack
     (``env.set_params(**point); env.reset(seed=seed)``).
     """
-    from rrls.evaluation import runner
     from rrls.evaluation.policies import as_policy
     from rrls.evaluation.stack import policy_view
 
     if protocol is None:
+        check_counts(episodes=episodes, nb_mesh_dim=nb_mesh_dim)  # named as the caller gave them
         protocol = Protocol(
             uncertainty,
             mesh=nb_mesh_dim,
@@ -304,8 +128,8 @@ def evaluate(
         check_counts(workers=workers)
     if batch_size is not None:
         check_counts(batch_size=batch_size)
-    seeds = runner.episode_seeds(protocol.seed, len(plan.points), protocol.episodes)
-    spec = runner.RolloutSpec(
+    seeds = lanes.episode_seeds(protocol.seed, len(plan.points), protocol.episodes)
+    spec = lanes.RolloutSpec(
         plan.resolved.task,
         plan.resolved.family,
         plan.mesh_box.names,
@@ -329,7 +153,7 @@ def evaluate(
             plan.in_distribution,
         )
     finally:
-        runner.clear_env_cache()
+        lanes.clear_env_cache()
 
 
 def _evaluate(
@@ -344,32 +168,22 @@ def _evaluate(
     mesh_box: UncertaintySet,
     in_dist: np.ndarray | None,
 ) -> EvaluationResult:
-    from rrls.evaluation import runner
-    from rrls.evaluation.policies import as_policy, policy_fingerprint
-
     key, kind = resolved.task, resolved.family
     box = None if mesh_box.dim == 0 else mesh_box
-    policy = as_policy(policy)
-    trained_on = (getattr(policy, "metadata", None) or {}).get("task")
-    if trained_on is not None and trained_on != key:
-        raise ValueError(f"the policy was trained on {trained_on!r}, not on task {key!r}")
-    policy, obs_dim = prepare_policy(policy, spec)
+    policy, _, fingerprint = prepare_policy(policy, spec, stacklevel=4)
 
     config = {
         "uncertainty": _box_json(box),
         "uncertainty_name": resolved.name or resolved.label,
         "env": f"rrls/{kind}-{key}-v0" + (" (paper=True)" if spec.paper else ""),
         **settings,
-        "chunk": runner.CHUNK,
-        "policy_fingerprint": policy_fingerprint(policy, obs_dim),
+        "chunk": CHUNK,
+        "policy_fingerprint": fingerprint,
     }
     if out_dir is None:
         frame = rollout_table(spec, policy, workers, batch_size, None, progress, in_dist)
         return _finish(key, box, frame, config, policy)
-    from rrls._io import DirectoryLock
-
-    with DirectoryLock(Path(out_dir)):  # one evaluation at a time per directory
-        chunk_dir = _prepare_out_dir(Path(out_dir), config)
+    with evaldir.opened(out_dir, config) as chunk_dir:  # one evaluation at a time per directory
         frame = rollout_table(spec, policy, workers, batch_size, chunk_dir, progress, in_dist)
         result = _finish(key, box, frame, config, policy)
         result.save(out_dir)
@@ -380,7 +194,7 @@ def _finish(
     key: str, box: UncertaintySet | None, frame: Any, config: dict[str, Any], policy: Any
 ) -> EvaluationResult:
     config["versions"] = versions()
-    config.update(_policy_record(policy))
+    config.update(policy_record(policy))
     result = EvaluationResult(key, box, frame, config)
     if result.n_diverged:
         warnings.warn(
@@ -389,35 +203,6 @@ def _finish(
             stacklevel=4,
         )
     return result
-
-
-def _policy_record(policy: Any) -> dict[str, Any]:
-    """What ``summary.json`` says of the policy: its algorithm, training seed and run directory."""
-    meta = getattr(policy, "metadata", None) or {}
-    record = {
-        "policy_algorithm": meta.get("algorithm"),
-        "policy_seed": meta.get("seed"),
-        "policy_run_dir": meta.get("run_dir"),
-        "policy_path": meta.get("path"),
-    }
-    return {k: v for k, v in record.items() if v is not None}
-
-
-def prepare_policy(policy: Any, spec: Any) -> tuple[Callable[[np.ndarray], Any], int]:
-    """Adapt ``policy``, check it against the task's spaces, warn if it is not batch-invariant."""
-    from rrls.evaluation.policies import as_policy, is_batch_invariant
-
-    policy = as_policy(policy)
-    obs_dim, act_dim = _dims(spec)
-    _check_policy(policy, obs_dim, act_dim)
-    if not is_batch_invariant(policy, obs_dim):
-        warnings.warn(
-            "the policy's actions depend on the batch size (BLAS kernels differ), so results may "
-            "differ in the last bits from a one-episode-at-a-time loop; wrap it in "
-            "rrls.evaluation.BatchInvariant(policy) for exact equality",
-            stacklevel=3,
-        )
-    return policy, obs_dim
 
 
 def rollout_table(
@@ -433,13 +218,11 @@ def rollout_table(
     ``in_distribution`` (one flag per point), a column of it."""
     import pandas as pd
 
-    from rrls.evaluation import runner
-
-    cols = runner.run(
+    cols = engine.run(
         spec,
         policy,
         workers=workers,
-        lanes=batch_size or runner.LANES,
+        lanes=batch_size or lanes.LANES,
         chunk_dir=chunk_dir,
         progress=progress,
     )
@@ -452,47 +235,3 @@ def rollout_table(
         table["in_distribution"] = np.asarray(in_distribution, dtype=bool)[point_idx]
     table.update(episode=episode_idx, seed=spec.seeds.reshape(-1).astype(np.int64), **cols)
     return pd.DataFrame(table)
-
-
-def _dims(spec: Any) -> tuple[int, int]:
-    from rrls.evaluation.runner import make_rollout_envs
-
-    env = make_rollout_envs(spec, 1)[0]
-    return env.observation_space.shape[0], env.action_space.shape[0]
-
-
-def _check_policy(policy: Callable, obs_dim: int, act_dim: int) -> None:
-    """Fail before any rollout if the policy cannot map observations to actions."""
-    from rrls.evaluation.runner import PolicyError
-
-    try:
-        out = np.asarray(policy(np.zeros((2, obs_dim))))
-    except Exception as err:
-        raise PolicyError(
-            f"calling the policy on a batch of observations of shape (2, {obs_dim}) failed: {err}"
-        ) from err
-    if out.dtype.kind not in "biuf":
-        raise PolicyError(f"the policy returned {out.dtype} values; actions must be real numbers")
-    if out.shape != (2, act_dim):
-        raise PolicyError(
-            f"the policy maps observations (2, {obs_dim}) to shape {out.shape}; expected "
-            f"(2, {act_dim}) for this task"
-        )
-
-
-def _prepare_out_dir(out_dir: Path, config: dict[str, Any]) -> Path:
-    """Create ``out_dir`` or check that it holds a run with the same arguments (to resume it)."""
-    from rrls._io import atomic_write_json
-
-    path = out_dir / "evaluation.json"
-    if path.exists():
-        old = _read_json(path)
-        diff = sorted(k for k in set(old) | set(config) if old.get(k) != config.get(k))
-        if diff:
-            raise ValueError(
-                f"{out_dir} holds an evaluation with different arguments ({', '.join(diff)}); "
-                "use another output directory or the same arguments to resume"
-            )
-    else:
-        atomic_write_json(path, config)
-    return out_dir / "chunks"

@@ -11,7 +11,7 @@ from typing import Any
 
 import numpy as np
 
-from rrls.evaluation.evaluate import EvaluationResult
+from rrls.evaluation.result import EvaluationResult
 
 
 def pyplot() -> Any:

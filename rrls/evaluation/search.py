@@ -14,6 +14,7 @@ from typing import Any
 
 import numpy as np
 
+from rrls.evaluation import lanes
 from rrls.uncertainty import UncertaintySet
 
 
@@ -64,7 +65,6 @@ def search_worst_case(
     ``max_episode_steps`` defaults to the task's episode length (1000 for the paper's tasks).
     """
     from rrls.envs import resolve
-    from rrls.evaluation import runner
     from rrls.tasks import get_task
 
     resolved = resolve(task, uncertainty)
@@ -79,7 +79,7 @@ def search_worst_case(
             policy, resolved, budget, episodes, seed, workers, popsize, max_episode_steps
         )
     finally:
-        runner.clear_env_cache()
+        lanes.clear_env_cache()
 
 
 def _search(
@@ -95,9 +95,9 @@ def _search(
     import pandas as pd
     from scipy.optimize import differential_evolution
 
-    from rrls.evaluation import runner
-    from rrls.evaluation.evaluate import prepare_policy, rollout_table
+    from rrls.evaluation.evaluate import rollout_table
     from rrls.evaluation.policies import as_policy
+    from rrls.evaluation.prepare import prepare_policy
     from rrls.evaluation.stack import EnvStack, policy_view
 
     key, box, kind = resolved.task, resolved.box, resolved.family
@@ -107,11 +107,11 @@ def _search(
     dim = box.dim
     size = int(popsize or max(8, 5 * dim))
     size = min(size, budget)
-    common = runner.episode_seeds(seed, 1, episodes)  # the same seeds for every candidate
-    probe = runner.RolloutSpec(
+    common = lanes.episode_seeds(seed, 1, episodes)  # the same seeds for every candidate
+    probe = lanes.RolloutSpec(
         key, kind, box.names, box.nominal[None], common, max_episode_steps, stack
     )
-    policy, _ = prepare_policy(policy, probe)
+    policy = prepare_policy(policy, probe).policy
     records: list[dict[str, Any]] = []
 
     def objective(x: np.ndarray) -> np.ndarray:
@@ -121,7 +121,7 @@ def _search(
         run = box.clip(points[: max(0, left)])
         if len(run):
             seeds = np.repeat(common, len(run), axis=0)
-            spec = runner.RolloutSpec(key, kind, box.names, run, seeds, max_episode_steps, stack)
+            spec = lanes.RolloutSpec(key, kind, box.names, run, seeds, max_episode_steps, stack)
             table = rollout_table(spec, policy, workers)
             means = table.groupby("point")["return"].mean().to_numpy()
             generation = len(records) and records[-1]["generation"] + 1

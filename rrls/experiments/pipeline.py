@@ -28,7 +28,8 @@ from pathlib import Path
 from typing import Any
 
 from rrls import rundir
-from rrls._proc import THREAD_ENV, exclusive
+from rrls._io import DirectoryLock
+from rrls._proc import THREAD_ENV
 from rrls.algorithms import plays_adversary
 from rrls.experiments.spec import RunKey, Spec
 from rrls.experiments.stages import run_dynamic, run_evaluation
@@ -98,7 +99,7 @@ def execute_group(
         outs[i].mkdir(parents=True, exist_ok=True)
     with ExitStack() as stack:
         for i in todo:
-            stack.enter_context(exclusive(outs[i]))
+            stack.enter_context(DirectoryLock(outs[i]))
         stack.enter_context(threadpool_limits(1))
         errors = _group_stages(spec, [runs[i] for i in todo], [outs[i] for i in todo])
         for i in todo:

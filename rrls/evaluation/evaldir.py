@@ -1,0 +1,85 @@
+"""The evaluation directory (``evaluate(..., out_dir=DIR)``), the one module that knows its
+format, like ``rrls.rundir`` for runs::
+
+    DIR/.lock               held while an evaluation writes (a second one is refused)
+    DIR/evaluation.json     the arguments: a re-run resumes only with the same ones
+    DIR/chunks/000003.npz   finished blocks of episodes (``rrls.evaluation.chunks``)
+    DIR/summary.json        worst/average case, the protocol, versions (sealed)
+    DIR/episodes.parquet    one row per (point, episode) (``.csv`` without pyarrow; sealed)
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+from contextlib import contextmanager
+from pathlib import Path
+from typing import Any
+
+from rrls._io import DirectoryLock, atomic_write_json
+from rrls.rundir import (
+    read_checked_json,
+    read_checked_table,
+    write_checked_json,
+    write_checked_table,
+)
+
+__all__ = ["ARGUMENTS", "SUMMARY", "opened", "read", "table_name", "write"]
+
+ARGUMENTS = "evaluation.json"
+SUMMARY = "summary.json"
+CHUNKS = "chunks"
+
+
+def table_name() -> str:
+    """``episodes.parquet``, or ``episodes.csv`` where pyarrow is not installed."""
+    try:
+        import pyarrow  # noqa: F401
+    except ImportError:
+        return "episodes.csv"
+    return "episodes.parquet"
+
+
+@contextmanager
+def opened(out_dir: str | Path, config: dict[str, Any]) -> Iterator[Path]:
+    """Hold ``out_dir`` (one evaluation at a time) holding an evaluation with ``config``'s
+    arguments, new or to resume; yields the folder of its chunks."""
+    out_dir = Path(out_dir)
+    with DirectoryLock(out_dir):
+        path = out_dir / ARGUMENTS
+        if path.exists():
+            old = read_checked_json(path)
+            diff = sorted(k for k in set(old) | set(config) if old.get(k) != config.get(k))
+            if diff:
+                raise ValueError(
+                    f"{out_dir} holds an evaluation with different arguments ({', '.join(diff)}); "
+                    "use another output directory or the same arguments to resume"
+                )
+        else:
+            atomic_write_json(path, config)
+        yield out_dir / CHUNKS
+
+
+def write(out_dir: str | Path, summary: dict[str, Any], episodes: Any) -> Path:
+    """Write the episode table and ``summary.json``, sealed (damage is seen on reading)."""
+    out_dir = Path(out_dir)
+    write_checked_table(out_dir / table_name(), episodes)
+    write_checked_json(out_dir / SUMMARY, summary)
+    return out_dir
+
+
+def read(out_dir: str | Path) -> tuple[dict[str, Any], Any]:
+    """``(summary, episodes)`` of a finished evaluation; one-line errors naming what is
+    missing or damaged."""
+    out_dir = Path(out_dir)
+    summary_path = out_dir / SUMMARY
+    if not summary_path.exists():
+        raise FileNotFoundError(f"{out_dir} holds no summary.json: not an rrls evaluation")
+    summary = read_checked_json(summary_path)
+    table = out_dir / "episodes.parquet"
+    if not table.exists():
+        table = out_dir / "episodes.csv"
+    try:
+        episodes = read_checked_table(table)  # a damaged table: one line naming it
+    except FileNotFoundError:
+        raise FileNotFoundError(f"{out_dir} holds no episodes table") from None
+    return summary, episodes

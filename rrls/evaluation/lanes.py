@@ -1,0 +1,257 @@
+"""Lockstep lanes: one process rolling out many (parameter point, seed) episodes at once.
+
+Every episode is independent: its env is configured exactly as ``env.set_params(**point);
+env.reset(seed=seed)`` and stepped until terminated or ``max_episode_steps``. Lockstep batching
+changes only *when* an episode is stepped, never its numbers, provided the policy gives each
+row the same action whatever the batch (``rrls.evaluation.policies.BatchInvariant``). The policy
+runs once per step on all live lanes; a finished lane takes the next episode.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+__all__ = [
+    "LANES",
+    "Finished",
+    "PolicyError",
+    "RolloutSpec",
+    "clear_env_cache",
+    "episode_seeds",
+    "make_rollout_envs",
+    "run_rows",
+]
+
+LANES = 64  # live episodes per worker (one policy block)
+
+
+class PolicyError(ValueError):
+    """The policy returned actions of the wrong shape or non-finite values."""
+
+
+@dataclass
+class RolloutSpec:
+    """What to roll out: ``points[p]`` × ``seeds[p, e]``, for ``task`` with env family ``kind``."""
+
+    task: str
+    kind: str  # "robust" (parameter sets) or "force" (the RARL force set)
+    names: tuple[str, ...]
+    points: np.ndarray  # (P, d)
+    seeds: np.ndarray  # (P, E) uint32
+    max_episode_steps: int = 1000
+    stack: Any = None  # an EnvStack (disruptors, schedule, context) around each bare env
+    paper: bool = False  # the paper's physics (v4 envs, the original's writes)
+
+    @property
+    def n_episodes(self) -> int:
+        return self.seeds.size
+
+    def row(self, r: int) -> tuple[int, int]:
+        """(point, episode) of flat row ``r``; rows are point-major."""
+        return divmod(r, self.seeds.shape[1])
+
+    def describe(self, r: int) -> str:
+        p, e = self.row(r)
+        point = {n: float(v) for n, v in zip(self.names, self.points[p])}
+        return f"mesh point {p} {point}, episode {e} (seed {int(self.seeds[p, e])})"
+
+
+def episode_seeds(seed: int, n_points: int, episodes: int) -> np.ndarray:
+    """Seed of episode ``e`` at point ``p``: from ``SeedSequence(seed, spawn_key=(p, e))``.
+
+    Each (point, episode) gets its own stream, independent of how many points or workers there are.
+    """
+    out = np.empty((n_points, episodes), dtype=np.uint32)
+    for p in range(n_points):
+        for e in range(episodes):
+            out[p, e] = np.random.SeedSequence(seed, spawn_key=(p, e)).generate_state(1)[0]
+    return out
+
+
+#: envs per (task, family, stack), reused within one evaluation (building is slower than
+#: resetting); ``evaluate`` and ``search_worst_case`` empty it when they return
+_ENV_CACHE: dict[tuple[str, str, Any, bool], list[Any]] = {}
+
+
+def make_rollout_envs(spec: RolloutSpec, n: int) -> list[Any]:
+    """Bare envs of the spec's family and physics (in the spec's stack of wrappers, if any);
+    every lane is reset before use."""
+    from rrls.envs import FAMILY_ENVS, paper_class
+
+    envs = _ENV_CACHE.setdefault((spec.task, spec.kind, spec.stack, spec.paper), [])
+    cls = FAMILY_ENVS[spec.kind][spec.task]
+    if spec.paper:
+        cls = paper_class(cls)
+    while len(envs) < n:
+        envs.append(cls() if spec.stack is None else spec.stack(cls()))
+    return envs[:n]
+
+
+def clear_env_cache() -> None:
+    """Close and forget the cached envs (no state survives from one evaluation to the next)."""
+    for envs in _ENV_CACHE.values():
+        for env in envs:
+            env.close()
+    _ENV_CACHE.clear()
+
+
+Finished = list[tuple[int, float, int, bool, bool]]  # (row, return, length, terminated, diverged)
+
+
+def run_rows(
+    spec: RolloutSpec,
+    policy: Callable[[np.ndarray], Any],
+    next_row: Callable[[int], int],
+    on_finished: Callable[[Finished], None],
+    lanes: int = LANES,
+    fast: bool = True,
+    on_step: Callable[[int], None] | None = None,
+) -> None:
+    """Roll out episodes in lockstep until no lane is live and ``next_row(live)`` returns -1.
+
+    Whenever episodes end, idle lanes ask for rows (``live``: the lanes still running) until one
+    is refused, so the batch stays full while rows remain; ``on_finished`` receives the rows
+    finished at each step; ``on_step`` the steps within which a lane will surely be free (0 if
+    one is already), for work stealing.
+    """
+    from rrls.evaluation.kernels import make_stepper
+
+    n_lanes = max(1, lanes)
+    envs = make_rollout_envs(spec, n_lanes)
+    stepper = make_stepper(envs, spec.task, fast=fast)
+    act_dim = envs[0].action_space.shape[0]
+    obs_dim = envs[0].observation_space.shape[0]
+
+    obs = np.zeros((n_lanes, obs_dim))
+    lane_row = np.full(n_lanes, -1)  # flat row index of the lane's episode, -1 = idle
+    returns = np.zeros(n_lanes)
+    lengths = np.zeros(n_lanes, dtype=np.int64)
+
+    def start(lane: int, row: int) -> None:
+        lane_row[lane] = row
+        p, e = spec.row(row)
+        env = envs[lane]
+        env.reset_params()
+        if spec.names:
+            env.set_params(**dict(zip(spec.names, spec.points[p].tolist())))
+        obs[lane], _ = env.reset(seed=int(spec.seeds[p, e]))
+        returns[lane] = 0.0
+        lengths[lane] = 0
+        stepper.reset(lane, obs[lane])
+
+    def fill() -> None:
+        """Give idle lanes new rows while ``next_row`` hands some out."""
+        for lane in np.flatnonzero(lane_row < 0).tolist():
+            row = next_row(int(np.count_nonzero(lane_row >= 0)))
+            if row < 0:
+                return
+            start(lane, row)
+
+    with _quiet_mujoco():
+        fill()
+        _loop(
+            spec,
+            policy,
+            stepper,
+            fill,
+            on_finished,
+            on_step,
+            obs,
+            lane_row,
+            returns,
+            lengths,
+            act_dim,
+        )
+
+
+@contextmanager
+def _quiet_mujoco() -> Iterator[None]:
+    """Keep MuJoCo's instability messages out of stderr and ``MUJOCO_LOG.TXT``.
+
+    Unstable episodes are flagged per row (``diverged``) and summarised once by ``evaluate``.
+    """
+    import mujoco
+
+    previous = mujoco.get_mju_user_warning()
+    mujoco.set_mju_user_warning(lambda msg: None)
+    try:
+        yield
+    finally:
+        mujoco.set_mju_user_warning(previous)
+
+
+def _loop(
+    spec: RolloutSpec,
+    policy: Callable[[np.ndarray], Any],
+    stepper: Any,
+    fill: Callable[[], None],
+    on_finished: Callable[[Finished], None],
+    on_step: Callable[[int], None] | None,
+    obs: np.ndarray,
+    lane_row: np.ndarray,
+    returns: np.ndarray,
+    lengths: np.ndarray,
+    act_dim: int,
+) -> None:
+    while (lane_row >= 0).any():
+        live = np.flatnonzero(lane_row >= 0)
+        actions = np.asarray(policy(obs[live]))
+        _check_actions(actions, live, lane_row, lengths, spec, act_dim)
+        new_obs, rewards, terminated, diverged = stepper.step(live, actions)
+        obs[live] = new_obs
+        # a diverged step is not counted: the row keeps the return and length reached before it
+        returns[live] += np.where(diverged, 0.0, rewards)
+        lengths[live] += ~diverged
+        done = np.flatnonzero(terminated | diverged | (lengths[live] >= spec.max_episode_steps))
+        if len(done):
+            finished = [
+                (
+                    int(lane_row[live[j]]),
+                    float(returns[live[j]]),
+                    int(lengths[live[j]]),
+                    bool(terminated[j]),
+                    bool(diverged[j]),
+                )
+                for j in done
+            ]
+            on_finished(finished)
+            lane_row[live[done]] = -1
+            fill()
+        if on_step is not None:
+            busy = lane_row >= 0
+            on_step(int(spec.max_episode_steps - lengths.max()) if busy.all() else 0)
+
+
+def _check_actions(
+    actions: np.ndarray,
+    live: np.ndarray,
+    lane_row: np.ndarray,
+    lengths: np.ndarray,
+    spec: RolloutSpec,
+    act_dim: int,
+) -> None:
+    if actions.dtype.kind not in "biuf":
+        r = int(lane_row[live[0]])
+        raise PolicyError(
+            f"policy returned {actions.dtype} values; actions must be real numbers — at "
+            f"{spec.describe(r)}, step {lengths[live[0]]}"
+        )
+    if actions.shape != (len(live), act_dim):
+        r = int(lane_row[live[0]])
+        raise PolicyError(
+            f"policy returned actions of shape {actions.shape} for {len(live)} observations; "
+            f"expected ({len(live)}, {act_dim}) — at {spec.describe(r)}, step {lengths[live[0]]}"
+        )
+    bad = ~np.isfinite(actions).all(axis=1)
+    if bad.any():
+        j = int(np.flatnonzero(bad)[0])
+        r = int(lane_row[live[j]])
+        raise PolicyError(
+            f"policy returned non-finite actions {actions[j].tolist()} at {spec.describe(r)}, "
+            f"step {lengths[live[j]]}"
+        )
