@@ -6,7 +6,7 @@ targets, looked up *by name* in the compiled model. Adding a parameter to a task
 row; the generic robust environment (:mod:`rrls.envs.base`) knows how to read, validate and write
 every field below, and :func:`rrls.register_task` checks every row against the compiled model.
 
-Fields understood (``FIELDS`` holds units and valid ranges; the README has the same table):
+Fields understood (``FIELDS`` holds units and valid ranges; docs/concepts.md has the same table):
 
 ``body_mass``
     ``model.body_mass[body]`` (kg). MuJoCo's derived constants (subtree masses, ``dof_M0``, the
@@ -78,7 +78,7 @@ ALL_GEOMS = "*"
 
 
 class FieldInfo(NamedTuple):
-    """What a field is, for validation, errors and the README table."""
+    """What a field is, for validation, errors and the table of docs/concepts.md."""
 
     what: str  #: "mass", "friction", ... (used in error messages)
     mujoco: str  #: the MuJoCo field written

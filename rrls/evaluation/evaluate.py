@@ -78,7 +78,7 @@ def evaluate(
     default is Gymnasium v5 with rrls's parameter semantics and a mesh reaching both bounds;
     ``summary.json`` records which (``physics``).
 
-    Beyond static dynamics (the README section of that name):
+    Beyond static dynamics (docs/perturbations.md):
 
     * a set may name disruptor strengths (``obsnoise``, ``actiondelay``...: see
       :mod:`rrls.wrappers.disruptors`) alone or with physical parameters; ``disruptors`` adds

@@ -21,7 +21,7 @@ ALGOS = paper_five()  # the paper's five (the presets' default)
 BUILT_IN = built_in()
 PAPER_TASKS = ("ant", "halfcheetah", "hopper", "humanoidstandup", "walker")
 GRID = ("algos", "tasks", "seeds")  # may grow between invocations
-LABELS = ("preset", "device")  # do not change the numbers' meaning (device: see README)
+LABELS = ("preset", "device")  # do not change the numbers' meaning (device: docs/performance.md)
 
 
 class SpecError(ValueError):
