@@ -126,7 +126,7 @@ def test_finished_runs_bad_checkpoints_and_killed_writes(tmp_path, capsys):
 
 
 def test_a_run_leaves_the_process_as_it_found_it(tmp_path):
-    from rrls.agents.run import flush_denormal_enabled
+    from rrls.agents.threads import flush_denormal_enabled
 
     threads, flush = torch.get_num_threads(), flush_denormal_enabled()
     config = TrainConfig(

@@ -27,8 +27,9 @@ from rrls.agents.config import Diverged, TrainConfig
 from rrls.agents.envs import env_factory, make_envs
 from rrls.agents.learner import run_slice, stack_runs
 from rrls.agents.lookup import Algorithm, algorithm, hyperparameters
-from rrls.agents.run import Run, process_settings
+from rrls.agents.run import Run
 from rrls.agents.seeds import RunSeeds, rng_state, set_rng_state
+from rrls.agents.threads import process_settings
 
 
 def train(

@@ -1,6 +1,6 @@
 """A training run's side of the disk: the run directory and its checkpoints (``Run``), the
 metrics sinks (``Metrics``: TensorBoard, ``scalars.csv``, Weights & Biases with ``--track``, a
-progress bar) and the periodic evaluation (``evaluate_policy``).
+progress bar) and the periodic evaluation (``PeriodicEvaluation``).
 
 Checkpoints are taken every ``checkpoint_every`` steps, mid-episode: they hold each run's slice
 of the learner's state, the loop's generator and the episode in progress (replayed on resume),
@@ -15,8 +15,6 @@ import io
 import json
 import sys
 import time
-from collections.abc import Iterator
-from contextlib import contextmanager
 from dataclasses import asdict
 from pathlib import Path
 from typing import Any
@@ -27,7 +25,7 @@ from rrls import rundir
 from rrls._io import atomic_write_json
 from rrls.agents.config import Interrupted, TrainConfig, benchmark_set
 from rrls.agents.hparams import jsonable
-from rrls.physics import is_paper, physics_label
+from rrls.physics import physics_label
 from rrls.provenance import machine, source_commit
 
 
@@ -115,23 +113,53 @@ class Metrics:
             self._wandb = None
 
 
-def evaluate_policy(policy: Any, config: TrainConfig) -> dict[str, float]:
-    """Nominal return (and the coarse-mesh worst/average case) of a run's ``MLPPolicy``."""
-    from rrls.envs import resolve
-    from rrls.evaluation import evaluate
+class PeriodicEvaluation:
+    """A run's nominal return (and, with ``eval_mesh``, the coarse-mesh worst/average case) of
+    its ``MLPPolicy``, every ``eval_every`` steps: the protocols planned once, the envs kept
+    (rows as ``rrls.evaluation.evaluate`` gives them, 5 episodes seeded from 10 000)."""
 
-    common: dict[str, Any] = {"seed": 10_000, "workers": 1, "progress": False}
-    common["paper"] = is_paper(config.physics)
-    nominal = evaluate(policy, config.task, "nominal", episodes=config.eval_episodes, **common)
-    scores = {"eval/nominal_return": nominal.average_case}
-    if config.eval_mesh > 0:
-        family = resolve(config.task, config.uncertainty).family
-        mesh_set = benchmark_set(config.task) if family == "force" else config.uncertainty
-        mesh = evaluate(
-            policy, config.task, mesh_set, nb_mesh_dim=config.eval_mesh, episodes=1, **common
+    SEED = 10_000
+
+    def __init__(self, config: TrainConfig) -> None:
+        self.config = config
+        self._evaluators: dict[str, Any] | None = None
+
+    def _plan(self, policy: Any) -> dict[str, Any]:
+        from rrls.envs import resolve
+        from rrls.evaluation.evaluate import Evaluator
+        from rrls.evaluation.protocol import Protocol
+        from rrls.evaluation.stack import policy_view
+
+        config, view = self.config, policy_view(policy)
+        physics = config.physics
+        nominal = Protocol(
+            "nominal", episodes=config.eval_episodes, seed=self.SEED, physics=physics
         )
-        scores.update({"eval/worst_case": mesh.worst_case, "eval/average_case": mesh.average_case})
-    return scores
+        evaluators = {"nominal": Evaluator(config.task, nominal, view)}
+        if config.eval_mesh > 0:
+            family = resolve(config.task, config.uncertainty).family
+            mesh_set = benchmark_set(config.task) if family == "force" else config.uncertainty
+            mesh = Protocol(
+                mesh_set, mesh=config.eval_mesh, episodes=1, seed=self.SEED, physics=physics
+            )
+            evaluators["mesh"] = Evaluator(config.task, mesh, view)
+        return evaluators
+
+    def __call__(self, policy: Any) -> dict[str, float]:
+        if self._evaluators is None:
+            self._evaluators = self._plan(policy)
+        scores = {"eval/nominal_return": self._evaluators["nominal"](policy).average_case}
+        if "mesh" in self._evaluators:
+            mesh = self._evaluators["mesh"](policy)
+            scores.update(
+                {"eval/worst_case": mesh.worst_case, "eval/average_case": mesh.average_case}
+            )
+        return scores
+
+    def close(self) -> None:
+        if self._evaluators is not None:
+            self._evaluators["nominal"].close()  # one engine cache for both
+            self._evaluators = None
 
 
 def read_checkpoint(path: Path) -> dict[str, Any]:
@@ -163,6 +191,7 @@ class Run:
         self.finished = False
         self.metrics: Metrics | None = None
         self._bar: Any = None
+        self._evaluation: PeriodicEvaluation | None = None
         done = rundir.finished_steps(self.dir)
         if config.overwrite:
             rundir.remove_run_files(self.dir)
@@ -298,7 +327,9 @@ class Run:
 
     def evaluate(self, policy: Any) -> dict[str, float]:
         self._last_eval = self.step
-        scores = evaluate_policy(policy, self.config)
+        if self._evaluation is None:
+            self._evaluation = PeriodicEvaluation(self.config)
+        scores = self._evaluation(policy)
         self._metrics().record(scores, self.step)
         return scores
 
@@ -341,41 +372,11 @@ class Run:
         return self.dir
 
     def close(self) -> None:
-        """Close the logs and the progress bar."""
+        """Close the logs, the progress bar and the periodic evaluation's envs."""
+        if self._evaluation is not None:
+            self._evaluation.close()
         if self._bar is not None:
             self._bar.close()
         if self.metrics is not None:
             self.metrics.close()
             self.metrics = None
-
-
-@contextmanager
-def process_settings(threads: int | None) -> Iterator[Any]:
-    """The process as training wants it, put back as it was afterwards.
-
-    Threads: torch's intra-op threads follow ``AdaptiveThreads`` (the cores other processes
-    leave idle, or ``threads``); numpy's BLAS is held to one thread (``threadpoolctl``): acting
-    is batch-1 products whose extra BLAS threads only spin, and measured, they cost a default
-    Hopper run ~20 % (``OMP_NUM_THREADS=1`` made it that much faster). Denormals are flushed to
-    zero: dead ReLU units' Adam moments decay through the denormal range, where x86 arithmetic
-    is ~100x slower (measured: each Adam step 5x slower).
-    """
-    from threadpoolctl import threadpool_limits
-
-    from rrls.agents.threads import AdaptiveThreads
-
-    flushed = flush_denormal_enabled()
-    torch.set_flush_denormal(True)
-    adaptive = AdaptiveThreads(threads)
-    try:
-        with threadpool_limits(1, user_api="blas"):
-            yield adaptive
-    finally:
-        adaptive.restore()
-        torch.set_flush_denormal(flushed)
-
-
-def flush_denormal_enabled() -> bool:
-    """Whether this thread flushes float32 denormals to zero (torch has no getter for it)."""
-    tiny = torch.tensor([1e-37], dtype=torch.float32)
-    return bool((tiny * 1e-3).item() == 0.0)

@@ -235,3 +235,35 @@ def rollout_table(
         table["in_distribution"] = np.asarray(in_distribution, dtype=bool)[point_idx]
     table.update(episode=episode_idx, seed=spec.seeds.reshape(-1).astype(np.int64), **cols)
     return pd.DataFrame(table)
+
+
+class Evaluator:
+    """A protocol planned once for a task and run for many policies: training's periodic
+    evaluation. ``evaluate()`` checks, fingerprints and records each policy and rebuilds its
+    envs every call; a run evaluating its own ``MLPPolicy`` every few thousand steps needs none
+    of that, only the same rows (``evaluate``'s, bit for bit: the same plan, seeds and engine).
+    The envs stay cached between calls until ``close()``.
+    """
+
+    def __init__(self, task: str, protocol: Protocol, view: Any = None) -> None:
+        self.plan = protocol.plan(task, view)
+        seeds = lanes.episode_seeds(protocol.seed, len(self.plan.points), protocol.episodes)
+        self.spec = lanes.RolloutSpec(
+            self.plan.resolved.task,
+            self.plan.resolved.family,
+            self.plan.mesh_box.names,
+            self.plan.points,
+            seeds,
+            self.plan.max_episode_steps,
+            None if self.plan.stack.empty else self.plan.stack,
+            paper=self.plan.paper,
+        )
+
+    def __call__(self, policy: Callable[[np.ndarray], Any]) -> EvaluationResult:
+        """``policy``'s rows on one worker (``policy``: batch-invariant, e.g. ``MLPPolicy``)."""
+        frame = rollout_table(self.spec, policy, 1, None, None, False, self.plan.in_distribution)
+        box = None if self.plan.mesh_box.dim == 0 else self.plan.mesh_box
+        return EvaluationResult(self.spec.task, box, frame, dict(self.plan.settings))
+
+    def close(self) -> None:
+        lanes.clear_env_cache()
