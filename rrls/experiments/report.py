@@ -80,7 +80,7 @@ def make_report(root: str | Path, plots: bool = True, reference: Any = None) -> 
             from rrls.experiments import plots as plotting
             from rrls.experiments.store import load_store
 
-            figures = plotting.make_figures(load_store(root), summary, out / "figures")
+            figures = plotting.make_figures(load_store(root), summary, out / "figures", reference)
         except ImportError as err:  # matplotlib is optional
             figures = []
             summary.setdefault("notes", []).append(f"figures skipped: {err}")
