@@ -14,6 +14,7 @@ import numpy as np
 
 from rrls.experiments import stats
 from rrls.experiments.figstyle import PANEL, RC, colours, pyplot, save
+from rrls.experiments.figures import aggregate_figures
 from rrls.experiments.names import NAMES, sort_algos, task_name
 
 BINS = 50
@@ -178,8 +179,6 @@ def make_figures(
     tables: dict[str, Any], summary: dict[str, Any], out: Path, reference: Any = None
 ) -> list[tuple]:
     """Every figure of the report: ``[(caption, path)]`` (each PNG with a PDF beside it)."""
-    from rrls.experiments.figures import aggregate_figures
-
     curves, ev = tables["curves"], tables["evaluations"]
     steps = int(curves["steps"].max()) if len(curves) and "steps" in curves else 0
     present = [*summary["algorithms"], *(ev["algorithm"].unique() if len(ev) else [])]
