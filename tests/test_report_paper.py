@@ -154,6 +154,8 @@ def test_an_unstable_normalisation_is_flagged_wherever_the_score_appears(tmp_pat
     assert ("invertedpendulum", "worst_case") in flagged
     tex = (root / "report" / "tables" / "normalised_worst_case.tex").read_text()
     assert "\\S}$" in tex and "unstable normalisation" in tex
+    csv = pd.read_csv(root / "report" / "tables" / "normalised_worst_case.csv")
+    assert csv["unstable_normalisation"].all()
     raw = (root / "report" / "tables" / "raw_worst_case.tex").read_text()
     assert "\\S" not in raw  # raw scores do not divide by anything
     md = (root / "report" / "report.md").read_text()

@@ -159,6 +159,8 @@ def write_tables(
                         "n_seeds": c.get("n_seeds", 0),
                         "paper_mean": pub[0] if isinstance(pub, list) else pub,
                         "paper_std": pub[1] if isinstance(pub, list) else None,
+                        "unstable_normalisation": getter.startswith("n:")
+                        and is_unstable(summary, task, getter[2:]),
                     }
                 )
         atomic_write_table(out / f"{name}.csv", pd.DataFrame(records))
