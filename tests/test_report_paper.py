@@ -245,3 +245,26 @@ def test_figures_are_bounded_by_the_set_and_written_as_pdf_too(tmp_path):
         assert (figures / f"{name}.pdf").read_bytes()[:4] == b"%PDF"
     md = (root / "report" / "report.md").read_text()
     assert "Performance profiles" in md and "fewer than 3 seeds" in md
+
+
+def test_heatmaps_of_a_2d_set_stop_at_the_sets_box(tmp_path):
+    from rrls.experiments.plots import bounded_edges, plot_heatmaps
+
+    # a [0.1, 3] friction set meshed with 2 points: cells end at the bounds, not at -1.35 / 4.45
+    assert bounded_edges(np.array([0.1, 3.0]), 0.1, 3.0).tolist() == [0.1, 1.55, 3.0]
+    assert bounded_edges(np.array([1.0, 2.0, 3.0]), 1.0, 3.5).tolist() == [1.0, 1.5, 2.5, 3.5]
+    pytest.importorskip("matplotlib")
+    rows = []
+    for algo in ("td3", "m2td3"):
+        for point, (pole, cart) in enumerate([(1, 1), (1, 11), (31, 1), (31, 11)]):
+            rows.append(
+                dict(algorithm=algo, task="invertedpendulum", seed=0, point=point, episode=0)
+                | {"polemass": float(pole), "cartmass": float(cart), "return": float(point)}
+            )
+    ev = pd.DataFrame(rows)
+    path = plot_heatmaps(ev, "invertedpendulum", tmp_path / "heat.png", "2d")
+    assert path.stat().st_size > 5_000 and path.with_suffix(".pdf").exists()
+    assert (
+        plot_heatmaps(ev.drop(columns="cartmass"), "invertedpendulum", tmp_path / "x.png", "1d")
+        is None
+    )

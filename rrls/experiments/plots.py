@@ -119,33 +119,102 @@ def set_bounds(task: str, uncertainty: str | None, data: Any, name: str) -> tupl
         return float(data[name].min()), float(data[name].max())
 
 
+#: the evaluation table's columns that are not a parameter of the set
+NOT_PARAMETERS = {
+    "point",
+    "episode",
+    "episode_seed",
+    "return",
+    "length",
+    "terminated",
+    "diverged",
+    "algorithm",
+    "task",
+    "uncertainty",
+    "train_set",
+    "seed",
+    "steps",
+    "in_distribution",
+}
+
+
+def set_parameters(data: Any) -> list[str]:
+    """The parameters of the set in an evaluation table (its other columns are bookkeeping)."""
+    return [
+        c
+        for c in data.columns
+        if c not in NOT_PARAMETERS and not c.endswith("_version") and data[c].notna().any()
+    ]
+
+
+def bounded_edges(centres: np.ndarray, low: float, high: float) -> np.ndarray:
+    """Cell edges around sorted mesh coordinates, for ``pcolormesh``: midpoints between
+    neighbours, the outer edges at the set's bounds (not half a cell beyond them)."""
+    if len(centres) == 1:
+        return np.array([low, high]) if low < high else np.array([low - 0.5, low + 0.5])
+    mid = (centres[1:] + centres[:-1]) / 2
+    return np.concatenate([[min(low, centres[0])], mid, [max(high, centres[-1])]])
+
+
+def plot_heatmaps(evaluations: Any, task: str, path: Path, uncertainty: str | None) -> Path | None:
+    """For a 2-D set: one panel per algorithm, the mean return (over seeds and episodes) at
+    each mesh point on a shared colour scale (viridis), the worst point marked, the axes the
+    set's box."""
+    data = evaluations[evaluations["task"] == task]
+    params = set_parameters(data)
+    if len(params) != 2:
+        return None
+    a, b = params
+    algos = sort_algos(data["algorithm"].unique())
+    grids = {
+        algo: data[data["algorithm"] == algo].pivot_table(index=b, columns=a, values="return")
+        for algo in algos
+    }
+    values = np.concatenate([g.to_numpy().ravel() for g in grids.values()])
+    vmin, vmax = float(np.nanmin(values)), float(np.nanmax(values))
+    (xlo, xhi), (ylo, yhi) = (set_bounds(task, uncertainty, data, p) for p in (a, b))
+    plt = pyplot()
+    fig, axes = plt.subplots(
+        1,
+        len(algos),
+        figsize=(2.3 * len(algos) + 0.8, PANEL[1] + 0.3),
+        squeeze=False,
+        layout="constrained",
+    )
+    mesh = None
+    for ax, algo in zip(axes[0], algos):
+        grid = grids[algo]
+        xs, ys = grid.columns.to_numpy(dtype=float), grid.index.to_numpy(dtype=float)
+        mesh = ax.pcolormesh(
+            bounded_edges(xs, xlo, xhi),
+            bounded_edges(ys, ylo, yhi),
+            grid.to_numpy(),
+            shading="flat",
+            cmap="viridis",
+            vmin=vmin,
+            vmax=vmax,
+        )
+        iy, ix = np.unravel_index(np.nanargmin(grid.to_numpy()), grid.shape)
+        ax.scatter([xs[ix]], [ys[iy]], marker="x", color="#D55E00", s=30, clip_on=False)
+        ax.set_xlim(min(xlo, xs[0]), max(xhi, xs[-1]))
+        ax.set_ylim(min(ylo, ys[0]), max(yhi, ys[-1]))
+        ax.set_title(_algo_label(algo))
+        ax.set_xlabel(a)
+    axes[0][0].set_ylabel(b)
+    fig.colorbar(mesh, ax=list(axes[0]), label="mean return")
+    fig.suptitle(f"{task_name(task)}: mean return over the set (x: worst point)")
+    save(fig, path)
+    plt.close(fig)
+    return path
+
+
 def plot_over_set(
     evaluations: Any, task: str, path: Path, colour: dict[str, str], uncertainty: str | None
 ) -> Path | None:
     """Mean return (over seeds, episodes and the other parameters) along each parameter, the
     axis bounded by the set's box."""
     data = evaluations[evaluations["task"] == task]
-    fixed = {
-        "point",
-        "episode",
-        "episode_seed",
-        "return",
-        "length",
-        "terminated",
-        "diverged",
-        "algorithm",
-        "task",
-        "uncertainty",
-        "train_set",
-        "seed",
-        "steps",
-        "in_distribution",
-    }
-    params = [
-        c
-        for c in data.columns
-        if c not in fixed and not c.endswith("_version") and data[c].notna().any()
-    ]
+    params = set_parameters(data)
     if not params:
         return None
     plt = pyplot()
@@ -203,6 +272,10 @@ def make_figures(
                 )
                 if path is not None:
                     figures.append((f"Return over the uncertainty set: {task}", path))
+                path = plot_heatmaps(ev, task, out / f"heatmap_{task}.png", summary["uncertainty"])
+                if path is not None:
+                    caption = f"Mean return over the 2-D set, per algorithm: {task}"
+                    figures.append((caption + " (axes bounded by the set)", path))
         figures += aggregate_figures(tables, summary, out, reference)
     return figures
 
