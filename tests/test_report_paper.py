@@ -138,6 +138,11 @@ def test_few_seeds_are_marked_in_tex_and_one_seed_never_shows_a_zero_spread(tmp_
     everything = "".join(p.read_text() for p in tables.glob("*.tex"))
     everything += (root / "report" / "report.md").read_text()
     assert "\\pm 0.00" not in everything and "± 0.00" not in everything
+    section = everything.split("## Probability of improvement")[1]
+    rows = [line.split("|") for line in section.splitlines()[4:7]]
+    poi = {row[1].strip(): row[2].strip() for row in rows}  # the few-seeds mark on the value
+    assert poi["DR"].endswith("†") and poi["RARL"].endswith("†")
+    assert not poi["M2TD3"].endswith("†")
     assert "fewer than 3 seeds" in (root / "report" / "report.md").read_text()
 
 

@@ -29,6 +29,7 @@ from typing import Any
 
 from rrls.evaluation.metrics import SPLIT_SCORES
 from rrls.experiments.caveats import (
+    FEW,
     FEW_SEEDS_NOTE,
     UNSTABLE_NOTE,
     few_seeds,
@@ -225,14 +226,13 @@ def _markdown(
         for algo, p in poi:
             ci = p.get("ci95")
             ci_text = f"[{fmt(ci[0])}, {fmt(ci[1])}]" if ci else "–"
-            lines.append(
-                f"| {label(summary, algo)} | {fmt(p['value'])} | {ci_text} | {p['n_tasks']} |"
-            )
+            value = fmt(p["value"]) + (FEW if 0 < (p.get("min_seeds") or 3) < 3 else "")
+            lines.append(f"| {label(summary, algo)} | {value} | {ci_text} | {p['n_tasks']} |")
         lines.append("")
     lines += _reference_lines(summary)
     lines += _submitted_lines(summary)
     if figures:
-        lines += ["## Figures", ""]
+        lines += ["## Figures", "", "Each figure is also a vector PDF beside its PNG.", ""]
         for caption, path in figures:
             lines += [f"**{caption}**", "", f"![{caption}]({path.relative_to(out).as_posix()})", ""]
     lines += ["## Conventions", ""]

@@ -233,7 +233,9 @@ def aggregates(scores: Scores, tasks: list[str], algos: list[str]) -> dict[str, 
                 for t in tasks
                 if len(scores.values(t, algo, "worst_case")) and len(scores.td3_seeds(t))
             ]
-            agg["poi_over_td3_worst_case"] = stats.aggregate_poi(pairs, stats.rng_for(algo, "poi"))
+            poi = stats.aggregate_poi(pairs, stats.rng_for(algo, "poi"))
+            poi["min_seeds"] = min((min(len(x), len(y)) for x, y in pairs), default=0)
+            agg["poi_over_td3_worst_case"] = poi
         out[algo] = agg
     return out
 
