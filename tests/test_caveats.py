@@ -4,7 +4,8 @@ and a normalisation whose span is within the baselines' seed spread is flagged."
 from __future__ import annotations
 
 from rrls.experiments.caveats import FEW, few_seeds, unstable_normalisation
-from rrls.experiments.report import _pm, _tex_pm
+from rrls.experiments.cells import pm as _pm
+from rrls.experiments.cells import tex_pm as _tex_pm
 
 
 def cell(mean, std, n):

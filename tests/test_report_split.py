@@ -6,7 +6,8 @@ import pandas as pd
 import pytest
 
 from rrls.cli import main
-from rrls.experiments.report import split_scores, summarise
+from rrls.evaluation.metrics import split_run_scores as split_scores
+from rrls.experiments.report import summarise
 
 
 def _store(root, with_split: bool = True):

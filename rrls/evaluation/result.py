@@ -7,6 +7,7 @@ from pathlib import Path
 from typing import Any
 
 from rrls.evaluation import evaldir
+from rrls.evaluation.metrics import SCORES, scores_of
 from rrls.uncertainty import UncertaintySet
 
 __all__ = ["EPISODE_COLUMNS", "EvaluationResult"]
@@ -51,11 +52,11 @@ class EvaluationResult:
 
     @property
     def worst_case(self) -> float:
-        return float(self.per_point["mean_return"].min())
+        return scores_of(self.per_point["mean_return"])["worst_case"]
 
     @property
     def average_case(self) -> float:
-        return float(self.per_point["mean_return"].mean())
+        return scores_of(self.per_point["mean_return"])["average_case"]
 
     @property
     def worst_point(self) -> dict[str, float]:
@@ -77,8 +78,9 @@ class EvaluationResult:
         out: dict[str, float | int | None] = {}
         for tag, mask in (("id", table["in_distribution"]), ("ood", ~table["in_distribution"])):
             means = table.loc[mask, "mean_return"]
-            out[f"worst_case_{tag}"] = float(means.min()) if len(means) else None
-            out[f"average_case_{tag}"] = float(means.mean()) if len(means) else None
+            scores = scores_of(means) if len(means) else {}
+            for score in SCORES:
+                out[f"{score}_{tag}"] = scores.get(score)
             out[f"points_{tag}"] = int(mask.sum())
         return out
 

@@ -6,13 +6,39 @@ from __future__ import annotations
 
 from typing import Any
 
-__all__ = ["FEW", "FEW_SEEDS_NOTE", "few_seeds", "unstable_normalisation"]
+__all__ = [
+    "FEW",
+    "FEW_SEEDS_NOTE",
+    "FEW_SEEDS_TEX",
+    "UNSTABLE",
+    "UNSTABLE_NOTE",
+    "UNSTABLE_TEX",
+    "check_normaliser",
+    "few_seeds",
+    "is_unstable",
+    "unstable_normalisation",
+]
 
 FEW = "†"  # marks a cell from fewer than 3 seeds
 FEW_SEEDS_NOTE = (
     f"{FEW} fewer than 3 seeds: ± is the seeds' spread and a bracketed interval is a bootstrap "
     "of at most two values, not a confidence interval; one seed shows its value alone."
 )
+FEW_SEEDS_TEX = (
+    "$^{\\dagger}$ fewer than 3 seeds: not a confidence interval (one seed: its value alone)."
+)
+UNSTABLE = "§"  # marks a normalised cell whose normaliser is within the baselines' noise
+UNSTABLE_NOTE = (
+    f"{UNSTABLE} unstable normalisation: |M2TD3 - TD3| on this task is within the baselines' "
+    "seed spread (or both failed alike), so the normalised score divides by noise; read the raw "
+    "table."
+)
+UNSTABLE_TEX = (
+    "$^{\\S}$ unstable normalisation: $|v_{\\mathrm{M2TD3}} - v_{\\mathrm{TD3}}|$ within the "
+    "baselines' seed spread; read the raw table."
+)
+#: a normaliser under this fraction of the baselines' magnitude means both failed alike
+RELATIVE_SPAN = 0.05
 
 
 def few_seeds(cell: dict[str, Any] | None) -> bool:
@@ -20,24 +46,46 @@ def few_seeds(cell: dict[str, Any] | None) -> bool:
     return bool(cell) and 0 < int(cell.get("n_seeds") or 0) < 3
 
 
+def check_normaliser(td3: float, td3_std: float, m2td3: float, m2td3_std: float) -> str | None:
+    """Why ``|m2td3 - td3|`` (seed means) cannot normalise, or None: within the baselines'
+    seed spread (the larger std), or under ``RELATIVE_SPAN`` of their magnitude."""
+    span = abs(m2td3 - td3)
+    spread = max(td3_std or 0.0, m2td3_std or 0.0)
+    if span <= spread:
+        return f"|M2TD3 - TD3| = {span:.1f} is within the baselines' seed spread ({spread:.1f})"
+    scale = max(abs(td3), abs(m2td3))
+    if span < RELATIVE_SPAN * scale:
+        return (
+            f"|M2TD3 - TD3| = {span:.1f} is under {RELATIVE_SPAN:.0%} of the baselines' "
+            f"scores ({scale:.1f})"
+        )
+    return None
+
+
+def is_unstable(summary: dict[str, Any], task: str, metric: str) -> bool:
+    """Whether ``summary`` flagged the normalisation of ``task``'s ``metric``."""
+    return any(u["task"] == task and u["metric"] == metric for u in summary.get("unstable") or [])
+
+
 def unstable_normalisation(summary: dict[str, Any]) -> list[str]:
-    """One line per (task, criterion) whose normaliser ``|M2TD3 - TD3|`` is smaller than the two
-    baselines' seed spread (or whose baselines both failed): its normalised scores divide by
-    noise, so the report flags them instead of dividing silently."""
-    lines = []
-    for task in summary["tasks"]:
-        cells = summary["results"].get(task, {})
-        for criterion in ("worst_case", "average_case"):
-            td3 = (cells.get("td3") or {}).get(criterion) or {}
-            m2 = (cells.get("m2td3") or {}).get(criterion) or {}
-            if td3.get("mean") is None or m2.get("mean") is None:
-                continue
-            span = abs(m2["mean"] - td3["mean"])
-            spread = max(td3.get("std") or 0.0, m2.get("std") or 0.0)
-            if span <= spread:
-                lines.append(
-                    f"- **unstable normalisation**, {task} {criterion.replace('_', ' ')}: "
-                    f"|M2TD3 - TD3| = {span:.1f} is within the baselines' seed spread "
-                    f"({spread:.1f}); its normalised scores divide by noise (read the raw table)"
-                )
-    return lines
+    """One line per (task, criterion) whose normaliser ``|M2TD3 - TD3|`` divides by noise
+    (``check_normaliser``): the report flags it instead of dividing silently. Reads the
+    summary's ``unstable`` entries, else checks the benchmark's own TD3 and M2TD3 cells."""
+    entries = summary.get("unstable")
+    if entries is None:
+        entries = []
+        for task in summary["tasks"]:
+            cells = summary["results"].get(task, {})
+            for criterion in ("worst_case", "average_case"):
+                td3 = (cells.get("td3") or {}).get(criterion) or {}
+                m2 = (cells.get("m2td3") or {}).get(criterion) or {}
+                if td3.get("mean") is None or m2.get("mean") is None:
+                    continue
+                reason = check_normaliser(td3["mean"], td3.get("std"), m2["mean"], m2.get("std"))
+                if reason:
+                    entries.append({"task": task, "metric": criterion, "reason": reason})
+    return [
+        f"- {UNSTABLE} **unstable normalisation**, {e['task']} {e['metric'].replace('_', ' ')}: "
+        f"{e['reason']}; its normalised scores divide by noise (read the raw table)"
+        for e in entries
+    ]

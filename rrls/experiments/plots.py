@@ -1,5 +1,8 @@
-"""Figures of the report: training curves (mean and 95 % bootstrap band over seeds, one panel
-per task) and the return over the uncertainty set (one panel per parameter). Needs matplotlib."""
+"""Figures of the report: training curves (one panel per task: the seed mean with its 95 %
+bootstrap band from 3 seeds on, else each seed as a thin line) and the return over the uncertainty
+set (one panel per parameter, the axis bounded by the set's box); the rliable-style aggregates
+come from ``rrls.experiments.figures``. Style, palette and the PDF beside each PNG:
+``rrls.experiments.figstyle``. Needs matplotlib."""
 
 from __future__ import annotations
 
@@ -10,28 +13,17 @@ from typing import Any
 import numpy as np
 
 from rrls.experiments import stats
+from rrls.experiments.figstyle import PANEL, RC, colours, pyplot, save
+from rrls.experiments.figures import aggregate_figures
+from rrls.experiments.names import NAMES, sort_algos, task_name
 
 BINS = 50
-
-
-def _pyplot() -> Any:
-    from rrls.evaluation.plots import pyplot
-
-    return pyplot()
+#: the fewest seeds a shaded band is drawn from (fewer: the seeds as thin lines)
+MIN_BAND_SEEDS = 3
 
 
 def _algo_label(algo: str) -> str:
-    from rrls.experiments.names import NAMES
-
     return NAMES.get(algo, algo)
-
-
-def _color(algo: str) -> str:
-    """One colour per algorithm in every figure."""
-    from rrls.experiments.names import ORDER
-
-    index = ORDER.index(algo) if algo in ORDER else len(ORDER) + sum(map(ord, algo)) % 5
-    return f"C{index}"
 
 
 def _binned(curves: Any, metric: str, steps: int) -> tuple[np.ndarray, dict[tuple, np.ndarray]]:
@@ -77,68 +69,158 @@ def _band(values: np.ndarray, rng: np.random.Generator) -> tuple[np.ndarray, np.
     return lo, hi
 
 
-def plot_curves(curves: Any, metric: str, steps: int, path: Path, ylabel: str) -> Path | None:
-    """One panel per task, one line per algorithm: the seed mean and its 95 % band."""
+def plot_curves(
+    curves: Any, metric: str, steps: int, path: Path, ylabel: str, colour: dict[str, str]
+) -> Path | None:
+    """One panel per task, one line per algorithm: the seed mean and its 95 % band (from
+    ``MIN_BAND_SEEDS`` seeds; fewer: each seed as a thin line, as a band from two seeds would
+    claim a confidence it does not have)."""
     if metric not in curves or curves[metric].notna().sum() == 0:
         return None
-    plt = _pyplot()
+    plt = pyplot()
     centres, binned = _binned(curves, metric, steps)
     tasks = list(dict.fromkeys(t for t, _ in binned))
-    fig, axes = plt.subplots(1, len(tasks), figsize=(4.2 * len(tasks), 3.4), squeeze=False)
+    fig, axes = plt.subplots(
+        1, len(tasks), figsize=(PANEL[0] * len(tasks), PANEL[1] + 0.4), squeeze=False
+    )
     for ax, task in zip(axes[0], tasks):
-        from rrls.experiments.names import sort_algos
-
         for algo in sort_algos(a for t, a in binned if t == task):
             values = binned[(task, algo)]
             with warnings.catch_warnings():  # bins before a run's first episode are empty
                 warnings.simplefilter("ignore", RuntimeWarning)
                 mean = np.nanmean(values, axis=0)
             label = f"{_algo_label(algo)} ({len(values)})"
-            ax.plot(centres, mean, label=label, color=_color(algo))
-            lo, hi = _band(values, stats.rng_for(task, algo, metric, "band"))
-            ax.fill_between(centres, lo, hi, color=_color(algo), alpha=0.2, linewidth=0)
-        from rrls.experiments.names import task_name
-
+            ax.plot(centres, mean, label=label, color=colour[algo])
+            if len(values) >= MIN_BAND_SEEDS:
+                lo, hi = _band(values, stats.rng_for(task, algo, metric, "band"))
+                ax.fill_between(centres, lo, hi, color=colour[algo], alpha=0.2, linewidth=0)
+            else:
+                for run in values:
+                    ax.plot(centres, run, color=colour[algo], lw=0.5, alpha=0.6)
         ax.set_title(task_name(task))
         ax.set_xlabel("environment steps")
         ax.set_ylabel(ylabel)
-        ax.legend(fontsize=7, title="algorithm (seeds)", title_fontsize=7)
+        ax.legend(title="algorithm (seeds)", frameon=False)
     fig.tight_layout()
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=110)
+    save(fig, path)
     plt.close(fig)
     return path
 
 
-def plot_over_set(evaluations: Any, task: str, path: Path) -> Path | None:
-    """Mean return (over seeds, episodes and the other parameters) along each parameter."""
-    data = evaluations[evaluations["task"] == task]
-    fixed = {
-        "point",
-        "episode",
-        "episode_seed",
-        "return",
-        "length",
-        "terminated",
-        "diverged",
-        "algorithm",
-        "task",
-        "uncertainty",
-        "train_set",
-        "seed",
-        "steps",
-    }
-    params = [
+def set_bounds(task: str, uncertainty: str | None, data: Any, name: str) -> tuple[float, float]:
+    """The set's range of parameter ``name`` (``get_uncertainty_set``), else the data's."""
+    try:
+        from rrls.envs import get_uncertainty_set
+
+        box = get_uncertainty_set(task, str(uncertainty))
+        i = list(box.names).index(name)
+        return float(box.low[i]), float(box.high[i])
+    except (KeyError, ValueError, TypeError):  # a registered set of another name
+        return float(data[name].min()), float(data[name].max())
+
+
+#: the evaluation table's columns that are not a parameter of the set
+NOT_PARAMETERS = {
+    "point",
+    "episode",
+    "episode_seed",
+    "return",
+    "length",
+    "terminated",
+    "diverged",
+    "algorithm",
+    "task",
+    "uncertainty",
+    "train_set",
+    "seed",
+    "steps",
+    "in_distribution",
+}
+
+
+def set_parameters(data: Any) -> list[str]:
+    """The parameters of the set in an evaluation table (its other columns are bookkeeping)."""
+    return [
         c
         for c in data.columns
-        if c not in fixed and not c.endswith("_version") and data[c].notna().any()
+        if c not in NOT_PARAMETERS and not c.endswith("_version") and data[c].notna().any()
     ]
+
+
+def bounded_edges(centres: np.ndarray, low: float, high: float) -> np.ndarray:
+    """Cell edges around sorted mesh coordinates, for ``pcolormesh``: midpoints between
+    neighbours, the outer edges at the set's bounds (not half a cell beyond them)."""
+    if len(centres) == 1:
+        return np.array([low, high]) if low < high else np.array([low - 0.5, low + 0.5])
+    mid = (centres[1:] + centres[:-1]) / 2
+    return np.concatenate([[min(low, centres[0])], mid, [max(high, centres[-1])]])
+
+
+def plot_heatmaps(evaluations: Any, task: str, path: Path, uncertainty: str | None) -> Path | None:
+    """For a 2-D set: one panel per algorithm, the mean return (over seeds and episodes) at
+    each mesh point on a shared colour scale (viridis), the worst point marked, the axes the
+    set's box."""
+    data = evaluations[evaluations["task"] == task]
+    params = set_parameters(data)
+    if len(params) != 2:
+        return None
+    a, b = params
+    algos = sort_algos(data["algorithm"].unique())
+    grids = {
+        algo: data[data["algorithm"] == algo].pivot_table(index=b, columns=a, values="return")
+        for algo in algos
+    }
+    values = np.concatenate([g.to_numpy().ravel() for g in grids.values()])
+    vmin, vmax = float(np.nanmin(values)), float(np.nanmax(values))
+    (xlo, xhi), (ylo, yhi) = (set_bounds(task, uncertainty, data, p) for p in (a, b))
+    plt = pyplot()
+    fig, axes = plt.subplots(
+        1,
+        len(algos),
+        figsize=(2.3 * len(algos) + 0.8, PANEL[1] + 0.3),
+        squeeze=False,
+        layout="constrained",
+    )
+    mesh = None
+    for ax, algo in zip(axes[0], algos):
+        grid = grids[algo]
+        xs, ys = grid.columns.to_numpy(dtype=float), grid.index.to_numpy(dtype=float)
+        mesh = ax.pcolormesh(
+            bounded_edges(xs, xlo, xhi),
+            bounded_edges(ys, ylo, yhi),
+            grid.to_numpy(),
+            shading="flat",
+            cmap="viridis",
+            vmin=vmin,
+            vmax=vmax,
+        )
+        iy, ix = np.unravel_index(np.nanargmin(grid.to_numpy()), grid.shape)
+        ax.scatter([xs[ix]], [ys[iy]], marker="x", color="#D55E00", s=30, clip_on=False)
+        ax.set_xlim(min(xlo, xs[0]), max(xhi, xs[-1]))
+        ax.set_ylim(min(ylo, ys[0]), max(yhi, ys[-1]))
+        ax.set_title(_algo_label(algo))
+        ax.set_xlabel(a)
+    axes[0][0].set_ylabel(b)
+    fig.colorbar(mesh, ax=list(axes[0]), label="mean return")
+    fig.suptitle(f"{task_name(task)}: mean return over the set (x: worst point)")
+    save(fig, path)
+    plt.close(fig)
+    return path
+
+
+def plot_over_set(
+    evaluations: Any, task: str, path: Path, colour: dict[str, str], uncertainty: str | None
+) -> Path | None:
+    """Mean return (over seeds, episodes and the other parameters) along each parameter, the
+    axis bounded by the set's box."""
+    data = evaluations[evaluations["task"] == task]
+    params = set_parameters(data)
     if not params:
         return None
-    plt = _pyplot()
-    fig, axes = plt.subplots(1, len(params), figsize=(4.2 * len(params), 3.4), squeeze=False)
-    from rrls.experiments.names import sort_algos, task_name
-
+    plt = pyplot()
+    fig, axes = plt.subplots(
+        1, len(params), figsize=(PANEL[0] * len(params), PANEL[1] + 0.4), squeeze=False
+    )
     for ax, name in zip(axes[0], params):
         for algo in sort_algos(data["algorithm"].unique()):
             sel = data[data["algorithm"] == algo]
@@ -149,36 +231,60 @@ def plot_over_set(evaluations: Any, task: str, path: Path) -> Path | None:
                 marker="o",
                 ms=3,
                 label=_algo_label(algo),
-                color=_color(algo),
+                color=colour[algo],
             )
+        ax.set_xlim(*set_bounds(task, uncertainty, data, name))
         ax.set_xlabel(name)
         ax.set_ylabel("mean return" if len(params) == 1 else "mean return (others averaged)")
-        ax.legend(fontsize=7)
-    fig.suptitle(f"{task_name(task)}: return over the uncertainty set", fontsize=10)
+        ax.legend(frameon=False)
+    fig.suptitle(f"{task_name(task)}: return over the uncertainty set")
     fig.tight_layout()
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=110)
+    save(fig, path)
     plt.close(fig)
     return path
 
 
-def make_figures(tables: dict[str, Any], summary: dict[str, Any], out: Path) -> list[tuple]:
-    """Every figure of the report: ``[(caption, path)]``."""
+def make_figures(
+    tables: dict[str, Any], summary: dict[str, Any], out: Path, reference: Any = None
+) -> list[tuple]:
+    """Every figure of the report: ``[(caption, path)]`` (each PNG with a PDF beside it)."""
     curves, ev = tables["curves"], tables["evaluations"]
     steps = int(curves["steps"].max()) if len(curves) and "steps" in curves else 0
+    present = [*summary["algorithms"], *(ev["algorithm"].unique() if len(ev) else [])]
+    colour = colours(present)
     figures = []
-    if steps:
-        for metric, caption, ylabel in (
-            ("episode_return", "Training curves: episode return", "episode return"),
-            ("eval_nominal_return", "Periodic evaluation: nominal return", "return (nominal)"),
-            ("eval_worst_case", "Periodic evaluation: worst case (coarse mesh)", "worst case"),
-        ):
-            path = plot_curves(curves, metric, steps, out / f"curves_{metric}.png", ylabel)
-            if path is not None:
-                figures.append((caption + " (mean and 95% bootstrap CI over seeds)", path))
-    for task in summary["tasks"]:
-        if len(ev) and (ev["task"] == task).any():
-            path = plot_over_set(ev, task, out / f"returns_{task}.png")
-            if path is not None:
-                figures.append((f"Return over the uncertainty set: {task}", path))
+    with pyplot().rc_context(RC):
+        if steps:
+            for metric, caption, ylabel in (
+                ("episode_return", "Training curves: episode return", "episode return"),
+                ("eval_nominal_return", "Periodic evaluation: nominal return", "return (nominal)"),
+                ("eval_worst_case", "Periodic evaluation: worst case (coarse mesh)", "worst case"),
+            ):
+                path = plot_curves(
+                    curves, metric, steps, out / f"curves_{metric}.png", ylabel, colour
+                )
+                if path is not None:
+                    figures.append((caption + _band_caption(curves, metric), path))
+        for task in summary["tasks"]:
+            if len(ev) and (ev["task"] == task).any():
+                path = plot_over_set(
+                    ev, task, out / f"returns_{task}.png", colour, summary["uncertainty"]
+                )
+                if path is not None:
+                    figures.append((f"Return over the uncertainty set: {task}", path))
+                path = plot_heatmaps(ev, task, out / f"heatmap_{task}.png", summary["uncertainty"])
+                if path is not None:
+                    caption = f"Mean return over the 2-D set, per algorithm: {task}"
+                    figures.append((caption + " (axes bounded by the set)", path))
+        figures += aggregate_figures(tables, summary, out, reference)
     return figures
+
+
+def _band_caption(curves: Any, metric: str) -> str:
+    runs = curves.dropna(subset=[metric]).groupby(["task", "algorithm"])["seed"].nunique()
+    if len(runs) and runs.min() < MIN_BAND_SEEDS:
+        return (
+            f" (mean over seeds; 95% bootstrap band only from {MIN_BAND_SEEDS} seeds on, "
+            "fewer seeds drawn as thin lines)"
+        )
+    return " (mean and 95% bootstrap CI over seeds)"

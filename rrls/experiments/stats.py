@@ -15,6 +15,8 @@ from typing import Any
 
 import numpy as np
 
+from rrls.evaluation.metrics import normalized_score, run_scores
+
 N_RESAMPLES = 2_000
 
 
@@ -79,20 +81,19 @@ def describe(x: Sequence[float] | np.ndarray, rng: np.random.Generator) -> dict[
 
 
 def per_seed_scores(evaluations: Any) -> Any:
-    """One row per (task, algorithm, seed): the worst case (min over mesh points of the mean
-    return over that point's episodes) and the average case (mean over points)."""
-    keys = ["task", "algorithm", "seed"]
-    point = evaluations.groupby([*keys, "point"], sort=True)["return"].mean()
-    scores = point.groupby(level=keys).agg(["min", "mean"])
-    return scores.rename(columns={"min": "worst_case", "mean": "average_case"}).reset_index()
+    """One row per (task, algorithm, seed): its worst and average case
+    (``rrls.evaluation.metrics.run_scores``, the paper's one definition)."""
+    return run_scores(evaluations, ("task", "algorithm", "seed"))
 
 
 def normalise(v: np.ndarray, v_td3: float, v_m2td3: float) -> np.ndarray:
-    """Paper §5: ``(v - v_TD3) / |v_M2TD3 - v_TD3|`` with v_TD3, v_M2TD3 the seed means."""
-    span = abs(v_m2td3 - v_td3)
-    if not np.isfinite(span) or span == 0:
-        raise ValueError("TD3 and M2TD3 references are equal: the normalised score is undefined")
-    return (np.asarray(v, dtype=float) - v_td3) / span
+    """Paper §5: ``(v - v_TD3) / |v_M2TD3 - v_TD3|`` with v_TD3, v_M2TD3 the seed means
+    (``rrls.evaluation.metrics.normalized_score``); refused when the span is not finite."""
+    if not np.isfinite(abs(v_m2td3 - v_td3)):
+        raise ValueError(
+            "TD3 and M2TD3 references are not finite: the normalised score is undefined"
+        )
+    return np.asarray(normalized_score(np.asarray(v, dtype=float), v_td3, v_m2td3), dtype=float)
 
 
 def improvement_probability(x: np.ndarray, y: np.ndarray) -> Any:
