@@ -318,7 +318,7 @@ def _dispatch(args: argparse.Namespace) -> int:
     if args.command == "plot":
         from pathlib import Path
 
-        from rrls.evaluation.plots import plot_result
+        from rrls.evaluation.result_plot import plot_result
 
         if not Path(args.dir).is_dir():
             raise FileNotFoundError(f"no evaluation directory {args.dir}")
@@ -416,7 +416,7 @@ def _evaluate(args: argparse.Namespace) -> int:
     for key, value in rows:
         print(f"{key:<{width}}  {value}")
     if args.plot:  # after the table: a refused plot (nominal: one point) loses no result
-        from rrls.evaluation.plots import plot_result
+        from rrls.evaluation.result_plot import plot_result
 
         print(f"{'plot':<{width}}  {plot_result(out)}")
     return 0

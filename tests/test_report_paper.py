@@ -253,7 +253,8 @@ def test_figures_are_bounded_by_the_set_and_written_as_pdf_too(tmp_path):
 
 
 def test_heatmaps_of_a_2d_set_stop_at_the_sets_box(tmp_path):
-    from rrls.experiments.plots import bounded_edges, plot_heatmaps
+    from rrls.evaluation.result_plot import bounded_edges
+    from rrls.experiments.plots import plot_heatmaps
 
     # a [0.1, 3] friction set meshed with 2 points: cells end at the bounds, not at -1.35 / 4.45
     assert bounded_edges(np.array([0.1, 3.0]), 0.1, 3.0).tolist() == [0.1, 1.55, 3.0]

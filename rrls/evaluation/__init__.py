@@ -16,7 +16,6 @@ from rrls.evaluation.mesh import (
     resolve_uncertainty,
 )
 from rrls.evaluation.metrics import normalized_score
-from rrls.evaluation.plots import plot_result
 from rrls.evaluation.policies import (
     BatchInvariant,
     MLPPolicy,
@@ -27,6 +26,7 @@ from rrls.evaluation.policies import (
 )
 from rrls.evaluation.protocol import Protocol
 from rrls.evaluation.result import EvaluationResult
+from rrls.evaluation.result_plot import plot_result
 from rrls.evaluation.search import WorstCaseSearch, search_worst_case
 
 __all__ = [

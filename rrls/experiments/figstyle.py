@@ -55,7 +55,7 @@ PANEL = (3.3, 2.4)  # inches: one column of a two-column paper
 def pyplot() -> Any:
     """matplotlib's pyplot (headless); draw inside ``pyplot().rc_context(RC)`` for the style
     (a context, so that the report does not restyle the caller's own figures)."""
-    from rrls.evaluation.plots import pyplot as headless
+    from rrls.evaluation.result_plot import pyplot as headless
 
     return headless()
 

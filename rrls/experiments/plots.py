@@ -12,6 +12,7 @@ from typing import Any
 
 import numpy as np
 
+from rrls.evaluation.result_plot import bounded_edges
 from rrls.experiments import stats
 from rrls.experiments.figstyle import PANEL, RC, colours, pyplot, save
 from rrls.experiments.figures import aggregate_figures
@@ -145,15 +146,6 @@ def set_parameters(data: Any) -> list[str]:
         for c in data.columns
         if c not in NOT_PARAMETERS and not c.endswith("_version") and data[c].notna().any()
     ]
-
-
-def bounded_edges(centres: np.ndarray, low: float, high: float) -> np.ndarray:
-    """Cell edges around sorted mesh coordinates, for ``pcolormesh``: midpoints between
-    neighbours, the outer edges at the set's bounds (not half a cell beyond them)."""
-    if len(centres) == 1:
-        return np.array([low, high]) if low < high else np.array([low - 0.5, low + 0.5])
-    mid = (centres[1:] + centres[:-1]) / 2
-    return np.concatenate([[min(low, centres[0])], mid, [max(high, centres[-1])]])
 
 
 def plot_heatmaps(evaluations: Any, task: str, path: Path, uncertainty: str | None) -> Path | None:

@@ -48,7 +48,7 @@ def plot_result(result: EvaluationResult | str | Path, path: str | Path | None =
         _line(ax, result, names[0])
     elif len(names) == 2:
         fig, ax = plt.subplots(figsize=(6, 5))
-        mesh = _heatmap(ax, table, names[0], names[1], result.worst_point)
+        mesh = _heatmap(ax, table, names[0], names[1], result.worst_point, box=result.uncertainty)
         fig.colorbar(mesh, ax=ax, label="mean return")
     else:
         worst = result.worst_point
@@ -63,7 +63,7 @@ def plot_result(result: EvaluationResult | str | Path, path: str | Path | None =
             mask = np.ones(len(table), dtype=bool)
             for n, v in fixed.items():
                 mask &= np.isclose(table[n].to_numpy(), v)
-            mesh = _heatmap(ax, table[mask], a, b, worst, limits)
+            mesh = _heatmap(ax, table[mask], a, b, worst, limits, result.uncertainty)
             ax.set_title(", ".join(f"{n} = {v:.3g}" for n, v in fixed.items()), fontsize=9)
         fig.colorbar(mesh, ax=list(axes[0]), label="mean return (all slices)")
     fig.suptitle(title, fontsize=10)
@@ -104,13 +104,22 @@ def _heatmap(
     b: str,
     worst: dict[str, float],
     limits: tuple[float, float] | None = None,
+    box: Any = None,
 ) -> Any:
+    """The mean return over two axes; cells and axes end at the set's bounds (``box``)."""
     grid = table.pivot_table(index=b, columns=a, values="mean_return")
     xs, ys = grid.columns.to_numpy(), grid.index.to_numpy()
+
+    def edges(name: str, centres: np.ndarray) -> np.ndarray:
+        if box is None or name not in box.names:
+            return bounded_edges(centres, float(centres[0]), float(centres[-1]))
+        i = box.names.index(name)
+        return bounded_edges(centres, float(box.low[i]), float(box.high[i]))
+
     vmin, vmax = limits if limits is not None else (None, None)
     mesh = ax.pcolormesh(
-        _edges(xs),
-        _edges(ys),
+        edges(a, xs),
+        edges(b, ys),
         grid.to_numpy(),
         shading="flat",
         cmap="viridis",
@@ -137,9 +146,10 @@ def _policy_name(config: dict[str, Any]) -> str:
     return " ".join(parts)
 
 
-def _edges(centers: np.ndarray) -> np.ndarray:
-    """Cell edges around (sorted) mesh coordinates, for pcolormesh."""
-    if len(centers) == 1:
-        return np.array([centers[0] - 0.5, centers[0] + 0.5])
-    mid = (centers[1:] + centers[:-1]) / 2
-    return np.concatenate([[2 * centers[0] - mid[0]], mid, [2 * centers[-1] - mid[-1]]])
+def bounded_edges(centres: np.ndarray, low: float, high: float) -> np.ndarray:
+    """Cell edges around sorted mesh coordinates, for ``pcolormesh``: midpoints between
+    neighbours, the outer edges at the set's bounds (not half a cell beyond them)."""
+    if len(centres) == 1:
+        return np.array([low, high]) if low < high else np.array([low - 0.5, low + 0.5])
+    mid = (centres[1:] + centres[:-1]) / 2
+    return np.concatenate([[min(low, centres[0])], mid, [max(high, centres[-1])]])
