@@ -386,7 +386,7 @@ def _evaluate(args: argparse.Namespace) -> int:
         policy,
         task,
         uncertainty,
-        nb_mesh_dim=args.mesh,
+        mesh=args.mesh,
         episodes=args.episodes,
         seed=args.seed,
         workers=args.workers,

@@ -75,7 +75,7 @@ def test_evaluate_paper_uses_v4_and_the_arange_mesh_and_records_it(tmp_path):
         return np.tanh(obs[:, :3])
 
     paper = evaluate(
-        policy, "hopper", "1d", nb_mesh_dim=3, episodes=1, workers=1, max_episode_steps=30,
+        policy, "hopper", "1d", mesh=3, episodes=1, workers=1, max_episode_steps=30,
         paper=True, out_dir=tmp_path / "paper",
     )  # fmt: skip
     assert paper.episodes["worldfriction"].round(6).tolist() == [0.1, 1.066667, 2.033333]
@@ -91,9 +91,7 @@ def test_evaluate_paper_uses_v4_and_the_arange_mesh_and_records_it(tmp_path):
             total += r
             done = term or trunc
         assert total == row["return"]
-    v5 = evaluate(
-        policy, "hopper", "1d", nb_mesh_dim=3, episodes=1, workers=1, max_episode_steps=30
-    )
+    v5 = evaluate(policy, "hopper", "1d", mesh=3, episodes=1, workers=1, max_episode_steps=30)
     assert v5.episodes["worldfriction"].tolist()[-1] == 3.0
     assert v5.summary()["physics"] == "rrls-v5"
 

@@ -107,7 +107,7 @@ def test_sets_resolve_and_wrappers_work():
 
 
 def test_evaluate_rows_equal_the_plain_gymnasium_loop_and_search_runs():
-    result = evaluate(_policy, "usertask", "2d", nb_mesh_dim=2, episodes=1, workers=1)
+    result = evaluate(_policy, "usertask", "2d", mesh=2, episodes=1, workers=1)
     frame = result.episodes
     assert len(frame) == 4
     for _, row in frame.iterrows():

@@ -118,7 +118,7 @@ def test_nominal_params_cannot_be_changed_by_a_caller():
 def test_evaluation_leaves_no_cached_envs_behind():
     from rrls.evaluation import MLPPolicy, engine, evaluate, lanes
 
-    evaluate(MLPPolicy.random(4, 1, (8,)), "invertedpendulum", "1d", nb_mesh_dim=2, episodes=1)
+    evaluate(MLPPolicy.random(4, 1, (8,)), "invertedpendulum", "1d", mesh=2, episodes=1)
     assert lanes._ENV_CACHE == {}
     assert not hasattr(engine, "_WORKER") and not hasattr(engine, "spec_for")
     assert "env_kwargs" not in lanes.RolloutSpec.__dataclass_fields__

@@ -90,7 +90,7 @@ def test_submitted_callable_is_a_column_of_every_table(bench):
     ev = pd.read_parquet(build_store(bench) / "evaluations.parquet")
     seeds = {a: ev[ev["algorithm"] == a]["episode_seed"].tolist() for a in ev["algorithm"]}
     assert seeds["my-method"] == seeds["td3"] == seeds["m2td3"]
-    direct = evaluate(mine, "invertedpendulum", "1d", nb_mesh_dim=2, episodes=1, seed=0)
+    direct = evaluate(mine, "invertedpendulum", "1d", mesh=2, episodes=1, seed=0)
     assert done.worst_case == direct.worst_case and done.average_case == direct.average_case
 
     summary = report(bench)
@@ -152,7 +152,7 @@ def test_sb3_zip_submit(bench, tmp_path):
     assert sub["kind"] == "sb3-zip"
     assert sub["sha256"] == hashlib.sha256((tmp_path / "agent.zip").read_bytes()).hexdigest()
     # the same numbers as the model itself, evaluated directly
-    direct = evaluate(model, "invertedpendulum", "1d", nb_mesh_dim=2, episodes=1, seed=0)
+    direct = evaluate(model, "invertedpendulum", "1d", mesh=2, episodes=1, seed=0)
     assert done.worst_case == direct.worst_case
     assert "sb3-td3" in report(bench)["algorithms"]
 
