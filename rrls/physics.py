@@ -38,3 +38,6 @@ def physics_label(value: Any = None) -> str:
 def is_paper(value: Any) -> bool:
     """Whether ``value`` names the paper's physics (``paper=True`` for the env constructors)."""
     return physics_label(value) == PAPER
+
+
+__all__ = ["ALIASES", "is_paper", "LABELS", "PAPER", "physics_label", "V5"]

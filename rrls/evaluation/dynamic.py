@@ -311,3 +311,13 @@ def _actions(out: Any, who: str, n: int) -> np.ndarray:
     if actions.ndim != 2 or len(actions) != n:
         raise PolicyError(f"the {who} returned shape {actions.shape} for {n} observations")
     return actions
+
+
+__all__ = [
+    "dynamic_env_id",
+    "DynamicResult",
+    "evaluate_dynamic",
+    "evaluate_run_dynamic",
+    "game_options",
+    "make_dynamic_env",
+]

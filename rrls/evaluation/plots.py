@@ -143,3 +143,6 @@ def _edges(centers: np.ndarray) -> np.ndarray:
         return np.array([centers[0] - 0.5, centers[0] + 0.5])
     mid = (centers[1:] + centers[:-1]) / 2
     return np.concatenate([[2 * centers[0] - mid[0]], mid, [2 * centers[-1] - mid[-1]]])
+
+
+__all__ = ["plot_result", "pyplot"]
