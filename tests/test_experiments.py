@@ -54,7 +54,7 @@ def test_an_exported_reference_says_where_it_came_from(smoke, tmp_path):
 
     export_reference(smoke, tmp_path / "ref.json")
     prov = load_reference(tmp_path / "ref.json").provenance
-    assert prov["preset"] == "smoke" and prov["physics"] == "rrls-v5" and prov["runs"] == 5
+    assert prov["preset"] == "smoke" and prov["physics"] == "v5" and prov["runs"] == 5
     assert prov["seeds"] == [0] and prov["steps"] == 300 and prov["hidden"] == [16, 16]
     assert all(prov["versions"][k] for k in ("rrls", "torch", "mujoco", "gymnasium", "numpy"))
     assert prov["devices"] == ["cpu"] and len(prov["machines"]) == 1
@@ -471,20 +471,20 @@ def test_a_paper_physics_benchmark_trains_evaluates_and_records_it(tmp_path, cap
     args = [*SMOKE, "--algos", "rarl", "--jobs", "1", "--out", str(out), "--rate-limit", "0.1"]
     args += ["--observe", "oracle"]
     assert main([*args, "--physics", "paper"]) == 0
-    assert json.loads((out / "benchmark.json").read_text())["physics"] == "paper-v4"
+    assert json.loads((out / "benchmark.json").read_text())["physics"] == "paper"
     (run,) = (out / "runs").iterdir()
-    assert json.loads((run / "run.json").read_text())["config"]["physics"] == "paper-v4"
+    assert json.loads((run / "run.json").read_text())["config"]["physics"] == "paper"
     summary = json.loads((run / "eval" / "summary.json").read_text())
-    assert summary["physics"] == "paper-v4" and summary["endpoint"] is False
+    assert summary["physics"] == "paper" and summary["endpoint"] is False
     result = json.loads((run / "result.json").read_text())
-    assert result["physics"] == "paper-v4" and result["dynamic_env"].endswith("[paper-v4]")
+    assert result["physics"] == "paper" and result["dynamic_env"].endswith("[paper]")
     assert "rate_limit=0.1, rate_game=tc, observe=oracle" in result["dynamic_env"]
     hyper = json.loads((run / "run.json").read_text())["hyperparameters"]
     assert (hyper["rate_limit"], hyper["rate_game"], hyper["observe"]) == (0.1, "tc", "oracle")
     assert "protagonist_view" in summary  # the static evaluation showed it [s, ψ01] too
     capsys.readouterr()
     assert main(args) == 2  # the same directory on rrls's physics: another protocol
-    assert "physics: 'paper-v4' there, 'rrls-v5' now" in capsys.readouterr().err
+    assert "physics: 'paper' there, 'v5' now" in capsys.readouterr().err
 
 
 def test_benchmark_rate_limit_is_rarls_alone_and_checked():

@@ -167,7 +167,7 @@ def evaluate_dynamic(
     :func:`make_dynamic_env`. In the TC-RMDP game each player gets its part of the flat
     observation, and an ``omniscient`` adversary (the authors' default) also the protagonist's
     action of the step: ``adversary([ψ01, s, a])``. ``paper=True``: on the paper's physics
-    (``env_id`` then ends in ``[paper-v4]``).
+    (``env_id`` then ends in ``[paper]``).
     """
     import pandas as pd
 
