@@ -110,10 +110,25 @@ def _task_keys() -> list[str]:
     return list(TASKS)
 
 
+def _plugin_names() -> str:
+    """`` (name, name)`` of the installed plug-in algorithms (entry point ``rrls.algorithms``)."""
+    from rrls.algorithms import plugin_entry_points
+
+    names = list(plugin_entry_points())
+    return f" ({', '.join(names)})" if names else ""
+
+
 def build_parser(with_train: bool = True) -> argparse.ArgumentParser:
     from rrls import __version__
+    from rrls.algorithms import built_in
+    from rrls.seeds import EXAMPLES
 
-    parser = Parser(prog="rrls", description="Robust Reinforcement Learning Suite")
+    parser = Parser(
+        prog="rrls",
+        description="Robust Reinforcement Learning Suite. One vocabulary in every command: "
+        f"--seed S is one seed, --seeds a list or range of seeds ({EXAMPLES}); --workers N the "
+        "worker processes; --mesh N points per dimension; --physics v5|paper.",
+    )
     parser.add_argument("--version", action="version", version=f"rrls {__version__}")
     sub = parser.add_subparsers(dest="command", required=True)
 
@@ -133,10 +148,13 @@ def build_parser(with_train: bool = True) -> argparse.ArgumentParser:
         f"{', '.join(_task_keys())})",
     )
     check.add_argument(
-        "--steps", type=positive_int, default=100, help="steps per episode (default 100)"
+        "--steps", type=positive_int, default=100, help="steps per episode (default: %(default)s)"
     )
     check.add_argument(
-        "--seed", type=nonnegative_int, default=0, help="seed of resets and actions (default 0)"
+        "--seed",
+        type=nonnegative_int,
+        default=0,
+        help="seed of resets and actions (default: %(default)s)",
     )
 
     ev = sub.add_parser(
@@ -178,13 +196,16 @@ def build_parser(with_train: bool = True) -> argparse.ArgumentParser:
         help="root of the per-episode seeds (default 0); results depend only on it",
     )
     ev.add_argument(
-        "--workers", type=positive_int, default=None, help="processes (default: all cores)"
+        "--workers",
+        type=positive_int,
+        default=None,
+        help="worker processes (default: the number of cores; results do not depend on it)",
     )
     ev.add_argument(
         "--batch-size",
         type=positive_int,
         default=None,
-        help="live episodes per worker (results do not depend on it)",
+        help="live episodes per worker (default: the engine's; results do not depend on it)",
     )
     ev.add_argument(
         "--no-endpoint",
@@ -212,11 +233,11 @@ def build_parser(with_train: bool = True) -> argparse.ArgumentParser:
         help="output directory (default: evaluations/<policy>-<task>-<uncertainty>-mesh<M>-ep<E>"
         "-seed<S>)",
     )
-    ev.add_argument("--plot", action="store_true", help="also write DIR/returns.png")
+    ev.add_argument("--plot", action="store_true", help="also write OUT/returns.png")
 
     tr = sub.add_parser(
         "train",
-        help="train a baseline (td3, dr, rarl, nrmdp, m2td3, sac, sacdr) or a plug-in; needs "
+        help=f"train a baseline ({', '.join(built_in())}) or a plug-in{_plugin_names()}; needs "
         "the `train` extra",
         description="Train a baseline with the paper's hyper-parameters. Checkpoints are written "
         "to --out; --resume continues a killed run exactly where it stopped.",
@@ -251,11 +272,20 @@ def build_parser(with_train: bool = True) -> argparse.ArgumentParser:
         "each evaluated over a 10-point mesh x 5 episodes, then the report, its tables and a "
         "plot. Resumable: the same command continues where it stopped.",
     )
-    quick.add_argument("--out", default="quickstart", help="output directory (default quickstart)")
+    quick.add_argument(
+        "--out", default="quickstart", help="output directory (default: %(default)s)"
+    )
     quick.add_argument(
         "--steps", type=int, default=None, help="steps per run (default: the preset's 30 000)"
     )
-    quick.add_argument("--seed", type=int, default=0, help="the first seed (default 0: seeds 0-2)")
+    quick.add_argument(
+        "--seeds",
+        metavar="SEEDS",
+        default=None,
+        help=f"the seeds, a list or range: {EXAMPLES} (default: the preset's 0-2)",
+    )
+    quick.add_argument("--seed", type=nonnegative_int, default=None, help=argparse.SUPPRESS)
+    quick.add_argument("--yes", action="store_true", help="start without asking (see benchmark)")
 
     from rrls.experiments.cli import add_parsers
 
@@ -269,7 +299,7 @@ def build_parser(with_train: bool = True) -> argparse.ArgumentParser:
         "on one colour scale (3D).",
     )
     plot.add_argument("dir", help="an `rrls evaluate` output directory")
-    plot.add_argument("--out", help="PNG path (default DIR/returns.png)")
+    plot.add_argument("--out", help="PNG path (default: DIR/returns.png)")
     parser.subcommands = dict(sub.choices)
     return parser
 

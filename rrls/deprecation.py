@@ -7,14 +7,16 @@ imports rrls: every layer may use it.
 
 from __future__ import annotations
 
+import argparse
 import functools
+import sys
 import warnings
 from collections.abc import Callable
 from typing import Any, TypeVar
 
 F = TypeVar("F", bound=Callable[..., Any])
 
-__all__ = ["renamed_keywords", "warn_deprecated"]
+__all__ = ["DeprecatedOption", "notice", "renamed_keywords", "warn_deprecated"]
 
 
 def warn_deprecated(message: str, stacklevel: int = 2) -> None:
@@ -54,3 +56,32 @@ def renamed_keywords(**renames: str) -> Callable[[F], F]:
         return wrapper  # type: ignore[return-value]
 
     return decorate
+
+
+def notice(command: str, message: str) -> None:
+    """One line on stderr for a command-line user, who never sees a ``DeprecationWarning``
+    (Python hides them outside ``__main__``): ``rrls COMMAND: warning: MESSAGE``."""
+    print(f"rrls {command}: warning: {message}", file=sys.stderr)
+
+
+class DeprecatedOption(argparse.Action):
+    """An old flag kept as a hidden alias: stores like the new one (same ``dest``), with a
+    one-line notice naming it. ``add_argument("--jobs", dest="workers", type=int,
+    action=DeprecatedOption, new="--workers")``."""
+
+    def __init__(self, option_strings: list[str], dest: str, new: str, **kwargs: Any) -> None:
+        kwargs["help"] = argparse.SUPPRESS  # not in --help: one spelling is advertised
+        kwargs.setdefault("default", argparse.SUPPRESS)  # never overwrites the new flag's
+        super().__init__(option_strings, dest, **kwargs)
+        self.new = new
+
+    def __call__(
+        self,
+        parser: argparse.ArgumentParser,
+        namespace: argparse.Namespace,
+        values: Any,
+        option_string: str | None = None,
+    ) -> None:
+        command = parser.prog.removeprefix("rrls ").strip() or "rrls"
+        notice(command, f"{option_string} is deprecated; use {self.new} (same meaning)")
+        setattr(namespace, self.dest, values)

@@ -37,7 +37,7 @@ needs_torch = pytest.mark.skipif(
     importlib.util.find_spec("torch") is None, reason="training needs torch (rrls[train])"
 )
 REPO = Path(__file__).resolve().parents[1]
-SMOKE = ["benchmark", "--preset", "smoke", "--jobs", "2"]
+SMOKE = ["benchmark", "--preset", "smoke", "--workers", "2"]
 
 
 @pytest.fixture(scope="module")
@@ -271,8 +271,8 @@ def test_ray_backend_runs_the_same_function(smoke, tmp_path):
         (["--algos", "td3,ppo"], "unknown algorithm 'ppo'"),
         (["--tasks", "pong"], "unknown task 'pong'"),
         (["--tasks", "invertedpendulum", "--uncertainty", "3d"], "no uncertainty set '3d'"),
-        (["--seeds", "0"], "--seeds must be >= 1"),
-        (["--jobs", "0"], "--jobs must be >= 1"),
+        (["--seeds", "0"], "--seeds 0: no seed to run"),
+        (["--workers", "0"], "--workers must be >= 1"),
         (["--backend", "slurm"], "unknown backend"),
     ],
 )
@@ -468,7 +468,7 @@ def test_quickstart_is_the_quick_preset(tmp_path, capsys, monkeypatch):
 def test_a_paper_physics_benchmark_trains_evaluates_and_records_it(tmp_path, capsys):
     # (with RARL against TC-RMDP's rate-limited adversary: trained and evaluated in that game)
     out = tmp_path / "paper"
-    args = [*SMOKE, "--algos", "rarl", "--jobs", "1", "--out", str(out), "--rate-limit", "0.1"]
+    args = [*SMOKE, "--algos", "rarl", "--workers", "1", "--out", str(out), "--rate-limit", "0.1"]
     args += ["--observe", "oracle"]
     assert main([*args, "--physics", "paper"]) == 0
     assert json.loads((out / "benchmark.json").read_text())["physics"] == "paper"
@@ -511,7 +511,7 @@ def test_benchmark_rate_limit_is_rarls_alone_and_checked():
 @needs_torch
 def test_a_split_benchmark_trains_inside_and_reports_in_and_out_of_distribution(tmp_path):
     out = tmp_path / "split"
-    args = [*SMOKE, "--algos", "td3,dr", "--jobs", "1", "--mesh", "3", "--out", str(out)]
+    args = [*SMOKE, "--algos", "td3,dr", "--workers", "1", "--mesh", "3", "--out", str(out)]
     assert main([*args, "--split", "Extrapolation"]) == 0
     assert json.loads((out / "benchmark.json").read_text())["split"] == "extrapolation:0.5"
     run = out / "runs" / "dr-invertedpendulum-1d-seed0"

@@ -259,7 +259,7 @@ def test_entry_point_task_is_found_by_name(plugin):
 @needs_torch
 def test_benchmark_on_an_entry_point_task(plugin, tmp_path, capsys):
     out = tmp_path / "bench"
-    args = ["benchmark", "--preset", "smoke", "--jobs", "1", "--out", str(out)]
+    args = ["benchmark", "--preset", "smoke", "--workers", "1", "--out", str(out)]
     assert main([*args, "--algos", "td3", "--tasks", "plugintask"]) == 0
     summary = json.loads((out / "report" / "summary.json").read_text())
     assert summary["tasks"] == ["plugintask"]

@@ -10,7 +10,20 @@ import argparse
 import sys
 from typing import Any
 
-from rrls.experiments.spec import PAPER_TASKS, PRESETS, SpecError
+from rrls.deprecation import DeprecatedOption, notice
+from rrls.experiments.spec import ALGOS, BUILT_IN, PAPER_TASKS, PRESETS, SpecError
+from rrls.seeds import EXAMPLES, as_range, count_form, parse_seeds
+
+#: more runs than this, started from a terminal without --yes, ask first
+CONFIRM_ABOVE = 50
+
+
+def _plugins() -> str:
+    """``(name, name) `` of the installed plug-in algorithms, for the help texts."""
+    from rrls.algorithms import plugin_entry_points
+
+    names = list(plugin_entry_points())
+    return f"({', '.join(names)}) " if names else ""
 
 
 def add_parsers(sub: argparse._SubParsersAction) -> None:
@@ -30,13 +43,16 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:
     b.add_argument(
         "--preset",
         default="paper",
+        metavar="{" + ",".join(PRESETS) + "}",
         help="smoke (seconds, for tests), quick (~18 min on 2 cores, reduced protocol), "
-        "hopper (~9.5 CPU-hours: the locomotion reference), paper (the paper's protocol; default)",
+        "hopper (~9.5 CPU-hours: the locomotion reference), paper (the paper's protocol); "
+        "default: %(default)s (250 runs: try --dry-run first)",
     )
     b.add_argument(
         "--algos",
-        help="comma-separated: td3,dr,rarl,nrmdp,m2td3 (the paper's five: the default), sac, "
-        "sacdr, an installed plug-in or package.module:Learner",
+        help=f"comma-separated, of the built-in {', '.join(BUILT_IN)}, an installed plug-in "
+        f"{_plugins()}or package.module:Learner (default: the preset's; the paper's five: "
+        f"{','.join(ALGOS)})",
     )
     b.add_argument(
         "--tasks",
@@ -46,14 +62,23 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:
         + ", ".join(PAPER_TASKS)
         + ")",
     )
-    b.add_argument("--uncertainty", help="evaluation set (and DR/M2TD3's training set): 1d, 2d, 3d")
-    b.add_argument("--seeds", type=int, metavar="N", help="number of seeds (0..N-1)")
+    b.add_argument(
+        "--uncertainty",
+        metavar="SET",
+        help="evaluation set (and DR/M2TD3's training set): 1d, 2d, 3d (default: the preset's)",
+    )
+    b.add_argument(
+        "--seeds",
+        metavar="SEEDS",
+        help=f"the seeds, a list or range: {EXAMPLES} (default: the preset's). A bare N "
+        "(--seeds 3) is still read as N seeds 0..N-1, with a notice: deprecated, write 0-2",
+    )
     b.add_argument(
         "--physics",
         choices=["v5", "paper"],
         help="v5 (default: Gymnasium v5, rrls's parameter semantics) or paper (the paper's "
         "Gymnasium v4 envs, the original code's parameter writes, np.arange mesh) for training and "
-        "evaluation; recorded in benchmark.json",
+        "evaluation; recorded as given in benchmark.json",
     )
     b.add_argument(
         "--rate-limit",
@@ -77,7 +102,9 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:
         "centred fraction F of each axis, default 0.5), the evaluation covers the whole set and "
         "rrls report gives in- and out-of-distribution worst/average case apart",
     )
-    b.add_argument("--steps", type=int, metavar="N", help="training steps per run")
+    b.add_argument(
+        "--steps", type=int, metavar="N", help="training steps per run (default: the preset's)"
+    )
     b.add_argument(
         "--learning-starts",
         type=int,
@@ -89,22 +116,41 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:
         "--eval-every",
         type=int,
         metavar="N",
-        help="periodic evaluation every N steps (0: off)",
+        help="periodic evaluation every N steps (0: off; default: the preset's)",
     )
-    b.add_argument("--mesh", type=int, metavar="N", help="final evaluation: points per dimension")
-    b.add_argument("--episodes", type=int, metavar="N", help="final evaluation: episodes per point")
     b.add_argument(
-        "--jobs", type=int, metavar="N", help="parallel runs (default: the number of cores)"
+        "--mesh",
+        type=int,
+        metavar="N",
+        help="final evaluation: points per dimension (default: the preset's; paper 10)",
     )
+    b.add_argument(
+        "--episodes",
+        type=int,
+        metavar="N",
+        help="final evaluation: episodes per point (default: the preset's; paper 5)",
+    )
+    b.add_argument(
+        "--workers",
+        type=int,
+        metavar="N",
+        help="worker processes: runs in parallel (default: the number of cores; Ray: the cluster)",
+    )
+    b.add_argument("--jobs", dest="workers", type=int, action=DeprecatedOption, new="--workers")
     b.add_argument(
         "--backend",
         default="local",
-        help="choices: local (a process pool on this machine; default), ray (a Ray cluster)",
+        metavar="{local,ray}",
+        help="local (a process pool on this machine) or ray (a Ray cluster); default: %(default)s",
     )
     b.add_argument(
         "--ray-address", metavar="ADDR", help="Ray cluster address (default: RAY_ADDRESS or local)"
     )
-    b.add_argument("--device", help="cpu (default) or cuda (Ray: a quarter GPU per process)")
+    b.add_argument(
+        "--device",
+        metavar="{cpu,cuda,cuda:N}",
+        help="cpu (default) or cuda (Ray: a quarter GPU per process)",
+    )
     b.add_argument(
         "--dry-run",
         action="store_true",
@@ -119,6 +165,12 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:
         "agents, the same numbers as alone): the GPU then updates many seeds at once; on a CPU "
         "the runs of a process share its one thread. Default: every seed of a cell with "
         "--device cuda, 1 on cpu",
+    )
+    b.add_argument(
+        "--yes",
+        action="store_true",
+        help=f"start without asking: from a terminal, more than {CONFIRM_ABOVE} runs to start "
+        "ask for confirmation first (never asked without a terminal, or with CI set)",
     )
 
     r = sub.add_parser(
@@ -166,20 +218,26 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:
     )
     s.add_argument(
         "--game",
-        help="the adversary's game, one of adversarial, nr, pr: adversarial (picks the set's "
-        "parameters; default unless an rrls adversary file records another), nr or pr "
-        "(action-robust)",
+        metavar="{adversarial,nr,pr}",
+        help="the adversary's game: adversarial (picks the set's parameters; default unless an "
+        "rrls adversary file records another), nr or pr (action-robust)",
     )
-    s.add_argument("--alpha", type=float, help="nr/pr: the adversary's probability (0.1)")
+    s.add_argument("--alpha", type=float, help="nr/pr: the adversary's probability (default 0.1)")
     s.add_argument(
         "--overwrite", action="store_true", help="replace a submission made with another policy"
     )
     s.add_argument(
         "--preset",
+        metavar="{" + ",".join(PRESETS) + "}",
         help="BENCH_DIR holds no benchmark yet: start one (no baselines) with this preset's "
         "protocol; compare with `rrls report BENCH_DIR --reference FILE`",
     )
-    s.add_argument("--workers", type=int, metavar="N", help="evaluation processes (default: all)")
+    s.add_argument(
+        "--workers",
+        type=int,
+        metavar="N",
+        help="worker processes: the evaluation's (default: the number of cores)",
+    )
 
 
 def _fail(command: str, message: str) -> int:
@@ -213,8 +271,8 @@ def _spec_from(args: argparse.Namespace) -> tuple:
         raise SpecError(f"unknown preset {args.preset!r}; valid: {', '.join(PRESETS)}")
     if args.backend not in ("local", "ray"):
         raise SpecError(f"unknown backend {args.backend!r}; valid: local, ray")
-    if args.jobs is not None and args.jobs < 1:
-        raise SpecError(f"--jobs must be >= 1, got {args.jobs}")
+    if args.workers is not None and args.workers < 1:
+        raise SpecError(f"--workers must be >= 1, got {args.workers}")
     if getattr(args, "pack", None) is not None and args.pack < 1:
         raise SpecError(f"--pack must be >= 1, got {args.pack}")
     if args.device is not None and not (args.device == "cpu" or args.device.startswith("cuda")):
@@ -224,7 +282,7 @@ def _spec_from(args: argparse.Namespace) -> tuple:
         algos=args.algos,
         tasks=args.tasks,
         uncertainty=args.uncertainty.lower() if args.uncertainty else None,
-        seeds=args.seeds,
+        seeds=benchmark_seeds(args.seeds),
         steps=args.steps,
         learning_starts=args.learning_starts,
         eval_every=args.eval_every,
@@ -236,8 +294,30 @@ def _spec_from(args: argparse.Namespace) -> tuple:
         observe=getattr(args, "observe", None),
         split=getattr(args, "split", None),
     )
-    jobs = args.jobs or (None if args.backend == "ray" else default_jobs())
+    jobs = args.workers or (None if args.backend == "ray" else default_jobs())
     return spec, jobs
+
+
+def benchmark_seeds(text: str | None) -> list[int] | None:
+    """``--seeds`` of ``rrls benchmark``: a list or range (:mod:`rrls.seeds`), or the deprecated
+    count ``N`` (seeds 0..N-1, with a notice saying how to write it)."""
+    if text is None:
+        return None
+    count = count_form(text)
+    if count is None:
+        try:
+            return parse_seeds(text)
+        except ValueError as err:
+            raise SpecError(str(err)) from None
+    if count < 1:
+        raise SpecError(f"--seeds {text}: no seed to run (write the seeds: {EXAMPLES})")
+    seeds = list(range(count))
+    notice(
+        "benchmark",
+        f"--seeds {count} as a number of seeds is deprecated (it will mean seed {count} alone, "
+        f"as in rrls train); write --seeds {as_range(seeds)}",
+    )
+    return seeds
 
 
 def _benchmark(args: argparse.Namespace) -> int:
@@ -265,6 +345,9 @@ def _benchmark(args: argparse.Namespace) -> int:
 
     if args.dry_run:
         return _dry_run(Path(args.out), spec, jobs or 0, args.backend, args.pack)
+    todo, _ = _pending(Path(args.out), spec)
+    if not confirmed("benchmark", len(todo), args.yes):
+        return 1
 
     from rrls.experiments.runner import benchmark
 
@@ -278,13 +361,9 @@ def _dry_run(root: Any, spec: Any, jobs: int, backend: str, pack: int | None) ->
     """What ``rrls benchmark`` would do in ``root``, without doing any of it."""
     from rrls.experiments.benchfile import reconcile
     from rrls.experiments.pipeline import default_pack, groups
-    from rrls.experiments.runner import pending_runs, plan
+    from rrls.experiments.runner import plan
 
-    if (root / "benchmark.json").exists():
-        spec = reconcile(root, spec)  # another protocol there: refused now, as it would be
-        todo, finished = pending_runs(root, spec)
-    else:
-        todo, finished = spec.runs(), 0
+    spec, (todo, finished) = reconcile(root, spec), _pending(root, spec)
     pack = default_pack(spec, pack)
     print(plan(root, spec, len(todo), finished, jobs, backend, pack))
     print(f"\nruns to start, in order ({len(todo)}):")
@@ -297,6 +376,32 @@ def _dry_run(root: Any, spec: Any, jobs: int, backend: str, pack: int | None) ->
         f"{root}/report/ (report.md, tables/, figures/)\n(dry run: nothing written)"
     )
     return 0
+
+
+def _pending(root: Any, spec: Any) -> tuple[list, int]:
+    """(the runs ``root`` still lacks, how many it has) — without writing anything there."""
+    from rrls.experiments.benchfile import reconcile
+    from rrls.experiments.runner import pending_runs
+
+    return pending_runs(root, reconcile(root, spec))  # another protocol: refused now
+
+
+def confirmed(command: str, runs: int, yes: bool) -> bool:
+    """Whether to start ``runs`` runs: yes below ``CONFIRM_ABOVE``, with ``--yes``, without a
+    terminal on stdin or under CI (never blocks a script); else the answer to a prompt."""
+    import os
+
+    if yes or runs <= CONFIRM_ABOVE or os.environ.get("CI") or not sys.stdin.isatty():
+        return True
+    prompt = f"rrls {command}: start {runs} runs (see --dry-run for the estimate)? [y/N] "
+    try:
+        answer = input(prompt)
+    except (EOFError, KeyboardInterrupt):
+        answer = ""
+    if answer.strip().lower() in ("y", "yes"):
+        return True
+    print(f"rrls {command}: nothing started (--yes starts without asking)", file=sys.stderr)
+    return False
 
 
 def _report(args: argparse.Namespace) -> int:
@@ -364,7 +469,10 @@ def _quickstart(args: argparse.Namespace) -> int:
         return _fail("quickstart", "needs torch: pip install 'rrls[train]'")
     from rrls.experiments.runner import benchmark
 
-    spec = make_spec("quick", steps=args.steps, first_seed=getattr(args, "seed", 0))
+    spec = make_spec("quick", steps=args.steps, seeds=quickstart_seeds(args))
+    todo, _ = _pending(Path(args.out), spec)
+    if not confirmed("quickstart", len(todo), getattr(args, "yes", False)):
+        return 1
     code = benchmark(args.out, spec, default_jobs())
     root = Path(args.out)
     if (root / "report" / "summary.json").exists():
@@ -376,6 +484,22 @@ def _quickstart(args: argparse.Namespace) -> int:
         print(f"report: {root / 'report' / 'report.md'} (reduced budget, not the paper's)")
         print(f"runs: {root}/runs (TensorBoard: tensorboard --logdir {root}/runs)")
     return code
+
+
+def quickstart_seeds(args: argparse.Namespace) -> list[int] | None:
+    """``--seeds`` (a list or range), or the deprecated ``--seed S`` (the first of three)."""
+    first = getattr(args, "seed", None)
+    text = getattr(args, "seeds", None)
+    if first is not None and text is not None:
+        raise SpecError("give --seeds only (--seed S is its deprecated spelling S-(S+2))")
+    if first is not None:
+        seeds = [first, first + 1, first + 2]
+        notice("quickstart", f"--seed {first} is deprecated; write --seeds {as_range(seeds)}")
+        return seeds
+    try:
+        return None if text is None else parse_seeds(text)
+    except ValueError as err:
+        raise SpecError(str(err)) from None
 
 
 def _submit(args: argparse.Namespace) -> int:
