@@ -6,6 +6,8 @@ import argparse
 import sys
 from typing import Any
 
+from rrls.argtypes import nonnegative_int, positive_int, set_name, task_key
+
 #: what a command may raise for bad input: reported as ``rrls <command>: <message>``, exit 2
 USAGE_ERRORS = (ValueError, FileNotFoundError, FileExistsError, NotADirectoryError)
 
@@ -36,72 +38,8 @@ def unknown_option(parser: argparse.ArgumentParser, command: str, extras: list[s
     return f"rrls {command}: unknown option {flag}{hint}; see rrls {command} --help"
 
 
-#: the paper's tasks, for help texts; any registered task is accepted (``rrls.tasks.get_task``)
-TASK_CHOICES = ["ant", "halfcheetah", "hopper", "humanoidstandup", "invertedpendulum", "walker"]
-SET_CHOICES = ["1d", "2d", "3d", "rarl", "nominal"]
-
-
 class UsageError(ValueError):
     """Bad command-line input found after parsing (reported on one line, exit status 2)."""
-
-
-def _integer(text: str) -> int:
-    try:
-        return int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"{text!r} is not an integer") from None
-
-
-def positive_int(text: str) -> int:
-    """argparse ``type=``: an integer >= 1."""
-    value = _integer(text)
-    if value < 1:
-        raise argparse.ArgumentTypeError(f"must be an integer >= 1, got {text}")
-    return value
-
-
-def nonnegative_int(text: str) -> int:
-    """argparse ``type=``: an integer >= 0 (seeds, optional counts)."""
-    value = _integer(text)
-    if value < 0:
-        raise argparse.ArgumentTypeError(f"must be an integer >= 0, got {text}")
-    return value
-
-
-def positive_float(text: str) -> float:
-    """argparse ``type=``: a finite float > 0 (learning rates, scales)."""
-    import math
-
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"{text!r} is not a number") from None
-    if not math.isfinite(value) or value <= 0:
-        raise argparse.ArgumentTypeError(f"must be a finite number > 0, got {text}")
-    return value
-
-
-def task_key(text: str) -> str:
-    """argparse ``type=``: a task name or alias (``walker2d``), as its key."""
-    from rrls.tasks import get_task
-
-    try:
-        return get_task(text).key
-    except ValueError as err:
-        raise argparse.ArgumentTypeError(str(err)) from None
-
-
-def set_name(text: str) -> str:
-    """argparse ``type=``: the name of a set some registered task declares (or ``nominal``);
-    whether the chosen task has it is checked once the task is known."""
-    from rrls.tasks import TASKS
-
-    name = text.lower()
-    valid = list(dict.fromkeys([*SET_CHOICES, *(s for t in TASKS.values() for s in t.sets)]))
-    if name not in valid:
-        choices = ", ".join(valid)
-        raise argparse.ArgumentTypeError(f"invalid choice: {text!r} (choose from {choices})")
-    return name
 
 
 def _task_keys() -> list[str]:
@@ -287,7 +225,7 @@ def build_parser(with_train: bool = True) -> argparse.ArgumentParser:
     quick.add_argument("--seed", type=nonnegative_int, default=None, help=argparse.SUPPRESS)
     quick.add_argument("--yes", action="store_true", help="start without asking (see benchmark)")
 
-    from rrls.experiments.cli import add_parsers
+    from rrls.experiments.arguments import add_parsers
 
     add_parsers(sub)  # benchmark, report
 
@@ -538,6 +476,9 @@ def _table_file(out: object) -> str:
     from pathlib import Path
 
     return "episodes.parquet" if (Path(str(out)) / "episodes.parquet").exists() else "episodes.csv"
+
+
+__all__ = ["USAGE_ERRORS", "Parser", "UsageError", "build_parser", "main", "unknown_option"]
 
 
 if __name__ == "__main__":

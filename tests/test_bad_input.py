@@ -18,7 +18,8 @@ import numpy as np
 import pytest
 
 import rrls  # noqa: F401
-from rrls.cli import main, nonnegative_int, positive_float, positive_int
+from rrls.argtypes import nonnegative_int, positive_float, positive_int
+from rrls.cli import main
 from rrls.envs import HopperParamsBound, RobustHopper
 from rrls.evaluation import MLPPolicy, PolicyError, evaluate
 from rrls.uncertainty import UncertaintySet
