@@ -269,3 +269,6 @@ class Evaluator:
 
     def close(self) -> None:
         lanes.clear_env_cache()
+
+
+__all__ = ["Evaluator", "evaluate", "rollout_table"]
