@@ -122,7 +122,7 @@ def engine(
         policy,
         task,
         "3d",
-        nb_mesh_dim=mesh,
+        mesh=mesh,
         episodes=episodes,
         seed=0,
         workers=workers,

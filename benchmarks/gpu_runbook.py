@@ -171,7 +171,7 @@ def main(argv: list[str] | None = None) -> int:
         )
         bench = Path(tmp) / f"hopper-{steps}"
         command = [py, "-m", "rrls", "benchmark", "--preset", "hopper", "--out", str(bench)]
-        command += ["--seeds", str(seeds), "--steps", str(steps), "--device", args.device]
+        command += ["--seeds", f"0-{seeds - 1}", "--steps", str(steps), "--device", args.device]
         if args.tiny:
             command += ["--learning-starts", "100", "--mesh", "2", "--episodes", "1"]
             command += ["--eval-every", "0", "--algos", ",".join(TINY_ALGOS)]

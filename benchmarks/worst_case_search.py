@@ -43,7 +43,7 @@ def main() -> None:
         policy = MLPPolicy.random(obs_dim, act_dim, hidden=(64, 64), seed=policy_seed)
         start = time.perf_counter()
         grid = evaluate(
-            policy, args.task, args.uncertainty, nb_mesh_dim=10, episodes=1, seed=0, progress=False
+            policy, args.task, args.uncertainty, mesh=10, episodes=1, seed=0, progress=False
         )
         t_grid = time.perf_counter() - start
         start = time.perf_counter()

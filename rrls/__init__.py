@@ -11,6 +11,10 @@ submodules load on first use.
 >>> env.set_params(torsomass=2.0)
 >>> env.get_params()["torsomass"]
 2.0
+
+Through a wrapper that hides ``set_params`` (any Gymnasium wrapper): ``rrls.set_params(env,
+torsomass=2.0)`` (:mod:`rrls.interface`). ``rrls.evaluate(policy, "hopper")`` evaluates a
+policy's worst and average case (:func:`rrls.evaluation.evaluate`).
 """
 
 from __future__ import annotations
@@ -27,6 +31,8 @@ _LAZY = {
     "UncertaintySet": "rrls.uncertainty",
     "Split": "rrls.uncertainty",
     "ModifiedParamsEnv": "rrls.interface",
+    "set_params": "rrls.interface",
+    "get_params": "rrls.interface",
     "get_uncertainty_set": "rrls.envs",
     "generate_evaluation_set": "rrls.evaluation",
     "evaluation": "rrls.evaluation",

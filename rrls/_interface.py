@@ -1,21 +1,30 @@
-"""The original RRLS module path ``rrls._interface``: code written for it imports unchanged."""
+"""The original RRLS module path ``rrls._interface``, deprecated: use :mod:`rrls.interface`.
+
+Code written for it imports unchanged; each name warns (``DeprecationWarning``) on access.
+"""
 
 from __future__ import annotations
 
 from typing import Any
 
-import gymnasium as gym
+from rrls import interface
+from rrls.deprecation import warn_deprecated
 
-from rrls.interface import ModifiedParamsEnv
-
-#: the original's name of the protocol without the ``gym.Env`` part
-ModifiedParams = ModifiedParamsEnv
-
-
-def check_protocol_modified_params_env(obj: Any) -> bool:
-    """Whether ``obj`` is a Gymnasium env with callable ``set_params`` and ``get_params``."""
-    methods = all(callable(getattr(obj, m, None)) for m in ("set_params", "get_params"))
-    return methods and isinstance(obj, gym.Env)
+#: old name -> its name in rrls.interface (the module keeps no global of these names, so that
+#: every access goes through ``__getattr__`` and warns)
+_RENAMED = {
+    "ModifiedParamsEnv": "ModifiedParamsEnv",
+    "ModifiedParams": "ModifiedParamsEnv",
+    "check_protocol_modified_params_env": "is_modified_params_env",
+}
 
 
-__all__ = ["ModifiedParams", "ModifiedParamsEnv", "check_protocol_modified_params_env"]
+def __getattr__(name: str) -> Any:
+    if name not in _RENAMED:
+        raise AttributeError(f"module 'rrls._interface' has no attribute {name!r}")
+    new = _RENAMED[name]
+    warn_deprecated(f"rrls._interface.{name} is deprecated; use rrls.interface.{new}")
+    return getattr(interface, new)
+
+
+__all__ = ["ModifiedParams", "ModifiedParamsEnv", "check_protocol_modified_params_env"]  # noqa: F822

@@ -6,6 +6,8 @@ import argparse
 import sys
 from typing import Any
 
+from rrls.argtypes import nonnegative_int, positive_int, set_name, task_key
+
 #: what a command may raise for bad input: reported as ``rrls <command>: <message>``, exit 2
 USAGE_ERRORS = (ValueError, FileNotFoundError, FileExistsError, NotADirectoryError)
 
@@ -36,72 +38,8 @@ def unknown_option(parser: argparse.ArgumentParser, command: str, extras: list[s
     return f"rrls {command}: unknown option {flag}{hint}; see rrls {command} --help"
 
 
-#: the paper's tasks, for help texts; any registered task is accepted (``rrls.tasks.get_task``)
-TASK_CHOICES = ["ant", "halfcheetah", "hopper", "humanoidstandup", "invertedpendulum", "walker"]
-SET_CHOICES = ["1d", "2d", "3d", "rarl", "nominal"]
-
-
 class UsageError(ValueError):
     """Bad command-line input found after parsing (reported on one line, exit status 2)."""
-
-
-def _integer(text: str) -> int:
-    try:
-        return int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"{text!r} is not an integer") from None
-
-
-def positive_int(text: str) -> int:
-    """argparse ``type=``: an integer >= 1."""
-    value = _integer(text)
-    if value < 1:
-        raise argparse.ArgumentTypeError(f"must be an integer >= 1, got {text}")
-    return value
-
-
-def nonnegative_int(text: str) -> int:
-    """argparse ``type=``: an integer >= 0 (seeds, optional counts)."""
-    value = _integer(text)
-    if value < 0:
-        raise argparse.ArgumentTypeError(f"must be an integer >= 0, got {text}")
-    return value
-
-
-def positive_float(text: str) -> float:
-    """argparse ``type=``: a finite float > 0 (learning rates, scales)."""
-    import math
-
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"{text!r} is not a number") from None
-    if not math.isfinite(value) or value <= 0:
-        raise argparse.ArgumentTypeError(f"must be a finite number > 0, got {text}")
-    return value
-
-
-def task_key(text: str) -> str:
-    """argparse ``type=``: a task name or alias (``walker2d``), as its key."""
-    from rrls.tasks import get_task
-
-    try:
-        return get_task(text).key
-    except ValueError as err:
-        raise argparse.ArgumentTypeError(str(err)) from None
-
-
-def set_name(text: str) -> str:
-    """argparse ``type=``: the name of a set some registered task declares (or ``nominal``);
-    whether the chosen task has it is checked once the task is known."""
-    from rrls.tasks import TASKS
-
-    name = text.lower()
-    valid = list(dict.fromkeys([*SET_CHOICES, *(s for t in TASKS.values() for s in t.sets)]))
-    if name not in valid:
-        choices = ", ".join(valid)
-        raise argparse.ArgumentTypeError(f"invalid choice: {text!r} (choose from {choices})")
-    return name
 
 
 def _task_keys() -> list[str]:
@@ -110,10 +48,25 @@ def _task_keys() -> list[str]:
     return list(TASKS)
 
 
+def _plugin_names() -> str:
+    """`` (name, name)`` of the installed plug-in algorithms (entry point ``rrls.algorithms``)."""
+    from rrls.algorithms import plugin_entry_points
+
+    names = list(plugin_entry_points())
+    return f" ({', '.join(names)})" if names else ""
+
+
 def build_parser(with_train: bool = True) -> argparse.ArgumentParser:
     from rrls import __version__
+    from rrls.algorithms import built_in
+    from rrls.seeds import EXAMPLES
 
-    parser = Parser(prog="rrls", description="Robust Reinforcement Learning Suite")
+    parser = Parser(
+        prog="rrls",
+        description="Robust Reinforcement Learning Suite. One vocabulary in every command: "
+        f"--seed S is one seed, --seeds a list or range of seeds ({EXAMPLES}); --workers N the "
+        "worker processes; --mesh N points per dimension; --physics v5|paper.",
+    )
     parser.add_argument("--version", action="version", version=f"rrls {__version__}")
     sub = parser.add_subparsers(dest="command", required=True)
 
@@ -133,10 +86,13 @@ def build_parser(with_train: bool = True) -> argparse.ArgumentParser:
         f"{', '.join(_task_keys())})",
     )
     check.add_argument(
-        "--steps", type=positive_int, default=100, help="steps per episode (default 100)"
+        "--steps", type=positive_int, default=100, help="steps per episode (default: %(default)s)"
     )
     check.add_argument(
-        "--seed", type=nonnegative_int, default=0, help="seed of resets and actions (default 0)"
+        "--seed",
+        type=nonnegative_int,
+        default=0,
+        help="seed of resets and actions (default: %(default)s)",
     )
 
     ev = sub.add_parser(
@@ -178,13 +134,16 @@ def build_parser(with_train: bool = True) -> argparse.ArgumentParser:
         help="root of the per-episode seeds (default 0); results depend only on it",
     )
     ev.add_argument(
-        "--workers", type=positive_int, default=None, help="processes (default: all cores)"
+        "--workers",
+        type=positive_int,
+        default=None,
+        help="worker processes (default: the number of cores; results do not depend on it)",
     )
     ev.add_argument(
         "--batch-size",
         type=positive_int,
         default=None,
-        help="live episodes per worker (results do not depend on it)",
+        help="live episodes per worker (default: the engine's; results do not depend on it)",
     )
     ev.add_argument(
         "--no-endpoint",
@@ -212,11 +171,11 @@ def build_parser(with_train: bool = True) -> argparse.ArgumentParser:
         help="output directory (default: evaluations/<policy>-<task>-<uncertainty>-mesh<M>-ep<E>"
         "-seed<S>)",
     )
-    ev.add_argument("--plot", action="store_true", help="also write DIR/returns.png")
+    ev.add_argument("--plot", action="store_true", help="also write OUT/returns.png")
 
     tr = sub.add_parser(
         "train",
-        help="train a baseline (td3, dr, rarl, nrmdp, m2td3, sac, sacdr) or a plug-in; needs "
+        help=f"train a baseline ({', '.join(built_in())}) or a plug-in{_plugin_names()}; needs "
         "the `train` extra",
         description="Train a baseline with the paper's hyper-parameters. Checkpoints are written "
         "to --out; --resume continues a killed run exactly where it stopped.",
@@ -251,13 +210,22 @@ def build_parser(with_train: bool = True) -> argparse.ArgumentParser:
         "each evaluated over a 10-point mesh x 5 episodes, then the report, its tables and a "
         "plot. Resumable: the same command continues where it stopped.",
     )
-    quick.add_argument("--out", default="quickstart", help="output directory (default quickstart)")
+    quick.add_argument(
+        "--out", default="quickstart", help="output directory (default: %(default)s)"
+    )
     quick.add_argument(
         "--steps", type=int, default=None, help="steps per run (default: the preset's 30 000)"
     )
-    quick.add_argument("--seed", type=int, default=0, help="the first seed (default 0: seeds 0-2)")
+    quick.add_argument(
+        "--seeds",
+        metavar="SEEDS",
+        default=None,
+        help=f"the seeds, a list or range: {EXAMPLES} (default: the preset's 0-2)",
+    )
+    quick.add_argument("--seed", type=nonnegative_int, default=None, help=argparse.SUPPRESS)
+    quick.add_argument("--yes", action="store_true", help="start without asking (see benchmark)")
 
-    from rrls.experiments.cli import add_parsers
+    from rrls.experiments.arguments import add_parsers
 
     add_parsers(sub)  # benchmark, report
 
@@ -269,7 +237,7 @@ def build_parser(with_train: bool = True) -> argparse.ArgumentParser:
         "on one colour scale (3D).",
     )
     plot.add_argument("dir", help="an `rrls evaluate` output directory")
-    plot.add_argument("--out", help="PNG path (default DIR/returns.png)")
+    plot.add_argument("--out", help="PNG path (default: DIR/returns.png)")
     parser.subcommands = dict(sub.choices)
     return parser
 
@@ -386,7 +354,7 @@ def _evaluate(args: argparse.Namespace) -> int:
         policy,
         task,
         uncertainty,
-        nb_mesh_dim=args.mesh,
+        mesh=args.mesh,
         episodes=args.episodes,
         seed=args.seed,
         workers=args.workers,
@@ -508,6 +476,9 @@ def _table_file(out: object) -> str:
     from pathlib import Path
 
     return "episodes.parquet" if (Path(str(out)) / "episodes.parquet").exists() else "episodes.csv"
+
+
+__all__ = ["USAGE_ERRORS", "Parser", "UsageError", "build_parser", "main", "unknown_option"]
 
 
 if __name__ == "__main__":

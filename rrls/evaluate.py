@@ -1,18 +1,36 @@
-"""The original RRLS module ``rrls.evaluate``: ``generate_evaluation_set`` and its constants.
+"""``rrls.evaluate``: call it to evaluate a policy; import from it the original RRLS names.
 
-The original built all ``EVALUATION_ROBUST_*`` lists (5 660 environments) at import. Here each
-constant is a lazy :class:`~rrls.evaluation.EvaluationSet` made on first access of its name
-(module ``__getattr__``), and its environments are built only when read. The Hopper sets act on
+``rrls.evaluate(policy, "hopper")`` (and ``from rrls import evaluate``) is
+:func:`rrls.evaluation.evaluate` (also ``rrls.evaluate.evaluate``): this module is callable,
+because the original package's module path ``rrls.evaluate`` must stay while the obvious call
+must work.
+
+The original module's ``EVALUATION_ROBUST_*`` constants still import, with a
+``DeprecationWarning`` (use :func:`rrls.evaluation.default_evaluation_set`). The original built
+all of them (5 660 environments) at import; here each is a lazy
+:class:`~rrls.evaluation.EvaluationSet` made on first access of its name (module
+``__getattr__``; not listed by ``dir()``, like any deprecated name), and its environments are
+built only when read. The Hopper sets act on
 ``RobustHopper`` (the original built them from ``RobustWalker2d``, docs/differences.md #8).
 
->>> from rrls.evaluate import EVALUATION_ROBUST_HOPPER_2D
+>>> import warnings
+>>> with warnings.catch_warnings():
+...     warnings.simplefilter("ignore", DeprecationWarning)
+...     from rrls.evaluate import EVALUATION_ROBUST_HOPPER_2D
 >>> len(EVALUATION_ROBUST_HOPPER_2D)
 100
 """
 
 from __future__ import annotations
 
+import sys
+import types
+from typing import Any
+
+from rrls.deprecation import warn_deprecated
+from rrls.evaluation.evaluate import evaluate
 from rrls.evaluation.mesh import EvaluationSet, generate_evaluation_set
+from rrls.evaluation.result import EvaluationResult
 
 #: constant suffix -> (task key, set name), as named by the original code
 _CONSTANTS = {
@@ -27,24 +45,37 @@ _CONSTANTS = {
     )
     for dim in dims
 }
+#: the constants built so far (kept out of the module's namespace, so each access warns)
+_BUILT: dict[str, EvaluationSet] = {}
 
 
 def __getattr__(name: str) -> EvaluationSet:
     if name not in _CONSTANTS:
         raise AttributeError(f"module 'rrls.evaluate' has no attribute {name!r}")
-    from rrls.envs import FAMILY_ENVS
-    from rrls.tasks import TASKS
-
     task, set_name = _CONSTANTS[name]
-    spec = TASKS[task]  # the table's bounds and family: no env is built to make the set
-    env_class = FAMILY_ENVS[spec.families[set_name]][task]
-    value = generate_evaluation_set(env_class, spec.sets[set_name], nb_mesh_dim=10)
-    globals()[name] = value
-    return value
+    warn_deprecated(
+        f"rrls.evaluate.{name} is deprecated; use "
+        f'rrls.evaluation.default_evaluation_set("{task}", "{set_name}")'
+    )
+    if name not in _BUILT:
+        from rrls.envs import FAMILY_ENVS
+        from rrls.tasks import TASKS
+
+        spec = TASKS[task]  # the table's bounds and family: no env is built to make the set
+        env_class = FAMILY_ENVS[spec.families[set_name]][task]
+        _BUILT[name] = generate_evaluation_set(env_class, spec.sets[set_name], mesh=10)
+    return _BUILT[name]
 
 
-def __dir__() -> list[str]:
-    return sorted([*globals(), *_CONSTANTS])
+class _CallableModule(types.ModuleType):
+    """The module, callable as :func:`rrls.evaluation.evaluate` (same signature and doc)."""
+
+    def __call__(self, *args: Any, **kwargs: Any) -> EvaluationResult:
+        return evaluate(*args, **kwargs)
 
 
-__all__ = ["generate_evaluation_set", *_CONSTANTS]  # noqa: PLE0604
+sys.modules[__name__].__class__ = _CallableModule
+#: what ``inspect.signature(rrls.evaluate)`` and IDEs show: the function's signature
+__wrapped__ = evaluate
+
+__all__ = ["evaluate", "generate_evaluation_set", *_CONSTANTS]  # noqa: PLE0604

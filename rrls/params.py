@@ -444,3 +444,31 @@ def check_bounds(specs: tuple[ParamSpec, ...], box: object) -> None:
             problem = spec.check(bound)
             if problem:
                 raise ValueError(f"uncertainty set bound out of range: {problem}")
+
+
+__all__ = [
+    "actuator_id",
+    "ALL_GEOMS",
+    "body_id",
+    "check_bounds",
+    "com_params",
+    "Field",
+    "FieldInfo",
+    "FIELDS",
+    "force_params",
+    "friction_params",
+    "gear_params",
+    "GRAVITY",
+    "joint_dof",
+    "joint_params",
+    "kind_fields",
+    "KINDS",
+    "mass_params",
+    "names_of",
+    "ORIGINAL_FIELDS",
+    "ParamSpec",
+    "physics_params",
+    "SETCONST_FIELDS",
+    "TIMESTEP",
+    "VISCOSITY",
+]

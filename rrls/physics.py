@@ -1,25 +1,28 @@
 """The two physics a number can come from, and their one vocabulary.
 
 Every result records which physics produced it (``summary.json``, ``run.json``, the policies'
-metadata, ``benchmark.json``, reference files), always with one of these labels:
+metadata, ``benchmark.json``, reference files), always with one of these labels, the words
+``--physics`` takes:
 
-- ``rrls-v5`` (default): Gymnasium v5 envs with rrls's corrected parameter semantics;
-- ``paper-v4``: the paper's physics (Gymnasium v4 envs, the original code's parameter writes:
+- ``v5`` (default): Gymnasium v5 envs with rrls's corrected parameter semantics;
+- ``paper``: the paper's physics (Gymnasium v4 envs, the original code's parameter writes:
   :mod:`rrls.envs.paper`, the ``np.arange`` mesh), what ``paper=True`` builds.
 
-The short names users type (``--physics v5|paper``) and the labels older files wrote are read
-as the same two. Nothing here imports anything: every layer may use it.
+Files written before the labels were the command-line words say ``rrls-v5`` and ``paper-v4``
+(the shipped references and docs/results still do): they are read as the same two, so every
+comparison goes through :func:`physics_label`. Nothing here imports anything: every layer may
+use it.
 """
 
 from __future__ import annotations
 
 from typing import Any
 
-V5 = "rrls-v5"
-PAPER = "paper-v4"
+V5 = "v5"
+PAPER = "paper"
 LABELS = (V5, PAPER)
 #: what ``--physics`` and older files say -> the label
-ALIASES = {"v5": V5, "rrls": V5, V5: V5, "paper": PAPER, "v4": PAPER, PAPER: PAPER}
+ALIASES = {V5: V5, "rrls": V5, "rrls-v5": V5, PAPER: PAPER, "v4": PAPER, "paper-v4": PAPER}
 
 
 def physics_label(value: Any = None) -> str:
@@ -31,10 +34,13 @@ def physics_label(value: Any = None) -> str:
         return PAPER
     label = ALIASES.get(str(value).strip().lower()) if isinstance(value, str) else None
     if label is None:
-        raise ValueError(f"unknown physics {value!r}; valid: v5 ({V5}) or paper ({PAPER})")
+        raise ValueError(f"unknown physics {value!r}; valid: {V5} or {PAPER}")
     return label
 
 
 def is_paper(value: Any) -> bool:
     """Whether ``value`` names the paper's physics (``paper=True`` for the env constructors)."""
     return physics_label(value) == PAPER
+
+
+__all__ = ["ALIASES", "is_paper", "LABELS", "PAPER", "physics_label", "V5"]

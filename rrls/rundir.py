@@ -233,3 +233,33 @@ def truncate_scalars(path: Path, step: int) -> None:
     except ValueError as err:  # not UTF-8, or a step that is no integer
         raise DamagedFile(f"{path} is damaged ({err}); {_ADVICE}") from None
     write_checked(path, "".join(lines[:1] + rows).encode())
+
+
+__all__ = [
+    "ADVERSARY",
+    "CHECKPOINT",
+    "DamagedFile",
+    "ERROR",
+    "finished_steps",
+    "POLICY",
+    "PROGRESS",
+    "read_checked",
+    "read_checked_json",
+    "read_checked_table",
+    "read_sealed",
+    "remove_run_files",
+    "remove_temporary_files",
+    "RESULT",
+    "RUN_FILES",
+    "RUN_JSON",
+    "SCALARS",
+    "seal",
+    "seal_path",
+    "SEAL_SUFFIX",
+    "TENSORBOARD",
+    "truncate_scalars",
+    "write_checked",
+    "write_checked_json",
+    "write_checked_table",
+    "write_sealed",
+]

@@ -416,3 +416,6 @@ class Split:
 
     def __repr__(self) -> str:
         return f"Split({self.kind}, region={self.region!r} of {self.box!r})"
+
+
+__all__ = ["ArrayLike", "Point", "Split", "UncertaintySet"]

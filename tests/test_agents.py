@@ -465,7 +465,7 @@ def test_m2td3_worst_case_beats_td3_on_the_1d_mesh(tmp_path):
     for seed in (0, 1, 2):
         for algo, worst in scores.items():
             run = _train_ip(tmp_path, algo, "1d", 40_000, seed)
-            result = evaluate(run, "invertedpendulum", "1d", nb_mesh_dim=10, episodes=3, workers=1)
+            result = evaluate(run, "invertedpendulum", "1d", mesh=10, episodes=3, workers=1)
             worst.append(result.worst_case)
     assert min(scores["m2td3"]) > min(scores["td3"]), scores
 

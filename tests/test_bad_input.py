@@ -18,7 +18,8 @@ import numpy as np
 import pytest
 
 import rrls  # noqa: F401
-from rrls.cli import main, nonnegative_int, positive_float, positive_int
+from rrls.argtypes import nonnegative_int, positive_float, positive_int
+from rrls.cli import main
 from rrls.envs import HopperParamsBound, RobustHopper
 from rrls.evaluation import MLPPolicy, PolicyError, evaluate
 from rrls.uncertainty import UncertaintySet
@@ -153,10 +154,10 @@ def test_an_evaluation_directory_is_locked_while_in_use(tmp_path):
     out = tmp_path / "ev"
     with DirectoryLock(out):
         with pytest.raises(FileExistsError, match=f"{out} is in use"):
-            evaluate(_ip_policy(), "invertedpendulum", "1d", nb_mesh_dim=2, episodes=1, out_dir=out)
+            evaluate(_ip_policy(), "invertedpendulum", "1d", mesh=2, episodes=1, out_dir=out)
         assert not (out / "evaluation.json").exists() and not (out / "chunks").exists()
     # released: the same evaluation now runs
-    evaluate(_ip_policy(), "invertedpendulum", "1d", nb_mesh_dim=2, episodes=1, out_dir=out)
+    evaluate(_ip_policy(), "invertedpendulum", "1d", mesh=2, episodes=1, out_dir=out)
     assert (out / "summary.json").exists()
 
 
@@ -164,7 +165,7 @@ def test_an_evaluation_directory_is_locked_while_in_use(tmp_path):
 def test_a_damaged_chunk_is_named_and_recomputed(tmp_path, damage):
     from rrls.evaluation.chunks import CHUNK
 
-    kwargs = dict(nb_mesh_dim=3, episodes=40, workers=1, out_dir=tmp_path / "ev")
+    kwargs = dict(mesh=3, episodes=40, workers=1, out_dir=tmp_path / "ev")
     first = evaluate(_ip_policy(), "invertedpendulum", "1d", **kwargs)
     chunk = tmp_path / "ev" / "chunks" / "000001.npz"
     assert chunk.exists() and CHUNK < 120
@@ -210,7 +211,7 @@ def test_workers_exit_with_their_killed_parent(tmp_path):
                 time.sleep(0.05)  # the whole evaluation would take > 20 s
                 return np.zeros((len(obs), 1))
 
-            evaluate(slow, "invertedpendulum", "1d", nb_mesh_dim=10, episodes=300, workers=2)
+            evaluate(slow, "invertedpendulum", "1d", mesh=10, episodes=300, workers=2)
             """
         )
     )
@@ -243,11 +244,11 @@ def _alive(pid: int) -> bool:
 
 def test_a_policy_returning_non_numbers_is_a_policy_error():
     with pytest.raises(PolicyError, match="actions must be real numbers"):
-        evaluate(lambda o: np.full((len(o), 1), "up"), "invertedpendulum", "1d", nb_mesh_dim=2)
+        evaluate(lambda o: np.full((len(o), 1), "up"), "invertedpendulum", "1d", mesh=2)
 
 
 def test_evaluate_refuses_bad_counts_naming_them():
-    for name, value in [("episodes", 0), ("nb_mesh_dim", -1), ("workers", 0), ("batch_size", 0)]:
+    for name, value in [("episodes", 0), ("mesh", -1), ("workers", 0), ("batch_size", 0)]:
         with pytest.raises(ValueError, match=f"{name} must be an integer >= 1, got {value}"):
             evaluate(_ip_policy(), "invertedpendulum", "1d", **{name: value})
 
@@ -320,7 +321,7 @@ def test_uncertainty_sets_refuse_malformed_bounds():
 
 def test_damaged_result_files_are_named(tmp_path, capsys):
     out = tmp_path / "ev"
-    evaluate(_ip_policy(), "invertedpendulum", "1d", nb_mesh_dim=2, episodes=1, out_dir=out)
+    evaluate(_ip_policy(), "invertedpendulum", "1d", mesh=2, episodes=1, out_dir=out)
     (out / "summary.json").write_text("{ truncated")
     code, err = _run(["plot", str(out)], capsys)
     assert code == 2 and f"{out / 'summary.json'} is damaged" in err
@@ -329,7 +330,7 @@ def test_damaged_result_files_are_named(tmp_path, capsys):
     assert code == 2 and f"{out / 'summary.json'} is damaged (not valid JSON" in err
     (out / "evaluation.json").write_text("[]")
     with pytest.raises(ValueError, match="evaluation.json is damaged .*JSON list, not an object"):
-        evaluate(_ip_policy(), "invertedpendulum", "1d", nb_mesh_dim=2, episodes=1, out_dir=out)
+        evaluate(_ip_policy(), "invertedpendulum", "1d", mesh=2, episodes=1, out_dir=out)
 
 
 def test_library_entry_points_refuse_bad_sets_and_seeds_before_building_anything():
@@ -353,7 +354,7 @@ def test_a_policy_of_another_task_is_named_whatever_its_form(files):
     run = files / "run"  # trained on invertedpendulum
     for policy in (run, str(run / "policy.npz"), MLPPolicy.load(run / "policy.npz")):
         with pytest.raises(ValueError, match="trained on 'invertedpendulum', not on task 'hopper'"):
-            evaluate(policy, "hopper", "1d", nb_mesh_dim=2, episodes=1)
+            evaluate(policy, "hopper", "1d", mesh=2, episodes=1)
 
 
 def test_dynamic_evaluation_names_the_policy_that_returns_non_numbers():

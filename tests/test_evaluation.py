@@ -58,7 +58,7 @@ def test_rows_equal_the_plain_loop(task):
     policy = _policy(task)
     steps = STEPS.get(task, 1000)
     result = evaluate(
-        policy, task, "2d", nb_mesh_dim=2, episodes=2, seed=7, workers=1, max_episode_steps=steps
+        policy, task, "2d", mesh=2, episodes=2, seed=7, workers=1, max_episode_steps=steps
     )
     assert len(result.episodes) == 8
     for row in result.episodes.itertuples(index=False):
@@ -70,7 +70,7 @@ def test_rows_equal_the_plain_loop(task):
 @pytest.mark.parametrize("uncertainty", ["rarl", "nominal"])
 def test_force_set_and_nominal_equal_the_plain_loop(uncertainty):
     policy = _policy("hopper")
-    result = evaluate(policy, "hopper", uncertainty, nb_mesh_dim=2, episodes=1, workers=1)
+    result = evaluate(policy, "hopper", uncertainty, mesh=2, episodes=1, workers=1)
     family = "force" if uncertainty == "rarl" else "robust"
     for row in result.episodes.itertuples(index=False):
         params = {n: getattr(row, n) for n in result.param_names}
@@ -86,7 +86,7 @@ def test_results_do_not_depend_on_workers_or_batch_size():
     policy = _policy("walker")
     runs = [
         evaluate(
-            policy, "walker", "3d", nb_mesh_dim=2, episodes=3, seed=1, workers=w, batch_size=b
+            policy, "walker", "3d", mesh=2, episodes=3, seed=1, workers=w, batch_size=b
         ).episodes
         for w, b in [(1, 1), (1, 5), (1, 64), (2, 3), (2, 64)]
     ]
@@ -184,9 +184,7 @@ def test_results_do_not_depend_on_the_work_split_or_chunk_size(tmp_path):
 
 def test_table_columns_seeds_and_scores():
     policy = _policy("invertedpendulum")
-    result = evaluate(
-        policy, "invertedpendulum", "2d", nb_mesh_dim=3, episodes=4, seed=5, workers=1
-    )
+    result = evaluate(policy, "invertedpendulum", "2d", mesh=3, episodes=4, seed=5, workers=1)
     frame = result.episodes
     assert list(frame.columns) == [
         "point",
@@ -215,9 +213,9 @@ def test_table_columns_seeds_and_scores():
 
 def test_same_seed_same_numbers_other_seed_other_numbers():
     policy = _policy("hopper")
-    a = evaluate(policy, "hopper", "1d", nb_mesh_dim=2, episodes=2, seed=0, workers=1)
-    b = evaluate(policy, "hopper", "1d", nb_mesh_dim=2, episodes=2, seed=0, workers=2)
-    c = evaluate(policy, "hopper", "1d", nb_mesh_dim=2, episodes=2, seed=1, workers=1)
+    a = evaluate(policy, "hopper", "1d", mesh=2, episodes=2, seed=0, workers=1)
+    b = evaluate(policy, "hopper", "1d", mesh=2, episodes=2, seed=0, workers=2)
+    c = evaluate(policy, "hopper", "1d", mesh=2, episodes=2, seed=1, workers=1)
     pd.testing.assert_frame_equal(a.episodes, b.episodes)
     assert not np.array_equal(a.episodes["return"], c.episodes["return"])
 
@@ -241,7 +239,7 @@ def test_interrupted_evaluation_resumes_to_the_same_result(tmp_path):
     kwargs = dict(
         task="invertedpendulum",
         uncertainty="2d",
-        nb_mesh_dim=4,
+        mesh=4,
         episodes=10,
         seed=3,
         workers=1,
@@ -271,19 +269,15 @@ def test_interrupted_evaluation_resumes_to_the_same_result(tmp_path):
 
 def test_resume_refuses_other_arguments(tmp_path):
     policy = _policy("invertedpendulum")
-    evaluate(
-        policy, "invertedpendulum", "1d", nb_mesh_dim=2, episodes=1, out_dir=tmp_path, workers=1
-    )
+    evaluate(policy, "invertedpendulum", "1d", mesh=2, episodes=1, out_dir=tmp_path, workers=1)
     with pytest.raises(ValueError, match="different arguments.*episodes"):
-        evaluate(
-            policy, "invertedpendulum", "1d", nb_mesh_dim=2, episodes=2, out_dir=tmp_path, workers=1
-        )
+        evaluate(policy, "invertedpendulum", "1d", mesh=2, episodes=2, out_dir=tmp_path, workers=1)
     with pytest.raises(ValueError, match="policy_fingerprint"):
         evaluate(
             _policy("invertedpendulum", seed=9),
             "invertedpendulum",
             "1d",
-            nb_mesh_dim=2,
+            mesh=2,
             episodes=1,
             out_dir=tmp_path,
             workers=1,
@@ -302,12 +296,12 @@ def test_nan_actions_name_the_point_and_step(workers):
     with pytest.raises(
         PolicyError, match=r"non-finite.*mesh point \d+ \{'worldfriction'.*step \d+"
     ):
-        evaluate(nan_late, "hopper", "1d", nb_mesh_dim=2, episodes=1, workers=workers)
+        evaluate(nan_late, "hopper", "1d", mesh=2, episodes=1, workers=workers)
 
 
 def test_wrong_action_shape_is_refused_before_rollouts():
     with pytest.raises(PolicyError, match=r"expected \(2, 3\)"):
-        evaluate(lambda obs: np.zeros((len(obs), 2)), "hopper", "1d", nb_mesh_dim=2, workers=1)
+        evaluate(lambda obs: np.zeros((len(obs), 2)), "hopper", "1d", mesh=2, workers=1)
 
     calls = []
 
@@ -316,14 +310,14 @@ def test_wrong_action_shape_is_refused_before_rollouts():
         return np.zeros((len(obs), 3 if len(calls) < 50 else 4))
 
     with pytest.raises(PolicyError, match=r"shape .*mesh point .*step"):
-        evaluate(shape_changes, "hopper", "1d", nb_mesh_dim=2, episodes=1, workers=1)
+        evaluate(shape_changes, "hopper", "1d", mesh=2, episodes=1, workers=1)
 
 
 def test_divergence_is_recorded_not_raised():
     huge = UncertaintySet(("torsoforce_x",), [0.0], [1e12], [0.0], "hopper/huge-force")
     zero = lambda obs: np.zeros((len(obs), 3))  # noqa: E731
     with pytest.warns(UserWarning, match="diverged"):
-        result = evaluate(zero, "hopper", huge, nb_mesh_dim=2, episodes=1, workers=1)
+        result = evaluate(zero, "hopper", huge, mesh=2, episodes=1, workers=1)
     frame = result.episodes
     assert frame["diverged"].tolist() == [False, True]
     assert np.isfinite(frame["return"]).all()
@@ -338,7 +332,7 @@ def test_non_batch_invariant_policy_warns():
         return np.tanh(obs.astype(np.float32) @ w) + 1e-7 * len(obs)
 
     with pytest.warns(UserWarning, match="BatchInvariant"):
-        evaluate(leaky, "hopper", "1d", nb_mesh_dim=2, episodes=1, workers=1)
+        evaluate(leaky, "hopper", "1d", mesh=2, episodes=1, workers=1)
     wrapped = BatchInvariant(leaky)
     np.testing.assert_array_equal(wrapped(np.ones((70, 11)))[3], wrapped(np.ones((1, 11)))[0])
 
@@ -397,7 +391,7 @@ def test_search_worst_case_trace_budget_and_consistency():
     assert found.uncertainty.contains(trace[["worldfriction", "torsomass"]].to_numpy()).all()
     # the reported value is what the engine gives at that point with the same (common) seeds
     point = UncertaintySet.from_bounds({k: [v, v] for k, v in found.params.items()})
-    again = evaluate(policy, "hopper", point, nb_mesh_dim=1, episodes=2, seed=0, workers=1)
+    again = evaluate(policy, "hopper", point, mesh=1, episodes=2, seed=0, workers=1)
     assert again.worst_case == found.value
     # reproducible
     other = search_worst_case(policy, "hopper", "2d", budget=30, episodes=2, seed=0, workers=2)
@@ -413,7 +407,7 @@ def test_search_beats_the_grid_with_fewer_episodes():
     policy = MLPPolicy.random(
         env.observation_space.shape[0], env.action_space.shape[0], hidden=(64, 64), seed=1
     )
-    grid = evaluate(policy, "hopper", "3d", nb_mesh_dim=10, episodes=1, seed=0)
+    grid = evaluate(policy, "hopper", "3d", mesh=10, episodes=1, seed=0)
     found = search_worst_case(policy, "hopper", "3d", budget=400, episodes=1, seed=0)
     assert found.episode_evaluations < len(grid.episodes)
     assert found.value < grid.worst_case
@@ -496,7 +490,7 @@ def test_torch_modules_are_adapted():
     obs = np.random.default_rng(0).normal(size=(100, 11))
     batch = adapted(obs)
     np.testing.assert_array_equal(batch[70], adapted(obs[70:71])[0])
-    result = evaluate(module, "hopper", "1d", nb_mesh_dim=2, episodes=1, workers=2)
+    result = evaluate(module, "hopper", "1d", mesh=2, episodes=1, workers=2)
     ret, length = plain_loop(
         "rrls/robust-hopper-v0",
         adapted,
@@ -553,7 +547,7 @@ def test_plots_for_1d_and_3d(tmp_path, uncertainty):
         _policy("hopper"),
         "hopper",
         uncertainty,
-        nb_mesh_dim=3,
+        mesh=3,
         episodes=1,
         workers=1,
         out_dir=tmp_path,
@@ -585,7 +579,7 @@ def test_3d_plot_shares_one_colour_scale_and_names_the_policy(tmp_path):
     policy = _policy("hopper")
     policy.metadata.update(algorithm="m2td3", seed=7)
     out = tmp_path / "ev"
-    evaluate(policy, "hopper", "3d", nb_mesh_dim=2, episodes=1, out_dir=out, max_episode_steps=15)
+    evaluate(policy, "hopper", "3d", mesh=2, episodes=1, out_dir=out, max_episode_steps=15)
     seen = {}
     real_savefig = plt.Figure.savefig
 

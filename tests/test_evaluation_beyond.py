@@ -45,7 +45,7 @@ def assert_rows_equal_plain_loop(result: EvaluationResult, wrap, policy) -> None
 def test_disruptor_strengths_meshed_jointly_with_dynamics(workers):
     box = UncertaintySet.from_bounds({"torsomass": (1.0, 5.0), "obsnoise": (0.0, 0.2)})
     policy = policy_for(11)
-    kw = dict(nb_mesh_dim=2, episodes=2, seed=1, max_episode_steps=STEPS)
+    kw = dict(mesh=2, episodes=2, seed=1, max_episode_steps=STEPS)
     result = evaluate(policy, "hopper", box, workers=workers, **kw)
     assert result.param_names == ["torsomass", "obsnoise"] and len(result.episodes) == 8
     assert_rows_equal_plain_loop(result, lambda env: disrupt(env, obsnoise=0.0), policy)
@@ -61,7 +61,7 @@ def test_disruptors_alone_fixed_and_meshed():
         policy,
         "hopper",
         "nominal",
-        nb_mesh_dim=3,
+        mesh=3,
         episodes=1,
         workers=1,
         max_episode_steps=STEPS,
@@ -101,7 +101,7 @@ def test_context_policy_sees_the_parameters():
         policy,
         "hopper",
         box,
-        nb_mesh_dim=3,
+        mesh=3,
         episodes=1,
         workers=1,
         context=True,
@@ -109,7 +109,7 @@ def test_context_policy_sees_the_parameters():
     )
     assert_rows_equal_plain_loop(result, lambda env: ContextObservation(env, box), policy)
     with pytest.raises(ValueError, match=r"expected \(2, 3\)|\(2, 11\)"):
-        evaluate(policy, "hopper", box, nb_mesh_dim=2, episodes=1, workers=1)
+        evaluate(policy, "hopper", box, mesh=2, episodes=1, workers=1)
 
 
 @pytest.mark.parametrize("kind", ["interpolation", "extrapolation"])
@@ -140,7 +140,7 @@ def test_evaluate_and_report_give_in_and_out_of_distribution_scores(tmp_path):
         policy,
         "hopper",
         box,
-        nb_mesh_dim=4,
+        mesh=4,
         episodes=1,
         workers=1,
         split=split,
@@ -163,13 +163,13 @@ def test_evaluate_and_report_give_in_and_out_of_distribution_scores(tmp_path):
 
 def test_bad_beyond_arguments():
     policy = policy_for(11)
-    kw = dict(nb_mesh_dim=2, episodes=1, workers=1)
+    kw = dict(mesh=2, episodes=1, workers=1)
     with pytest.raises(ValueError, match="unknown disruptor 'noise'"):
         evaluate(policy, "hopper", "1d", disruptors={"noise": 0.1}, **kw)
     with pytest.raises(ValueError, match="obsnoise is a standard deviation"):
         evaluate(policy, "hopper", "1d", disruptors={"obsnoise": (-1, 0)}, **kw)
     with pytest.raises(ValueError, match="the mesh has obsdelay=0.5: .*whole number"):
-        evaluate(policy, "hopper", "1d", disruptors={"obsdelay": (0, 1)}, nb_mesh_dim=3, episodes=1)
+        evaluate(policy, "hopper", "1d", disruptors={"obsdelay": (0, 1)}, mesh=3, episodes=1)
     with pytest.raises(TypeError, match="ScheduleFamily"):
         evaluate(policy, "hopper", "1d", schedule=Drift(0.1), **kw)
     with pytest.raises(ValueError, match="a schedule needs a set"):

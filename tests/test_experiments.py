@@ -37,7 +37,7 @@ needs_torch = pytest.mark.skipif(
     importlib.util.find_spec("torch") is None, reason="training needs torch (rrls[train])"
 )
 REPO = Path(__file__).resolve().parents[1]
-SMOKE = ["benchmark", "--preset", "smoke", "--jobs", "2"]
+SMOKE = ["benchmark", "--preset", "smoke", "--workers", "2"]
 
 
 @pytest.fixture(scope="module")
@@ -54,7 +54,7 @@ def test_an_exported_reference_says_where_it_came_from(smoke, tmp_path):
 
     export_reference(smoke, tmp_path / "ref.json")
     prov = load_reference(tmp_path / "ref.json").provenance
-    assert prov["preset"] == "smoke" and prov["physics"] == "rrls-v5" and prov["runs"] == 5
+    assert prov["preset"] == "smoke" and prov["physics"] == "v5" and prov["runs"] == 5
     assert prov["seeds"] == [0] and prov["steps"] == 300 and prov["hidden"] == [16, 16]
     assert all(prov["versions"][k] for k in ("rrls", "torch", "mujoco", "gymnasium", "numpy"))
     assert prov["devices"] == ["cpu"] and len(prov["machines"]) == 1
@@ -271,8 +271,8 @@ def test_ray_backend_runs_the_same_function(smoke, tmp_path):
         (["--algos", "td3,ppo"], "unknown algorithm 'ppo'"),
         (["--tasks", "pong"], "unknown task 'pong'"),
         (["--tasks", "invertedpendulum", "--uncertainty", "3d"], "no uncertainty set '3d'"),
-        (["--seeds", "0"], "--seeds must be >= 1"),
-        (["--jobs", "0"], "--jobs must be >= 1"),
+        (["--seeds", "0"], "--seeds 0: no seed to run"),
+        (["--workers", "0"], "--workers must be >= 1"),
         (["--backend", "slurm"], "unknown backend"),
     ],
 )
@@ -468,23 +468,23 @@ def test_quickstart_is_the_quick_preset(tmp_path, capsys, monkeypatch):
 def test_a_paper_physics_benchmark_trains_evaluates_and_records_it(tmp_path, capsys):
     # (with RARL against TC-RMDP's rate-limited adversary: trained and evaluated in that game)
     out = tmp_path / "paper"
-    args = [*SMOKE, "--algos", "rarl", "--jobs", "1", "--out", str(out), "--rate-limit", "0.1"]
+    args = [*SMOKE, "--algos", "rarl", "--workers", "1", "--out", str(out), "--rate-limit", "0.1"]
     args += ["--observe", "oracle"]
     assert main([*args, "--physics", "paper"]) == 0
-    assert json.loads((out / "benchmark.json").read_text())["physics"] == "paper-v4"
+    assert json.loads((out / "benchmark.json").read_text())["physics"] == "paper"
     (run,) = (out / "runs").iterdir()
-    assert json.loads((run / "run.json").read_text())["config"]["physics"] == "paper-v4"
+    assert json.loads((run / "run.json").read_text())["config"]["physics"] == "paper"
     summary = json.loads((run / "eval" / "summary.json").read_text())
-    assert summary["physics"] == "paper-v4" and summary["endpoint"] is False
+    assert summary["physics"] == "paper" and summary["endpoint"] is False
     result = json.loads((run / "result.json").read_text())
-    assert result["physics"] == "paper-v4" and result["dynamic_env"].endswith("[paper-v4]")
+    assert result["physics"] == "paper" and result["dynamic_env"].endswith("[paper]")
     assert "rate_limit=0.1, rate_game=tc, observe=oracle" in result["dynamic_env"]
     hyper = json.loads((run / "run.json").read_text())["hyperparameters"]
     assert (hyper["rate_limit"], hyper["rate_game"], hyper["observe"]) == (0.1, "tc", "oracle")
     assert "protagonist_view" in summary  # the static evaluation showed it [s, ψ01] too
     capsys.readouterr()
     assert main(args) == 2  # the same directory on rrls's physics: another protocol
-    assert "physics: 'paper-v4' there, 'rrls-v5' now" in capsys.readouterr().err
+    assert "physics: 'paper' there, 'v5' now" in capsys.readouterr().err
 
 
 def test_benchmark_rate_limit_is_rarls_alone_and_checked():
@@ -511,7 +511,7 @@ def test_benchmark_rate_limit_is_rarls_alone_and_checked():
 @needs_torch
 def test_a_split_benchmark_trains_inside_and_reports_in_and_out_of_distribution(tmp_path):
     out = tmp_path / "split"
-    args = [*SMOKE, "--algos", "td3,dr", "--jobs", "1", "--mesh", "3", "--out", str(out)]
+    args = [*SMOKE, "--algos", "td3,dr", "--workers", "1", "--mesh", "3", "--out", str(out)]
     assert main([*args, "--split", "Extrapolation"]) == 0
     assert json.loads((out / "benchmark.json").read_text())["split"] == "extrapolation:0.5"
     run = out / "runs" / "dr-invertedpendulum-1d-seed0"

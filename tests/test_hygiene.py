@@ -57,7 +57,7 @@ def test_error_is_one_line():
 
 def test_leftover_temporary_chunks_are_removed_at_resume(tmp_path):
     still = lambda obs: np.zeros((len(obs), 1))  # noqa: E731
-    kw = dict(nb_mesh_dim=2, episodes=1, workers=1, out_dir=tmp_path, max_episode_steps=20)
+    kw = dict(mesh=2, episodes=1, workers=1, out_dir=tmp_path, max_episode_steps=20)
     first = evaluate(still, "invertedpendulum", "1d", **kw)
     chunks = tmp_path / "chunks"
     leftover = chunks / ".000000.npz.k1ll3d.tmp"

@@ -90,9 +90,7 @@ def test_evaluate_meshes_every_kind_and_rows_equal_the_plain_loop(task, names, l
 
     box = UncertaintySet(names, low, high)
     steps = 40
-    result = evaluate(
-        policy, task, box, nb_mesh_dim=2, episodes=1, workers=1, max_episode_steps=steps
-    )
+    result = evaluate(policy, task, box, mesh=2, episodes=1, workers=1, max_episode_steps=steps)
     assert len(result.episodes) == 2 ** len(names)
     for _, row in result.episodes.iterrows():
         params = {n: row[n] for n in names}

@@ -26,10 +26,10 @@ def test_endpoint_false_is_the_original_mesh():
 
 
 def test_points_without_environments_and_named_defaults():
-    pts = evaluation_points("walker", "2d", nb_mesh_dim=4)
+    pts = evaluation_points("walker", "2d", mesh=4)
     assert pts.shape == (16, 2)
     nominal = evaluation_points("hopper", "nominal")
     assert nominal.shape == (1, 0)  # one point, no parameter set: the model as shipped
-    forces = default_evaluation_set("hopper", "rarl", nb_mesh_dim=3)
+    forces = default_evaluation_set("hopper", "rarl", mesh=3)
     assert forces.modified_env is ForceHopper and len(forces) == 9
     assert forces[0].get_params()["footforce_x"] == -3.0

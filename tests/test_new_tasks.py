@@ -103,9 +103,7 @@ def test_evaluation_rows_equal_the_plain_loop(task):
     def policy(obs):
         return np.tile(np.linspace(space.low, space.high, 3)[1] * 0.5 + 0.1, (len(obs), 1))
 
-    result = evaluate(
-        policy, task, "1d", nb_mesh_dim=2, episodes=1, workers=1, max_episode_steps=30
-    )
+    result = evaluate(policy, task, "1d", mesh=2, episodes=1, workers=1, max_episode_steps=30)
     for _, row in result.episodes.iterrows():
         env = gym.make(f"rrls/robust-{task}-v0")
         name = result.param_names[0]

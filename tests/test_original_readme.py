@@ -118,18 +118,20 @@ def test_readme_uncertainty_sets():  # README.md:105-134
 
 
 def test_readme_evaluate():  # README.md:140-155
-    from rrls.evaluate import EVALUATION_ROBUST_ANT_3D  # Set consisting of 10^3 environments
+    with pytest.warns(DeprecationWarning, match="default_evaluation_set"):  # works, and says so
+        from rrls.evaluate import EVALUATION_ROBUST_ANT_3D  # Set consisting of 10^3 environments
 
     assert len(EVALUATION_ROBUST_ANT_3D) == 1000
 
     from rrls.envs.ant import AntParamsBound, RobustAnt
     from rrls.evaluate import generate_evaluation_set
 
-    eval_env_set = generate_evaluation_set(
-        modified_env=RobustAnt,
-        param_bounds=AntParamsBound.THREE_DIM.value,
-        nb_mesh_dim=3,
-    )
+    with pytest.warns(DeprecationWarning, match="use mesh="):
+        eval_env_set = generate_evaluation_set(
+            modified_env=RobustAnt,
+            param_bounds=AntParamsBound.THREE_DIM.value,
+            nb_mesh_dim=3,
+        )
     assert len(eval_env_set) == 27
     env = eval_env_set[26]
     env.reset(seed=0)

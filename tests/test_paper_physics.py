@@ -75,12 +75,12 @@ def test_evaluate_paper_uses_v4_and_the_arange_mesh_and_records_it(tmp_path):
         return np.tanh(obs[:, :3])
 
     paper = evaluate(
-        policy, "hopper", "1d", nb_mesh_dim=3, episodes=1, workers=1, max_episode_steps=30,
+        policy, "hopper", "1d", mesh=3, episodes=1, workers=1, max_episode_steps=30,
         paper=True, out_dir=tmp_path / "paper",
     )  # fmt: skip
     assert paper.episodes["worldfriction"].round(6).tolist() == [0.1, 1.066667, 2.033333]
     summary = json.loads((tmp_path / "paper" / "summary.json").read_text())
-    assert summary["physics"] == "paper-v4" and summary["endpoint"] is False
+    assert summary["physics"] == "paper" and summary["endpoint"] is False
     for _, row in paper.episodes.iterrows():
         env = gym.make("rrls/robust-hopper-v0", paper=True, max_episode_steps=30)
         env.set_params(worldfriction=row["worldfriction"])
@@ -91,11 +91,9 @@ def test_evaluate_paper_uses_v4_and_the_arange_mesh_and_records_it(tmp_path):
             total += r
             done = term or trunc
         assert total == row["return"]
-    v5 = evaluate(
-        policy, "hopper", "1d", nb_mesh_dim=3, episodes=1, workers=1, max_episode_steps=30
-    )
+    v5 = evaluate(policy, "hopper", "1d", mesh=3, episodes=1, workers=1, max_episode_steps=30)
     assert v5.episodes["worldfriction"].tolist()[-1] == 3.0
-    assert v5.summary()["physics"] == "rrls-v5"
+    assert v5.summary()["physics"] == "v5"
 
 
 def test_cli_evaluate_physics_paper(tmp_path, capsys):
@@ -108,7 +106,7 @@ def test_cli_evaluate_physics_paper(tmp_path, capsys):
     assert main([*args, "--physics", "paper", "--out", str(tmp_path / "e")]) == 0
     assert "(paper physics)" in capsys.readouterr().out
     summary = json.loads((tmp_path / "e" / "summary.json").read_text())
-    assert summary["physics"] == "paper-v4" and summary["endpoint"] is False
+    assert summary["physics"] == "paper" and summary["endpoint"] is False
 
 
 def test_physics_labels_are_one_vocabulary_and_old_ones_read_as_today():
@@ -116,6 +114,7 @@ def test_physics_labels_are_one_vocabulary_and_old_ones_read_as_today():
 
     assert [physics_label(v) for v in ("v5", "rrls-v5", None, False)] == [V5] * 4
     assert [physics_label(v) for v in ("paper", "paper-v4", "v4", True)] == [PAPER] * 4
+    assert (V5, PAPER) == ("v5", "paper")  # recorded as --physics says it
     with pytest.raises(ValueError, match="unknown physics 'v3'; valid: v5"):
         physics_label("v3")
 
@@ -131,7 +130,7 @@ def test_train_physics_paper_uses_the_v4_twin_and_records_it(tmp_path):
         algo="rarl", task="hopper", uncertainty="1d", steps=80, seed=0, out=str(tmp_path / "r"),
         eval_every=0, checkpoint_every=80, physics="paper", hyper=small, progress=False,
     )  # fmt: skip
-    assert config.physics == "paper-v4" and config.max_episode_steps == 1000
+    assert config.physics == "paper" and config.max_episode_steps == 1000
     env = env_factory(algorithm("rarl"), config, hyperparameters(config))()
     assert type(env.unwrapped).__name__ == "PaperRobustHopper" and env.unwrapped.paper
     v5 = env_factory(
@@ -139,16 +138,16 @@ def test_train_physics_paper_uses_the_v4_twin_and_records_it(tmp_path):
     )()
     assert type(v5.unwrapped).__name__ == "RobustHopper"
     run = train(config)
-    assert json.loads((run / "run.json").read_text())["config"]["physics"] == "paper-v4"
-    assert MLPPolicy.load(run / "adversary.npz").metadata["physics"] == "paper-v4"
+    assert json.loads((run / "run.json").read_text())["config"]["physics"] == "paper"
+    assert MLPPolicy.load(run / "adversary.npz").metadata["physics"] == "paper"
     from rrls.evaluation import evaluate_run_dynamic
 
-    assert evaluate_run_dynamic(run, episodes=1).env_id.endswith("[paper-v4]")
+    assert evaluate_run_dynamic(run, episodes=1).env_id.endswith("[paper]")
     from rrls.cli import main
 
     args = ["evaluate", str(run), "--mesh", "2", "--episodes", "1", "--workers", "1"]
     assert main([*args, "--out", str(tmp_path / "e")]) == 0  # the run's physics by default
-    assert json.loads((tmp_path / "e" / "summary.json").read_text())["physics"] == "paper-v4"
+    assert json.loads((tmp_path / "e" / "summary.json").read_text())["physics"] == "paper"
     with pytest.raises(ValueError, match="task 'swimmer' has no paper physics; valid with"):
         TrainConfig(task="swimmer", physics="paper")
 
@@ -158,9 +157,9 @@ def test_a_reference_of_other_physics_is_refused_for_a_paper_benchmark():
     from rrls.experiments.spec import SpecError, make_spec
 
     spec = make_spec("quick", physics="paper")
-    assert spec.physics == "paper-v4" and spec.to_json()["physics"] == "paper-v4"
-    quick = load_reference("quick")  # measured on rrls-v5
-    with pytest.raises(ReferenceError, match="physics: 'rrls-v5' there, 'paper-v4' here"):
+    assert spec.physics == "paper" and spec.to_json()["physics"] == "paper"
+    quick = load_reference("quick")  # measured on v5 (its file says rrls-v5)
+    with pytest.raises(ReferenceError, match="physics: 'v5' there, 'paper' here"):
         check_compatible(quick, spec.to_json())
     check_compatible(quick, make_spec("quick").to_json())  # same physics: accepted
     old = {**make_spec("quick").to_json(), "physics": "v5"}  # an older label

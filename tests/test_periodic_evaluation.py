@@ -22,7 +22,7 @@ def test_periodic_evaluation_equals_evaluate_and_reuses_its_plan(tmp_path):
         scores = periodic(policy)
         common = {"seed": PeriodicEvaluation.SEED, "workers": 1, "progress": False}
         nominal = evaluate(policy, "invertedpendulum", "nominal", episodes=5, **common)
-        mesh = evaluate(policy, "invertedpendulum", "2d", nb_mesh_dim=2, episodes=1, **common)
+        mesh = evaluate(policy, "invertedpendulum", "2d", mesh=2, episodes=1, **common)
         assert scores == {
             "eval/nominal_return": nominal.average_case,
             "eval/worst_case": mesh.worst_case,

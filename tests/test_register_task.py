@@ -107,7 +107,7 @@ def test_sets_resolve_and_wrappers_work():
 
 
 def test_evaluate_rows_equal_the_plain_gymnasium_loop_and_search_runs():
-    result = evaluate(_policy, "usertask", "2d", nb_mesh_dim=2, episodes=1, workers=1)
+    result = evaluate(_policy, "usertask", "2d", mesh=2, episodes=1, workers=1)
     frame = result.episodes
     assert len(frame) == 4
     for _, row in frame.iterrows():
@@ -259,7 +259,7 @@ def test_entry_point_task_is_found_by_name(plugin):
 @needs_torch
 def test_benchmark_on_an_entry_point_task(plugin, tmp_path, capsys):
     out = tmp_path / "bench"
-    args = ["benchmark", "--preset", "smoke", "--jobs", "1", "--out", str(out)]
+    args = ["benchmark", "--preset", "smoke", "--workers", "1", "--out", str(out)]
     assert main([*args, "--algos", "td3", "--tasks", "plugintask"]) == 0
     summary = json.loads((out / "report" / "summary.json").read_text())
     assert summary["tasks"] == ["plugintask"]

@@ -118,7 +118,7 @@ def test_nominal_params_cannot_be_changed_by_a_caller():
 def test_evaluation_leaves_no_cached_envs_behind():
     from rrls.evaluation import MLPPolicy, engine, evaluate, lanes
 
-    evaluate(MLPPolicy.random(4, 1, (8,)), "invertedpendulum", "1d", nb_mesh_dim=2, episodes=1)
+    evaluate(MLPPolicy.random(4, 1, (8,)), "invertedpendulum", "1d", mesh=2, episodes=1)
     assert lanes._ENV_CACHE == {}
     assert not hasattr(engine, "_WORKER") and not hasattr(engine, "spec_for")
     assert "env_kwargs" not in lanes.RolloutSpec.__dataclass_fields__
@@ -181,17 +181,20 @@ def test_fast_and_generic_steppers_agree_step_by_step(task, family):
 
 # -- code written for the original RRLS -------------------------------------------------
 def test_original_module_paths_import():
-    from rrls._interface import ModifiedParamsEnv, check_protocol_modified_params_env
+    with pytest.warns(DeprecationWarning):  # the legacy names still import, and say so
+        from rrls._interface import ModifiedParamsEnv, check_protocol_modified_params_env
     from rrls.envs.ant import AntParamsBound, RobustAnt  # noqa: F401
     from rrls.envs.half_cheetah import HalfCheetahParamsBound, RobustHalfCheetah  # noqa: F401
     from rrls.envs.hopper import ForceHopper, HopperParamsBound  # noqa: F401
     from rrls.envs.humanoid import HumanoidStandupParamsBound, RobustHumanoidStandUp  # noqa: F401
     from rrls.envs.pendulum import InvertedPendulumParamsBound  # noqa: F401
     from rrls.envs.walker import RobustWalker2d, Walker2dParamsBound  # noqa: F401
-    from rrls.evaluate import EVALUATION_ROBUST_HOPPER_1D, generate_evaluation_set  # noqa: F401
-    from rrls.wrappers import ProbalisticActionRobust
+
+    with pytest.warns(DeprecationWarning):
+        from rrls.evaluate import EVALUATION_ROBUST_HOPPER_1D, generate_evaluation_set  # noqa: F401
+        from rrls.wrappers import ProbalisticActionRobust
+        from rrls.wrappers.probalistic_action_robust import ProbalisticActionRobust as Misspelt
     from rrls.wrappers.probabilistic_action_robust import ProbabilisticActionRobust
-    from rrls.wrappers.probalistic_action_robust import ProbalisticActionRobust as Misspelt
 
     assert ProbalisticActionRobust is ProbabilisticActionRobust is Misspelt
 
@@ -217,7 +220,7 @@ def test_evaluation_constants_are_built_on_first_access_only():
         "from rrls.evaluate import EVALUATION_ROBUST_ANT_3D as s\n"
         "assert len(s) == 1000 and not built, built\n"
         "s[5]; assert len(built) == 1\n"
-        "assert 'EVALUATION_ROBUST_INVERTED_PENDULUM_2D' in dir(ev)\n"
+        "assert 'EVALUATION_ROBUST_INVERTED_PENDULUM_2D' in ev.__all__\n"
     )
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=ROOT)
     assert out.returncode == 0, out.stderr

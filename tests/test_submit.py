@@ -90,7 +90,7 @@ def test_submitted_callable_is_a_column_of_every_table(bench):
     ev = pd.read_parquet(build_store(bench) / "evaluations.parquet")
     seeds = {a: ev[ev["algorithm"] == a]["episode_seed"].tolist() for a in ev["algorithm"]}
     assert seeds["my-method"] == seeds["td3"] == seeds["m2td3"]
-    direct = evaluate(mine, "invertedpendulum", "1d", nb_mesh_dim=2, episodes=1, seed=0)
+    direct = evaluate(mine, "invertedpendulum", "1d", mesh=2, episodes=1, seed=0)
     assert done.worst_case == direct.worst_case and done.average_case == direct.average_case
 
     summary = report(bench)
@@ -152,7 +152,7 @@ def test_sb3_zip_submit(bench, tmp_path):
     assert sub["kind"] == "sb3-zip"
     assert sub["sha256"] == hashlib.sha256((tmp_path / "agent.zip").read_bytes()).hexdigest()
     # the same numbers as the model itself, evaluated directly
-    direct = evaluate(model, "invertedpendulum", "1d", nb_mesh_dim=2, episodes=1, seed=0)
+    direct = evaluate(model, "invertedpendulum", "1d", mesh=2, episodes=1, seed=0)
     assert done.worst_case == direct.worst_case
     assert "sb3-td3" in report(bench)["algorithms"]
 
@@ -273,7 +273,7 @@ def test_exported_reference_normalises_a_benchmark_without_baselines(bench, tmp_
     [
         ("mesh", 10, "mesh: 10 there, 2 here"),
         ("episodes", 5, "episodes: 5 there, 1 here"),
-        ("physics", PAPER_PHYSICS, "physics: 'paper-v4' there, 'rrls-v5' here"),
+        ("physics", PAPER_PHYSICS, "physics: 'paper' there, 'v5' here"),
     ],
 )
 def test_reference_of_another_protocol_is_refused(bench, tmp_path, capsys, field, value, needle):
@@ -309,7 +309,7 @@ def test_shipped_paper_reference_is_the_papers_tables_on_other_physics(bench):
     assert ref.label == "paper, other physics" and ref.physics == PAPER_PHYSICS
     assert ref.to_json() == paper_reference_from_results(paper_results()).to_json()
     assert ref.mean("hopper", "3d", "m2td3", "worst_case") == 273.6  # paper Table 7
-    with pytest.raises(ReferenceError, match="physics: 'paper-v4' there"):
+    with pytest.raises(ReferenceError, match="physics: 'paper' there"):
         make_report(bench, plots=False, reference="paper")
 
 
@@ -329,7 +329,7 @@ def test_create_benchmark_has_the_presets_protocol(tmp_path):
 
 def test_shipped_quick_reference_fits_the_quick_preset(tmp_path):
     ref = load_reference("quick")
-    assert ref.physics == "rrls-v5" and ref.steps == 30_000 and ref.sets == ["1d"]
+    assert ref.physics == "v5" and ref.steps == 30_000 and ref.sets == ["1d"]
     assert set(ref.algorithms()) == {"td3", "dr", "rarl", "nrmdp", "m2td3"}
     assert all(len(r["values"]) == r["n_seeds"] == 3 for r in ref.rows)
     # where it came from, and a TD3 that learned: its average case is over 900 on every seed

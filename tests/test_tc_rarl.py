@@ -49,7 +49,7 @@ def test_rarl_trains_the_stacked_and_oracle_protagonists(tmp_path, observe):
     assert policy.metadata["observe"] == observe
     # both evaluations show the protagonist what it trained on (periodic ones ran at step 150)
     assert "eval/nominal_return" in (tmp_path / observe / "scalars.csv").read_text()
-    assert evaluate(policy, "invertedpendulum", "2d", nb_mesh_dim=2, episodes=1, workers=1)
+    assert evaluate(policy, "invertedpendulum", "2d", mesh=2, episodes=1, workers=1)
     assert f"observe={observe}" in evaluate_run_dynamic(tmp_path / observe, episodes=1).env_id
 
 

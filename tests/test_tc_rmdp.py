@@ -151,7 +151,7 @@ def test_a_stacked_or_oracle_protagonist_is_evaluated_on_what_it_saw():
         policy = MLPPolicy.random(dim, 1, hidden=(8,), seed=0)
         policy.metadata = {"task": "invertedpendulum", **view.to_metadata()}
         assert View.from_metadata(policy.metadata) == view
-        result = evaluate(policy, "invertedpendulum", box, nb_mesh_dim=2, episodes=1, workers=1)
+        result = evaluate(policy, "invertedpendulum", box, mesh=2, episodes=1, workers=1)
         assert result.config["protagonist_view"] == view.to_metadata()
         assert len(result.episodes) == 2
 

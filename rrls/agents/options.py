@@ -18,6 +18,8 @@ from typing import Any
 from rrls.agents.config import TrainConfig
 from rrls.agents.lookup import algorithm
 from rrls.algorithms import built_in
+from rrls.deprecation import DeprecatedOption
+from rrls.seeds import EXAMPLES, parse_seeds
 
 _SKIP = {"progress", "hyper", "stop_at"}
 
@@ -101,13 +103,20 @@ def add_train_arguments(parser: argparse.ArgumentParser) -> None:
                 help=kwargs["help"],
             )
             continue
+        if f.name == "env_workers":  # one name for worker processes in every command
+            run.add_argument("--workers", dest=f.name, type=int, metavar="N", **kwargs)
+            run.add_argument(
+                "--env-workers", dest=f.name, type=int, action=DeprecatedOption, new="--workers"
+            )
+            continue
         _add(run, f.name, _kind(hints[f.name]), **kwargs)
     run.add_argument("--resume", action="store_true", help="continue the run in --out exactly")
     run.add_argument(
         "--seeds",
         metavar="SEEDS",
         default=None,
-        help="train several seeds together in one process instead of --seed: 0-7, 0,2,5 or 3. "
+        help=f"train several seeds together in one process instead of --seed: {EXAMPLES} "
+        "(a lone 3 is seed 3). "
         "The runs are stacked into one batched agent whose envs step in lockstep, and each run "
         "gets exactly the numbers it gets trained alone; faster on a GPU, which updates every "
         "seed at once (on a CPU the runs share the process's cores, so each gets a share). "
@@ -137,35 +146,6 @@ def add_train_arguments(parser: argparse.ArgumentParser) -> None:
         if entry["choices"]:
             kwargs["choices"] = entry["choices"]
         _add(hyper, name, entry["kind"], **kwargs)
-
-
-def parse_seeds(text: str) -> list[int]:
-    """The seeds of ``--seeds``: comma-separated integers and inclusive ranges (``0-3,7``).
-
-    Refused with a ``ValueError`` (one line, exit 2): empty, not an integer, negative, a
-    decreasing range or a seed given twice (two runs into one directory).
-    """
-    seeds: list[int] = []
-    for part in text.split(","):
-        part = part.strip()
-        if not part:
-            raise ValueError(f"--seeds {text!r}: empty item (use 0-7, 0,2,5 or 3)")
-        first, dash, last = part.partition("-")
-        try:
-            low = int(first)
-            high = int(last) if dash else low
-        except ValueError:
-            raise ValueError(
-                f"--seeds {text!r}: {part!r} is not a seed or a range of seeds (use 0-7, 0,2,5 "
-                "or 3; seeds are integers >= 0)"
-            ) from None
-        if high < low:
-            raise ValueError(f"--seeds {text!r}: the range {part!r} is empty (write low-high)")
-        seeds.extend(range(low, high + 1))
-    repeated = sorted({s for s in seeds if seeds.count(s) > 1})
-    if repeated:
-        raise ValueError(f"--seeds {text!r} gives seed {', '.join(map(str, repeated))} twice")
-    return seeds
 
 
 def configs_from_args(args: argparse.Namespace) -> tuple[list[TrainConfig], bool]:

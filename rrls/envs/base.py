@@ -352,3 +352,6 @@ class ModifiedParamsMixin:
         self._np_random = state["np_random"]
         self._np_random_seed = state["np_random_seed"]
         self.spec = state["spec"]
+
+
+__all__ = ["ModifiedParamsMixin", "mujoco_warnings_to_python"]

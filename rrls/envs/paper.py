@@ -50,3 +50,6 @@ def _world_axis_forces(forces: tuple[ParamSpec, ...]) -> tuple[ParamSpec, ...]:
     rows = force_params(parts, planar=False)
     others = tuple(s for s in forces if s.field != "xfrc_applied")
     return rows + others
+
+
+__all__ = ["FLOOR_FRICTION", "NO_SETCONST", "paper_specs"]

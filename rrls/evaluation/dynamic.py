@@ -167,7 +167,7 @@ def evaluate_dynamic(
     :func:`make_dynamic_env`. In the TC-RMDP game each player gets its part of the flat
     observation, and an ``omniscient`` adversary (the authors' default) also the protagonist's
     action of the step: ``adversary([ψ01, s, a])``. ``paper=True``: on the paper's physics
-    (``env_id`` then ends in ``[paper-v4]``).
+    (``env_id`` then ends in ``[paper]``).
     """
     import pandas as pd
 
@@ -311,3 +311,13 @@ def _actions(out: Any, who: str, n: int) -> np.ndarray:
     if actions.ndim != 2 or len(actions) != n:
         raise PolicyError(f"the {who} returned shape {actions.shape} for {n} observations")
     return actions
+
+
+__all__ = [
+    "dynamic_env_id",
+    "DynamicResult",
+    "evaluate_dynamic",
+    "evaluate_run_dynamic",
+    "game_options",
+    "make_dynamic_env",
+]

@@ -16,6 +16,7 @@ from pathlib import Path
 from typing import Any
 
 from rrls._io import DirectoryLock, atomic_write_json
+from rrls.physics import physics_label
 from rrls.rundir import (
     read_checked_json,
     read_checked_table,
@@ -48,6 +49,8 @@ def opened(out_dir: str | Path, config: dict[str, Any]) -> Iterator[Path]:
         path = out_dir / ARGUMENTS
         if path.exists():
             old = read_checked_json(path)
+            if "physics" in old:  # written before the labels were v5/paper: rrls-v5, paper-v4
+                old["physics"] = physics_label(old["physics"])
             diff = sorted(k for k in set(old) | set(config) if old.get(k) != config.get(k))
             if diff:
                 raise ValueError(

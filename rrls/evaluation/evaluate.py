@@ -3,7 +3,7 @@
 >>> import numpy as np
 >>> from rrls.evaluation import evaluate
 >>> still = lambda obs: np.zeros((len(obs), 1))  # push nothing: the pole falls
->>> result = evaluate(still, "invertedpendulum", "1d", nb_mesh_dim=3, episodes=2, workers=1)
+>>> result = evaluate(still, "invertedpendulum", "1d", mesh=3, episodes=2, workers=1)
 >>> result.episodes[["polemass", "episode", "length"]].shape
 (6, 3)
 >>> result.worst_case <= result.average_case
@@ -19,6 +19,7 @@ from typing import Any
 
 import numpy as np
 
+from rrls.deprecation import renamed_keywords
 from rrls.evaluation import engine, evaldir, lanes
 from rrls.evaluation.chunks import CHUNK
 from rrls.evaluation.prepare import policy_record, prepare_policy
@@ -41,11 +42,12 @@ def _box_json(box: UncertaintySet | None) -> dict[str, Any] | None:
     }
 
 
+@renamed_keywords(nb_mesh_dim="mesh")
 def evaluate(
     policy: Any,
     task: str,
     uncertainty: str | UncertaintySet = "3d",
-    nb_mesh_dim: int = 10,
+    mesh: int = 10,
     episodes: int = 5,
     seed: int = 0,
     workers: int | None = None,
@@ -104,10 +106,10 @@ def evaluate(
     from rrls.evaluation.stack import policy_view
 
     if protocol is None:
-        check_counts(episodes=episodes, nb_mesh_dim=nb_mesh_dim)  # named as the caller gave them
+        check_counts(episodes=episodes, mesh=mesh)  # named as the caller gave them
         protocol = Protocol(
             uncertainty,
-            mesh=nb_mesh_dim,
+            mesh=mesh,
             episodes=episodes,
             seed=seed,
             physics=physics_label(bool(paper)),
@@ -267,3 +269,6 @@ class Evaluator:
 
     def close(self) -> None:
         lanes.clear_env_cache()
+
+
+__all__ = ["Evaluator", "evaluate", "rollout_table"]

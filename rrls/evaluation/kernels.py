@@ -182,3 +182,6 @@ def make_stepper(envs: Sequence[Any], task: str, fast: bool = True) -> GenericSt
     if fast and fast_stepper_applies(envs, task):
         return FastStepper(envs, task)
     return GenericStepper(envs)
+
+
+__all__ = ["fast_stepper_applies", "FastStepper", "GenericStepper", "make_stepper"]

@@ -4,7 +4,7 @@ Points are plain arrays; environments are built only when asked for, one at a ti
 (the original code built 5 660 of them at import).
 
 >>> from rrls.evaluation import evaluation_points
->>> evaluation_points("hopper", "2d", nb_mesh_dim=3).shape
+>>> evaluation_points("hopper", "2d", mesh=3).shape
 (9, 2)
 """
 
@@ -15,6 +15,7 @@ from typing import Any
 
 import numpy as np
 
+from rrls.deprecation import renamed_keywords
 from rrls.interface import all_params
 from rrls.uncertainty import UncertaintySet
 
@@ -32,15 +33,16 @@ def resolve_uncertainty(task: str, uncertainty: str | UncertaintySet) -> Uncerta
     return resolve(task, uncertainty).box
 
 
+@renamed_keywords(nb_mesh_dim="mesh")
 def evaluation_points(
     task: str,
     uncertainty: str | UncertaintySet = "3d",
-    nb_mesh_dim: int = 10,
+    mesh: int = 10,
     endpoint: bool = True,
 ) -> np.ndarray:
-    """The mesh of ``task``'s set as an ``(nb_mesh_dim ** d, d)`` array (no env is built)."""
+    """The mesh of ``task``'s set as an ``(mesh ** d, d)`` array (no env is built)."""
     box = resolve_uncertainty(task, uncertainty)
-    return box.mesh(nb_mesh_dim, endpoint=endpoint)
+    return box.mesh(mesh, endpoint=endpoint)
 
 
 class _Lazy:
@@ -128,16 +130,18 @@ class EvaluationSet(MutableSequence):
         return f"EvaluationSet({name}, {self.uncertainty_set!r}, {len(self)} points)"
 
 
+@renamed_keywords(nb_mesh_dim="mesh")
 def generate_evaluation_set(
     modified_env: Callable[..., Any],
     param_bounds: Bounds,
-    nb_mesh_dim: int = 10,
+    mesh: int = 10,
     endpoint: bool = True,
 ) -> EvaluationSet:
     """Environments on a uniform mesh over ``param_bounds`` (the original signature).
 
     ``endpoint=True`` (default) includes both bounds; ``endpoint=False`` reproduces the original
     code's ``np.arange`` mesh exactly. The result is lazy: environments are built on access.
+    ``mesh`` is points per dimension (the original's ``nb_mesh_dim=``, deprecated, still works).
 
     >>> from rrls import generate_evaluation_set
     >>> from rrls.envs import RobustHopper, HopperParamsBound
@@ -151,12 +155,23 @@ def generate_evaluation_set(
 
     box = UncertaintySet.from_bounds(param_bounds)
     check_bounds(getattr(modified_env, "param_specs", ()), box)  # refuse now, not at env build
-    return EvaluationSet(modified_env, box, box.mesh(nb_mesh_dim, endpoint=endpoint))
+    return EvaluationSet(modified_env, box, box.mesh(mesh, endpoint=endpoint))
 
 
-def default_evaluation_set(task: str, uncertainty: str = "3d", nb_mesh_dim: int = 10):
+@renamed_keywords(nb_mesh_dim="mesh")
+def default_evaluation_set(task: str, uncertainty: str = "3d", mesh: int = 10) -> EvaluationSet:
     """The paper's evaluation set of ``task`` over ``uncertainty`` (10 points per dimension)."""
     from rrls.envs import resolve
 
     resolved = resolve(task, uncertainty)
-    return EvaluationSet(resolved.env_class, resolved.box, resolved.box.mesh(nb_mesh_dim))
+    return EvaluationSet(resolved.env_class, resolved.box, resolved.box.mesh(mesh))
+
+
+__all__ = [
+    "Bounds",
+    "default_evaluation_set",
+    "evaluation_points",
+    "EvaluationSet",
+    "generate_evaluation_set",
+    "resolve_uncertainty",
+]

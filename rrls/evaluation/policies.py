@@ -453,3 +453,23 @@ def policy_source(obj: Any) -> dict[str, Any]:
     name = getattr(obj, "__qualname__", None) or type(obj).__qualname__
     module = getattr(obj, "__module__", None) or type(obj).__module__
     return {"kind": kind, "source": f"{module}.{name}", "sha256": None, "file": None}
+
+
+__all__ = [
+    "as_policy",
+    "BatchInvariant",
+    "BLOCK",
+    "file_sha256",
+    "is_attribute_reference",
+    "is_batch_invariant",
+    "load_attribute",
+    "load_policy",
+    "load_sb3",
+    "MLPPolicy",
+    "Policy",
+    "policy_fingerprint",
+    "policy_shapes",
+    "policy_source",
+    "SB3Policy",
+    "TorchPolicy",
+]

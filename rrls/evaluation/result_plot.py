@@ -153,3 +153,6 @@ def bounded_edges(centres: np.ndarray, low: float, high: float) -> np.ndarray:
         return np.array([low, high]) if low < high else np.array([low - 0.5, low + 0.5])
     mid = (centres[1:] + centres[:-1]) / 2
     return np.concatenate([[min(low, centres[0])], mid, [max(high, centres[-1])]])
+
+
+__all__ = ["bounded_edges", "plot_result", "pyplot"]

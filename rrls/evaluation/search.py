@@ -160,3 +160,6 @@ def _search(
         trace=trace,
         episodes=episodes,
     )
+
+
+__all__ = ["search_worst_case", "WorstCaseSearch"]

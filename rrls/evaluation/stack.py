@@ -73,3 +73,6 @@ def policy_view(policy: Any) -> Any:
     from rrls.wrappers.tc_rmdp import View
 
     return View.from_metadata(getattr(policy, "metadata", None))
+
+
+__all__ = ["EnvStack", "policy_view"]

@@ -10,176 +10,10 @@ import argparse
 import sys
 from typing import Any
 
-from rrls.experiments.spec import PAPER_TASKS, PRESETS, SpecError
-
-
-def add_parsers(sub: argparse._SubParsersAction) -> None:
-    """Register ``benchmark`` and ``report`` on the ``rrls`` sub-command parser (ranges are
-    checked by the spec, so that errors are one line with exit status 2)."""
-    from rrls.tasks import TASKS  # every registered task, plug-ins' included (loaded by main)
-
-    b = sub.add_parser(
-        "benchmark",
-        help="train, evaluate and report a grid of runs (the paper's comparison); resumable",
-        description="Run a grid (algorithm x task x seed): training, the final mesh evaluation, "
-        "the dynamic evaluation of RARL/NR-MDP against their own adversaries; then the result "
-        "store and the report under --out. Re-running the same command resumes; adding "
-        "algorithms, tasks or seeds extends the benchmark. Explicit options override the preset.",
-    )
-    b.add_argument("--out", required=True, metavar="DIR", help="benchmark directory")
-    b.add_argument(
-        "--preset",
-        default="paper",
-        help="smoke (seconds, for tests), quick (~18 min on 2 cores, reduced protocol), "
-        "hopper (~9.5 CPU-hours: the locomotion reference), paper (the paper's protocol; default)",
-    )
-    b.add_argument(
-        "--algos",
-        help="comma-separated: td3,dr,rarl,nrmdp,m2td3 (the paper's five: the default), sac, "
-        "sacdr, an installed plug-in or package.module:Learner",
-    )
-    b.add_argument(
-        "--tasks",
-        help="comma-separated, of every registered task: "
-        + ", ".join(TASKS)
-        + " (default: the preset's; the paper's five: "
-        + ", ".join(PAPER_TASKS)
-        + ")",
-    )
-    b.add_argument("--uncertainty", help="evaluation set (and DR/M2TD3's training set): 1d, 2d, 3d")
-    b.add_argument("--seeds", type=int, metavar="N", help="number of seeds (0..N-1)")
-    b.add_argument(
-        "--physics",
-        choices=["v5", "paper"],
-        help="v5 (default: Gymnasium v5, rrls's parameter semantics) or paper (the paper's "
-        "Gymnasium v4 envs, the original code's parameter writes, np.arange mesh) for training and "
-        "evaluation; recorded in benchmark.json",
-    )
-    b.add_argument(
-        "--rate-limit",
-        type=float,
-        metavar="L",
-        help="RARL trains against (and is evaluated with) TC-RMDP's time-constrained adversary, "
-        "as its authors play it: each step it moves every parameter by at most L in raw "
-        "parameter units (psi <- clip(psi + a * L, box); the authors train with 0.001), "
-        "episodes start uniformly in the box, the adversary sees psi and the state",
-    )
-    b.add_argument(
-        "--observe",
-        choices=["vanilla", "stacked", "oracle"],
-        help="with --rate-limit: RARL's protagonist is TC-RMDP's vanilla (the state; default), "
-        "stacked (the previous state and action too) or oracle (the state and psi in [0, 1])",
-    )
-    b.add_argument(
-        "--split",
-        metavar="extrapolation[:F]",
-        help="rrls's own extrapolation split: every run trains on the inner box of the set (a "
-        "centred fraction F of each axis, default 0.5), the evaluation covers the whole set and "
-        "rrls report gives in- and out-of-distribution worst/average case apart",
-    )
-    b.add_argument("--steps", type=int, metavar="N", help="training steps per run")
-    b.add_argument(
-        "--learning-starts",
-        type=int,
-        metavar="N",
-        help="random steps before learning (default: the preset's; paper 25 000, quick 1 000; "
-        "with --steps alone, at most a fifth of the budget)",
-    )
-    b.add_argument(
-        "--eval-every",
-        type=int,
-        metavar="N",
-        help="periodic evaluation every N steps (0: off)",
-    )
-    b.add_argument("--mesh", type=int, metavar="N", help="final evaluation: points per dimension")
-    b.add_argument("--episodes", type=int, metavar="N", help="final evaluation: episodes per point")
-    b.add_argument(
-        "--jobs", type=int, metavar="N", help="parallel runs (default: the number of cores)"
-    )
-    b.add_argument(
-        "--backend",
-        default="local",
-        help="choices: local (a process pool on this machine; default), ray (a Ray cluster)",
-    )
-    b.add_argument(
-        "--ray-address", metavar="ADDR", help="Ray cluster address (default: RAY_ADDRESS or local)"
-    )
-    b.add_argument("--device", help="cpu (default) or cuda (Ray: a quarter GPU per process)")
-    b.add_argument(
-        "--dry-run",
-        action="store_true",
-        help="print the runs in the order they would start, the compute estimate and the "
-        "output layout, then stop (nothing is written or trained)",
-    )
-    b.add_argument(
-        "--pack",
-        type=int,
-        metavar="N",
-        help="train up to N seeds of one algorithm and task together in one process (stacked "
-        "agents, the same numbers as alone): the GPU then updates many seeds at once; on a CPU "
-        "the runs of a process share its one thread. Default: every seed of a cell with "
-        "--device cuda, 1 on cpu",
-    )
-
-    r = sub.add_parser(
-        "report",
-        help="regenerate a benchmark's report (summary.json, report.md, tables, figures)",
-        description="Rebuild DIR/results from the run directories and write DIR/report: "
-        "summary.json, report.md, tables/*.tex (booktabs) and *.csv, figures.",
-    )
-    r.add_argument("dir", help="a `rrls benchmark --out` directory")
-    r.add_argument("--no-plots", action="store_true", help="skip the figures")
-    r.add_argument(
-        "--reference",
-        metavar="FILE",
-        help="reference results (.json/.csv, or a shipped name: paper, quick) normalising"
-        " the tasks without their own TD3 and M2TD3 runs; refused if measured under another"
-        " protocol (physics, set, mesh, episodes)",
-    )
-    r.add_argument(
-        "--export-reference",
-        metavar="FILE",
-        help="also write this benchmark's results (every algorithm, per-seed values) as a "
-        "reference file (.json, or .csv) another lab can pass to --reference",
-    )
-    r.add_argument("--label", help="--export-reference: the reference's label")
-
-    s = sub.add_parser(
-        "submit",
-        help="evaluate a policy trained elsewhere under a benchmark's protocol and add it as an "
-        "algorithm (then `rrls report DIR` shows it beside the baselines)",
-        description="Evaluate POLICY exactly as BENCH_DIR evaluates its own runs (same set, mesh, "
-        "episodes and episode seeds; with --adversary also the dynamic evaluation) and store it "
-        "as run (--algo, --task, --seed). POLICY: an rrls .npz, an `rrls train` run directory, a "
-        "Stable-Baselines3 .zip or module:attribute naming a callable obs[B, d] -> act[B, k] (or "
-        "an nn.Module / SB3 model). WARNING: an SB3 zip (cloudpickle) and module:attribute "
-        "(import) run code from the file or module: submit only what you trust; rrls's own "
-        ".npz and run directories are read without unpickling.",
-    )
-    s.add_argument("bench_dir", metavar="BENCH_DIR", help="a `rrls benchmark --out` directory")
-    s.add_argument("policy", metavar="POLICY", help=".npz, run directory, SB3 .zip or mod:attr")
-    s.add_argument("--algo", required=True, metavar="NAME", help="the algorithm's name in reports")
-    s.add_argument("--task", required=True, metavar="TASK", help="one of the benchmark's tasks")
-    s.add_argument("--seed", required=True, type=int, metavar="S", help="the policy's seed")
-    s.add_argument(
-        "--adversary", metavar="ADV_POLICY", help="also play this adversary (Table 6), same kinds"
-    )
-    s.add_argument(
-        "--game",
-        help="the adversary's game, one of adversarial, nr, pr: adversarial (picks the set's "
-        "parameters; default unless an rrls adversary file records another), nr or pr "
-        "(action-robust)",
-    )
-    s.add_argument("--alpha", type=float, help="nr/pr: the adversary's probability (0.1)")
-    s.add_argument(
-        "--overwrite", action="store_true", help="replace a submission made with another policy"
-    )
-    s.add_argument(
-        "--preset",
-        help="BENCH_DIR holds no benchmark yet: start one (no baselines) with this preset's "
-        "protocol; compare with `rrls report BENCH_DIR --reference FILE`",
-    )
-    s.add_argument("--workers", type=int, metavar="N", help="evaluation processes (default: all)")
+from rrls.deprecation import notice
+from rrls.experiments.arguments import CONFIRM_ABOVE
+from rrls.experiments.spec import PRESETS, SpecError
+from rrls.seeds import EXAMPLES, as_range, count_form, parse_seeds
 
 
 def _fail(command: str, message: str) -> int:
@@ -213,8 +47,8 @@ def _spec_from(args: argparse.Namespace) -> tuple:
         raise SpecError(f"unknown preset {args.preset!r}; valid: {', '.join(PRESETS)}")
     if args.backend not in ("local", "ray"):
         raise SpecError(f"unknown backend {args.backend!r}; valid: local, ray")
-    if args.jobs is not None and args.jobs < 1:
-        raise SpecError(f"--jobs must be >= 1, got {args.jobs}")
+    if args.workers is not None and args.workers < 1:
+        raise SpecError(f"--workers must be >= 1, got {args.workers}")
     if getattr(args, "pack", None) is not None and args.pack < 1:
         raise SpecError(f"--pack must be >= 1, got {args.pack}")
     if args.device is not None and not (args.device == "cpu" or args.device.startswith("cuda")):
@@ -224,7 +58,7 @@ def _spec_from(args: argparse.Namespace) -> tuple:
         algos=args.algos,
         tasks=args.tasks,
         uncertainty=args.uncertainty.lower() if args.uncertainty else None,
-        seeds=args.seeds,
+        seeds=benchmark_seeds(args.seeds),
         steps=args.steps,
         learning_starts=args.learning_starts,
         eval_every=args.eval_every,
@@ -236,8 +70,30 @@ def _spec_from(args: argparse.Namespace) -> tuple:
         observe=getattr(args, "observe", None),
         split=getattr(args, "split", None),
     )
-    jobs = args.jobs or (None if args.backend == "ray" else default_jobs())
+    jobs = args.workers or (None if args.backend == "ray" else default_jobs())
     return spec, jobs
+
+
+def benchmark_seeds(text: str | None) -> list[int] | None:
+    """``--seeds`` of ``rrls benchmark``: a list or range (:mod:`rrls.seeds`), or the deprecated
+    count ``N`` (seeds 0..N-1, with a notice saying how to write it)."""
+    if text is None:
+        return None
+    count = count_form(text)
+    if count is None:
+        try:
+            return parse_seeds(text)
+        except ValueError as err:
+            raise SpecError(str(err)) from None
+    if count < 1:
+        raise SpecError(f"--seeds {text}: no seed to run (write the seeds: {EXAMPLES})")
+    seeds = list(range(count))
+    notice(
+        "benchmark",
+        f"--seeds {count} as a number of seeds is deprecated (it will mean seed {count} alone, "
+        f"as in rrls train); write --seeds {as_range(seeds)}",
+    )
+    return seeds
 
 
 def _benchmark(args: argparse.Namespace) -> int:
@@ -265,6 +121,9 @@ def _benchmark(args: argparse.Namespace) -> int:
 
     if args.dry_run:
         return _dry_run(Path(args.out), spec, jobs or 0, args.backend, args.pack)
+    todo, _ = _pending(Path(args.out), spec)
+    if not confirmed("benchmark", len(todo), args.yes):
+        return 1
 
     from rrls.experiments.runner import benchmark
 
@@ -278,13 +137,9 @@ def _dry_run(root: Any, spec: Any, jobs: int, backend: str, pack: int | None) ->
     """What ``rrls benchmark`` would do in ``root``, without doing any of it."""
     from rrls.experiments.benchfile import reconcile
     from rrls.experiments.pipeline import default_pack, groups
-    from rrls.experiments.runner import pending_runs, plan
+    from rrls.experiments.runner import plan
 
-    if (root / "benchmark.json").exists():
-        spec = reconcile(root, spec)  # another protocol there: refused now, as it would be
-        todo, finished = pending_runs(root, spec)
-    else:
-        todo, finished = spec.runs(), 0
+    spec, (todo, finished) = reconcile(root, spec), _pending(root, spec)
     pack = default_pack(spec, pack)
     print(plan(root, spec, len(todo), finished, jobs, backend, pack))
     print(f"\nruns to start, in order ({len(todo)}):")
@@ -297,6 +152,32 @@ def _dry_run(root: Any, spec: Any, jobs: int, backend: str, pack: int | None) ->
         f"{root}/report/ (report.md, tables/, figures/)\n(dry run: nothing written)"
     )
     return 0
+
+
+def _pending(root: Any, spec: Any) -> tuple[list, int]:
+    """(the runs ``root`` still lacks, how many it has) — without writing anything there."""
+    from rrls.experiments.benchfile import reconcile
+    from rrls.experiments.runner import pending_runs
+
+    return pending_runs(root, reconcile(root, spec))  # another protocol: refused now
+
+
+def confirmed(command: str, runs: int, yes: bool) -> bool:
+    """Whether to start ``runs`` runs: yes below ``CONFIRM_ABOVE``, with ``--yes``, without a
+    terminal on stdin or under CI (never blocks a script); else the answer to a prompt."""
+    import os
+
+    if yes or runs <= CONFIRM_ABOVE or os.environ.get("CI") or not sys.stdin.isatty():
+        return True
+    prompt = f"rrls {command}: start {runs} runs (see --dry-run for the estimate)? [y/N] "
+    try:
+        answer = input(prompt)
+    except (EOFError, KeyboardInterrupt):
+        answer = ""
+    if answer.strip().lower() in ("y", "yes"):
+        return True
+    print(f"rrls {command}: nothing started (--yes starts without asking)", file=sys.stderr)
+    return False
 
 
 def _report(args: argparse.Namespace) -> int:
@@ -364,7 +245,10 @@ def _quickstart(args: argparse.Namespace) -> int:
         return _fail("quickstart", "needs torch: pip install 'rrls[train]'")
     from rrls.experiments.runner import benchmark
 
-    spec = make_spec("quick", steps=args.steps, first_seed=getattr(args, "seed", 0))
+    spec = make_spec("quick", steps=args.steps, seeds=quickstart_seeds(args))
+    todo, _ = _pending(Path(args.out), spec)
+    if not confirmed("quickstart", len(todo), getattr(args, "yes", False)):
+        return 1
     code = benchmark(args.out, spec, default_jobs())
     root = Path(args.out)
     if (root / "report" / "summary.json").exists():
@@ -376,6 +260,22 @@ def _quickstart(args: argparse.Namespace) -> int:
         print(f"report: {root / 'report' / 'report.md'} (reduced budget, not the paper's)")
         print(f"runs: {root}/runs (TensorBoard: tensorboard --logdir {root}/runs)")
     return code
+
+
+def quickstart_seeds(args: argparse.Namespace) -> list[int] | None:
+    """``--seeds`` (a list or range), or the deprecated ``--seed S`` (the first of three)."""
+    first = getattr(args, "seed", None)
+    text = getattr(args, "seeds", None)
+    if first is not None and text is not None:
+        raise SpecError("give --seeds only (--seed S is its deprecated spelling S-(S+2))")
+    if first is not None:
+        seeds = [first, first + 1, first + 2]
+        notice("quickstart", f"--seed {first} is deprecated; write --seeds {as_range(seeds)}")
+        return seeds
+    try:
+        return None if text is None else parse_seeds(text)
+    except ValueError as err:
+        raise SpecError(str(err)) from None
 
 
 def _submit(args: argparse.Namespace) -> int:

@@ -13,7 +13,7 @@ anything else is refused (``ReferenceError``, one line naming the fields). The t
 
 JSON (``.json``)::
 
-    {"format": "rrls-reference", "version": 1, "label": "...", "physics": "rrls-v5",
+    {"format": "rrls-reference", "version": 1, "label": "...", "physics": "v5",
      "mesh": 10, "episodes": 5, "endpoint": true, "steps": 20000, "eval_seed": 0,
      "versions": {"rrls": "...", "gymnasium": "...", "mujoco": "..."}, "notes": "...",
      "rows": [{"task": "hopper", "uncertainty": "3d", "algorithm": "td3",

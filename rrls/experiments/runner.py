@@ -149,7 +149,7 @@ def plan(
         f"({finished} finished, {todo} to run), {spec.steps:,} steps each, set "
         f"{spec.uncertainty}, mesh {spec.mesh} x {spec.episodes} episodes; {backend} backend"
         + (f", split {spec.split} (training on the inner box)" if spec.split else "")
-        + (f", {jobs} jobs" if jobs else "")
+        + (f", {jobs} workers" if jobs else "")
         + (f", up to {pack} seeds of a cell trained together per process" if pack > 1 else "")
         + "\nestimate for the whole grid (from measured single-thread speeds on a 2-core CPU; "
         f"an estimate, +-30 %): {format_duration(est['cpu_s'])} of compute (training "

@@ -54,7 +54,7 @@ class Spec:
     eval_seed: int = 0
     preset: str = "paper"
     device: str = "cpu"
-    #: which physics trains and evaluates every run (``rrls.physics``: rrls-v5 or paper-v4)
+    #: which physics trains and evaluates every run (``rrls.physics``: v5 or paper)
     physics: str = V5
     #: RARL plays TC-RMDP's game: its adversary moves each parameter by at most this much per
     #: step, in raw parameter units (``rrls.wrappers.tc_rmdp``); None: RARL's own game

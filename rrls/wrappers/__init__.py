@@ -1,6 +1,7 @@
 """Robust-RL wrappers: domain randomization, the adversarial game, action-robust mixing,
 disruptors, schedules over time, context in the observation, TC-RMDP's protagonist views."""
 
+from rrls.deprecation import warn_deprecated
 from rrls.wrappers.access import ParamsAccess, ParamsForwarding
 from rrls.wrappers.action_robust import ConcatenateActions, ProbabilisticActionRobust
 from rrls.wrappers.adversarial import DynamicAdversarial
@@ -28,9 +29,16 @@ from rrls.wrappers.schedules import (
 )
 from rrls.wrappers.tc_rmdp import ProtagonistObservation, View
 
-#: the original code's (misspelt) names
-ProbalistActionRobustWrapper = ProbabilisticActionRobust
-ProbalisticActionRobust = ProbabilisticActionRobust
+#: the original code's misspelt names: deprecated, each access warns (module ``__getattr__``)
+_MISSPELT = ("ProbalistActionRobustWrapper", "ProbalisticActionRobust")
+
+
+def __getattr__(name: str) -> type:
+    if name not in _MISSPELT:
+        raise AttributeError(f"module 'rrls.wrappers' has no attribute {name!r}")
+    warn_deprecated(f"rrls.wrappers.{name} is deprecated; use ProbabilisticActionRobust")
+    return ProbabilisticActionRobust
+
 
 __all__ = [
     "DISRUPTORS",
@@ -56,8 +64,6 @@ __all__ = [
     "ParamsAccess",
     "ParamsForwarding",
     "ProbabilisticActionRobust",
-    "ProbalistActionRobustWrapper",
-    "ProbalisticActionRobust",
     "ProtagonistObservation",
     "View",
 ]

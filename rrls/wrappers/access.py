@@ -53,3 +53,6 @@ class ParamsAccess(ParamsForwarding, gym.utils.RecordConstructorArgs):
         self._step += 1
         check_finite_action(action, self._step)
         return self.env.step(action)
+
+
+__all__ = ["ParamsAccess", "ParamsForwarding"]

@@ -106,3 +106,6 @@ class ConcatenateActions(ParamsForwarding):
         a, b = self._pair.spaces
         pair = (flat[: self._split].reshape(a.shape), flat[self._split :].reshape(b.shape))
         return self.env.step(pair)
+
+
+__all__ = ["ConcatenateActions", "ProbabilisticActionRobust"]

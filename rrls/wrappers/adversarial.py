@@ -232,3 +232,6 @@ class DynamicAdversarial(ParamsForwarding, gym.utils.RecordConstructorArgs):
         unit = unit_psi(box, start)
         info["psi"] = start.copy()
         return self._joint(self._seen.reset(obs, unit), unit, obs), info
+
+
+__all__ = ["DynamicAdversarial"]

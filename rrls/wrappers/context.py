@@ -73,3 +73,6 @@ class ContextObservation(ParamsForwarding, gym.utils.RecordConstructorArgs):
     def step(self, action: Any):
         obs, reward, terminated, truncated, info = self.env.step(action)
         return self._with_context(obs), reward, terminated, truncated, info
+
+
+__all__ = ["ContextObservation"]

@@ -491,3 +491,20 @@ def disrupt(env: gym.Env, **strengths: float) -> gym.Env:
         if name in strengths:
             env = cls(env, strengths[name])
     return env
+
+
+__all__ = [
+    "ActionDelay",
+    "ActionNoise",
+    "disrupt",
+    "Disruptor",
+    "DISRUPTORS",
+    "MAX_DELAY",
+    "MAX_STD",
+    "ObservationDelay",
+    "ObservationDropout",
+    "ObservationNoise",
+    "RewardNoise",
+    "spawn_generator",
+    "StuckSensors",
+]

@@ -78,3 +78,6 @@ class DomainRandomization(ParamsForwarding, gym.utils.RecordConstructorArgs):
         info["randomized_params"] = params
         self._step = 0
         return obs, info
+
+
+__all__ = ["DomainRandomization", "RandomizeFn"]

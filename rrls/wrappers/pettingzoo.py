@@ -88,3 +88,6 @@ class TwoPlayerParallelEnv(ParallelEnv):
 
     def state(self):
         raise NotImplementedError("the game has no global state beyond the shared observation")
+
+
+__all__ = ["TwoPlayerParallelEnv"]

@@ -384,3 +384,16 @@ class ScheduleFamily:
 
     def to_json(self) -> dict[str, Any]:
         return {"kind": self.kind, "grid": {k: list(v) for k, v in self.grid.items()}}
+
+
+__all__ = [
+    "Direction",
+    "Drift",
+    "RandomWalk",
+    "Schedule",
+    "ScheduledParams",
+    "ScheduleFamily",
+    "SCHEDULES",
+    "Sinusoid",
+    "StepChange",
+]

@@ -188,3 +188,14 @@ class ProtagonistObservation(ParamsForwarding, gym.utils.RecordConstructorArgs):
     def step(self, action: Any):
         obs, reward, terminated, truncated, info = self.env.step(action)
         return self._state.step(obs, action, self._psi()), reward, terminated, truncated, info
+
+
+__all__ = [
+    "OBSERVE",
+    "ProtagonistObservation",
+    "RATE_GAMES",
+    "tc_move",
+    "unit_psi",
+    "View",
+    "ViewState",
+]

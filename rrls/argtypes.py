@@ -1,0 +1,80 @@
+"""``argparse`` value types of the ``rrls`` command line: each refuses bad text with a one-line
+message naming the value (``argparse.ArgumentTypeError``), before any work starts."""
+
+from __future__ import annotations
+
+import argparse
+
+#: the paper's tasks, for help texts; any registered task is accepted (``rrls.tasks.get_task``)
+TASK_CHOICES = ["ant", "halfcheetah", "hopper", "humanoidstandup", "invertedpendulum", "walker"]
+SET_CHOICES = ["1d", "2d", "3d", "rarl", "nominal"]
+
+
+def _integer(text: str) -> int:
+    try:
+        return int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not an integer") from None
+
+
+def positive_int(text: str) -> int:
+    """argparse ``type=``: an integer >= 1."""
+    value = _integer(text)
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"must be an integer >= 1, got {text}")
+    return value
+
+
+def nonnegative_int(text: str) -> int:
+    """argparse ``type=``: an integer >= 0 (seeds, optional counts)."""
+    value = _integer(text)
+    if value < 0:
+        raise argparse.ArgumentTypeError(f"must be an integer >= 0, got {text}")
+    return value
+
+
+def positive_float(text: str) -> float:
+    """argparse ``type=``: a finite float > 0 (learning rates, scales)."""
+    import math
+
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a number") from None
+    if not math.isfinite(value) or value <= 0:
+        raise argparse.ArgumentTypeError(f"must be a finite number > 0, got {text}")
+    return value
+
+
+def task_key(text: str) -> str:
+    """argparse ``type=``: a task name or alias (``walker2d``), as its key."""
+    from rrls.tasks import get_task
+
+    try:
+        return get_task(text).key
+    except ValueError as err:
+        raise argparse.ArgumentTypeError(str(err)) from None
+
+
+def set_name(text: str) -> str:
+    """argparse ``type=``: the name of a set some registered task declares (or ``nominal``);
+    whether the chosen task has it is checked once the task is known."""
+    from rrls.tasks import TASKS
+
+    name = text.lower()
+    valid = list(dict.fromkeys([*SET_CHOICES, *(s for t in TASKS.values() for s in t.sets)]))
+    if name not in valid:
+        choices = ", ".join(valid)
+        raise argparse.ArgumentTypeError(f"invalid choice: {text!r} (choose from {choices})")
+    return name
+
+
+__all__ = [
+    "SET_CHOICES",
+    "TASK_CHOICES",
+    "nonnegative_int",
+    "positive_float",
+    "positive_int",
+    "set_name",
+    "task_key",
+]

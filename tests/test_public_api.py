@@ -1,0 +1,183 @@
+"""The public Python API: ``rrls.evaluate`` callable, ``__all__`` everywhere, legacy names that
+warn, ``set_params`` through any wrapper, ``mesh=`` with ``nb_mesh_dim=`` as a deprecated alias."""
+
+from __future__ import annotations
+
+import importlib
+import inspect
+import pkgutil
+import subprocess
+import sys
+import warnings
+from pathlib import Path
+
+import gymnasium as gym
+import numpy as np
+import pytest
+
+import rrls
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def _still(obs: np.ndarray) -> np.ndarray:
+    return np.zeros((len(obs), 1))
+
+
+KW = dict(mesh=2, episodes=1, workers=1, max_episode_steps=20)
+
+
+# -- rrls.evaluate: the function, and the original module path --------------------------
+def test_from_rrls_import_evaluate_is_the_evaluation_function():
+    from rrls import evaluate
+    from rrls.evaluation import evaluate as function
+
+    got = evaluate(_still, "invertedpendulum", "1d", **KW)
+    want = function(_still, "invertedpendulum", "1d", **KW)
+    assert got.worst_case == want.worst_case and len(got.per_point) == 2
+    assert rrls.evaluate(_still, "invertedpendulum", "1d", **KW).average_case == want.average_case
+    assert inspect.signature(evaluate) == inspect.signature(function)  # what help/IDEs show
+    assert rrls.evaluate.evaluate is function
+
+
+def test_evaluate_callable_in_a_fresh_interpreter():
+    code = (
+        "import numpy as np, rrls\n"
+        "r = rrls.evaluate(lambda o: np.zeros((len(o), 1)), 'invertedpendulum', '1d', mesh=2,"
+        " episodes=1, workers=1, max_episode_steps=5)\n"
+        "assert len(r.per_point) == 2\n"
+        "from rrls.evaluate import generate_evaluation_set\n"
+    )
+    out = subprocess.run(
+        [sys.executable, "-W", "error::DeprecationWarning", "-c", code],
+        capture_output=True,
+        text=True,
+        cwd=ROOT,
+    )
+    assert out.returncode == 0, out.stderr
+
+
+def test_original_constants_still_import_with_a_deprecation_warning():
+    with pytest.warns(DeprecationWarning, match=r"default_evaluation_set\(\"hopper\", \"1d\"\)"):
+        from rrls.evaluate import EVALUATION_ROBUST_HOPPER_1D
+    assert len(EVALUATION_ROBUST_HOPPER_1D) == 10
+    with pytest.warns(DeprecationWarning):  # every access warns, not only the first
+        import rrls.evaluate as module
+
+        assert module.EVALUATION_ROBUST_HOPPER_1D is EVALUATION_ROBUST_HOPPER_1D
+    with pytest.raises(AttributeError, match="EVALUATION_ROBUST_NOPE"):
+        module.EVALUATION_ROBUST_NOPE  # noqa: B018
+
+
+@pytest.mark.parametrize(
+    ("module", "name", "new"),
+    [
+        ("rrls._interface", "ModifiedParamsEnv", "ModifiedParamsEnv"),
+        ("rrls._interface", "ModifiedParams", "ModifiedParamsEnv"),
+        ("rrls._interface", "check_protocol_modified_params_env", "is_modified_params_env"),
+        ("rrls.wrappers.probalistic_action_robust", "ProbalisticActionRobust", None),
+        ("rrls.wrappers.probabilistic_action_robust", "ProbalisticActionRobust", None),
+        ("rrls.wrappers", "ProbalistActionRobustWrapper", None),
+        ("rrls.wrappers", "ProbalisticActionRobust", None),
+    ],
+)
+def test_legacy_names_work_and_warn(module: str, name: str, new: str | None):
+    mod = importlib.import_module(module)
+    with pytest.warns(DeprecationWarning, match=name) as caught:
+        value = getattr(mod, name)
+    assert caught[0].filename == __file__  # the warning points at the caller's line
+    if new is None:
+        from rrls.wrappers.action_robust import ProbabilisticActionRobust as new_value
+    else:
+        new_value = getattr(importlib.import_module("rrls.interface"), new)
+    assert value is new_value
+
+
+def test_check_protocol_still_checks():
+    from rrls.envs import RobustAnt
+    from rrls.interface import is_modified_params_env
+
+    assert is_modified_params_env(RobustAnt()) and not is_modified_params_env(object())
+
+
+# -- __all__ in every public module -----------------------------------------------------
+#: implementation modules reached through their package (``rrls.agents``, ``rrls.experiments``)
+#: and the command-line entry points: not part of the importable API
+PRIVATE_PACKAGES = ("rrls.agents.", "rrls.experiments.")
+ENTRY_POINTS = {"rrls.cli", "rrls.check", "rrls.__main__"}
+
+
+def public_modules() -> list[str]:
+    names = ["rrls"]
+    for info in pkgutil.walk_packages(rrls.__path__, "rrls."):
+        parts = info.name.split(".")
+        if any(p.startswith("_") for p in parts) or info.name in ENTRY_POINTS:
+            continue
+        if info.name.startswith(PRIVATE_PACKAGES):
+            continue
+        names.append(info.name)
+    return [*names, "rrls._interface"]  # the original package's module path
+
+
+def test_the_walk_finds_the_api_modules():
+    names = public_modules()
+    for expected in ("rrls.envs", "rrls.wrappers.schedules", "rrls.evaluation.mesh", "rrls.agents"):
+        assert expected in names
+
+
+@pytest.mark.parametrize("name", public_modules())
+def test_every_public_module_has_a_resolving_all_without_duplicates(name: str):
+    try:
+        module = importlib.import_module(name)
+    except ImportError as err:  # an optional dependency (torch, pettingzoo) is not installed
+        pytest.skip(f"{name}: {err}")
+    assert hasattr(module, "__all__"), f"{name} has no __all__"
+    names = list(module.__all__)
+    assert len(names) == len(set(names)), f"{name}.__all__ repeats a name"
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", DeprecationWarning)  # legacy names resolve, and warn
+        missing = [n for n in names if not hasattr(module, n)]
+    assert not missing, f"{name}.__all__ names what it lacks: {missing}"
+
+
+# -- set_params through any wrapper -----------------------------------------------------
+def test_set_params_through_a_gymnasium_wrapper():
+    env = gym.wrappers.RecordEpisodeStatistics(gym.make("rrls/robust-hopper-v0"))
+    assert not hasattr(env, "set_params")  # what a user meets: Gymnasium does not forward it
+    env.get_wrapper_attr("set_params")(torsomass=2.5)  # the documented Gymnasium way
+    assert env.unwrapped.get_params()["torsomass"] == 2.5
+    rrls.set_params(env, torsomass=1.5)  # rrls's helper, the same through any stack
+    assert rrls.get_params(env)["torsomass"] == 1.5
+    with pytest.raises(ValueError, match="nosuchparam"):
+        rrls.set_params(env, nosuchparam=1.0)
+
+
+def test_set_params_on_an_env_without_it_is_one_line():
+    env = gym.wrappers.RecordEpisodeStatistics(gym.make("CartPole-v1"))
+    with pytest.raises(TypeError, match="no set_params anywhere in its wrapper stack"):
+        rrls.set_params(env, x=1.0)
+
+
+# -- mesh= in Python as on the command line ---------------------------------------------
+def test_mesh_keyword_and_its_deprecated_alias():
+    from rrls.envs import HopperParamsBound, RobustHopper
+    from rrls.evaluation import default_evaluation_set, evaluate, evaluation_points
+    from rrls.evaluation import generate_evaluation_set as generate
+
+    new = evaluate(_still, "invertedpendulum", "1d", **KW)
+    old_kw = {**KW, "nb_mesh_dim": KW["mesh"]}
+    del old_kw["mesh"]
+    with pytest.warns(DeprecationWarning, match=r"nb_mesh_dim=\.\.\.\) is deprecated; use mesh="):
+        old = evaluate(_still, "invertedpendulum", "1d", **old_kw)
+    assert old.worst_case == new.worst_case and len(old.per_point) == 2
+    with pytest.raises(TypeError, match="both nb_mesh_dim= .* and mesh="):
+        evaluate(_still, "invertedpendulum", "1d", mesh=2, nb_mesh_dim=3)
+    with pytest.warns(DeprecationWarning):
+        assert evaluation_points("hopper", "2d", nb_mesh_dim=3).shape == (9, 2)
+    assert evaluation_points("hopper", "2d", mesh=3).shape == (9, 2)
+    with pytest.warns(DeprecationWarning):
+        assert len(default_evaluation_set("hopper", "1d", nb_mesh_dim=4)) == 4
+    bounds = HopperParamsBound.ONE_DIM.value
+    assert len(generate(RobustHopper, bounds, 3)) == 3  # the original positional call: silent
+    with pytest.warns(DeprecationWarning):
+        assert len(generate(RobustHopper, bounds, nb_mesh_dim=3)) == 3
