@@ -82,13 +82,13 @@ def main(smoke: bool) -> None:
     # 3. evaluation over a mesh of the set, and a worst-case search
     mesh = 2 if smoke else 10
     result = evaluate(
-        lqr_like, "mydoublependulum", "2d", nb_mesh_dim=mesh, episodes=1, workers=1,
+        lqr_like, "mydoublependulum", "2d", mesh=mesh, episodes=1, workers=1,
         max_episode_steps=steps,
     )  # fmt: skip
     print(f"2d set: worst {result.worst_case:.1f} at {result.worst_point}, "
           f"average {result.average_case:.1f}")  # fmt: skip
     damping = evaluate(
-        lqr_like, "mydoublependulum", "damping", nb_mesh_dim=mesh, episodes=1, workers=1,
+        lqr_like, "mydoublependulum", "damping", mesh=mesh, episodes=1, workers=1,
         max_episode_steps=steps,
     )  # fmt: skip
     print(f"damping set: worst {damping.worst_case:.1f} at {damping.worst_point}")

@@ -70,7 +70,7 @@ def main(argv: list[str] | None = None) -> dict:
 
     # 2. Evaluate: worst and average case over a uniform mesh of the 3D set (the model or the
     #    zip both work: rrls adapts SB3 models, acting deterministically).
-    result = evaluate(model, "hopper", "3d", nb_mesh_dim=args.mesh, episodes=args.episodes, seed=0)
+    result = evaluate(model, "hopper", "3d", mesh=args.mesh, episodes=args.episodes, seed=0)
     print(f"worst case {result.worst_case:.1f} at {result.worst_point}")
     print(f"average case {result.average_case:.1f}")
 

@@ -211,25 +211,14 @@ def _report(args: argparse.Namespace) -> int:
 
 
 def _table(root: object) -> str:
-    """The worst / average case per task and algorithm, for the terminal."""
+    """The worst / average case per task and algorithm, the reference's rows too (the
+    report's ``summary.json``, as ``rrls.experiments.report.terminal_table`` prints it)."""
     import json
     from pathlib import Path
 
-    summary = json.loads((Path(str(root)) / "report" / "summary.json").read_text())
-    lines = [f"{'task':<18} {'algorithm':<10} {'seeds':>5} {'worst case':>20} {'average case':>20}"]
-    from rrls.experiments.names import sort_algos
+    from rrls.experiments.report import terminal_table
 
-    for task, algos in summary["results"].items():
-        for algo in sort_algos(algos):
-            cell = algos[algo]
-            w, a = cell["worst_case"], cell["average_case"]
-            if not w["n_seeds"]:
-                continue
-            lines.append(
-                f"{task:<18} {algo:<10} {w['n_seeds']:>5} "
-                f"{w['mean']:>11.1f} ± {w['std']:<6.1f} {a['mean']:>11.1f} ± {a['std']:<6.1f}"
-            )
-    return "\n".join(lines)
+    return terminal_table(json.loads((Path(str(root)) / "report" / "summary.json").read_text()))
 
 
 def _quickstart(args: argparse.Namespace) -> int:
