@@ -458,7 +458,7 @@ def test_quickstart_is_the_quick_preset(tmp_path, capsys, monkeypatch):
     monkeypatch.setitem(spec_module.PRESETS, "quick", small)
     assert main(["quickstart", "--out", str(tmp_path), "--steps", "200"]) == 0
     out = capsys.readouterr().out
-    assert "worst case" in out and "\ninvertedpendulum   td3 " in out
+    assert "worst case" in out and "\ninvertedpendulum   TD3 " in out
     assert json.loads((tmp_path / "benchmark.json").read_text())["preset"] == "quick"
     assert (tmp_path / "quickstart.png").stat().st_size > 10_000
     assert (tmp_path / "report" / "report.md").exists()
