@@ -7,6 +7,7 @@ import importlib.util
 import io
 import json
 import os
+import shutil
 import signal
 import subprocess
 import sys
@@ -564,3 +565,22 @@ def test_a_dry_run_prints_the_plan_and_writes_nothing(tmp_path, capsys):
     order = [line.split(". ", 1)[1] for line in text.splitlines() if line.strip()[:1].isdigit()]
     assert order[:2] == ["td3-hopper-3d-seed0", "dr-hopper-3d-seed0"] and len(order) == 15
     assert "report/" in text and "dry run: nothing written" in text
+
+
+@needs_torch
+def test_committed_runs_resume_a_benchmark_on_a_fresh_machine(smoke, tmp_path, capsys):
+    """What a reference produced in pieces relies on: the small files `collect_runs.py` keeps
+    (no checkpoints) are enough for a new benchmark directory to skip the finished runs."""
+    path = Path(__file__).resolve().parents[1] / "benchmarks" / "collect_runs.py"
+    spec = importlib.util.spec_from_file_location("collect_runs", path)
+    collect_runs = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(collect_runs)
+    kept = tmp_path / "committed"
+    assert len(collect_runs.collect(smoke, kept)) == 5
+    assert not list(kept.rglob("checkpoint*"))
+    fresh = tmp_path / "fresh"
+    shutil.copytree(kept, fresh)
+    capsys.readouterr()
+    assert main([*SMOKE, "--out", str(fresh)]) == 0
+    assert "(5 finished, 0 to run)" in capsys.readouterr().err
+    assert (fresh / "report" / "report.md").exists()
