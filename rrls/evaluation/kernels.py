@@ -13,15 +13,68 @@ lane at each reset.
 Both report a lane as diverged when MuJoCo flagged the simulation as unstable during the episode
 (``mjWARN_BADQPOS``/``BADQVEL``/``BADQACC``: MuJoCo then resets the data and carries on, so the
 rest of the episode would be meaningless) or the observation or reward is not finite.
+
+``FastStepper``'s physics (``LaneSteps``) can run on several threads: ``mujoco.mj_step`` releases
+the GIL, and each lane steps its own ``MjData``, so K threads step K lanes at once with the very
+same calls. ``mujoco.rollout`` would step all lanes in one C call, but it goes through state
+vectors on one ``MjData`` per *thread*: each lane's ``qacc_warmstart`` (the solver's starting
+point, so its result) and warning counters would not survive from one step to the next.
 """
 
 from __future__ import annotations
 
 from collections.abc import Sequence
+from concurrent.futures import ThreadPoolExecutor
 from typing import Any
 
 import mujoco
 import numpy as np
+
+
+class LaneSteps:
+    """``ctrl = action; mj_step(model, data, nstep)`` for many lanes, on ``threads`` threads.
+
+    The calling thread takes one share of the lanes and ``threads - 1`` pool threads the others
+    (interleaved, so lanes with costly contacts spread out). Only ``mj_step`` runs without the
+    GIL: the Python around it (a few microseconds a lane) still takes turns, so threads pay where
+    a process has cores to itself (fewer worker processes than cores, or one process stepping
+    many runs' envs), not where every core already runs a worker.
+    """
+
+    def __init__(
+        self, models: Sequence[Any], datas: Sequence[Any], nstep: int, threads: int = 1
+    ) -> None:
+        if threads < 1:
+            raise ValueError(f"threads must be >= 1, got {threads}")
+        self.models, self.datas, self.nstep = list(models), list(datas), nstep
+        self.ctrls = [d.ctrl for d in self.datas]  # MjData buffers never move: views taken once
+        self.threads = threads
+        self._pool = ThreadPoolExecutor(threads - 1) if threads > 1 else None
+
+    def __call__(self, lanes: list[int], actions: np.ndarray) -> None:
+        """Apply ``actions[j]`` to lane ``lanes[j]`` and step it ``nstep`` times."""
+        k = min(self.threads, len(lanes))
+        if self._pool is None or k < 2:
+            self._run(lanes, actions)
+            return
+        shares = [self._pool.submit(self._run, lanes[i::k], actions[i::k]) for i in range(1, k)]
+        self._run(lanes[::k], actions[::k])
+        for share in shares:
+            share.result()  # re-raises a MuJoCo error from a pool thread
+
+    def _run(self, lanes: list[int], actions: np.ndarray) -> None:
+        models, datas, ctrls, nstep = self.models, self.datas, self.ctrls, self.nstep
+        mj_step = mujoco.mj_step
+        for j, lane in enumerate(lanes):
+            ctrls[lane][:] = actions[j]
+            mj_step(models[lane], datas[lane], nstep=nstep)
+
+    def close(self) -> None:
+        """Stop the pool threads (the lanes stay usable, stepped on the calling thread)."""
+        if self._pool is not None:
+            self._pool.shutdown()
+            self._pool = None
+            self.threads = 1
 
 
 class GenericStepper:
@@ -39,11 +92,14 @@ class GenericStepper:
 
     def unstable(self, lanes: list[int]) -> np.ndarray:
         """Lanes whose simulation MuJoCo found unstable since their last reset."""
-        stats = self._warnings
-        return np.array([any(w.number for w in stats[lane]) for lane in lanes], dtype=bool)
+        stats = [self._warnings[lane] for lane in lanes]
+        return np.array([bool(p.number or v.number or a.number) for p, v, a in stats], dtype=bool)
 
     def reset(self, lane: int, obs: np.ndarray) -> None:
         """Called after ``envs[lane].reset(...)``; ``obs`` is its first observation."""
+
+    def close(self) -> None:
+        """Release what stepping holds beyond the envs (threads); the envs stay open."""
 
     def step(
         self, lanes: np.ndarray, actions: np.ndarray
@@ -69,19 +125,17 @@ class FastStepper(GenericStepper):
 
     TASKS = ("hopper", "walker", "halfcheetah", "invertedpendulum")
 
-    def __init__(self, envs: Sequence[Any], task: str) -> None:
+    def __init__(self, envs: Sequence[Any], task: str, threads: int = 1) -> None:
         super().__init__(envs)
         if task not in self.TASKS:
             raise ValueError(f"no fast stepper for {task!r}; valid: {', '.join(self.TASKS)}")
         self.task = task
         env = self.envs[0]
-        self.models = [e.model for e in self.envs]
-        self.datas = [e.data for e in self.envs]
+        datas = [e.data for e in self.envs]
+        self.physics = LaneSteps([e.model for e in self.envs], datas, env.frame_skip, threads)
         # MjData buffers never move: take the numpy views once instead of at every step
-        self.ctrls = [d.ctrl for d in self.datas]
-        self.qposs = [d.qpos for d in self.datas]
-        self.qvels = [d.qvel for d in self.datas]
-        self.frame_skip = env.frame_skip
+        self.qposs = [d.qpos for d in datas]
+        self.qvels = [d.qvel for d in datas]
         # per lane: the timestep is a parameter (Gymnasium's dt = frame_skip * opt.timestep)
         self.dts = np.array([e.dt for e in self.envs])
         self.x_before = np.zeros(len(self.envs))
@@ -97,25 +151,20 @@ class FastStepper(GenericStepper):
             self.state_range = getattr(env, "_healthy_state_range", None)
 
     def reset(self, lane: int, obs: np.ndarray) -> None:
-        self.x_before[lane] = self.datas[lane].qpos[0]
+        self.x_before[lane] = self.qposs[lane][0]
         self.dts[lane] = self.envs[lane].dt
+
+    def close(self) -> None:
+        self.physics.close()
 
     def step(
         self, lanes: np.ndarray, actions: np.ndarray
     ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-        models, datas, ctrls, nstep = self.models, self.datas, self.ctrls, self.frame_skip
-        mj_step = mujoco.mj_step
         idx = lanes.tolist()
-        stats = self._warnings
-        diverged = np.zeros(len(idx), dtype=bool)
-        for j, lane in enumerate(idx):
-            ctrls[lane][:] = actions[j]
-            # Gymnasium also calls mj_rnePostConstraint here; it only fills cacc/cfrc_* (used by
-            # none of these four tasks' observations or rewards, nor by the next mj_step).
-            mj_step(models[lane], datas[lane], nstep=nstep)
-            bad_pos, bad_vel, bad_acc = stats[lane]
-            if bad_acc.number or bad_vel.number or bad_pos.number:
-                diverged[j] = True
+        # Gymnasium also calls mj_rnePostConstraint after mj_step; it only fills cacc/cfrc_*
+        # (used by none of these four tasks' observations or rewards, nor by the next mj_step).
+        self.physics(idx, actions)
+        diverged = self.unstable(idx)
         qpos = np.array([self.qposs[lane] for lane in idx])
         qvel = np.array([self.qvels[lane] for lane in idx])
 
@@ -177,8 +226,11 @@ def fast_stepper_applies(envs: Sequence[Any], task: str) -> bool:
     return True
 
 
-def make_stepper(envs: Sequence[Any], task: str, fast: bool = True) -> GenericStepper:
-    """The fastest exact stepper for ``task``'s envs (the generic one unless it provably fits)."""
+def make_stepper(
+    envs: Sequence[Any], task: str, fast: bool = True, threads: int = 1
+) -> GenericStepper:
+    """The fastest exact stepper for ``task``'s envs (the generic one unless it provably fits);
+    ``threads``: how many threads step the fast stepper's physics (the generic one uses one)."""
     if fast and fast_stepper_applies(envs, task):
-        return FastStepper(envs, task)
+        return FastStepper(envs, task, threads)
     return GenericStepper(envs)
