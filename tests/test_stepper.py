@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import gymnasium as gym
 import numpy as np
 import pytest
 
@@ -51,7 +52,7 @@ def test_threads_step_every_lane_exactly_as_one_thread(threads):
 def test_threaded_fast_stepper_equals_each_env_step(task):
     fast_envs, generic_envs = _envs(task), _envs(task)
     fast = make_stepper(fast_envs, task, threads=3)
-    assert type(fast) is FastStepper and fast.physics.threads == 3
+    assert type(fast) is FastStepper and fast.physics.shares.threads == 3
     generic = GenericStepper(generic_envs)
     for lane in range(LANES):
         fast.reset(lane, fast_envs[lane].unwrapped._get_obs())
@@ -68,6 +69,33 @@ def test_threaded_fast_stepper_equals_each_env_step(task):
         if not alive.any():
             break
     fast.close()
+
+
+@pytest.mark.parametrize("task", ["ant", "hopper"])
+def test_threaded_generic_stepper_equals_one_thread(task):
+    """Bare envs' own ``step`` on threads (Ant: the generic path's task)."""
+    one, many = _envs(task), _envs(task)
+    seq, par = GenericStepper(one), GenericStepper(many, threads=3)
+    assert par.shares.threads == 3
+    rng = np.random.default_rng(2)
+    space = one[0].action_space
+    alive = np.ones(LANES, dtype=bool)
+    for step in range(40):
+        live = np.flatnonzero(alive)
+        actions = rng.uniform(space.low, space.high, (len(live), space.shape[0]))
+        got, want = par.step(live, actions), seq.step(live, actions)
+        for what, g, w in zip(("obs", "reward", "terminated", "diverged"), got, want):
+            np.testing.assert_array_equal(g, w, err_msg=f"{what} differs at step {step}")
+        alive[live[want[2] | want[3]]] = False
+        if not alive.any():
+            break
+    par.close()
+
+
+def test_wrapped_envs_step_on_one_thread():
+    """Wrappers of different lanes may share objects (a schedule): never stepped at once."""
+    envs = [gym.wrappers.ClipAction(ROBUST_ENVS["ant"]()) for _ in range(3)]
+    assert GenericStepper(envs, threads=3).shares.threads == 1
 
 
 def test_divergence_in_a_pool_thread_is_flagged():
@@ -106,5 +134,6 @@ def test_engine_rows_do_not_depend_on_threads():
 
 def test_bad_thread_count_is_refused():
     env = ROBUST_ENVS["hopper"]()
-    with pytest.raises(ValueError, match="threads must be >= 1, got 0"):
-        LaneSteps([env.model], [env.data], 4, threads=0)
+    for bad in (0, 1.5):
+        with pytest.raises(ValueError, match=f"threads must be an integer >= 1, got {bad}"):
+            LaneSteps([env.model], [env.data], 4, threads=bad)

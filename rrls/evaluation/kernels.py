@@ -14,73 +14,100 @@ Both report a lane as diverged when MuJoCo flagged the simulation as unstable du
 (``mjWARN_BADQPOS``/``BADQVEL``/``BADQACC``: MuJoCo then resets the data and carries on, so the
 rest of the episode would be meaningless) or the observation or reward is not finite.
 
-``FastStepper``'s physics (``LaneSteps``) can run on several threads: ``mujoco.mj_step`` releases
-the GIL, and each lane steps its own ``MjData``, so K threads step K lanes at once with the very
-same calls. ``mujoco.rollout`` would step all lanes in one C call, but it goes through state
-vectors on one ``MjData`` per *thread*: each lane's ``qacc_warmstart`` (the solver's starting
-point, so its result) and warning counters would not survive from one step to the next.
+Both can step lanes on several threads (``Shares``): ``mujoco.mj_step`` releases the GIL, and
+each lane steps its own ``MjData``, so K threads step K lanes at once with the very same calls
+(``FastStepper``: its ``mj_step`` calls, ``LaneSteps``; ``GenericStepper``: bare envs' ``step``).
+``mujoco.rollout`` would step all lanes in one C call, but it goes through state vectors on one
+``MjData`` per *thread*: each lane's ``qacc_warmstart`` (the solver's starting point, so its
+result) and warning counters would not survive from one step to the next.
 """
 
 from __future__ import annotations
 
-from collections.abc import Sequence
-from concurrent.futures import ThreadPoolExecutor
+from collections.abc import Callable, Sequence
+from concurrent.futures import ThreadPoolExecutor, wait
 from typing import Any
 
 import mujoco
 import numpy as np
 
 
-class LaneSteps:
-    """``ctrl = action; mj_step(model, data, nstep)`` for many lanes, on ``threads`` threads.
+class Shares:
+    """Runs ``work(first, k)`` for the ``k`` interleaved shares of ``n`` items (``first``,
+    ``first + k``, ...): one on the calling thread, the others on ``threads - 1`` pool threads.
 
-    The calling thread takes one share of the lanes and ``threads - 1`` pool threads the others
-    (interleaved, so lanes with costly contacts spread out). Only ``mj_step`` runs without the
-    GIL: the Python around it (a few microseconds a lane) still takes turns, so threads pay where
-    a process has cores to itself (fewer worker processes than cores, or one process stepping
-    many runs' envs), not where every core already runs a worker.
+    Interleaved, so lanes with costly contacts spread out. It pays only for work that releases the
+    GIL (``mj_step`` does): the Python around it still takes turns, so threads pay where a process
+    has cores to itself (fewer worker processes than cores, or one process stepping many runs'
+    envs), not where every core already runs a worker.
     """
 
-    def __init__(
-        self, models: Sequence[Any], datas: Sequence[Any], nstep: int, threads: int = 1
-    ) -> None:
-        if threads < 1:
-            raise ValueError(f"threads must be >= 1, got {threads}")
-        self.models, self.datas, self.nstep = list(models), list(datas), nstep
-        self.ctrls = [d.ctrl for d in self.datas]  # MjData buffers never move: views taken once
-        self.threads = threads
-        self._pool = ThreadPoolExecutor(threads - 1) if threads > 1 else None
+    def __init__(self, threads: int = 1) -> None:
+        if int(threads) != threads or threads < 1:
+            raise ValueError(f"threads must be an integer >= 1, got {threads!r}")
+        self.threads = int(threads)
+        self._pool = ThreadPoolExecutor(self.threads - 1) if self.threads > 1 else None
 
-    def __call__(self, lanes: list[int], actions: np.ndarray) -> None:
-        """Apply ``actions[j]`` to lane ``lanes[j]`` and step it ``nstep`` times."""
-        k = min(self.threads, len(lanes))
+    def __call__(self, work: Callable[[int, int], None], n: int) -> None:
+        k = min(self.threads, n)
         if self._pool is None or k < 2:
-            self._run(lanes, actions)
+            work(0, 1)
             return
-        shares = [self._pool.submit(self._run, lanes[i::k], actions[i::k]) for i in range(1, k)]
-        self._run(lanes[::k], actions[::k])
-        for share in shares:
-            share.result()  # re-raises a MuJoCo error from a pool thread
-
-    def _run(self, lanes: list[int], actions: np.ndarray) -> None:
-        models, datas, ctrls, nstep = self.models, self.datas, self.ctrls, self.nstep
-        mj_step = mujoco.mj_step
-        for j, lane in enumerate(lanes):
-            ctrls[lane][:] = actions[j]
-            mj_step(models[lane], datas[lane], nstep=nstep)
+        others = [self._pool.submit(work, first, k) for first in range(1, k)]
+        try:
+            work(0, k)
+        finally:
+            wait(others)  # the shares write into the caller's arrays: none outlives the call
+        for share in others:
+            share.result()  # re-raises an error (a MuJoCo error) from a pool thread
 
     def close(self) -> None:
-        """Stop the pool threads (the lanes stay usable, stepped on the calling thread)."""
+        """Stop the pool threads (later calls run on the calling thread)."""
         if self._pool is not None:
             self._pool.shutdown()
             self._pool = None
             self.threads = 1
 
 
-class GenericStepper:
-    """Steps each lane through its env's own ``step`` (wrappers included: disruptors, schedules)."""
+class LaneSteps:
+    """``ctrl = action; mj_step(model, data, nstep)`` for many lanes, on ``threads`` threads.
 
-    def __init__(self, envs: Sequence[Any]) -> None:
+    Each lane steps its own ``MjData`` (no state copies), so the numbers are those of one thread.
+    """
+
+    def __init__(
+        self, models: Sequence[Any], datas: Sequence[Any], nstep: int, threads: int = 1
+    ) -> None:
+        self.models, self.datas, self.nstep = list(models), list(datas), nstep
+        self.ctrls = [d.ctrl for d in self.datas]  # MjData buffers never move: views taken once
+        self.shares = Shares(threads)
+
+    def __call__(self, lanes: list[int], actions: np.ndarray) -> None:
+        """Apply ``actions[j]`` to lane ``lanes[j]`` and step it ``nstep`` times."""
+        models, datas, ctrls, nstep = self.models, self.datas, self.ctrls, self.nstep
+        mj_step = mujoco.mj_step
+
+        def work(first: int, k: int) -> None:
+            for j in range(first, len(lanes), k):
+                lane = lanes[j]
+                ctrls[lane][:] = actions[j]
+                mj_step(models[lane], datas[lane], nstep=nstep)
+
+        self.shares(work, len(lanes))
+
+    def close(self) -> None:
+        self.shares.close()
+
+
+class GenericStepper:
+    """Steps each lane through its env's own ``step`` (wrappers included: disruptors, schedules).
+
+    ``threads`` > 1 steps bare envs on that many threads (each env's ``step`` touches only its
+    own env; Gymnasium's ``mj_step`` releases the GIL); wrapped envs step on the calling thread,
+    as wrappers of different lanes may share objects (a schedule).
+    """
+
+    def __init__(self, envs: Sequence[Any], threads: int = 1) -> None:
         self.envs = list(envs)
         # the stat objects stay bound to each MjData; mj_resetData zeroes them at every reset
         bad = (
@@ -89,6 +116,9 @@ class GenericStepper:
             mujoco.mjtWarning.mjWARN_BADQACC,
         )
         self._warnings = [[e.unwrapped.data.warning[w] for w in bad] for e in self.envs]
+        bare = all(e is e.unwrapped for e in self.envs)
+        self.shares = Shares(threads if bare else 1)
+        self.obs_dim = self.envs[0].observation_space.shape[0] if self.envs else 0
 
     def unstable(self, lanes: list[int]) -> np.ndarray:
         """Lanes whose simulation MuJoCo found unstable since their last reset."""
@@ -99,23 +129,23 @@ class GenericStepper:
         """Called after ``envs[lane].reset(...)``; ``obs`` is its first observation."""
 
     def close(self) -> None:
-        """Release what stepping holds beyond the envs (threads); the envs stay open."""
+        """Stop the stepping threads; the envs stay open."""
+        self.shares.close()
 
     def step(
         self, lanes: np.ndarray, actions: np.ndarray
     ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-        n = len(lanes)
-        obs = None
+        n, envs, idx = len(lanes), self.envs, lanes.tolist()
+        obs = np.empty((n, self.obs_dim))
         rewards = np.empty(n)
         terminated = np.zeros(n, dtype=bool)
-        for j, lane in enumerate(lanes):
-            o, r, term, _, _ = self.envs[lane].step(actions[j])
-            if obs is None:
-                obs = np.empty((n, len(o)))
-            obs[j] = o
-            rewards[j] = r
-            terminated[j] = term
-        diverged = self.unstable(lanes.tolist())
+
+        def work(first: int, k: int) -> None:
+            for j in range(first, n, k):
+                obs[j], rewards[j], terminated[j], _, _ = envs[idx[j]].step(actions[j])
+
+        self.shares(work, n)
+        diverged = self.unstable(idx)
         diverged |= ~np.isfinite(rewards) | ~np.isfinite(obs).all(axis=1)
         return obs, rewards, terminated, diverged
 
@@ -126,7 +156,7 @@ class FastStepper(GenericStepper):
     TASKS = ("hopper", "walker", "halfcheetah", "invertedpendulum")
 
     def __init__(self, envs: Sequence[Any], task: str, threads: int = 1) -> None:
-        super().__init__(envs)
+        super().__init__(envs)  # one thread for env.step: FastStepper never calls it
         if task not in self.TASKS:
             raise ValueError(f"no fast stepper for {task!r}; valid: {', '.join(self.TASKS)}")
         self.task = task
@@ -155,6 +185,7 @@ class FastStepper(GenericStepper):
         self.dts[lane] = self.envs[lane].dt
 
     def close(self) -> None:
+        super().close()
         self.physics.close()
 
     def step(
@@ -230,7 +261,8 @@ def make_stepper(
     envs: Sequence[Any], task: str, fast: bool = True, threads: int = 1
 ) -> GenericStepper:
     """The fastest exact stepper for ``task``'s envs (the generic one unless it provably fits);
-    ``threads``: how many threads step the fast stepper's physics (the generic one uses one)."""
+    ``threads``: how many threads step the lanes (the physics of the fast one, the whole ``step``
+    of bare envs in the generic one)."""
     if fast and fast_stepper_applies(envs, task):
         return FastStepper(envs, task, threads)
-    return GenericStepper(envs)
+    return GenericStepper(envs, threads)
