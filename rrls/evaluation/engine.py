@@ -48,14 +48,14 @@ def run(
     chunk_dir: str | Path | None = None,
     progress: bool | None = None,
     fast: bool = True,
-    threads: int | None = None,
+    threads: int = 1,
 ) -> dict[str, np.ndarray]:
     """All episodes of ``spec`` as columns; finished chunks are saved to/loaded from ``chunk_dir``.
 
     Chunks are fixed blocks of ``chunk`` consecutive rows: the unit of saving and resuming. Which
     worker runs which episode does not matter: every row's numbers depend only on its point,
-    its seed and the policy. ``threads``: physics threads per worker (default: the cores
-    left over by the workers, at least 1).
+    its seed and the policy. ``threads``: threads stepping each worker's lanes (1 by default:
+    runs of a benchmark each take one core; more pays where cores outnumber workers).
     """
     n = spec.n_episodes
     cols = {
@@ -81,7 +81,6 @@ def run(
     workers = default_workers() if workers is None else int(workers)
     plan = plan_work(len(todo), workers, lanes)
     lanes = plan.lanes
-    threads = max(1, cores() // plan.workers) if threads is None else int(threads)
 
     if len(todo):
         make_rollout_envs(spec, lanes)  # built once here: forked workers inherit them
