@@ -39,7 +39,9 @@ class Shares:
     Interleaved, so lanes with costly contacts spread out. It pays only for work that releases the
     GIL (``mj_step`` does): the Python around it still takes turns, so threads pay where a process
     has cores to itself (fewer worker processes than cores, or one process stepping many runs'
-    envs), not where every core already runs a worker.
+    envs), not where every core already runs a worker. There, they cannot: a worker spends only
+    2-4 % of its CPU time in the Python around ``mj_step`` (the policy 17-27 %, ``mj_step`` 60-75 %
+    on Hopper and HalfCheetah: ``benchmarks/evaluation.py --threads``).
     """
 
     def __init__(self, threads: int = 1) -> None:
