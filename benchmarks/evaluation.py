@@ -12,6 +12,13 @@ fixed random weights, in env steps per second:
 
 All four run the same episodes: every mesh point, the engine's seed for episode 0.
 
+Physics threads (``--threads 1 2``): the engine with W workers x T threads stepping each worker's
+lanes (``rrls.evaluation.kernels.LaneSteps``; ``mj_step`` releases the GIL), and where one
+worker's CPU time goes with one thread: the policy, ``mj_step`` (the physics bound's CPU time for
+the same steps) and the rest (the Python around them: stepper, observations, rewards, lane
+bookkeeping). Threads add cores only where workers leave some idle (on a busy machine they also
+take a larger share of it from other processes); the breakdown says what bounds a worker.
+
 Targets: (b, every core) >= 3x (a) and >= 75 % of (c). Each measurement is repeated (``--rounds``)
 in alternation and the median is reported.
 
@@ -25,7 +32,7 @@ runs long enough that start-up is small: at ``--mesh 8 --episodes 1`` Hopper's r
 episodes are ~126 steps, 65 000 env steps in all, about half a second on 16 cores.
 
     python benchmarks/evaluation.py [--tasks halfcheetah hopper] [--mesh 5] [--rounds 3]
-        [--workers 1 2] [--episodes 1]
+        [--workers 1 2] [--episodes 1] [--threads 1 2]
 """
 
 from __future__ import annotations
@@ -42,7 +49,14 @@ import numpy as np
 
 import rrls  # noqa: F401  (registers the ids)
 from rrls.evaluation import MLPPolicy, evaluate, resolve_uncertainty
-from rrls.evaluation.lanes import episode_seeds
+from rrls.evaluation.engine import run as engine_run
+from rrls.evaluation.lanes import (
+    LANES,
+    RolloutSpec,
+    clear_env_cache,
+    episode_seeds,
+    make_rollout_envs,
+)
 
 
 def plain_loop(task: str, policy, points: np.ndarray, names, seeds: np.ndarray):
@@ -65,10 +79,11 @@ def plain_loop(task: str, policy, points: np.ndarray, names, seeds: np.ndarray):
     return steps / (time.perf_counter() - start), episodes
 
 
-def physics_bound(task: str, episodes) -> float:
+def physics_bound(task: str, episodes, clock=time.perf_counter) -> float:
     """Raw ``mj_step`` env steps per second (one core), replaying the plain loop's episodes.
 
     Same initial states, same controls, so exactly the same physics as the engine's rows.
+    ``clock``: ``time.process_time`` for CPU seconds (what a busy machine does not inflate).
     """
     from rrls.envs import env_class
 
@@ -79,11 +94,11 @@ def physics_bound(task: str, episodes) -> float:
         env.reset_params()
         env.set_params(**params)
         env.reset(seed=seed)
-        start = time.perf_counter()
+        start = clock()
         for ctrl in actions:
             data.ctrl[:] = ctrl
             mujoco.mj_step(model, data, nstep=nstep)
-        elapsed += time.perf_counter() - start
+        elapsed += clock() - start
         total += len(actions)
     return total / elapsed
 
@@ -137,6 +152,52 @@ def engine_rate(task: str, policy, mesh: int, episodes: int, workers: int) -> fl
     return steps / wall
 
 
+SHARES = ("policy_share", "physics_share", "rest_share")
+
+
+def threaded_rate(task: str, policy, mesh: int, workers: int, threads: int) -> float:
+    """Env steps per second of ``engine.run`` with ``workers`` processes x ``threads`` threads
+    (the same episodes as ``engine``: no policy checks, no result table)."""
+    box = resolve_uncertainty(task, "3d")
+    points = box.mesh(mesh)
+    spec = RolloutSpec(task, "robust", box.names, points, episode_seeds(0, len(points), 1))
+    start = time.perf_counter()
+    try:
+        cols = engine_run(spec, policy, workers=workers, threads=threads, progress=False)
+    finally:
+        clear_env_cache()
+    return int(cols["length"].sum()) / (time.perf_counter() - start)
+
+
+def breakdown(task: str, policy, mesh: int, episodes) -> tuple[float, float, float]:
+    """One worker in this process, one thread, one BLAS thread: the shares of its CPU time spent
+    in the policy, in ``mj_step`` (its steps at the CPU rate of replaying ``episodes``) and in the
+    rest (start-up apart). CPU time, so that other processes on the machine do not count."""
+    from threadpoolctl import threadpool_limits
+
+    box = resolve_uncertainty(task, "3d")
+    points = box.mesh(mesh)
+    spec = RolloutSpec(task, "robust", box.names, points, episode_seeds(0, len(points), 1))
+    in_policy = [0.0]
+
+    def timed(obs: np.ndarray) -> np.ndarray:
+        start = time.process_time()
+        actions = policy(obs)
+        in_policy[0] += time.process_time() - start
+        return actions
+
+    with threadpool_limits(1):
+        try:
+            make_rollout_envs(spec, min(LANES, spec.n_episodes))  # building them is start-up
+            start = time.process_time()
+            cols = engine_run(spec, timed, workers=1, threads=1, progress=False)
+            cpu = time.process_time() - start
+        finally:
+            clear_env_cache()
+    physics = int(cols["length"].sum()) / physics_bound(task, episodes, time.process_time) / cpu
+    return in_policy[0] / cpu, physics, 1.0 - in_policy[0] / cpu - physics
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--tasks", nargs="+", default=["halfcheetah", "hopper"])
@@ -146,6 +207,13 @@ def main() -> None:
         "--workers", type=int, nargs="+", default=None, help="scaling table (default: 1, cores)"
     )
     parser.add_argument("--episodes", type=int, default=1, help="per mesh point, scaling table")
+    parser.add_argument(
+        "--threads",
+        type=int,
+        nargs="+",
+        default=[],
+        help="physics threads per worker: a table of workers x threads and a time breakdown",
+    )
     args = parser.parse_args()
     warnings.simplefilter("ignore")
     cores = len(os.sched_getaffinity(0))
@@ -164,6 +232,9 @@ def main() -> None:
         runs: dict[str, list[float]] = {k: [] for k in ("plain", "naive", "w1", "w2", "raw")}
         for w in worker_counts:
             runs.update({f"wall{w}": [], f"steps{w}": [], f"start{w}": [], f"par{w}": []})
+            runs.update({f"t{w}x{t}": [] for t in args.threads})
+        if args.threads:
+            runs.update({key: [] for key in SHARES})
         for _ in range(args.rounds):
             rate, episodes = plain_loop(task, policy, points, box.names, seeds)
             runs["plain"].append(rate)
@@ -177,6 +248,12 @@ def main() -> None:
                 runs[f"steps{w}"].append(steps)
                 runs[f"start{w}"].append(engine(task, policy, args.mesh, args.episodes, w, 1)[0])
                 runs[f"par{w}"].append(parallel_bound(task, episodes, w))
+                for t in args.threads:
+                    runs[f"t{w}x{t}"].append(threaded_rate(task, policy, args.mesh, w, t))
+            if args.threads:
+                shares = breakdown(task, policy, args.mesh, episodes)
+                for key, share in zip(SHARES, shares):
+                    runs[key].append(share)
         med = {k: statistics.median(v) for k, v in runs.items()}
         bound = med["raw"] * cores
         rows.append((task, med, bound))
@@ -215,6 +292,28 @@ def main() -> None:
             print(
                 f"| {task} | {w} | {rate:,.0f} | {start:.2f} | {net:,.0f} | {naive_bound:,.0f} | "
                 f"{par:,.0f} | {rate / naive_bound:.0%} | {rate / par:.0%} | {net / par:.0%} |"
+            )
+
+    if args.threads:
+        print(
+            f"\nphysics threads: engine steps/s, W workers x T threads (mesh {args.mesh}^3 x 1 "
+            "episode); one worker's CPU time with one thread (policy / mj_step / the rest)\n"
+        )
+        cols = [f"{w}x{t}" for w in worker_counts for t in args.threads]
+        print(
+            "| task | "
+            + " | ".join(f"W x T = {c}" for c in cols)
+            + " | best / (a) | best / (c) | policy | mj_step | rest |"
+        )
+        print("|---|" + "---|" * (len(cols) + 5))
+        for task, med, bound in rows:
+            rates = [med[f"t{c}"] for c in cols]
+            print(
+                f"| {task} | "
+                + " | ".join(f"{r:,.0f}" for r in rates)
+                + f" | {max(rates) / med['plain']:.2f}x | {max(rates) / bound:.0%} | "
+                + " | ".join(f"{med[k]:.0%}" for k in SHARES)
+                + " |"
             )
 
 

@@ -48,12 +48,14 @@ def run(
     chunk_dir: str | Path | None = None,
     progress: bool | None = None,
     fast: bool = True,
+    threads: int = 1,
 ) -> dict[str, np.ndarray]:
     """All episodes of ``spec`` as columns; finished chunks are saved to/loaded from ``chunk_dir``.
 
     Chunks are fixed blocks of ``chunk`` consecutive rows: the unit of saving and resuming. Which
     worker runs which episode does not matter: every row's numbers depend only on its point,
-    its seed and the policy.
+    its seed and the policy. ``threads``: threads stepping each worker's lanes (1 by default:
+    runs of a benchmark each take one core; more pays where cores outnumber workers).
     """
     n = spec.n_episodes
     cols = {
@@ -98,9 +100,11 @@ def run(
     try:
         if len(todo) and plan.workers == 1:
             it = iter(todo.tolist())
-            run_rows(spec, policy, lambda live: next(it, -1), on_finished, lanes, fast)
+            run_rows(
+                spec, policy, lambda live: next(it, -1), on_finished, lanes, fast, threads=threads
+            )
         elif len(todo):
-            _run_processes(spec, policy, todo, plan, fast, on_finished)
+            _run_processes(spec, policy, todo, plan, fast, threads, on_finished)
     finally:
         bar.close()
     return cols
@@ -112,6 +116,7 @@ def _run_processes(
     todo: np.ndarray,
     plan: WorkPlan,
     fast: bool,
+    threads: int,
     on_finished: Callable[[Finished], None],
 ) -> None:
     import queue as queue_mod
@@ -124,7 +129,7 @@ def _run_processes(
     procs = [
         ctx.Process(
             target=_worker_main,
-            args=(spec, policy, todo, bounds, w, results, plan.lanes, fast, os.getpid()),
+            args=(spec, policy, todo, bounds, w, results, plan.lanes, fast, threads, os.getpid()),
             daemon=True,
         )
         for w in range(plan.workers)
@@ -170,6 +175,7 @@ def _worker_main(
     results: Any,
     lanes: int,
     fast: bool,
+    threads: int,
     parent: int,
 ) -> None:
     """A worker process: take rows (own share, then stolen ones), send finished episodes back."""
@@ -200,7 +206,7 @@ def _worker_main(
 
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")  # MuJoCo model warnings: the parent reported them
-            run_rows(spec, policy, next_row, results.put, lanes, fast, on_step)
+            run_rows(spec, policy, next_row, results.put, lanes, fast, on_step, threads)
         results.put(None)
     except BaseException as err:  # noqa: BLE001 - forwarded to the parent, which re-raises
         results.put(_Failure(err))

@@ -13,21 +13,103 @@ lane at each reset.
 Both report a lane as diverged when MuJoCo flagged the simulation as unstable during the episode
 (``mjWARN_BADQPOS``/``BADQVEL``/``BADQACC``: MuJoCo then resets the data and carries on, so the
 rest of the episode would be meaningless) or the observation or reward is not finite.
+
+Both can step lanes on several threads (``Shares``): ``mujoco.mj_step`` releases the GIL, and
+each lane steps its own ``MjData``, so K threads step K lanes at once with the very same calls
+(``FastStepper``: its ``mj_step`` calls, ``LaneSteps``; ``GenericStepper``: bare envs' ``step``).
+``mujoco.rollout`` would step all lanes in one C call, but it goes through state vectors on one
+``MjData`` per *thread*: each lane's ``qacc_warmstart`` (the solver's starting point, so its
+result) and warning counters would not survive from one step to the next.
 """
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
+from concurrent.futures import ThreadPoolExecutor, wait
 from typing import Any
 
 import mujoco
 import numpy as np
 
 
-class GenericStepper:
-    """Steps each lane through its env's own ``step`` (wrappers included: disruptors, schedules)."""
+class Shares:
+    """Runs ``work(first, k)`` for the ``k`` interleaved shares of ``n`` items (``first``,
+    ``first + k``, ...): one on the calling thread, the others on ``threads - 1`` pool threads.
 
-    def __init__(self, envs: Sequence[Any]) -> None:
+    Interleaved, so lanes with costly contacts spread out. It pays only for work that releases the
+    GIL (``mj_step`` does): the Python around it still takes turns, so threads pay where a process
+    has cores to itself (fewer worker processes than cores, or one process stepping many runs'
+    envs), not where every core already runs a worker. There, they cannot: a worker spends only
+    2-4 % of its CPU time in the Python around ``mj_step`` (the policy 17-27 %, ``mj_step`` 60-75 %
+    on Hopper and HalfCheetah: ``benchmarks/evaluation.py --threads``).
+    """
+
+    def __init__(self, threads: int = 1) -> None:
+        if int(threads) != threads or threads < 1:
+            raise ValueError(f"threads must be an integer >= 1, got {threads!r}")
+        self.threads = int(threads)
+        self._pool = ThreadPoolExecutor(self.threads - 1) if self.threads > 1 else None
+
+    def __call__(self, work: Callable[[int, int], None], n: int) -> None:
+        k = min(self.threads, n)
+        if self._pool is None or k < 2:
+            work(0, 1)
+            return
+        others = [self._pool.submit(work, first, k) for first in range(1, k)]
+        try:
+            work(0, k)
+        finally:
+            wait(others)  # the shares write into the caller's arrays: none outlives the call
+        for share in others:
+            share.result()  # re-raises an error (a MuJoCo error) from a pool thread
+
+    def close(self) -> None:
+        """Stop the pool threads (later calls run on the calling thread)."""
+        if self._pool is not None:
+            self._pool.shutdown()
+            self._pool = None
+            self.threads = 1
+
+
+class LaneSteps:
+    """``ctrl = action; mj_step(model, data, nstep)`` for many lanes, on ``threads`` threads.
+
+    Each lane steps its own ``MjData`` (no state copies), so the numbers are those of one thread.
+    """
+
+    def __init__(
+        self, models: Sequence[Any], datas: Sequence[Any], nstep: int, threads: int = 1
+    ) -> None:
+        self.models, self.datas, self.nstep = list(models), list(datas), nstep
+        self.ctrls = [d.ctrl for d in self.datas]  # MjData buffers never move: views taken once
+        self.shares = Shares(threads)
+
+    def __call__(self, lanes: list[int], actions: np.ndarray) -> None:
+        """Apply ``actions[j]`` to lane ``lanes[j]`` and step it ``nstep`` times."""
+        models, datas, ctrls, nstep = self.models, self.datas, self.ctrls, self.nstep
+        mj_step = mujoco.mj_step
+
+        def work(first: int, k: int) -> None:
+            for j in range(first, len(lanes), k):
+                lane = lanes[j]
+                ctrls[lane][:] = actions[j]
+                mj_step(models[lane], datas[lane], nstep=nstep)
+
+        self.shares(work, len(lanes))
+
+    def close(self) -> None:
+        self.shares.close()
+
+
+class GenericStepper:
+    """Steps each lane through its env's own ``step`` (wrappers included: disruptors, schedules).
+
+    ``threads`` > 1 steps bare envs on that many threads (each env's ``step`` touches only its
+    own env; Gymnasium's ``mj_step`` releases the GIL); wrapped envs step on the calling thread,
+    as wrappers of different lanes may share objects (a schedule).
+    """
+
+    def __init__(self, envs: Sequence[Any], threads: int = 1) -> None:
         self.envs = list(envs)
         # the stat objects stay bound to each MjData; mj_resetData zeroes them at every reset
         bad = (
@@ -36,30 +118,36 @@ class GenericStepper:
             mujoco.mjtWarning.mjWARN_BADQACC,
         )
         self._warnings = [[e.unwrapped.data.warning[w] for w in bad] for e in self.envs]
+        bare = all(e is e.unwrapped for e in self.envs)
+        self.shares = Shares(threads if bare else 1)
+        self.obs_dim = self.envs[0].observation_space.shape[0] if self.envs else 0
 
     def unstable(self, lanes: list[int]) -> np.ndarray:
         """Lanes whose simulation MuJoCo found unstable since their last reset."""
-        stats = self._warnings
-        return np.array([any(w.number for w in stats[lane]) for lane in lanes], dtype=bool)
+        stats = [self._warnings[lane] for lane in lanes]
+        return np.array([bool(p.number or v.number or a.number) for p, v, a in stats], dtype=bool)
 
     def reset(self, lane: int, obs: np.ndarray) -> None:
         """Called after ``envs[lane].reset(...)``; ``obs`` is its first observation."""
 
+    def close(self) -> None:
+        """Stop the stepping threads; the envs stay open."""
+        self.shares.close()
+
     def step(
         self, lanes: np.ndarray, actions: np.ndarray
     ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-        n = len(lanes)
-        obs = None
+        n, envs, idx = len(lanes), self.envs, lanes.tolist()
+        obs = np.empty((n, self.obs_dim))
         rewards = np.empty(n)
         terminated = np.zeros(n, dtype=bool)
-        for j, lane in enumerate(lanes):
-            o, r, term, _, _ = self.envs[lane].step(actions[j])
-            if obs is None:
-                obs = np.empty((n, len(o)))
-            obs[j] = o
-            rewards[j] = r
-            terminated[j] = term
-        diverged = self.unstable(lanes.tolist())
+
+        def work(first: int, k: int) -> None:
+            for j in range(first, n, k):
+                obs[j], rewards[j], terminated[j], _, _ = envs[idx[j]].step(actions[j])
+
+        self.shares(work, n)
+        diverged = self.unstable(idx)
         diverged |= ~np.isfinite(rewards) | ~np.isfinite(obs).all(axis=1)
         return obs, rewards, terminated, diverged
 
@@ -69,19 +157,17 @@ class FastStepper(GenericStepper):
 
     TASKS = ("hopper", "walker", "halfcheetah", "invertedpendulum")
 
-    def __init__(self, envs: Sequence[Any], task: str) -> None:
-        super().__init__(envs)
+    def __init__(self, envs: Sequence[Any], task: str, threads: int = 1) -> None:
+        super().__init__(envs)  # one thread for env.step: FastStepper never calls it
         if task not in self.TASKS:
             raise ValueError(f"no fast stepper for {task!r}; valid: {', '.join(self.TASKS)}")
         self.task = task
         env = self.envs[0]
-        self.models = [e.model for e in self.envs]
-        self.datas = [e.data for e in self.envs]
+        datas = [e.data for e in self.envs]
+        self.physics = LaneSteps([e.model for e in self.envs], datas, env.frame_skip, threads)
         # MjData buffers never move: take the numpy views once instead of at every step
-        self.ctrls = [d.ctrl for d in self.datas]
-        self.qposs = [d.qpos for d in self.datas]
-        self.qvels = [d.qvel for d in self.datas]
-        self.frame_skip = env.frame_skip
+        self.qposs = [d.qpos for d in datas]
+        self.qvels = [d.qvel for d in datas]
         # per lane: the timestep is a parameter (Gymnasium's dt = frame_skip * opt.timestep)
         self.dts = np.array([e.dt for e in self.envs])
         self.x_before = np.zeros(len(self.envs))
@@ -97,25 +183,21 @@ class FastStepper(GenericStepper):
             self.state_range = getattr(env, "_healthy_state_range", None)
 
     def reset(self, lane: int, obs: np.ndarray) -> None:
-        self.x_before[lane] = self.datas[lane].qpos[0]
+        self.x_before[lane] = self.qposs[lane][0]
         self.dts[lane] = self.envs[lane].dt
+
+    def close(self) -> None:
+        super().close()
+        self.physics.close()
 
     def step(
         self, lanes: np.ndarray, actions: np.ndarray
     ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-        models, datas, ctrls, nstep = self.models, self.datas, self.ctrls, self.frame_skip
-        mj_step = mujoco.mj_step
         idx = lanes.tolist()
-        stats = self._warnings
-        diverged = np.zeros(len(idx), dtype=bool)
-        for j, lane in enumerate(idx):
-            ctrls[lane][:] = actions[j]
-            # Gymnasium also calls mj_rnePostConstraint here; it only fills cacc/cfrc_* (used by
-            # none of these four tasks' observations or rewards, nor by the next mj_step).
-            mj_step(models[lane], datas[lane], nstep=nstep)
-            bad_pos, bad_vel, bad_acc = stats[lane]
-            if bad_acc.number or bad_vel.number or bad_pos.number:
-                diverged[j] = True
+        # Gymnasium also calls mj_rnePostConstraint after mj_step; it only fills cacc/cfrc_*
+        # (used by none of these four tasks' observations or rewards, nor by the next mj_step).
+        self.physics(idx, actions)
+        diverged = self.unstable(idx)
         qpos = np.array([self.qposs[lane] for lane in idx])
         qvel = np.array([self.qvels[lane] for lane in idx])
 
@@ -177,11 +259,22 @@ def fast_stepper_applies(envs: Sequence[Any], task: str) -> bool:
     return True
 
 
-def make_stepper(envs: Sequence[Any], task: str, fast: bool = True) -> GenericStepper:
-    """The fastest exact stepper for ``task``'s envs (the generic one unless it provably fits)."""
+def make_stepper(
+    envs: Sequence[Any], task: str, fast: bool = True, threads: int = 1
+) -> GenericStepper:
+    """The fastest exact stepper for ``task``'s envs (the generic one unless it provably fits);
+    ``threads``: how many threads step the lanes (the physics of the fast one, the whole ``step``
+    of bare envs in the generic one)."""
     if fast and fast_stepper_applies(envs, task):
-        return FastStepper(envs, task)
-    return GenericStepper(envs)
+        return FastStepper(envs, task, threads)
+    return GenericStepper(envs, threads)
 
 
-__all__ = ["fast_stepper_applies", "FastStepper", "GenericStepper", "make_stepper"]
+__all__ = [
+    "FastStepper",
+    "GenericStepper",
+    "LaneSteps",
+    "Shares",
+    "fast_stepper_applies",
+    "make_stepper",
+]

@@ -10,7 +10,7 @@ runs once per step on all live lanes; a finished lane takes the next episode.
 from __future__ import annotations
 
 from collections.abc import Callable, Iterator
-from contextlib import contextmanager
+from contextlib import closing, contextmanager
 from dataclasses import dataclass
 from typing import Any
 
@@ -111,19 +111,21 @@ def run_rows(
     lanes: int = LANES,
     fast: bool = True,
     on_step: Callable[[int], None] | None = None,
+    threads: int = 1,
 ) -> None:
     """Roll out episodes in lockstep until no lane is live and ``next_row(live)`` returns -1.
 
     Whenever episodes end, idle lanes ask for rows (``live``: the lanes still running) until one
     is refused, so the batch stays full while rows remain; ``on_finished`` receives the rows
     finished at each step; ``on_step`` the steps within which a lane will surely be free (0 if
-    one is already), for work stealing.
+    one is already), for work stealing. ``threads``: how many threads step the lanes' physics
+    (``rrls.evaluation.kernels.LaneSteps``; the same numbers whatever the count).
     """
     from rrls.evaluation.kernels import make_stepper
 
     n_lanes = max(1, lanes)
     envs = make_rollout_envs(spec, n_lanes)
-    stepper = make_stepper(envs, spec.task, fast=fast)
+    stepper = make_stepper(envs, spec.task, fast=fast, threads=threads)
     act_dim = envs[0].action_space.shape[0]
     obs_dim = envs[0].observation_space.shape[0]
 
@@ -152,7 +154,7 @@ def run_rows(
                 return
             start(lane, row)
 
-    with _quiet_mujoco():
+    with _quiet_mujoco(), closing(stepper):
         fill()
         _loop(
             spec,
