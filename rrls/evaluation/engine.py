@@ -25,6 +25,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from threadpoolctl import threadpool_limits
 
 from rrls._proc import cores, die_with_parent
 from rrls.evaluation.chunks import CHUNK, chunk_path, load_chunk, remove_leftovers, save_chunk
@@ -100,9 +101,18 @@ def run(
     try:
         if len(todo) and plan.workers == 1:
             it = iter(todo.tolist())
-            run_rows(
-                spec, policy, lambda live: next(it, -1), on_finished, lanes, fast, threads=threads
-            )
+            # one BLAS thread, as in the workers: a policy's small products gain nothing from
+            # more, and their spinning threads slowed a 256-256 MLP ~10x on a busy machine
+            with threadpool_limits(1, user_api="blas"):
+                run_rows(
+                    spec,
+                    policy,
+                    lambda live: next(it, -1),
+                    on_finished,
+                    lanes,
+                    fast,
+                    threads=threads,
+                )
         elif len(todo):
             _run_processes(spec, policy, todo, plan, fast, threads, on_finished)
     finally:
