@@ -460,6 +460,7 @@ def test_quickstart_is_the_quick_preset(tmp_path, capsys, monkeypatch):
     assert main(["quickstart", "--out", str(tmp_path), "--steps", "200"]) == 0
     out = capsys.readouterr().out
     assert "worst case" in out and "\ninvertedpendulum   TD3 " in out
+    assert "† fewer than 3 seeds" in out  # one seed: the mark is explained
     assert json.loads((tmp_path / "benchmark.json").read_text())["preset"] == "quick"
     assert (tmp_path / "quickstart.png").stat().st_size > 10_000
     assert (tmp_path / "report" / "report.md").exists()

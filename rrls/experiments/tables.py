@@ -324,4 +324,6 @@ def terminal_table(summary: dict[str, Any]) -> str:
                 f"{task:<18} {row[0]:<{width}} {w.get('n_seeds') or '?':>5} "
                 f"{pm(w, 1):>20} {pm(a, 1):>20}"
             )
+    if any("†" in line for line in lines[1:]):
+        lines.append("† fewer than 3 seeds: ± is not a confidence interval (one seed: its value)")
     return "\n".join(lines)
