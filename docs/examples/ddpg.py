@@ -18,10 +18,20 @@ from typing import Any
 import numpy as np
 import torch
 
-from rrls.agents.learner import Learner as Base
-from rrls.agents.nets import Actor, Critic, NumpyActor, deterministic, polyak, to_mlp_policy
-from rrls.agents.replay import ReplayBuffer, transition_fields
-from rrls.agents.seeds import Generators, NumpyGenerators, RunSeeds
+from rrls.agents import (
+    Actor,
+    Critic,
+    Generators,
+    NumpyActor,
+    NumpyGenerators,
+    ReplayBuffer,
+    RunSeeds,
+    deterministic,
+    polyak,
+    to_mlp_policy,
+    transition_fields,
+)
+from rrls.agents import Learner as Base
 
 
 @dataclass

@@ -11,22 +11,53 @@ holding its paper reference, its hyper-parameters (``Config``) and its ``Learner
 from __future__ import annotations
 
 from rrls.agents.config import Diverged, Interrupted, TrainConfig, benchmark_set
-from rrls.agents.learner import Learner
+from rrls.agents.envs import task_env
+from rrls.agents.hparams import hp
+from rrls.agents.learner import Learner, LearnerProtocol, StateLayoutError
 from rrls.agents.lookup import algorithm, hyperparameters
 from rrls.agents.loop import train, train_group
+from rrls.agents.nets import (
+    Actor,
+    Critic,
+    GaussianActor,
+    NumpyActor,
+    deterministic,
+    polyak,
+    to_mlp_policy,
+)
+from rrls.agents.replay import ReplayBuffer, transition_fields
+from rrls.agents.seeds import Generators, NumpyGenerators, RunSeeds
 from rrls.algorithms import built_in
 
 ALGOS = built_in()  # the built-in algorithms' names (rrls.algorithms.ALGORITHMS is the table)
 
 __all__ = [
+    # running
     "ALGOS",
     "Diverged",
     "Interrupted",
-    "Learner",
     "TrainConfig",
     "algorithm",
     "benchmark_set",
     "hyperparameters",
     "train",
     "train_group",
+    # the learner protocol and its building blocks (what docs/examples/ddpg.py is made of)
+    "Actor",
+    "Critic",
+    "GaussianActor",
+    "Generators",
+    "Learner",
+    "LearnerProtocol",
+    "NumpyActor",
+    "NumpyGenerators",
+    "ReplayBuffer",
+    "RunSeeds",
+    "StateLayoutError",
+    "deterministic",
+    "hp",
+    "polyak",
+    "task_env",
+    "to_mlp_policy",
+    "transition_fields",
 ]

@@ -20,14 +20,39 @@ group it was trained in.
 
 from __future__ import annotations
 
-from typing import Any
+from typing import Any, Protocol, runtime_checkable
 
 import numpy as np
 import torch
 
+__all__ = [
+    "Learner",
+    "LearnerProtocol",
+    "StateLayoutError",
+    "check_runs_first",
+    "run_slice",
+    "stack_runs",
+]
+
+
+@runtime_checkable
+class LearnerProtocol(Protocol):
+    """What the training loop calls on a learner (``K`` runs; see the module docstring).
+    A class that has these methods is a learner; subclassing ``Learner`` adds the optional
+    hooks' defaults."""
+
+    def __init__(self, env: Any, config: Any, seeds: list[Any], device: torch.device) -> None: ...
+    def act(self, obs: np.ndarray) -> list[Any]: ...
+    def observe(self, obs, actions, rewards, next_obs, terminated, infos) -> None: ...
+    def update(self, step: int) -> dict[str, torch.Tensor]: ...
+    def state_dict(self) -> dict[str, Any]: ...
+    def load_state_dict(self, state: dict[str, Any]) -> None: ...
+    def export(self, k: int) -> dict[str, Any]: ...
+
 
 class Learner:
-    """Base class with the optional hooks (subclassing it is not required)."""
+    """Base class: the six methods to write, and the optional hooks' defaults (subclassing it is
+    not required; ``LearnerProtocol`` is what is checked)."""
 
     def act(self, obs: np.ndarray) -> list[Any]:
         raise NotImplementedError
@@ -52,6 +77,30 @@ class Learner:
 
     def episode_end(self, k: int, episode_return: float, length: int) -> dict[str, float]:
         return {}
+
+
+class StateLayoutError(ValueError):
+    """A learner's ``state_dict`` does not have the runs first (raised at the first checkpoint,
+    before a resume would find a wrong slice)."""
+
+
+def check_runs_first(state: Any, runs: int, path: str = "state") -> None:
+    """Refuse, naming the tensor, a state whose tensors of dimension >= 1 do not have ``runs``
+    rows first: a plain ``nn.Linear`` of one run has ``weight`` of shape ``(out, in)``, whose
+    ``[k : k + 1]`` slice would checkpoint one output row and fail only at resume."""
+    if isinstance(state, torch.Tensor):
+        if state.dim() and state.shape[0] != runs:
+            raise StateLayoutError(
+                f"learner state {path} has shape {tuple(state.shape)}: every tensor of "
+                f"dimension >= 1 must have the runs first, ({runs}, ...) for this group of "
+                f"{runs} (keep 0-d tensors for values common to the group; docs/algorithms.md)"
+            )
+    elif isinstance(state, dict):
+        for key, value in state.items():
+            check_runs_first(value, runs, f"{path}[{key!r}]")
+    elif isinstance(state, list | tuple):
+        for i, value in enumerate(state):
+            check_runs_first(value, runs, f"{path}[{i}]")
 
 
 def run_slice(state: Any, k: int) -> Any:

@@ -25,7 +25,7 @@ import torch
 from rrls.agents import graphs
 from rrls.agents.config import Diverged, TrainConfig
 from rrls.agents.envs import env_factory, make_envs
-from rrls.agents.learner import run_slice, stack_runs
+from rrls.agents.learner import check_runs_first, run_slice, stack_runs
 from rrls.agents.lookup import Algorithm, algorithm, hyperparameters
 from rrls.agents.run import Run
 from rrls.agents.seeds import RunSeeds, rng_state, set_rng_state
@@ -263,6 +263,7 @@ def _collect(
 
             if runs[0].checkpoint_due():
                 state = learner.state_dict()
+                check_runs_first(state, group)  # a wrong layout: one line now, not at resume
                 for k, run in enumerate(runs):
                     run.save(
                         {

@@ -21,6 +21,19 @@ import numpy as np
 import torch
 from torch import nn
 
+__all__ = [
+    "Actor",
+    "Critic",
+    "GaussianActor",
+    "Linear",
+    "NumpyActor",
+    "deterministic",
+    "mlp",
+    "polyak",
+    "relu_mlp",
+    "to_mlp_policy",
+]
+
 
 class Linear(nn.Module):
     """Independent linear layers, one per run: ``(K, B, fan_in) -> (K, B, fan_out)``.

@@ -19,6 +19,11 @@ import torch
 
 from rrls.agents.seeds import Generators, RunSeeds
 
+__all__ = [
+    "ReplayBuffer",
+    "transition_fields",
+]
+
 
 def transition_fields(
     obs_dim: int, act_shape: tuple[int, ...], **extra: tuple[int, ...]

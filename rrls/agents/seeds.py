@@ -16,6 +16,8 @@ import zlib
 
 import numpy as np
 
+__all__ = ["Generators", "NumpyGenerators", "RunSeeds", "rng_state", "set_rng_state"]
+
 #: the purposes the loop and the built-in learners use (a learner may use others)
 PURPOSES = ("env", "warmup", "explore", "init", "noise", "replay", "algo")
 
