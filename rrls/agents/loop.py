@@ -178,6 +178,19 @@ def env_workers(config: TrainConfig, group: int) -> int:
     return max(0, min(group // 8, cores() - 1))
 
 
+#: updates left below which ``--compile``'s default is off: compiling (~35 s the first time on a
+#: machine, ~4 s from the cache) is not paid back by a short run or a test
+COMPILE_MIN_UPDATES = 20_000
+
+
+def compiles(config: TrainConfig, learning_starts: int, step: int) -> bool:
+    """``--compile``, or by default: whether the updates left from ``step`` are
+    ``COMPILE_MIN_UPDATES`` or more."""
+    if config.compile is not None:
+        return config.compile
+    return config.steps - max(step, learning_starts) >= COMPILE_MIN_UPDATES
+
+
 def uniform(space: Any, rng: np.random.Generator) -> Any:
     """A uniformly random action of a ``Box`` (or of each ``Box`` of a ``Tuple``) space."""
     if hasattr(space, "spaces"):
@@ -199,6 +212,7 @@ def _collect(
     seeds = [RunSeeds(run.config.seed) for run in runs]
     warmup = [s.numpy("warmup") for s in seeds]
     graphs.ENABLED = first.cuda_graphs
+    graphs.COMPILE = compiles(first, int(getattr(hyper, "learning_starts", 0)), runs[0].step)
     learner = algo.Learner(template, hyper, seeds, torch.device(first.device))
     learning_starts = int(getattr(hyper, "learning_starts", 0))
     metas = [run.metadata(template) for run in runs]
