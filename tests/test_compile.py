@@ -17,7 +17,7 @@ import pytest
 
 torch = pytest.importorskip("torch")
 
-from rrls.agents import Interrupted, TrainConfig, graphs, train  # noqa: E402
+from rrls.agents import Interrupted, TrainConfig, graphs, loop, train  # noqa: E402
 from rrls.agents.graphs import Update, adam, cache_dir, load_optimizer  # noqa: E402
 from rrls.agents.loop import COMPILE_MIN_UPDATES, compiles, train_group  # noqa: E402
 
@@ -61,8 +61,10 @@ def _gap(a, b) -> float:
     return max(float(np.abs(x[k] - y[k]).max()) for k in x)
 
 
-def test_compile_by_default_only_when_the_budget_pays_for_it(tmp_path):
+def test_compile_by_default_only_when_the_budget_pays_for_it(tmp_path, monkeypatch):
     long = _config(tmp_path, "td3", "a", steps=100 + COMPILE_MIN_UPDATES)
+    assert not compiles(long, 100, 0)  # a CPU: measured no faster compiled
+    monkeypatch.setattr(loop, "COMPILE_PAYS_ON", ("cpu",))  # as a GPU's default (none here)
     assert compiles(long, 100, 0)
     assert not compiles(long, 100, 101)  # resumed one update short of paying
     assert not compiles(_config(tmp_path, "td3", "b"), 100, 0)  # a test's budget
