@@ -11,6 +11,7 @@
 from __future__ import annotations
 
 import os
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -73,12 +74,14 @@ def test_compile_by_default_only_when_the_budget_pays_for_it(tmp_path, monkeypat
 
 
 def test_the_compile_cache_is_the_users_own_unless_set(monkeypatch, tmp_path):
-    monkeypatch.delenv("TORCHINDUCTOR_CACHE_DIR", raising=False)
+    monkeypatch.setenv("TORCHINDUCTOR_CACHE_DIR", "/tmp/set-by-torch")  # as torch._dynamo does
+    monkeypatch.setattr(graphs, "USER_CACHE_DIR", None)
     monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path / "xdg"))
     assert cache_dir() == tmp_path / "xdg" / "rrls" / "inductor"
     assert os.environ["TORCHINDUCTOR_CACHE_DIR"] == str(tmp_path / "xdg" / "rrls" / "inductor")
-    monkeypatch.setenv("TORCHINDUCTOR_CACHE_DIR", str(tmp_path / "mine"))
+    monkeypatch.setattr(graphs, "USER_CACHE_DIR", str(tmp_path / "mine"))
     assert cache_dir() == tmp_path / "mine"
+    assert os.environ["TORCHINDUCTOR_CACHE_DIR"] == str(tmp_path / "mine")
 
 
 def test_a_compiled_run_agrees_with_eager_and_resumes_exactly(tmp_path, monkeypatch):
@@ -94,6 +97,11 @@ def test_a_compiled_run_agrees_with_eager_and_resumes_exactly(tmp_path, monkeypa
     assert not compiled_fns
     compiled = train(_config(tmp_path, "td3", "compiled", compile=True))
     assert len(compiled_fns) == 1
+    expected = graphs.USER_CACHE_DIR or str(Path.home() / ".cache" / "rrls" / "inductor")
+    if os.environ.get("XDG_CACHE_HOME") and not graphs.USER_CACHE_DIR:
+        expected = str(Path(os.environ["XDG_CACHE_HOME"]) / "rrls" / "inductor")
+    assert os.environ["TORCHINDUCTOR_CACHE_DIR"] == expected  # not torch's /tmp default
+    assert any(Path(expected).iterdir())
     assert _gap(eager, compiled) <= COMPILED_TOL
     with pytest.raises(Interrupted):
         train(_config(tmp_path, "td3", "cut", compile=True, stop_at=260))

@@ -45,20 +45,26 @@ REHEARSE = False
 
 #: Adam's options that depend on the device (``adam``), kept across ``load_optimizer``
 DEVICE_FLAGS = ("capturable", "fused", "foreach")
+#: the user's ``TORCHINDUCTOR_CACHE_DIR``, read before torch sets it: importing
+#: ``torch._dynamo`` (which the first optimiser does) writes inductor's default into it
+USER_CACHE_DIR = os.environ.get("TORCHINDUCTOR_CACHE_DIR") or None
 
 
 def cache_dir() -> Path:
-    """Where inductor keeps compiled kernels: ``TORCHINDUCTOR_CACHE_DIR`` if the user set it,
-    else ``$XDG_CACHE_HOME/rrls/inductor`` (``~/.cache/rrls/inductor``), set for this process.
+    """Where inductor keeps compiled kernels, set for this process: ``TORCHINDUCTOR_CACHE_DIR``
+    if the user set it (before starting Python), else ``$XDG_CACHE_HOME/rrls/inductor``
+    (``~/.cache/rrls/inductor``).
 
     Why: inductor's default lives under ``/tmp/torchinductor_<user>``, which a reboot or a
     container restart empties; a stable per-user directory pays the compile once per machine
     (and torch version), and every later run and resume of the same shapes reuses it.
     """
-    if not os.environ.get("TORCHINDUCTOR_CACHE_DIR"):
+    path = USER_CACHE_DIR
+    if path is None:
         base = Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache")
-        os.environ["TORCHINDUCTOR_CACHE_DIR"] = str(base / "rrls" / "inductor")
-    return Path(os.environ["TORCHINDUCTOR_CACHE_DIR"])
+        path = str(base / "rrls" / "inductor")
+    os.environ["TORCHINDUCTOR_CACHE_DIR"] = path
+    return Path(path)
 
 
 class Update:
