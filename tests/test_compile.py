@@ -97,6 +97,7 @@ def test_a_compiled_run_agrees_with_eager_and_resumes_exactly(tmp_path, monkeypa
     assert not compiled_fns
     compiled = train(_config(tmp_path, "td3", "compiled", compile=True))
     assert len(compiled_fns) == 1
+    assert graphs.COMPILE is False  # restored: a learner made outside the loop stays eager
     expected = graphs.USER_CACHE_DIR or str(Path.home() / ".cache" / "rrls" / "inductor")
     if os.environ.get("XDG_CACHE_HOME") and not graphs.USER_CACHE_DIR:
         expected = str(Path(os.environ["XDG_CACHE_HOME"]) / "rrls" / "inductor")

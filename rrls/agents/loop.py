@@ -219,10 +219,15 @@ def _collect(
     first = runs[0].config
     seeds = [RunSeeds(run.config.seed) for run in runs]
     warmup = [s.numpy("warmup") for s in seeds]
-    graphs.ENABLED = first.cuda_graphs
-    graphs.COMPILE = compiles(first, int(getattr(hyper, "learning_starts", 0)), runs[0].step)
-    learner = algo.Learner(template, hyper, seeds, torch.device(first.device))
     learning_starts = int(getattr(hyper, "learning_starts", 0))
+    # the learner's updates read these when made; a learner made elsewhere keeps the defaults
+    previous = graphs.ENABLED, graphs.COMPILE
+    graphs.ENABLED = first.cuda_graphs
+    graphs.COMPILE = compiles(first, learning_starts, runs[0].step)
+    try:
+        learner = algo.Learner(template, hyper, seeds, torch.device(first.device))
+    finally:
+        graphs.ENABLED, graphs.COMPILE = previous
     metas = [run.metadata(template) for run in runs]
 
     observations, episodes = [], []
