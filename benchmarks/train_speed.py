@@ -683,11 +683,11 @@ def main() -> None:
         f"step, median of {args.rounds} rounds x {args.steps} steps\n"
     )
     refs = [k for k in ("cleanrl", "straightforward") if k in med]
-    print("| implementation | steps/s | " + " | ".join(f"ratio vs {k}" for k in refs) + " |")
+    print("| implementation | steps/s |" + "".join(f" ratio vs {k} |" for k in refs))
     print("|---|---|" + "---|" * len(refs))
     for name, value in med.items():
-        ratios = " | ".join(f"{value / med[k]:.2f}x" for k in refs)
-        print(f"| {ROWS[name]} | {value:.0f} | {ratios} |")
+        ratios = "".join(f" {value / med[k]:.2f}x |" for k in refs)
+        print(f"| {ROWS[name]} | {value:.0f} |{ratios}")
     if args.wall and "cleanrl" in med:
         wall = {
             k: statistics.median(v)

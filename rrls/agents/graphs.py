@@ -6,10 +6,15 @@ autograd bookkeeping. LeanRL's recipe, in plain PyTorch:
 
 - **compile** (``--compile``): ``torch.compile`` takes the whole update function — losses,
   ``backward`` and ``torch.optim.Adam.step`` — and inductor fuses it into C++ (CPU) or Triton
-  (GPU) kernels. ``backward`` splits it into a few graphs (dynamo does not trace it; the
-  backward itself is compiled with the forward by AOTAutograd); nothing else breaks a graph
-  (``descend`` clears gradients in a way dynamo traces). Each variant of an update (an actor
-  step or not, whose player) is one compiled graph, guarded on the variant.
+  (GPU) kernels. Torch itself splits it into a few graphs: at ``backward`` (dynamo does not
+  trace it; the backward is compiled with the forward by AOTAutograd) and around
+  ``Optimizer.step`` (a deliberate graph break of ``torch.optim``; the fused CPU Adam runs
+  as its one kernel). Nothing of rrls's breaks a graph (``descend`` clears gradients in a way
+  dynamo traces; ``Optimizer.zero_grad`` would not be). Each variant of an update (an actor
+  step or not, whose player) compiles once, guarded on the variant; the CPU replay table's
+  first growth recompiles once with its length dynamic. ``mode=None``, and on a GPU the
+  compiled function is captured by ``Update`` itself (LeanRL's ``CudaGraphModule`` pattern),
+  not inductor's ``reduce-overhead`` CUDA-graph trees, so both paths share one capture.
 - **CUDA graphs** (``--cuda-graphs``, a GPU only): each variant is captured once in a
   ``torch.cuda.graph`` (after warm-up calls on a side stream, as PyTorch requires; the warm-up
   also compiles) and replayed: one launch per update. What makes that possible: the update is
