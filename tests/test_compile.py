@@ -74,7 +74,7 @@ def test_compile_by_default_only_when_the_budget_pays_for_it(tmp_path, monkeypat
 
 
 def test_the_compile_cache_is_the_users_own_unless_set(monkeypatch, tmp_path):
-    monkeypatch.setenv("TORCHINDUCTOR_CACHE_DIR", "/tmp/set-by-torch")  # as torch._dynamo does
+    monkeypatch.setenv("TORCHINDUCTOR_CACHE_DIR", "/tmp/set-by-torch")  # as dynamo does
     monkeypatch.setattr(graphs, "USER_CACHE_DIR", None)
     monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path / "xdg"))
     assert cache_dir() == tmp_path / "xdg" / "rrls" / "inductor"

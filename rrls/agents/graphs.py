@@ -51,7 +51,7 @@ REHEARSE = False
 #: Adam's options that depend on the device (``adam``), kept across ``load_optimizer``
 DEVICE_FLAGS = ("capturable", "fused", "foreach")
 #: the user's ``TORCHINDUCTOR_CACHE_DIR``, read before torch sets it: importing
-#: ``torch._dynamo`` (which the first optimiser does) writes inductor's default into it
+#: dynamo (which the first optimiser does) writes inductor's default into it
 USER_CACHE_DIR = os.environ.get("TORCHINDUCTOR_CACHE_DIR") or None
 
 
