@@ -14,7 +14,10 @@ env step after learning starts. Env steps per second of:
     makes) from the rest of the work;
 (b) ``rrls.agents`` TD3 (plain PyTorch: batched modules, both critics in one ``baddbmm`` per
     layer, autograd, ``torch.optim.Adam``; tensor replay, acting in numpy);
-(c) M2TD3 (``rrls.agents.m2td3``) and (d) SAC (``rrls.agents.sac``) for reference.
+(b') (b) with ``--compile`` (the whole update through ``torch.compile``; compiled before the
+    timed window, the compile cache in ``TORCHINDUCTOR_CACHE_DIR``);
+(c) M2TD3 (``rrls.agents.m2td3``) and (d) SAC (``rrls.agents.sac``) for reference, (d') SAC
+    with ``--compile``. ``--rows`` picks rows (default: all).
 
 Every measurement runs in a fresh process. Ratios are against (a) and against (a').
 
@@ -281,9 +284,17 @@ def cleanrl(task: str, steps: int, warmup: int, seed: int = 0) -> float:
 
 
 # -- (b), (c) rrls ---------------------------------------------------------------------------------
-def rrls_algo(algo: str, task: str, steps: int, warmup: int, threads: int | None = None) -> float:
+def rrls_algo(
+    algo: str,
+    task: str,
+    steps: int,
+    warmup: int,
+    threads: int | None = None,
+    compile: bool = False,  # noqa: A002 - rrls train's option
+) -> float:
     """Env steps/s of ``rrls.agents`` after learning starts, timed at the env's ``step`` calls
-    (``threads``: ``rrls train --threads``; None is its default, the adaptive count)."""
+    (``threads``: ``rrls train --threads``; None is its default, the adaptive count;
+    ``compile``: ``--compile``, paid before the window: the first updates compile)."""
     import importlib
 
     module = importlib.import_module(f"rrls.agents.{algo}")
@@ -309,6 +320,7 @@ def rrls_algo(algo: str, task: str, steps: int, warmup: int, threads: int | None
                 progress=False,
                 checkpoint_every=10**9,
                 threads=threads,
+                compile=compile,
                 hyper={"learning_starts": learning_starts},
             )
             train(config)
@@ -338,7 +350,8 @@ def _measure(name: str, task: str, steps: int, warmup: int) -> float:
         if name == "ftz":
             torch.set_flush_denormal(True)
         return straightforward(task, steps, warmup)
-    return rrls_algo(name, task, steps, warmup)
+    algo, _, compiled = name.partition("+")
+    return rrls_algo(algo, task, steps, warmup, compile=bool(compiled))
 
 
 def wall_times(
@@ -350,7 +363,8 @@ def wall_times(
 ) -> dict[str, list[float]]:
     """Wall seconds of ``steps`` env steps (``random_steps`` random, then one update per step),
     start-up included, each a fresh process, ``rounds`` times in turn: CleanRL's loop (row (a))
-    and ``rrls train`` with its defaults (floor: rrls >= 1.3x). ``against``: a checkout of
+    and ``rrls train`` with its defaults (floor: rrls >= 1.3x) and with ``--compile`` (compile
+    time included). ``against``: a checkout of
     another rrls (e.g. ``git worktree add ../old <commit>``) whose ``rrls train`` is timed in
     the same rounds, so a change of core is compared on one machine in one session."""
     import subprocess
@@ -369,6 +383,7 @@ def wall_times(
             *("--eval-every", "0", "--out", out, "--overwrite"),
         ]
         cmds = {"cleanrl": ([sys.executable, "-c", cleanrl_cmd], None), "rrls": (rrls_cmd, None)}
+        cmds["compiled"] = ([*rrls_cmd, "--compile"], None)  # the default on a CPU: eager
         if against:  # its own package first on the path, in a clean working directory
             env = {**os.environ, "PYTHONPATH": str(Path(against).resolve())}
             cmds["against"] = (rrls_cmd, env)
@@ -570,8 +585,10 @@ ROWS = {
     "straightforward": "(a') the same update, lean loop",
     "ftz": "(a'') (a') + flush denormals to zero",
     "td3": "(b) rrls TD3",
+    "td3+compile": "(b') rrls TD3, --compile",
     "m2td3": "(c) rrls M2TD3 (batch 100, 5 candidates)",
     "sac": "(d) rrls SAC (CleanRL's sac_continuous_action hyper-parameters)",
+    "sac+compile": "(d') rrls SAC, --compile",
 }
 
 
@@ -581,6 +598,9 @@ def main() -> None:
     parser.add_argument("--steps", type=int, default=600)
     parser.add_argument("--warmup", type=int, default=3000)
     parser.add_argument("--rounds", type=int, default=3)
+    parser.add_argument(
+        "--rows", nargs="+", default=list(ROWS), choices=list(ROWS), help="the rows to time"
+    )
     parser.add_argument(
         "--wall",
         action="store_true",
@@ -631,10 +651,10 @@ def main() -> None:
     if args.only_groups:
         groups(args)
         return
-    names = list(ROWS)
+    names = [name for name in ROWS if name in args.rows]
     if importlib.util.find_spec("stable_baselines3") is None:
         print("stable-baselines3 is not installed: row (a) skipped (pip install -e .[bench])")
-        names.remove("cleanrl")
+        names = [name for name in names if name != "cleanrl"]
     runs: dict[str, list[float]] = {k: [] for k in names}
     # each measurement in a fresh process: flush-to-zero is per thread and inherited, so one
     # implementation's setting must not leak into the next
@@ -663,11 +683,11 @@ def main() -> None:
         f"step, median of {args.rounds} rounds x {args.steps} steps\n"
     )
     refs = [k for k in ("cleanrl", "straightforward") if k in med]
-    print("| implementation | steps/s | " + " | ".join(f"ratio vs {k}" for k in refs) + " |")
+    print("| implementation | steps/s |" + "".join(f" ratio vs {k} |" for k in refs))
     print("|---|---|" + "---|" * len(refs))
     for name, value in med.items():
-        ratios = " | ".join(f"{value / med[k]:.2f}x" for k in refs)
-        print(f"| {ROWS[name]} | {value:.0f} | {ratios} |")
+        ratios = "".join(f" {value / med[k]:.2f}x |" for k in refs)
+        print(f"| {ROWS[name]} | {value:.0f} |{ratios}")
     if args.wall and "cleanrl" in med:
         wall = {
             k: statistics.median(v)
@@ -678,7 +698,8 @@ def main() -> None:
         print(
             f"\nWall time, 22 000 steps (1 000 random), start-up included, median of "
             f"{args.wall_rounds}: CleanRL's loop {wall['cleanrl']:.1f} s, rrls train (defaults) "
-            f"{wall['rrls']:.1f} s: {wall['cleanrl'] / wall['rrls']:.2f}x (floor >= 1.3x)"
+            f"{wall['rrls']:.1f} s: {wall['cleanrl'] / wall['rrls']:.2f}x (floor >= 1.3x); "
+            f"--compile {wall['compiled']:.1f} s: {wall['cleanrl'] / wall['compiled']:.2f}x"
         )
         if "against" in wall:
             print(

@@ -35,7 +35,7 @@ import numpy as np
 import torch
 
 from rrls.agents.envs import task_env
-from rrls.agents.graphs import Update, adam
+from rrls.agents.graphs import Update, adam, load_optimizer
 from rrls.agents.hparams import hp
 from rrls.agents.nets import Actor, NumpyActor, deterministic, polyak, to_mlp_policy
 from rrls.agents.seeds import Generators, RunSeeds
@@ -171,7 +171,7 @@ class Learner(TD3Learner):
         super().load_state_dict(state)
         self.opponent.load_state_dict(state["opponent"])
         self.opponent_target.load_state_dict(state["opponent_target"])
-        self.opponent_opt.load_state_dict(state["opponent_opt"])
+        load_optimizer(self.opponent_opt, state["opponent_opt"])
         self.policy_steps = int(state["policy_steps"])
 
     def export(self, k: int) -> dict[str, Any]:

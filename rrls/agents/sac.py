@@ -27,7 +27,7 @@ import numpy as np
 import torch
 
 from rrls.agents.envs import task_env
-from rrls.agents.graphs import Update, adam
+from rrls.agents.graphs import Update, adam, descend, load_optimizer
 from rrls.agents.hparams import hp
 from rrls.agents.learner import Learner as _Learner
 from rrls.agents.nets import Critic, GaussianActor, polyak, to_mlp_policy
@@ -149,31 +149,39 @@ class Learner(_Learner):
             y = data["reward"] + cfg.gamma * (1.0 - data["terminated"]) * soft
         q = self.critic(torch.cat((obs, data["action"]), -1))
         critic_loss = (q - y.unsqueeze(1)).square().mean(-1).sum(-1)
-        self.critic_opt.zero_grad()
-        critic_loss.sum().backward()  # runs do not mix: each run's gradient is its own
-        self.critic_opt.step()
+        descend(self.critic_opt, critic_loss)  # runs do not mix: each run's gradient is its own
         losses = {"critic_loss": critic_loss.detach()}
-        for i in range(cfg.policy_frequency if policy else 0):
-            alpha = self.log_alpha.detach().exp().unsqueeze(1)
-            action, log_pi = self.actor.sample(obs, eps[1 + 2 * i])
-            min_q = self.critic(torch.cat((obs, action), -1)).amin(1)
-            actor_loss = (alpha * log_pi - min_q).mean(-1)
-            self.actor_opt.zero_grad()
-            actor_loss.sum().backward(inputs=self.actor_opt.param_groups[0]["params"])
-            self.actor_opt.step()
-            losses["actor_loss"] = actor_loss.detach()
-            if cfg.autotune:
-                with torch.no_grad():
-                    _, log_pi = self.actor.sample(obs, eps[2 + 2 * i])
-                alpha_loss = -self.log_alpha.exp().unsqueeze(1) * (log_pi + self.target_entropy)
-                alpha_loss = alpha_loss.mean(-1)
-                self.alpha_opt.zero_grad()
-                alpha_loss.sum().backward()
-                self.alpha_opt.step()
-                losses["alpha_loss"] = alpha_loss.detach()
-            losses["alpha"] = self.log_alpha.detach().exp()
+        if policy:
+            losses.update(self._policy_steps(obs, eps))
         if target:
             polyak(self.targets, self.sources, cfg.tau)
+        return losses
+
+    def _policy_steps(self, obs: torch.Tensor, eps: torch.Tensor) -> dict[str, torch.Tensor]:
+        """CleanRL's delayed policy update: ``policy_frequency`` steps, the last one's losses.
+        A loop of its own: ``torch.compile`` runs a loop holding a graph break (``backward``)
+        eagerly, and compiles each step it calls."""
+        losses: dict[str, torch.Tensor] = {}
+        for i in range(self.config.policy_frequency):
+            losses = self._policy_step(obs, eps[1 + 2 * i], eps[2 + 2 * i])
+        return losses
+
+    def _policy_step(self, obs, eps_actor, eps_alpha) -> dict[str, torch.Tensor]:  # noqa: ANN001
+        """One policy step and, with ``autotune``, one temperature step."""
+        alpha = self.log_alpha.detach().exp().unsqueeze(1)
+        action, log_pi = self.actor.sample(obs, eps_actor)
+        min_q = self.critic(torch.cat((obs, action), -1)).amin(1)
+        actor_loss = (alpha * log_pi - min_q).mean(-1)
+        descend(self.actor_opt, actor_loss, only=True)
+        losses = {"actor_loss": actor_loss.detach()}
+        if self.config.autotune:
+            with torch.no_grad():
+                _, log_pi = self.actor.sample(obs, eps_alpha)
+            alpha_loss = -self.log_alpha.exp().unsqueeze(1) * (log_pi + self.target_entropy)
+            alpha_loss = alpha_loss.mean(-1)
+            descend(self.alpha_opt, alpha_loss)
+            losses["alpha_loss"] = alpha_loss.detach()
+        losses["alpha"] = self.log_alpha.detach().exp()
         return losses
 
     def state_dict(self) -> dict[str, Any]:
@@ -187,7 +195,10 @@ class Learner(_Learner):
 
     def load_state_dict(self, state: dict[str, Any]) -> None:
         for n in NETS:
-            getattr(self, n).load_state_dict(state[n])
+            if n.endswith("_opt"):
+                load_optimizer(getattr(self, n), state[n])
+            else:
+                getattr(self, n).load_state_dict(state[n])
         with torch.no_grad():
             self.log_alpha.copy_(state["log_alpha"])
         self.noise.load_state_dict(state["noise"])

@@ -21,7 +21,7 @@ import numpy as np
 import torch
 
 from rrls.agents.envs import task_env
-from rrls.agents.graphs import Update, adam
+from rrls.agents.graphs import Update, adam, descend, load_optimizer
 from rrls.agents.hparams import hp
 from rrls.agents.learner import Learner as _Learner
 from rrls.agents.nets import Actor, Critic, NumpyActor, deterministic, polyak, to_mlp_policy
@@ -143,16 +143,12 @@ class TD3:
         ``qf1_loss + qf2_loss``); returns the ``(K,)`` losses."""
         q = self.critic(cat(obs, action, cond))
         loss = (q - y.unsqueeze(1)).square().mean(-1).sum(-1)
-        self.critic_opt.zero_grad()
-        loss.sum().backward()  # runs do not mix: each run's gradient is its own loss's
-        self.critic_opt.step()
+        descend(self.critic_opt, loss)  # runs do not mix: each run's gradient is its own loss's
         return loss.detach()
 
     def policy_step(self, actor: Actor, opt, loss: torch.Tensor) -> torch.Tensor:  # noqa: ANN001
         """One Adam step of ``actor`` on ``loss`` (``(K,)``), gradients into ``actor`` only."""
-        opt.zero_grad()
-        loss.sum().backward(inputs=opt.param_groups[0]["params"])  # = actor.parameters()
-        opt.step()
+        descend(opt, loss, only=True)
         return loss.detach()
 
     def actor_step(self, obs, cond=None) -> torch.Tensor:  # noqa: ANN001
@@ -171,7 +167,10 @@ class TD3:
 
     def load_state_dict(self, state: dict[str, Any]) -> None:
         for n in NETS:
-            getattr(self, n).load_state_dict(state[n])
+            if n.endswith("_opt"):
+                load_optimizer(getattr(self, n), state[n])
+            else:
+                getattr(self, n).load_state_dict(state[n])
         self.noise.load_state_dict(state["noise"])
 
 
