@@ -280,7 +280,7 @@ def _dispatch(args: argparse.Namespace) -> int:
     if args.command == "evaluate-dynamic":
         return _evaluate_dynamic(args)
     if args.command in ("benchmark", "report", "submit", "quickstart"):
-        from rrls.experiments.cli import run
+        from rrls.experiments.commands import run
 
         return run(args)
     if args.command == "plot":
@@ -391,14 +391,14 @@ def _evaluate(args: argparse.Namespace) -> int:
 
 
 def _default_set(task: str, meta: dict) -> str:
-    """The set the policy was trained on, else 3d (the largest set where there is no 3d)."""
-    from rrls.tasks import get_task
+    """The set the policy was trained on, else the task's benchmark set (one rule:
+    ``rrls.tasks.benchmark_set``, as training's)."""
+    from rrls.tasks import benchmark_set, get_task
 
     trained = meta.get("uncertainty")
     if isinstance(trained, str) and trained.lower() in (*get_task(task).sets, "nominal"):
         return trained.lower()
-    sets = [s for s in get_task(task).sets if get_task(task).families[s] == "robust"]
-    return "3d" if "3d" in sets else sets[-1]
+    return benchmark_set(task)
 
 
 def _train(args: argparse.Namespace) -> int:

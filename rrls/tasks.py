@@ -455,4 +455,21 @@ _task(
 )
 
 
-__all__ = ["TASKS", "TASK_ALIASES", "TaskSpec", "WORLD_FRICTION", "get_task", "register_task"]
+def benchmark_set(task: str) -> str:
+    """The paper's benchmark set of ``task`` (§5: every baseline trains on the 3D set;
+    InvertedPendulum, which has no 3D set, on its 2D set): the one rule for a default set, of
+    training, of the benchmark and of ``rrls evaluate`` when the policy does not name its own."""
+    sets = list(get_task(task).sets)
+    # a registered task without the paper's names: its first declared set
+    return next((s for s in ("3d", "2d", "1d") if s in sets), sets[0] if sets else "nominal")
+
+
+__all__ = [
+    "TASKS",
+    "TASK_ALIASES",
+    "TaskSpec",
+    "WORLD_FRICTION",
+    "benchmark_set",
+    "get_task",
+    "register_task",
+]

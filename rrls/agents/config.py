@@ -12,18 +12,9 @@ from rrls.agents.hparams import hp, jsonable
 from rrls.agents.lookup import algorithm
 from rrls.algorithms import ENTRY_POINTS, built_in
 from rrls.physics import is_paper, physics_label
+from rrls.tasks import benchmark_set
 
 __all__ = ["Diverged", "Interrupted", "TrainConfig", "benchmark_set", "training_split"]
-
-
-def benchmark_set(task: str) -> str:
-    """The paper's benchmark set (§5: every baseline trains on the 3D set; InvertedPendulum,
-    which has no 3D set, on its 2D set)."""
-    from rrls.tasks import get_task
-
-    sets = list(get_task(task).sets)
-    # a registered task without the paper's names: its first declared set
-    return next((s for s in ("3d", "2d", "1d") if s in sets), sets[0] if sets else "nominal")
 
 
 @dataclass

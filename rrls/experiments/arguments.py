@@ -1,5 +1,5 @@
 """The options of ``rrls benchmark``, ``rrls report`` and ``rrls submit`` (what they do:
-:mod:`rrls.experiments.cli`). Ranges are checked by the spec, so that errors are one line with
+:mod:`rrls.experiments.commands`). Ranges are checked by the spec, so that errors are one line with
 exit status 2."""
 
 from __future__ import annotations
