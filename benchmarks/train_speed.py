@@ -75,7 +75,7 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 import torch
-import torch.nn.functional as F  # noqa: N812
+import torch.nn.functional as F
 from torch import nn
 
 from rrls.agents import TrainConfig, train
@@ -132,7 +132,7 @@ class CleanRLTD3:
             actions += torch.normal(0, self.actor.action_scale * 0.1)
             return actions.cpu().numpy().clip(self.low, self.high)
 
-    def update(self, o, a, r, no, d, step: int) -> dict[str, torch.Tensor]:  # noqa: ANN001
+    def update(self, o, a, r, no, d, step: int) -> dict[str, torch.Tensor]:
         """One TD3 update on a batch of tensors, line for line as CleanRL writes it."""
         with torch.no_grad():
             clipped_noise = (torch.randn_like(a) * 0.2).clamp(
@@ -290,7 +290,7 @@ def rrls_algo(
     steps: int,
     warmup: int,
     threads: int | None = None,
-    compile: bool = False,  # noqa: A002 - rrls train's option
+    compile: bool = False,  # rrls train's option
 ) -> float:
     """Env steps/s of ``rrls.agents`` after learning starts, timed at the env's ``step`` calls
     (``threads``: ``rrls train --threads``; None is its default, the adaptive count;
@@ -302,7 +302,7 @@ def rrls_algo(
     stamps: list[float] = []
 
     class Clock(gym.Wrapper):
-        def step(self, action):  # noqa: ANN001, ANN202
+        def step(self, action):
             stamps.append(time.perf_counter())
             return self.env.step(action)
 
@@ -419,7 +419,7 @@ def rrls_group(
     stamps: list[float] = []
 
     class Clock(gym.Wrapper):
-        def step(self, action):  # noqa: ANN001, ANN202
+        def step(self, action):
             if barrier is not None and len(stamps) == first * k:
                 barrier.wait(timeout=3600)
             stamps.append(time.perf_counter())

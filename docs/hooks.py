@@ -49,11 +49,11 @@ class DoctestFences(Preprocessor):
 
 
 class DoctestFencesExtension(Extension):
-    def extendMarkdown(self, md: Markdown) -> None:  # noqa: N802 (Markdown's API name)
+    def extendMarkdown(self, md: Markdown) -> None:  # Markdown's API name
         md.preprocessors.register(DoctestFences(md), "rrls_doctest_fences", 40)
 
 
-def on_config(config):  # noqa: ANN001, ANN201 (MkDocs hook signature)
+def on_config(config):  # MkDocs hook signature
     """Add the extension to the site's and mkdocstrings' Markdown (they share the list)."""
     config.markdown_extensions.append(DoctestFencesExtension())
     return config

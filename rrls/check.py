@@ -61,7 +61,7 @@ def run_check(tasks: list[str] | None = None, steps: int = 100, seed: int = 0) -
                 try:
                     n, ret = _episode(env, steps, seed, params)
                     rows.append(CheckRow(key, name, label, n, ret, True))
-                except Exception as exc:  # report, keep checking the rest
+                except Exception as exc:  # noqa: BLE001 - report, keep checking the rest
                     rows.append(CheckRow(key, name, label, 0, float("nan"), False, repr(exc)))
     return rows
 

@@ -78,4 +78,4 @@ sys.modules[__name__].__class__ = _CallableModule
 #: what ``inspect.signature(rrls.evaluate)`` and IDEs show: the function's signature
 __wrapped__ = evaluate
 
-__all__ = ["evaluate", "generate_evaluation_set", *_CONSTANTS]  # noqa: PLE0604
+__all__ = ["evaluate", "generate_evaluation_set", *_CONSTANTS]

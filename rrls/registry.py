@@ -171,7 +171,7 @@ def load_task_plugins() -> bool:
             obj = ep.load()
             if callable(obj):
                 obj()
-        except Exception as err:  # a broken third-party package must not break rrls
+        except Exception as err:  # noqa: BLE001 - a broken third-party package must not break rrls
             warnings.warn(
                 f"rrls: task plugin {ep.name!r} ({ep.value}) failed to load: "
                 f"{type(err).__name__}: {err}",
@@ -424,7 +424,7 @@ def _build_base(spec: TaskSpec) -> Any:
     mujoco.set_mju_user_warning(lambda msg: w.warn(f"MuJoCo: {msg}", stacklevel=2))
     try:
         return cls(**spec.env_kwargs)
-    except Exception as err:
+    except Exception as err:  # noqa: BLE001 - any failure: one line naming the task
         raise ValueError(
             f"task {spec.key!r}: cannot build {spec.v5_id or cls.__name__} with "
             f"{spec.env_kwargs}: {type(err).__name__}: {err}"

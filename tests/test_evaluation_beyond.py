@@ -6,7 +6,7 @@ import gymnasium as gym
 import numpy as np
 import pytest
 
-import rrls  # noqa: F401
+import rrls
 from rrls.evaluation import EvaluationResult, MLPPolicy, evaluate
 from rrls.evaluation.stack import EnvStack
 from rrls.uncertainty import Split, UncertaintySet

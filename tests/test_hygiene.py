@@ -6,7 +6,7 @@ import gymnasium as gym
 import numpy as np
 import pytest
 
-import rrls  # noqa: F401
+import rrls
 from rrls.envs import HopperParamsBound, RobustHopper
 from rrls.evaluation import evaluate
 from rrls.uncertainty import UncertaintySet

@@ -7,9 +7,9 @@ import pytest
 
 pytest.importorskip("torch")
 
-from rrls.agents import TrainConfig  # noqa: E402
-from rrls.agents.run import PeriodicEvaluation  # noqa: E402
-from rrls.evaluation import MLPPolicy, evaluate  # noqa: E402
+from rrls.agents import TrainConfig
+from rrls.agents.run import PeriodicEvaluation
+from rrls.evaluation import MLPPolicy, evaluate
 
 
 def test_periodic_evaluation_equals_evaluate_and_reuses_its_plan(tmp_path):

@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-import rrls  # noqa: F401
+import rrls
 from rrls.envs import HopperParamsBound, RobustHopper
 from rrls.evaluation import MLPPolicy, evaluate_dynamic, evaluate_run_dynamic, make_dynamic_env
 from rrls.uncertainty import UncertaintySet

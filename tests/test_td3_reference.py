@@ -15,7 +15,7 @@ from rrls.agents.seeds import RunSeeds  # noqa: E402
 from rrls.agents.td3 import Config, Learner  # noqa: E402
 
 
-def _plain(layer, j=None):  # noqa: ANN001, ANN202
+def _plain(layer, j=None):
     w = layer.weight[0] if j is None else layer.weight[0, j]
     b = layer.bias[0, 0] if j is None else layer.bias[0, j, 0]
     m = torch.nn.Linear(w.shape[0], w.shape[1])
@@ -44,7 +44,7 @@ def test_td3_update_equals_a_plain_cleanrl_style_update():
     targets = [torch.nn.ModuleList(_plain(x, j) for x in ag.critic_target.layers) for j in (0, 1)]
     scale, bias = ag.actor.action_scale, ag.actor.action_bias
 
-    def net(m, x):  # noqa: ANN001, ANN202
+    def net(m, x):
         for layer in m[:-1]:
             x = F.relu(layer(x))
         return m[-1](x)

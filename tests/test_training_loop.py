@@ -388,13 +388,13 @@ def test_track_logs_to_weights_and_biases_when_installed(tmp_path, monkeypatch, 
     calls: list[tuple[str, object]] = []
 
     class FakeRun:
-        def log(self, values, step):  # noqa: ANN001
+        def log(self, values, step):
             calls.append(("log", (dict(values), step)))
 
         def finish(self):
             calls.append(("finish", None))
 
-    def init(**kwargs):  # noqa: ANN003
+    def init(**kwargs):
         calls.append(("init", kwargs))
         return FakeRun()
 
@@ -408,7 +408,7 @@ def test_track_logs_to_weights_and_biases_when_installed(tmp_path, monkeypatch, 
     csv = (out / "scalars.csv").read_text().splitlines()[1:]
     assert {line.split(",")[1] for line in csv} <= logged  # every curve reaches W&B too
 
-    def no_login(**kwargs):  # noqa: ANN003 - what wandb raises without a login and no tty
+    def no_login(**kwargs):  # what wandb raises without a login and no tty
         raise RuntimeError("api_key not configured (no-tty). call wandb.login(key=[your_api_key])")
 
     monkeypatch.setitem(sys.modules, "wandb", types.SimpleNamespace(init=no_login))

@@ -224,7 +224,7 @@ def test_confirmation_never_blocks_a_script_or_ci(monkeypatch):
     monkeypatch.setenv("CI", "true")
     assert confirmed("benchmark", 500, yes=False)  # CI
     monkeypatch.delenv("CI")
-    monkeypatch.setattr("sys.stdin", open(__file__))  # not a terminal  # noqa: SIM115
+    monkeypatch.setattr("sys.stdin", open(__file__))  # not a terminal
     assert confirmed("benchmark", 500, yes=False)
     monkeypatch.setattr("sys.stdin", _Terminal())
     monkeypatch.setattr("builtins.input", lambda prompt: "y")

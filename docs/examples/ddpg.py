@@ -76,7 +76,7 @@ class Learner(Base):
         noise = np.stack([rng.normal(0.0, self.sigma) for rng in self.rngs])
         return list(np.clip(mean + noise, self.low, self.high).astype(np.float32))
 
-    def observe(self, obs, actions, rewards, next_obs, terminated, infos) -> None:  # noqa: ANN001
+    def observe(self, obs, actions, rewards, next_obs, terminated, infos) -> None:
         self.buffer.add(
             obs=obs, action=actions, reward=rewards, next_obs=next_obs, terminated=terminated
         )

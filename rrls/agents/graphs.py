@@ -81,7 +81,7 @@ class Update:
         fn: Callable,
         device: torch.device | str,
         graphs: bool | None = None,
-        compile: bool | None = None,  # noqa: A002 - the option's name
+        compile: bool | None = None,  # the option's name
         rehearse: bool | None = None,
         warmup: int = 3,
     ) -> None:
@@ -136,7 +136,7 @@ class Update:
         return outputs
 
 
-def adam(params, lr: float, device: torch.device) -> torch.optim.Adam:  # noqa: ANN001
+def adam(params, lr: float, device: torch.device) -> torch.optim.Adam:
     """``torch.optim.Adam``: capturable on a GPU (its step count stays on the device, for CUDA
     graphs); fused on a CPU (one kernel for all parameters: measured ~10 % more updates/s at
     the paper's sizes than the default multi-tensor path). Both keep the same state."""

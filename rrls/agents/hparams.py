@@ -9,7 +9,7 @@ from typing import Any
 __all__ = ["hp", "jsonable"]
 
 
-def hp(default: Any, help: str, **extra: Any) -> Any:  # noqa: A002 - argparse's word
+def hp(default: Any, help: str, **extra: Any) -> Any:  # argparse's word
     """An option's default and its ``rrls train --help`` text (the CLI reads both from here)."""
     return field(default=default, metadata={"help": help, **extra})
 

@@ -57,7 +57,7 @@ class Learner:
     def act(self, obs: np.ndarray) -> list[Any]:
         raise NotImplementedError
 
-    def observe(self, obs, actions, rewards, next_obs, terminated, infos) -> None:  # noqa: ANN001
+    def observe(self, obs, actions, rewards, next_obs, terminated, infos) -> None:
         raise NotImplementedError
 
     def update(self, step: int) -> dict[str, torch.Tensor]:

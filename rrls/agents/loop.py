@@ -153,7 +153,7 @@ def _replay(envs: Any, k: int, saved: dict[str, Any], path: Path) -> tuple:
     return obs, episode
 
 
-def _train_together(hyper, runs, states, on_episode, threads) -> None:  # noqa: ANN001
+def _train_together(hyper, runs, states, on_episode, threads) -> None:
     """The collection loop of one group of runs at the same step."""
     first = runs[0].config
     algo = algorithm(first.algo)
@@ -214,7 +214,7 @@ def _collect(
     on_episode,
     threads,
     template,
-    envs,  # noqa: ANN001
+    envs,
 ) -> None:
     first = runs[0].config
     seeds = [RunSeeds(run.config.seed) for run in runs]

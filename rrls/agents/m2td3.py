@@ -85,7 +85,7 @@ class Candidates:
     chosen ones get a gradient (the others are skipped, their step counts unchanged).
     """
 
-    def __init__(self, low, high, rngs, config: Config, device: torch.device) -> None:  # noqa: ANN001
+    def __init__(self, low, high, rngs, config: Config, device: torch.device) -> None:
         self.n, self.group = config.hatomega_number, len(rngs.list)
         self.distance = config.hatomega_parameter_distance
         self.min_probability = config.minimum_probability
@@ -109,7 +109,7 @@ class Candidates:
         return self.low + torch.sigmoid(logits) * (self.high - self.low)
 
     @torch.no_grad()
-    def reinitialise(self, k: int, j: int, rng, probability: bool = True) -> None:  # noqa: ANN001
+    def reinitialise(self, k: int, j: int, rng, probability: bool = True) -> None:
         """A fresh uniform point and a fresh Adam; its probability = the mean of the others."""
         low, high = self.low_np, self.high_np
         y = np.clip((rng.uniform(low, high) - low) / np.maximum(high - low, 1e-5), 1e-5, 1 - 1e-5)
@@ -121,7 +121,7 @@ class Candidates:
             p[j] = 0.0
             p[j] = p.sum() / (self.n - 1)
 
-    def restart(self, k: int, rng) -> list[int]:  # noqa: ANN001
+    def restart(self, k: int, rng) -> list[int]:
         """Re-initialise run ``k``'s candidates that collapsed onto another or are rarely the
         worst."""
         with torch.no_grad():
@@ -139,7 +139,7 @@ class Candidates:
             self.reinitialise(k, j, rng)
         return sorted(close | set(rare))
 
-    def select(self, k: int, rng) -> int:  # noqa: ANN001
+    def select(self, k: int, rng) -> int:
         p = self.probabilities[k]
         p /= p.sum()
         return int(rng.choice(self.n, p=p.cpu().numpy()))
@@ -254,7 +254,7 @@ class Learner(TD3Learner):
             self.omega[k] = np.clip(centre + rng.normal(0, self.omega_std), box.low, box.high)
         return dict(zip(box.names, self.omega[k].tolist()))
 
-    def observe(self, obs, actions, rewards, next_obs, terminated, infos) -> None:  # noqa: ANN001
+    def observe(self, obs, actions, rewards, next_obs, terminated, infos) -> None:
         self.buffer.add(
             obs=obs,
             action=actions,

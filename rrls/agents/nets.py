@@ -227,7 +227,7 @@ def _squashed_mean(actor: GaussianActor, x: torch.Tensor) -> torch.Tensor:
     return torch.tanh(actor(x)[0]) * actor.action_scale + actor.action_bias
 
 
-def to_mlp_policy(actor: nn.Module, k: int, metadata: dict | None = None):  # noqa: ANN201
+def to_mlp_policy(actor: nn.Module, k: int, metadata: dict | None = None):
     """Run ``k``'s deterministic policy as the ``MLPPolicy`` that evaluation reads."""
     from rrls.evaluation.policies import MLPPolicy
 

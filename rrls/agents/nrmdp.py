@@ -98,7 +98,7 @@ class Learner(TD3Learner):
         theirs = deterministic(self.opponent, obs, self.fast).astype(np.float32)
         return list(zip(super().act(obs), theirs))
 
-    def observe(self, obs, actions, rewards, next_obs, terminated, infos) -> None:  # noqa: ANN001
+    def observe(self, obs, actions, rewards, next_obs, terminated, infos) -> None:
         executed = np.stack([info["executed_action"] for info in infos])
         super().observe(obs, executed, rewards, next_obs, terminated, infos)
 
@@ -112,7 +112,7 @@ class Learner(TD3Learner):
         return self._update(turn, draws)
 
     @torch.no_grad()
-    def target(self, data: dict[str, torch.Tensor], eps_mine, eps_theirs) -> torch.Tensor:  # noqa: ANN001
+    def target(self, data: dict[str, torch.Tensor], eps_mine, eps_theirs) -> torch.Tensor:
         """The critic's target: NR-MDP on the mixed target action, PR-MDP on the mixture."""
         agent, alpha, s2 = self.agent, self.alpha, data["next_obs"]
         mine = agent.target_action(agent.actor_target, s2, eps_mine)

@@ -205,7 +205,7 @@ class Learner(_Learner):
             per_player.append(action.astype(np.float32))
         return list(zip(*per_player))
 
-    def observe(self, obs, actions, rewards, next_obs, terminated, infos) -> None:  # noqa: ANN001
+    def observe(self, obs, actions, rewards, next_obs, terminated, infos) -> None:
         # zero-sum: the adversary learns from -reward; truncation bootstraps for both
         agent = np.stack([a[0] for a in actions]).astype(np.float32)
         after = None

@@ -89,7 +89,7 @@ class Metrics:
         self.log(values, step)
         if self._csv is None:
             new = not self.csv_path.exists()
-            self._csv = open(self.csv_path, "a", encoding="utf-8")  # noqa: SIM115
+            self._csv = open(self.csv_path, "a", encoding="utf-8")
             if new:
                 self._csv.write("step,metric,value\n")
         self._csv.writelines(f"{step},{key},{float(value)!r}\n" for key, value in values.items())

@@ -119,7 +119,7 @@ class Learner(_Learner):
             action, _ = self.actor.sample(x.unsqueeze(1), e.unsqueeze(1))
         return list(action.squeeze(1).cpu().numpy())
 
-    def observe(self, obs, actions, rewards, next_obs, terminated, infos) -> None:  # noqa: ANN001
+    def observe(self, obs, actions, rewards, next_obs, terminated, infos) -> None:
         self.buffer.add(
             obs=obs, action=actions, reward=rewards, next_obs=next_obs, terminated=terminated
         )
@@ -166,7 +166,7 @@ class Learner(_Learner):
             losses = self._policy_step(obs, eps[1 + 2 * i], eps[2 + 2 * i])
         return losses
 
-    def _policy_step(self, obs, eps_actor, eps_alpha) -> dict[str, torch.Tensor]:  # noqa: ANN001
+    def _policy_step(self, obs, eps_actor, eps_alpha) -> dict[str, torch.Tensor]:
         """One policy step and, with ``autotune``, one temperature step."""
         alpha = self.log_alpha.detach().exp().unsqueeze(1)
         action, log_pi = self.actor.sample(obs, eps_actor)

@@ -41,7 +41,7 @@ class RunSeeds:
         """A 63-bit integer from ``purpose``'s stream (``env.reset(seed=...)``, torch seeds)."""
         return int(self.sequence(purpose).generate_state(1, np.uint64)[0] >> np.uint64(1))
 
-    def torch(self, purpose: str):  # noqa: ANN201 - torch is imported lazily (no torch for envs)
+    def torch(self, purpose: str):  # torch is imported lazily (no torch for envs)
         """A CPU ``torch.Generator`` seeded from ``purpose``'s stream."""
         import torch
 
@@ -54,21 +54,21 @@ class Generators:
     def __init__(self, seeds: list[RunSeeds], purpose: str) -> None:
         self.list = [s.torch(purpose) for s in seeds]
 
-    def __getitem__(self, k: int):  # noqa: ANN204
+    def __getitem__(self, k: int):
         return self.list[k]
 
-    def __iter__(self):  # noqa: ANN204
+    def __iter__(self):
         return iter(self.list)
 
     def __len__(self) -> int:
         return len(self.list)
 
-    def state_dict(self):  # noqa: ANN201
+    def state_dict(self):
         import torch
 
         return torch.stack([g.get_state() for g in self.list])
 
-    def load_state_dict(self, state) -> None:  # noqa: ANN001
+    def load_state_dict(self, state) -> None:
         for g, s in zip(self.list, state):
             g.set_state(s.clone())
 
@@ -84,10 +84,10 @@ class NumpyGenerators:
     def __getitem__(self, k: int) -> np.random.Generator:
         return self.list[k]
 
-    def __iter__(self):  # noqa: ANN204
+    def __iter__(self):
         return iter(self.list)
 
-    def state_dict(self):  # noqa: ANN201
+    def state_dict(self):
         import torch
 
         def words(x: int) -> list[int]:
@@ -103,7 +103,7 @@ class NumpyGenerators:
             )
         return torch.tensor(rows, dtype=torch.int64)
 
-    def load_state_dict(self, state) -> None:  # noqa: ANN001
+    def load_state_dict(self, state) -> None:
         for g, row in zip(self.list, state.tolist()):
 
             def value(w: list[int]) -> int:

@@ -120,7 +120,7 @@ class TD3:
         return torch.stack([torch.randn((batch, width), generator=g) for g in self.noise])
 
     @torch.no_grad()
-    def target_action(self, actor: Actor, next_obs: torch.Tensor, eps: torch.Tensor):  # noqa: ANN201
+    def target_action(self, actor: Actor, next_obs: torch.Tensor, eps: torch.Tensor):
         """``clip(π'(s') + clip(σ ε, -c, c) · scale, low, high)`` (target policy smoothing)."""
         cfg = self.config
         noise = (eps * cfg.policy_noise).clamp(-cfg.noise_clip, cfg.noise_clip)
@@ -131,14 +131,14 @@ class TD3:
         """``r + γ (1 - terminated) q'``; truncated transitions have ``terminated = 0``."""
         return data["reward"] + self.config.gamma * (1.0 - data["terminated"]) * q_next
 
-    def td_target(self, data, eps, next_cond=None) -> torch.Tensor:  # noqa: ANN001
+    def td_target(self, data, eps, next_cond=None) -> torch.Tensor:
         """TD3's target ``r + γ (1 - d) min_i Q_i'(s', ã')``, ``(K, B)``."""
         next_action = self.target_action(self.actor_target, data["next_obs"], eps)
         with torch.no_grad():
             q_next = self.critic_target(cat(data["next_obs"], next_action, next_cond)).amin(1)
         return self.target(data, q_next)
 
-    def critic_step(self, obs, action, y, cond=None) -> torch.Tensor:  # noqa: ANN001
+    def critic_step(self, obs, action, y, cond=None) -> torch.Tensor:
         """One Adam step on ``Σ_i mean((Q_i(s, a) - y)²)`` per run (CleanRL's
         ``qf1_loss + qf2_loss``); returns the ``(K,)`` losses."""
         q = self.critic(cat(obs, action, cond))
@@ -146,12 +146,12 @@ class TD3:
         descend(self.critic_opt, loss)  # runs do not mix: each run's gradient is its own loss's
         return loss.detach()
 
-    def policy_step(self, actor: Actor, opt, loss: torch.Tensor) -> torch.Tensor:  # noqa: ANN001
+    def policy_step(self, actor: Actor, opt, loss: torch.Tensor) -> torch.Tensor:
         """One Adam step of ``actor`` on ``loss`` (``(K,)``), gradients into ``actor`` only."""
         descend(opt, loss, only=True)
         return loss.detach()
 
-    def actor_step(self, obs, cond=None) -> torch.Tensor:  # noqa: ANN001
+    def actor_step(self, obs, cond=None) -> torch.Tensor:
         """One Adam step on ``-mean Q_1(s, π(s))``."""
         loss = -self.critic.q1(cat(obs, self.actor(obs), cond)).mean(-1)
         return self.policy_step(self.actor, self.actor_opt, loss)
@@ -197,7 +197,7 @@ class Learner(_Learner):
         noise = np.stack([rng.normal(0.0, self.sigma) for rng in self.rngs])
         return list(np.clip(self.agent.act(obs) + noise, self.low, self.high).astype(np.float32))
 
-    def observe(self, obs, actions, rewards, next_obs, terminated, infos) -> None:  # noqa: ANN001
+    def observe(self, obs, actions, rewards, next_obs, terminated, infos) -> None:
         self.buffer.add(
             obs=obs, action=actions, reward=rewards, next_obs=next_obs, terminated=terminated
         )

@@ -128,7 +128,7 @@ class ModifiedParamsMixin:
             self.set_params(**params)
         self._init_params = dict(self._overrides)
 
-    def _initialize_simulation(self):  # noqa: ANN202 - Gymnasium's signature
+    def _initialize_simulation(self):  # Gymnasium's signature
         with mujoco_warnings_to_python():
             return super()._initialize_simulation()
 
@@ -321,14 +321,14 @@ class ModifiedParamsMixin:
         info.update(self._info)
         return obs, info
 
-    def reset_model(self):  # noqa: ANN201 - Gymnasium's signature
+    def reset_model(self):  # Gymnasium's signature
         # mj_resetData zeroes xfrc_applied: put the forces back so they act from the first step.
         for name, (spec, idx) in self._rows.items():
             if spec.field == _FORCES:
                 self.data.xfrc_applied[idx[0], spec.component] = self._values[name]
         return super().reset_model()
 
-    def step(self, action):  # noqa: ANN201 - Gymnasium's signature
+    def step(self, action):  # Gymnasium's signature
         obs, reward, terminated, truncated, info = super().step(action)
         info.update(self._info)
         return obs, reward, terminated, truncated, info

@@ -96,18 +96,18 @@ class EvaluationSet(MutableSequence):
     def __len__(self) -> int:
         return len(self._slots)
 
-    def __getitem__(self, i):  # noqa: ANN001, ANN204 - Sequence protocol
+    def __getitem__(self, i):  # Sequence protocol
         if isinstance(i, slice):
             return self._of(self, self._slots[i])
         slot = self._slots[i]
         return slot.factory(**slot.params) if isinstance(slot, _Lazy) else slot
 
-    def __setitem__(self, i, value) -> None:  # noqa: ANN001 - MutableSequence protocol
+    def __setitem__(self, i, value) -> None:  # MutableSequence protocol
         if isinstance(i, slice):
             value = value._slots if isinstance(value, EvaluationSet) else list(value)
         self._slots[i] = value
 
-    def __delitem__(self, i) -> None:  # noqa: ANN001 - MutableSequence protocol
+    def __delitem__(self, i) -> None:  # MutableSequence protocol
         del self._slots[i]
 
     def insert(self, index: int, value: Any) -> None:

@@ -24,7 +24,7 @@ def _group_main(root: str, spec_json: dict[str, Any], keys: list[tuple[str, str,
     die_with_parent()
     try:
         execute_recorded(root, spec_json, keys)
-    except BaseException:
+    except BaseException:  # noqa: BLE001 - recorded in error.txt; the worker's exit says it
         sys.exit(1)
 
 
@@ -122,7 +122,7 @@ def run_ray(
                 try:
                     ray.get(ref)
                     ok, detail = True, ""
-                except Exception as err:  # the task's traceback is also in error.txt
+                except Exception as err:  # noqa: BLE001 - its traceback is in error.txt
                     ok, detail = False, (str(err).strip().splitlines() or ["failed"])[-1]
                 for key in group:
                     finish_run(root, spec, key, run_ok(root, spec, key, ok), on_event, detail)

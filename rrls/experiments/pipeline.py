@@ -132,7 +132,7 @@ def _group_stages(spec: Spec, runs: list[RunKey], outs: list[Path]) -> dict[int,
             try:
                 parts = ([runs[i] for i in part], [outs[i] for i in part])
                 _train(spec, *parts, [progress[i] for i in part])
-            except Exception as err:
+            except Exception as err:  # noqa: BLE001 - written to error.txt, returned
                 if len(part) == 1:  # a group's failure is retried run by run
                     _write_error(outs[part[0]])
                 return err
@@ -163,7 +163,7 @@ def _group_stages(spec: Spec, runs: list[RunKey], outs: list[Path]) -> dict[int,
             # at 5 M steps: 60 GB for the paper's grid); a finished run keeps its policies,
             # curves, logs.
             (out / rundir.CHECKPOINT).unlink(missing_ok=True)
-        except Exception as err:
+        except Exception as err:  # noqa: BLE001 - written to error.txt, the others go on
             _write_error(out)
             errors[i] = err
     return errors

@@ -24,4 +24,4 @@ def __getattr__(name: str) -> Any:
     return action_robust.ProbabilisticActionRobust
 
 
-__all__ = list(_NAMES)  # noqa: PLE0605
+__all__ = list(_NAMES)

@@ -115,7 +115,7 @@ class Drift(Schedule):
         object.__setattr__(self, "rate", _real("drift_rate", self.rate))
         object.__setattr__(self, "direction", _direction("drift_direction", self.direction))
 
-    def value(self, t, start, previous, rng):  # noqa: ANN001, ANN201 - see Schedule
+    def value(self, t, start, previous, rng):  # see Schedule
         return start + t * self.rate * np.asarray(self.direction, dtype=np.float64)
 
 
@@ -132,7 +132,7 @@ class RandomWalk(Schedule):
             raise ValueError(f"walk_std is a standard deviation and must be >= 0, got {std!r}")
         object.__setattr__(self, "std", std)
 
-    def value(self, t, start, previous, rng):  # noqa: ANN001, ANN201 - see Schedule
+    def value(self, t, start, previous, rng):  # see Schedule
         if self.std == 0:
             return previous
         return previous + rng.normal(0.0, self.std, previous.shape)
@@ -157,7 +157,7 @@ class Sinusoid(Schedule):
         object.__setattr__(self, "phase", _real("sine_phase", self.phase))
         object.__setattr__(self, "direction", _direction("sine_direction", self.direction))
 
-    def value(self, t, start, previous, rng):  # noqa: ANN001, ANN201 - see Schedule
+    def value(self, t, start, previous, rng):  # see Schedule
         wave = math.sin(2.0 * math.pi * t / self.period + self.phase)
         return start + self.amplitude * wave * np.asarray(self.direction, dtype=np.float64)
 
@@ -180,7 +180,7 @@ class StepChange(Schedule):
         object.__setattr__(self, "at", at)
         object.__setattr__(self, "to", to)
 
-    def value(self, t, start, previous, rng):  # noqa: ANN001, ANN201 - see Schedule
+    def value(self, t, start, previous, rng):  # see Schedule
         if t < self.at:
             return start
         return np.broadcast_to(np.asarray(self.to, dtype=np.float64), start.shape).copy()
