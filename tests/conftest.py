@@ -2,12 +2,16 @@
 
 from __future__ import annotations
 
+import os
 import warnings
+from collections.abc import Iterator
+from contextlib import contextmanager
 
 import mujoco
 import numpy as np
 import pytest
 
+STOP_AT_ENV = "RRLS_STOP_AT"  # rrls.agents.run.STOP_AT_ENV (not imported here: no torch)
 TASK_KEYS = ["ant", "halfcheetah", "hopper", "humanoidstandup", "invertedpendulum", "walker"]
 
 
@@ -43,3 +47,14 @@ def rollout(env, actions, seed: int = 0, reset_options=None):
 def fixed_actions(space, n: int, seed: int = 123) -> np.ndarray:
     rng = np.random.default_rng(seed)
     return rng.uniform(space.low, space.high, size=(n, *space.shape)).astype(space.dtype)
+
+
+@contextmanager
+def stopping_at(step: int) -> Iterator[None]:
+    """Training started inside stops as if killed right after its first checkpoint at or past
+    ``step`` (``rrls.agents.run.STOP_AT_ENV``: fault injection, outside every config)."""
+    os.environ[STOP_AT_ENV] = str(step)
+    try:
+        yield
+    finally:
+        os.environ.pop(STOP_AT_ENV, None)

@@ -6,6 +6,7 @@ import json
 
 import numpy as np
 import pytest
+from conftest import stopping_at
 
 torch = pytest.importorskip("torch")
 
@@ -109,7 +110,8 @@ def test_killed_and_resumed_run_ends_bit_identical(tmp_path, algo):
     extra += ["--phase-steps", "70"] if algo == "rarl" else []  # both phases before the cut
     extra += ["--ratio", "2"] if algo == "nrmdp" else []
     assert _cli_train(tmp_path / "whole", algo, steps=400, extra=extra) == 0
-    assert _cli_train(tmp_path / "cut", algo, steps=400, extra=[*extra, "--stop-at", "220"]) == 3
+    with stopping_at(220):
+        assert _cli_train(tmp_path / "cut", algo, steps=400, extra=extra) == 3
     assert _cli_train(tmp_path / "cut", algo, steps=400, extra=extra) == 2  # needs --resume
     assert _cli_train(tmp_path / "cut", algo, steps=400, extra=[*extra, "--resume"]) == 0
     whole, cut = _checkpoint(tmp_path / "whole"), _checkpoint(tmp_path / "cut")
@@ -148,7 +150,8 @@ def test_bad_learning_rate_is_refused():
 
 
 def test_resume_refuses_another_configuration(tmp_path):
-    assert _cli_train(tmp_path / "r", "td3", steps=200, extra=["--stop-at", "150"]) == 3
+    with stopping_at(150):
+        assert _cli_train(tmp_path / "r", "td3", steps=200) == 3
     with pytest.raises(ValueError, match="seed"):
         train(
             TrainConfig(

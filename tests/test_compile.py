@@ -15,6 +15,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import stopping_at
 
 torch = pytest.importorskip("torch")
 
@@ -104,8 +105,8 @@ def test_a_compiled_run_agrees_with_eager_and_resumes_exactly(tmp_path, monkeypa
     assert os.environ["TORCHINDUCTOR_CACHE_DIR"] == expected  # not torch's /tmp default
     assert any(Path(expected).iterdir())
     assert _gap(eager, compiled) <= COMPILED_TOL
-    with pytest.raises(Interrupted):
-        train(_config(tmp_path, "td3", "cut", compile=True, stop_at=260))
+    with stopping_at(260), pytest.raises(Interrupted):
+        train(_config(tmp_path, "td3", "cut", compile=True))
     resumed = train(_config(tmp_path, "td3", "cut", compile=True), resume=True)
     assert _gap(compiled, resumed) == 0.0
 
@@ -148,8 +149,8 @@ def test_the_rehearsed_cuda_graph_path_trains_and_resumes_as_eager(tmp_path, mon
     monkeypatch.setattr(graphs, "REHEARSE", True)
     rehearsed = train(_config(tmp_path, algo, "rehearsed", compile=False))
     assert _gap(eager, rehearsed) == 0.0
-    with pytest.raises(Interrupted):
-        train(_config(tmp_path, algo, "cut", compile=False, stop_at=260))
+    with stopping_at(260), pytest.raises(Interrupted):
+        train(_config(tmp_path, algo, "cut", compile=False))
     resumed = train(_config(tmp_path, algo, "cut", compile=False), resume=True)
     assert _gap(eager, resumed) == 0.0
 

@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from conftest import stopping_at
 
 torch = pytest.importorskip("torch")
 
@@ -93,10 +94,10 @@ def test_a_group_killed_mid_episode_resumes_as_if_never_stopped(tmp_path, algo):
     whole = train_group([_config(tmp_path, algo, s, "whole") for s in (0, 1)])
     whole.append(train(_config(tmp_path, algo, 2, "whole")))
     # seeds 0 and 1 are killed together at step 260, seed 2 alone at 130
-    with pytest.raises(Interrupted):
-        train_group([_config(tmp_path, algo, s, "cut", stop_at=260) for s in (0, 1)])
-    with pytest.raises(Interrupted):
-        train(_config(tmp_path, algo, 2, "cut", stop_at=130))
+    with stopping_at(260), pytest.raises(Interrupted):
+        train_group([_config(tmp_path, algo, s, "cut") for s in (0, 1)])
+    with stopping_at(130), pytest.raises(Interrupted):
+        train(_config(tmp_path, algo, 2, "cut"))
     # one resume continues all three: seed 2 first catches up alone, then seeds 0 and 1 go on
     # as the group they were
     seen = []

@@ -11,6 +11,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import stopping_at
 
 torch = pytest.importorskip("torch")
 
@@ -37,7 +38,8 @@ def _train(out, *extra):
 
 def test_a_module_learner_trains_in_groups_and_resumes_exactly(tmp_path, examples):
     assert _train(tmp_path / "whole", "--seeds", "0-1") == 0
-    assert _train(tmp_path / "cut", "--seeds", "0-1", "--stop-at", "150") == 3
+    with stopping_at(150):
+        assert _train(tmp_path / "cut", "--seeds", "0-1") == 3
     assert _train(tmp_path / "cut", "--seeds", "0-1", "--resume") == 0
     for seed in (0, 1):
         a, b = (np.load(tmp_path / d / f"seed{seed}" / "policy.npz") for d in ("whole", "cut"))

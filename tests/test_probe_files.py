@@ -9,6 +9,7 @@ import shutil
 from pathlib import Path
 
 import pytest
+from conftest import stopping_at
 
 torch = pytest.importorskip("torch")
 pytest.importorskip("scipy")
@@ -42,7 +43,8 @@ def _one_line(capsys) -> str:
 @pytest.mark.parametrize("to", [0xFF, None], ids=["not-utf8", "one-bit"])
 def test_a_damaged_curve_file_stops_a_resume_naming_it(tmp_path, capsys, to):
     out = tmp_path / "run"
-    assert _train(out, "--stop-at", "200") == 3
+    with stopping_at(200):
+        assert _train(out) == 3
     scalars = out / rundir.SCALARS
     assert rundir.seal_path(scalars).exists()
     _flip(scalars, 0.6, to)
@@ -54,7 +56,8 @@ def test_a_damaged_curve_file_stops_a_resume_naming_it(tmp_path, capsys, to):
 
 def test_curves_written_after_the_last_checkpoint_are_dropped_on_resume(tmp_path):
     out = tmp_path / "run"
-    assert _train(out, "--stop-at", "200") == 3
+    with stopping_at(200):
+        assert _train(out) == 3
     scalars = out / rundir.SCALARS
     with open(scalars, "a") as f:  # a killed run's rows past its checkpoint, half written
         f.write("250,charts/episode_return,1.0\n260,charts/epi")

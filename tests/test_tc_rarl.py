@@ -4,6 +4,7 @@ protagonists, exact resume, and the options' checks."""
 from __future__ import annotations
 
 import pytest
+from conftest import stopping_at
 
 torch = pytest.importorskip("torch")
 
@@ -58,8 +59,8 @@ def test_a_killed_and_resumed_tc_run_ends_bit_identical(tmp_path):
     extra = ["--uncertainty", "2d", "--rate-limit", "0.01", "--observe", "stacked"]
     extra += ["--phase-steps", "70"]
     assert _cli_train(tmp_path / "whole", 400, extra) == 0
-    cut = [*extra, "--stop-at", "220"]
-    assert _cli_train(tmp_path / "cut", 400, cut) == 3
+    with stopping_at(220):
+        assert _cli_train(tmp_path / "cut", 400, extra) == 3
     assert _cli_train(tmp_path / "cut", 400, [*extra, "--resume"]) == 0
     sa, sb = (flat(_checkpoint(tmp_path / d)["learner"]) for d in ("whole", "cut"))
     assert sa.keys() == sb.keys()

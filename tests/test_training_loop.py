@@ -7,6 +7,7 @@ import json
 
 import numpy as np
 import pytest
+from conftest import stopping_at
 
 torch = pytest.importorskip("torch")
 
@@ -113,7 +114,8 @@ def test_finished_runs_bad_checkpoints_and_killed_writes(tmp_path, capsys):
     assert json.loads((out / "run.json").read_text())["steps"] == 200
 
     cut = tmp_path / "cut"
-    assert _cli(cut, "td3", 300, "--stop-at", "120") == 3
+    with stopping_at(120):
+        assert _cli(cut, "td3", 300) == 3
     (cut / ".checkpoint.pt.x1y2.tmp").write_bytes(b"half a checkpoint")  # a killed write
     (cut / "checkpoint.pt").write_bytes(b"")
     capsys.readouterr()
@@ -324,7 +326,8 @@ def test_hyperparameters_refuse_unknown_names():
 
 def test_a_damaged_checkpoint_is_refused_naming_the_file(tmp_path, capsys):
     cut = tmp_path / "cut"
-    assert _cli(cut, "td3", 300, "--stop-at", "120") == 3
+    with stopping_at(120):
+        assert _cli(cut, "td3", 300) == 3
     data = bytearray((cut / "checkpoint.pt").read_bytes())
     data[len(data) // 2] ^= 0xFF  # one flipped byte in the middle of the tensors
     (cut / "checkpoint.pt").write_bytes(bytes(data))
@@ -423,3 +426,15 @@ def test_track_logs_to_weights_and_biases_when_installed(tmp_path, monkeypatch, 
                 algo="td3", task="invertedpendulum", steps=10, track=True, out=str(tmp_path / "x")
             )
         )
+
+
+def test_the_stop_hook_is_an_environment_variable_not_an_option():
+    from conftest import STOP_AT_ENV as used_by_the_tests
+
+    from rrls.agents.run import STOP_AT_ENV
+
+    assert STOP_AT_ENV == used_by_the_tests
+    assert "stop_at" not in TrainConfig.__dataclass_fields__
+    with pytest.raises(SystemExit) as stop:  # no such option any more
+        main(["train", "--stop-at", "5"])
+    assert stop.value.code == 2

@@ -92,7 +92,6 @@ class TrainConfig:
     wandb_project: str = hp("rrls", "the W&B project of --track")
     progress: bool | None = None  # progress bar (None: when stderr is a terminal)
     overwrite: bool = hp(False, "replace a finished run in --out")
-    stop_at: int | None = None  # testing aid: stop (as if killed) at the first checkpoint >= this
     hyper: dict[str, Any] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
@@ -199,7 +198,8 @@ def training_split(task: str, uncertainty: str, text: str) -> str:
 
 
 class Interrupted(Exception):
-    """Raised by ``stop_at`` (a test aid): the run stops right after a checkpoint."""
+    """The run stopped right after a checkpoint, as if killed (``RRLS_STOP_AT``); ``--resume``
+    continues it."""
 
 
 class Diverged(ValueError):

@@ -21,7 +21,7 @@ from rrls.algorithms import built_in
 from rrls.deprecation import DeprecatedOption
 from rrls.seeds import EXAMPLES, parse_seeds
 
-_SKIP = {"progress", "hyper", "stop_at"}
+_SKIP = {"progress", "hyper"}
 
 
 def _algos(args: argparse.Namespace | None = None) -> list[str]:
@@ -123,7 +123,6 @@ def add_train_arguments(parser: argparse.ArgumentParser) -> None:
         "Each run's directory: the default per-seed name, or --out DIR/seed<S>. --resume and "
         "--overwrite apply to every run",
     )
-    run.add_argument("--stop-at", type=int, default=None, help=argparse.SUPPRESS)
     run.add_argument(
         "--hyper",
         action="append",

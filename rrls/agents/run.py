@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import io
 import json
+import os
 import sys
 import time
 from dataclasses import asdict
@@ -27,6 +28,9 @@ from rrls.agents.config import Interrupted, TrainConfig, benchmark_set
 from rrls.agents.hparams import jsonable
 from rrls.physics import physics_label
 from rrls.provenance import machine, source_commit
+
+#: stop a run right after the checkpoint at or past this step, as if killed (fault injection)
+STOP_AT_ENV = "RRLS_STOP_AT"
 
 
 def versions() -> dict[str, str]:
@@ -275,10 +279,12 @@ class Run:
         self._last_checkpoint = self.step
 
     def check_stop(self) -> None:
-        """``stop_at`` (a test aid): stop as if killed, right after a checkpoint."""
-        stop = self.config.stop_at
-        if stop is not None and self.step >= stop:
-            raise Interrupted(f"stopped at step {self.step} (stop_at={stop})")
+        """Stop as if killed, right after the checkpoint at or past ``$RRLS_STOP_AT`` (fault
+        injection: how the tests kill a run at a known step; a user can cut a run in pieces the
+        same way and ``--resume`` it)."""
+        stop = os.environ.get(STOP_AT_ENV)
+        if stop and self.step >= int(stop):
+            raise Interrupted(f"stopped at step {self.step} ({STOP_AT_ENV}={stop})")
 
     # -- logs and evaluation ----------------------------------------------------------------
     def _metrics(self) -> Metrics:
