@@ -150,12 +150,13 @@ class Learner(_Learner):
         q = self.critic(torch.cat((obs, data["action"]), -1))
         critic_loss = (q - y.unsqueeze(1)).square().mean(-1).sum(-1)
         descend(self.critic_opt, critic_loss)  # runs do not mix: each run's gradient is its own
-        losses = {"critic_loss": critic_loss.detach()}
-        if policy:
-            losses.update(self._policy_steps(obs, eps))
+        # the policy steps' loop is a graph break: nothing of this frame may be on the stack
+        # across it (``losses.update(...)`` held a fresh bound method there, which made dynamo
+        # recompile the rest of the frame at every update until its limit)
+        policy_losses = self._policy_steps(obs, eps) if policy else {}
         if target:
             polyak(self.targets, self.sources, cfg.tau)
-        return losses
+        return {"critic_loss": critic_loss.detach(), **policy_losses}
 
     def _policy_steps(self, obs: torch.Tensor, eps: torch.Tensor) -> dict[str, torch.Tensor]:
         """CleanRL's delayed policy update: ``policy_frequency`` steps, the last one's losses.
