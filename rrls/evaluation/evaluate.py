@@ -130,17 +130,7 @@ def evaluate(
         check_counts(workers=workers)
     if batch_size is not None:
         check_counts(batch_size=batch_size)
-    seeds = lanes.episode_seeds(protocol.seed, len(plan.points), protocol.episodes)
-    spec = lanes.RolloutSpec(
-        plan.resolved.task,
-        plan.resolved.family,
-        plan.mesh_box.names,
-        plan.points,
-        seeds,
-        plan.max_episode_steps,
-        None if plan.stack.empty else plan.stack,
-        paper=plan.paper,
-    )
+    spec = rollout_spec(plan, protocol)
     try:  # the engine's env cache lives only as long as this evaluation
         return _evaluate(
             policy,
@@ -239,6 +229,21 @@ def rollout_table(
     return pd.DataFrame(table)
 
 
+def rollout_spec(plan: Any, protocol: Protocol) -> Any:
+    """What the engine rolls out for a planned protocol: every point × its episodes' seeds."""
+    seeds = lanes.episode_seeds(protocol.seed, len(plan.points), protocol.episodes)
+    return lanes.RolloutSpec(
+        plan.resolved.task,
+        plan.resolved.family,
+        plan.mesh_box.names,
+        plan.points,
+        seeds,
+        plan.max_episode_steps,
+        None if plan.stack.empty else plan.stack,
+        paper=plan.paper,
+    )
+
+
 class Evaluator:
     """A protocol planned once for a task and run for many policies: training's periodic
     evaluation. ``evaluate()`` checks, fingerprints and records each policy and rebuilds its
@@ -249,17 +254,7 @@ class Evaluator:
 
     def __init__(self, task: str, protocol: Protocol, view: Any = None) -> None:
         self.plan = protocol.plan(task, view)
-        seeds = lanes.episode_seeds(protocol.seed, len(self.plan.points), protocol.episodes)
-        self.spec = lanes.RolloutSpec(
-            self.plan.resolved.task,
-            self.plan.resolved.family,
-            self.plan.mesh_box.names,
-            self.plan.points,
-            seeds,
-            self.plan.max_episode_steps,
-            None if self.plan.stack.empty else self.plan.stack,
-            paper=self.plan.paper,
-        )
+        self.spec = rollout_spec(self.plan, protocol)
 
     def __call__(self, policy: Callable[[np.ndarray], Any]) -> EvaluationResult:
         """``policy``'s rows on one worker (``policy``: batch-invariant, e.g. ``MLPPolicy``)."""
