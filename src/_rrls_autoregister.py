@@ -36,7 +36,7 @@ class _RegisterAfterImport(importlib.abc.MetaPathFinder):
                 from rrls._registration import register_envs
 
                 register_envs()
-            except Exception as exc:  # never break `import gymnasium`
+            except Exception as exc:  # noqa: BLE001 - never break `import gymnasium`
                 import warnings
 
                 warnings.warn(f"rrls could not register its environments: {exc!r}", stacklevel=2)

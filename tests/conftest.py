@@ -58,3 +58,13 @@ def stopping_at(step: int) -> Iterator[None]:
         yield
     finally:
         os.environ.pop(STOP_AT_ENV, None)
+
+
+def policy_arrays(run_dir) -> dict:
+    """A finished run's exported weights (policy and adversary), by file and array name."""
+    out = {}
+    for name in ("policy.npz", "adversary.npz"):
+        if (run_dir / name).exists():
+            with np.load(run_dir / name) as f:
+                out.update({f"{name}:{k}": f[k] for k in f.files if k != "header"})
+    return out

@@ -15,7 +15,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from conftest import stopping_at
+from conftest import policy_arrays, stopping_at
 
 torch = pytest.importorskip("torch")
 
@@ -48,17 +48,8 @@ def _config(tmp_path, algo, name, seed=1, steps=400, **extra):
     )
 
 
-def _arrays(run_dir):
-    out = {}
-    for name in ("policy.npz", "adversary.npz"):
-        if (run_dir / name).exists():
-            with np.load(run_dir / name) as f:
-                out.update({f"{name}:{k}": f[k] for k in f.files if k != "header"})
-    return out
-
-
 def _gap(a, b) -> float:
-    x, y = _arrays(a), _arrays(b)
+    x, y = policy_arrays(a), policy_arrays(b)
     assert x.keys() == y.keys() and x
     return max(float(np.abs(x[k] - y[k]).max()) for k in x)
 

@@ -19,7 +19,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from conftest import stopping_at
+from conftest import policy_arrays, stopping_at
 
 torch = pytest.importorskip("torch")
 
@@ -58,22 +58,13 @@ def _config(tmp_path, algo, seed, name, steps=400, **extra):
     )
 
 
-def _arrays(run_dir):
-    out = {}
-    for name in ("policy.npz", "adversary.npz"):
-        if (run_dir / name).exists():
-            with np.load(run_dir / name) as f:
-                out.update({f"{name}:{k}": f[k] for k in f.files if k != "header"})
-    return out
-
-
 def _same_run(a, b) -> bool:
-    x, y = _arrays(a), _arrays(b)
+    x, y = policy_arrays(a), policy_arrays(b)
     return x.keys() == y.keys() and all(np.array_equal(x[k], y[k]) for k in x)
 
 
 def _close_run(a, b, tol) -> bool:
-    x, y = _arrays(a), _arrays(b)
+    x, y = policy_arrays(a), policy_arrays(b)
     return x.keys() == y.keys() and all(np.allclose(x[k], y[k], rtol=0, atol=tol) for k in x)
 
 
@@ -199,7 +190,7 @@ def test_cuda_graphs_replay_what_the_eager_update_computes(tmp_path, algo, compi
         ]
         runs[graphs] = train_group(configs)
     for eager, graphed in zip(runs[False], runs[True]):
-        x, y = _arrays(eager), _arrays(graphed)
+        x, y = policy_arrays(eager), policy_arrays(graphed)
         assert x.keys() == y.keys()
         for key in x:  # the same losses replayed: equal up to the GPU's own rounding
             np.testing.assert_allclose(x[key], y[key], rtol=1e-4, atol=1e-5)

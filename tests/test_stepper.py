@@ -56,18 +56,7 @@ def test_threaded_fast_stepper_equals_each_env_step(task):
     generic = GenericStepper(generic_envs)
     for lane in range(LANES):
         fast.reset(lane, fast_envs[lane].unwrapped._get_obs())
-    rng = np.random.default_rng(1)
-    space = fast_envs[0].action_space
-    alive = np.ones(LANES, dtype=bool)
-    for step in range(80):
-        live = np.flatnonzero(alive)
-        actions = rng.uniform(space.low, space.high, (len(live), space.shape[0]))
-        got, want = fast.step(live, actions), generic.step(live, actions)
-        for what, g, w in zip(("obs", "reward", "terminated", "diverged"), got, want):
-            np.testing.assert_array_equal(g, w, err_msg=f"{what} differs at step {step}")
-        alive[live[want[2] | want[3]]] = False
-        if not alive.any():
-            break
+    _assert_lockstep_equal(fast, generic, fast_envs[0].action_space, steps=80, seed=1)
     fast.close()
 
 
@@ -77,18 +66,7 @@ def test_threaded_generic_stepper_equals_one_thread(task):
     one, many = _envs(task), _envs(task)
     seq, par = GenericStepper(one), GenericStepper(many, threads=3)
     assert par.shares.threads == 3
-    rng = np.random.default_rng(2)
-    space = one[0].action_space
-    alive = np.ones(LANES, dtype=bool)
-    for step in range(40):
-        live = np.flatnonzero(alive)
-        actions = rng.uniform(space.low, space.high, (len(live), space.shape[0]))
-        got, want = par.step(live, actions), seq.step(live, actions)
-        for what, g, w in zip(("obs", "reward", "terminated", "diverged"), got, want):
-            np.testing.assert_array_equal(g, w, err_msg=f"{what} differs at step {step}")
-        alive[live[want[2] | want[3]]] = False
-        if not alive.any():
-            break
+    _assert_lockstep_equal(par, seq, one[0].action_space, steps=40, seed=2)
     par.close()
 
 
@@ -137,3 +115,19 @@ def test_bad_thread_count_is_refused():
     for bad in (0, 1.5):
         with pytest.raises(ValueError, match=f"threads must be an integer >= 1, got {bad}"):
             LaneSteps([env.model], [env.data], 4, threads=bad)
+
+
+def _assert_lockstep_equal(got_stepper, want_stepper, space, steps: int, seed: int) -> None:
+    """Both steppers given the same random actions on their live lanes return the same
+    observations, rewards and flags, step by step, until every lane's episode has ended."""
+    rng = np.random.default_rng(seed)
+    alive = np.ones(LANES, dtype=bool)
+    for step in range(steps):
+        live = np.flatnonzero(alive)
+        actions = rng.uniform(space.low, space.high, (len(live), space.shape[0]))
+        got, want = got_stepper.step(live, actions), want_stepper.step(live, actions)
+        for what, g, w in zip(("obs", "reward", "terminated", "diverged"), got, want):
+            np.testing.assert_array_equal(g, w, err_msg=f"{what} differs at step {step}")
+        alive[live[want[2] | want[3]]] = False
+        if not alive.any():
+            break
