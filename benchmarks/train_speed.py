@@ -1,25 +1,28 @@
-"""TD3 training speed: rrls' TD3 core against CleanRL's TD3, side by side.
+"""Training speed: rrls' TD3 and SAC against CleanRL's, side by side.
 
 One run, this machine, Hopper (nominal), the paper's sizes (256-256, batch 256), one update per
 env step after learning starts. Env steps per second of:
 
-(a) CleanRL's loop: ``td3_continuous_action.py`` as published, step for step (``cleanrl``
-    below: its vector env, its replay buffer, which is Stable-Baselines3's, its TensorBoard
-    logging). Needs ``stable-baselines3`` (``pip install -e .[bench]``); the row is skipped
-    without it;
-(a') the same update in a lean loop (``straightforward``): two separate critic modules, a
-    Python loop over parameters for Polyak averaging, plain Adam, numpy<->torch conversion of
-    every transition and batch, no vector env, a list replay;
+(a) CleanRL's TD3 loop: ``td3_continuous_action.py`` as published, step for step
+    (``cleanrl_loops.cleanrl``: its vector env, its replay buffer, which is
+    Stable-Baselines3's, its TensorBoard logging). Needs ``stable-baselines3`` (``pip install
+    -e .[bench]``); the CleanRL rows are skipped without it;
+(a') the same update in a lean loop (``cleanrl_loops.straightforward``): two separate critic
+    modules, a Python loop over parameters for Polyak averaging, plain Adam, numpy<->torch
+    conversion of every transition and batch, no vector env, a list replay;
 (a'') (a') with denormals flushed to zero, to separate that one setting (which ``rrls train``
     makes) from the rest of the work;
+(a-SAC) CleanRL's SAC loop: ``sac_continuous_action.py`` as published
+    (``cleanrl_loops.cleanrl_sac``), the reference of the SAC rows;
 (b) ``rrls.agents`` TD3 (plain PyTorch: batched modules, both critics in one ``baddbmm`` per
     layer, autograd, ``torch.optim.Adam``; tensor replay, acting in numpy);
 (b') (b) with ``--compile`` (the whole update through ``torch.compile``; compiled before the
     timed window, the compile cache in ``TORCHINDUCTOR_CACHE_DIR``);
-(c) M2TD3 (``rrls.agents.m2td3``) and (d) SAC (``rrls.agents.sac``) for reference, (d') SAC
-    with ``--compile``. ``--rows`` picks rows (default: all).
+(c) M2TD3 (``rrls.agents.m2td3``), (d) SAC (``rrls.agents.sac``), (d') SAC with
+    ``--compile``. ``--rows`` picks rows (default: all).
 
-Every measurement runs in a fresh process. Ratios are against (a) and against (a').
+Every measurement runs in a fresh process. Ratios are against CleanRL's loop of the same
+algorithm (TD3's for every row but SAC's), against (a) and against (a').
 
 Then runs sharing the machine (``--no-shared`` skips it): one run alone with one thread and with
 the default (adaptive) threads, as many runs at once as there are cores with the default, and
@@ -73,214 +76,11 @@ from pathlib import Path
 from typing import Any
 
 import gymnasium as gym
-import numpy as np
 import torch
-import torch.nn.functional as F
-from torch import nn
+from cleanrl_loops import cleanrl, cleanrl_sac, straightforward
 
 from rrls.agents import TrainConfig, train
-from rrls.agents.envs import task_env
 from rrls.agents.loop import train_group
-
-
-# -- (a) the straightforward version ---------------------------------------------------------------
-class QNetwork(nn.Module):
-    def __init__(self, obs_dim: int, act_dim: int) -> None:
-        super().__init__()
-        self.fc1 = nn.Linear(obs_dim + act_dim, 256)
-        self.fc2 = nn.Linear(256, 256)
-        self.fc3 = nn.Linear(256, 1)
-
-    def forward(self, x: torch.Tensor, a: torch.Tensor) -> torch.Tensor:
-        x = torch.cat([x, a], 1)
-        return self.fc3(F.relu(self.fc2(F.relu(self.fc1(x)))))
-
-
-class ActorNet(nn.Module):
-    def __init__(self, obs_dim: int, act_dim: int, scale: np.ndarray, bias: np.ndarray) -> None:
-        super().__init__()
-        self.fc1 = nn.Linear(obs_dim, 256)
-        self.fc2 = nn.Linear(256, 256)
-        self.fc_mu = nn.Linear(256, act_dim)
-        self.register_buffer("action_scale", torch.tensor(scale, dtype=torch.float32))
-        self.register_buffer("action_bias", torch.tensor(bias, dtype=torch.float32))
-
-    def forward(self, x: torch.Tensor) -> torch.Tensor:
-        x = torch.tanh(self.fc_mu(F.relu(self.fc2(F.relu(self.fc1(x))))))
-        return x * self.action_scale + self.action_bias
-
-
-class CleanRLTD3:
-    """CleanRL's networks, optimisers and update lines, shared by (a) and (a')."""
-
-    def __init__(self, obs_dim: int, act_dim: int, low: np.ndarray, high: np.ndarray) -> None:
-        self.low, self.high = float(low[0]), float(high[0])  # CleanRL clamps to scalar bounds
-        self.actor = ActorNet(obs_dim, act_dim, (high - low) / 2, (high + low) / 2)
-        self.qf1, self.qf2 = QNetwork(obs_dim, act_dim), QNetwork(obs_dim, act_dim)
-        self.qf1_target, self.qf2_target = QNetwork(obs_dim, act_dim), QNetwork(obs_dim, act_dim)
-        self.target_actor = ActorNet(obs_dim, act_dim, (high - low) / 2, (high + low) / 2)
-        self.target_actor.load_state_dict(self.actor.state_dict())
-        self.qf1_target.load_state_dict(self.qf1.state_dict())
-        self.qf2_target.load_state_dict(self.qf2.state_dict())
-        critic_params = list(self.qf1.parameters()) + list(self.qf2.parameters())
-        self.q_optimizer = torch.optim.Adam(critic_params, lr=3e-4)
-        self.actor_optimizer = torch.optim.Adam(list(self.actor.parameters()), lr=3e-4)
-
-    def act(self, obs: np.ndarray) -> np.ndarray:
-        with torch.no_grad():
-            actions = self.actor(torch.Tensor(obs))
-            actions += torch.normal(0, self.actor.action_scale * 0.1)
-            return actions.cpu().numpy().clip(self.low, self.high)
-
-    def update(self, o, a, r, no, d, step: int) -> dict[str, torch.Tensor]:
-        """One TD3 update on a batch of tensors, line for line as CleanRL writes it."""
-        with torch.no_grad():
-            clipped_noise = (torch.randn_like(a) * 0.2).clamp(
-                -0.5, 0.5
-            ) * self.target_actor.action_scale
-            next_state_actions = (self.target_actor(no) + clipped_noise).clamp(self.low, self.high)
-            qf1_next_target = self.qf1_target(no, next_state_actions)
-            qf2_next_target = self.qf2_target(no, next_state_actions)
-            min_qf_next_target = torch.min(qf1_next_target, qf2_next_target)
-            next_q_value = r.flatten() + (1 - d.flatten()) * 0.99 * min_qf_next_target.view(-1)
-        out = {
-            "qf1_values": self.qf1(o, a).view(-1),
-            "qf2_values": self.qf2(o, a).view(-1),
-        }
-        out["qf1_loss"] = F.mse_loss(out["qf1_values"], next_q_value)
-        out["qf2_loss"] = F.mse_loss(out["qf2_values"], next_q_value)
-        out["qf_loss"] = out["qf1_loss"] + out["qf2_loss"]
-        self.q_optimizer.zero_grad()
-        out["qf_loss"].backward()
-        self.q_optimizer.step()
-        if step % 2 == 0:
-            out["actor_loss"] = -self.qf1(o, self.actor(o)).mean()
-            self.actor_optimizer.zero_grad()
-            out["actor_loss"].backward()
-            self.actor_optimizer.step()
-            for net, target in (
-                (self.actor, self.target_actor),
-                (self.qf1, self.qf1_target),
-                (self.qf2, self.qf2_target),
-            ):
-                for param, target_param in zip(net.parameters(), target.parameters()):
-                    target_param.data.copy_(0.005 * param.data + 0.995 * target_param.data)
-        return out
-
-
-def straightforward(task: str, steps: int, warmup: int, seed: int = 0) -> float:
-    """CleanRL's update in a lean loop; env steps/s over ``steps`` steps after ``warmup``."""
-    env = task_env(task)[0]
-    obs_dim, act_dim = env.observation_space.shape[0], env.action_space.shape[0]
-    low, high = env.action_space.low, env.action_space.high
-    torch.manual_seed(seed)
-    rng = np.random.default_rng(seed)
-    td3 = CleanRLTD3(obs_dim, act_dim, low, high)
-    buffer: list[tuple] = []
-    obs, _ = env.reset(seed=seed)
-    for _ in range(1000):  # a filled buffer to sample from
-        action = rng.uniform(low, high)
-        next_obs, reward, terminated, _, _ = env.step(action)
-        buffer.append((obs, action, reward, next_obs, terminated))
-        obs = next_obs if not terminated else env.reset()[0]
-    start = None
-    for step in range(warmup + steps):
-        if step == warmup:
-            start = time.perf_counter()
-        action = td3.act(obs[None])[0]
-        next_obs, reward, terminated, _, _ = env.step(action)
-        buffer.append((obs, action, reward, next_obs, terminated))
-        obs = next_obs if not terminated else env.reset()[0]
-
-        idx = rng.integers(0, len(buffer), 256)
-        o, a, r, no, d = (np.array(x) for x in zip(*(buffer[i] for i in idx)))
-        o, a, no = torch.Tensor(o), torch.Tensor(a), torch.Tensor(no)
-        r, d = torch.Tensor(r), torch.Tensor(d.astype(np.float32))
-        td3.update(o, a, r, no, d, step)
-    return steps / (time.perf_counter() - start)
-
-
-def cleanrl(task: str, steps: int, warmup: int, seed: int = 0) -> float:
-    """CleanRL's ``td3_continuous_action.py`` loop as published, on this stack.
-
-    Everything the script does per step after learning starts: a one-env ``SyncVectorEnv`` of
-    ``gym.make`` + ``RecordEpisodeStatistics``, its replay buffer (``cleanrl_utils.buffers`` is
-    Stable-Baselines3's ``ReplayBuffer``: 1 M preallocated numpy rows, numpy indexing and a
-    ``torch.tensor`` copy per field and batch), ``CleanRLTD3``'s update (the same modules and
-    lines as (a')), TensorBoard scalars every 100 steps. Two changes, neither timed: the
-    ``print`` of steps/s is dropped, and a truncation does not read ``infos["final_observation"]``
-    (Gymnasium 1.x no longer provides it: the published script stops there with a KeyError).
-    """
-    from stable_baselines3.common.buffers import ReplayBuffer as SB3ReplayBuffer
-    from torch.utils.tensorboard import SummaryWriter
-
-    from rrls.tasks import get_task
-
-    def thunk() -> gym.Env:
-        env = gym.wrappers.RecordEpisodeStatistics(gym.make(get_task(task).v5_id))
-        env.action_space.seed(seed)
-        return env
-
-    envs = gym.vector.SyncVectorEnv([thunk])
-    obs_dim = envs.single_observation_space.shape[0]
-    act_dim = envs.single_action_space.shape[0]
-    low, high = envs.single_action_space.low, envs.single_action_space.high
-    np.random.seed(seed)  # noqa: NPY002 - SB3's buffer (CleanRL's) samples from the global one
-    torch.manual_seed(seed)
-    td3 = CleanRLTD3(obs_dim, act_dim, low, high)
-    envs.single_observation_space.dtype = np.float32
-    rb = SB3ReplayBuffer(
-        1_000_000,
-        envs.single_observation_space,
-        envs.single_action_space,
-        "cpu",
-        handle_timeout_termination=False,
-    )
-    learning_starts = 1000
-    obs, _ = envs.reset(seed=seed)
-    start = None
-    with tempfile.TemporaryDirectory() as logdir:
-        writer = SummaryWriter(logdir)
-        for global_step in range(learning_starts + warmup + steps + 1):
-            if global_step == learning_starts + warmup + 1:
-                start = time.perf_counter()
-            if global_step < learning_starts:
-                actions = np.array([envs.single_action_space.sample()])
-            else:
-                actions = td3.act(obs)
-            next_obs, rewards, terminations, truncations, infos = envs.step(actions)
-            if "final_info" in infos:
-                for info in infos["final_info"]:
-                    if info is not None:
-                        writer.add_scalar("charts/episodic_return", info["episode"]["r"], 0)
-                        break
-            real_next_obs = next_obs.copy()
-            for idx, trunc in enumerate(truncations):
-                if trunc and "final_observation" in infos:
-                    real_next_obs[idx] = infos["final_observation"][idx]
-            rb.add(obs, real_next_obs, actions, rewards, terminations, infos)
-            obs = next_obs
-            if global_step > learning_starts:
-                data = rb.sample(256)
-                losses = td3.update(
-                    data.observations,
-                    data.actions,
-                    data.rewards,
-                    data.next_observations,
-                    data.dones,
-                    global_step,
-                )
-                if global_step % 100 == 0:
-                    for name in ("qf1_values", "qf2_values"):
-                        writer.add_scalar(f"losses/{name}", losses[name].mean().item(), global_step)
-                    for name in ("qf1_loss", "qf2_loss", "actor_loss"):
-                        writer.add_scalar(f"losses/{name}", losses[name].item(), global_step)
-                    writer.add_scalar("losses/qf_loss", losses["qf_loss"].item() / 2.0, global_step)
-                    writer.add_scalar("charts/SPS", global_step, global_step)
-        elapsed = time.perf_counter() - start
-        writer.close()
-    envs.close()
-    return steps / elapsed
 
 
 # -- (b), (c) rrls ---------------------------------------------------------------------------------
@@ -346,6 +146,8 @@ def _measure(name: str, task: str, steps: int, warmup: int) -> float:
     warnings.simplefilter("ignore")
     if name == "cleanrl":
         return cleanrl(task, steps, warmup)
+    if name == "cleanrl-sac":
+        return cleanrl_sac(task, steps, warmup)
     if name in ("straightforward", "ftz"):
         if name == "ftz":
             torch.set_flush_denormal(True)
@@ -373,7 +175,7 @@ def wall_times(
     here, updates = str(Path(__file__).parent), steps - random_steps
     cleanrl_cmd = (
         f"import sys, warnings; warnings.simplefilter('ignore'); sys.path.insert(0, {here!r});"
-        f"import train_speed; train_speed.cleanrl({task!r}, {updates}, 0)"
+        f"import cleanrl_loops; cleanrl_loops.cleanrl({task!r}, {updates}, 0)"
     )
     times: dict[str, list[float]] = {}
     with tempfile.TemporaryDirectory() as out:
@@ -587,6 +389,7 @@ ROWS = {
     "td3": "(b) rrls TD3",
     "td3+compile": "(b') rrls TD3, --compile",
     "m2td3": "(c) rrls M2TD3 (batch 100, 5 candidates)",
+    "cleanrl-sac": "(a-SAC) CleanRL's SAC loop as published (SB3 replay, vector env)",
     "sac": "(d) rrls SAC (CleanRL's sac_continuous_action hyper-parameters)",
     "sac+compile": "(d') rrls SAC, --compile",
 }
@@ -654,7 +457,7 @@ def main() -> None:
     names = [name for name in ROWS if name in args.rows]
     if importlib.util.find_spec("stable_baselines3") is None:
         print("stable-baselines3 is not installed: row (a) skipped (pip install -e .[bench])")
-        names = [name for name in names if name != "cleanrl"]
+        names = [name for name in names if not name.startswith("cleanrl")]
     runs: dict[str, list[float]] = {k: [] for k in names}
     # each measurement in a fresh process: flush-to-zero is per thread and inherited, so one
     # implementation's setting must not leak into the next
@@ -683,11 +486,17 @@ def main() -> None:
         f"step, median of {args.rounds} rounds x {args.steps} steps\n"
     )
     refs = [k for k in ("cleanrl", "straightforward") if k in med]
-    print("| implementation | steps/s |" + "".join(f" ratio vs {k} |" for k in refs))
-    print("|---|---|" + "---|" * len(refs))
+    print(
+        "| implementation | steps/s | ratio vs CleanRL, same algorithm |"
+        + "".join(f" ratio vs {k} |" for k in refs)
+    )
+    print("|---|---|---|" + "---|" * len(refs))
     for name, value in med.items():
+        own = "cleanrl-sac" if name.startswith("sac") else "cleanrl"
+        mine = own in med and not name.startswith("cleanrl")
+        same = f" {value / med[own]:.2f}x |" if mine else " |"
         ratios = "".join(f" {value / med[k]:.2f}x |" for k in refs)
-        print(f"| {ROWS[name]} | {value:.0f} |{ratios}")
+        print(f"| {ROWS[name]} | {value:.0f} |{same}{ratios}")
     if args.wall and "cleanrl" in med:
         wall = {
             k: statistics.median(v)
