@@ -42,9 +42,8 @@ def _config(tmp_path, algo, name, seed=1, steps=400, **extra):
         eval_every=0,
         checkpoint_every=130,
         progress=False,
-        threads=1,
         hyper=hyper,
-        **extra,
+        **{"threads": 1, **extra},
     )
 
 
