@@ -8,10 +8,12 @@ researchers start from. Not used by rrls itself.
 - ``cleanrl`` / ``cleanrl_sac``: the published loop, step for step: a one-env ``SyncVectorEnv``
   of ``gym.make`` + ``RecordEpisodeStatistics``, its replay buffer (``cleanrl_utils.buffers`` is
   Stable-Baselines3's ``ReplayBuffer``: 1 M preallocated numpy rows, a ``torch.tensor`` copy per
-  field and batch; needs ``pip install -e .[bench]``), TensorBoard scalars every 100 steps. Two
-  changes, neither timed: the ``print`` of steps/s is dropped, and a truncation does not read
-  ``infos["final_observation"]`` (Gymnasium 1.x no longer provides it: the published scripts
-  stop there with a KeyError).
+  field and batch; needs ``pip install -e .[bench]``), TensorBoard scalars every 100 steps.
+  Changes for Gymnasium 1.x, none of them timed: the vector env resets in the step that ends an
+  episode (``AutoresetMode.SAME_STEP``, the semantics the scripts were written for; 1.x's
+  default would store a bogus transition per episode), whose final observation and episode
+  statistics 1.x names ``final_obs`` and ``final_info`` (a dict of arrays, not a list of
+  dicts); the ``print`` of steps/s is dropped.
 - ``straightforward``: CleanRL's TD3 update in a lean loop (no vector env, a list replay).
 """
 
@@ -261,9 +263,19 @@ LOGGED = {
 }
 
 
-def published(algo: str, task: str, steps: int, warmup: int, seed: int = 0) -> float:
+def published(
+    algo: str,
+    task: str,
+    steps: int,
+    warmup: int,
+    seed: int = 0,
+    learning_starts: int = 1000,
+    returns: list[tuple[int, float]] | None = None,
+) -> float:
     """CleanRL's ``{algo}_continuous_action.py`` loop as published, on this stack: env steps/s
-    over ``steps`` steps after 1 000 random steps and ``warmup`` updates."""
+    over ``steps`` steps after ``learning_starts`` random steps and ``warmup`` updates.
+    ``returns``: each finished training episode's ``(global_step, return)`` is appended (what
+    the script logs as ``charts/episodic_return``)."""
     from stable_baselines3.common.buffers import ReplayBuffer as SB3ReplayBuffer
     from torch.utils.tensorboard import SummaryWriter
 
@@ -274,7 +286,9 @@ def published(algo: str, task: str, steps: int, warmup: int, seed: int = 0) -> f
         env.action_space.seed(seed)
         return env
 
-    envs = gym.vector.SyncVectorEnv([thunk])
+    # the script's semantics (gym 0.29): the episode's last transition and its return are read
+    # at the step that ends it (Gymnasium 1.x's default resets one step later)
+    envs = gym.vector.SyncVectorEnv([thunk], autoreset_mode=gym.vector.AutoresetMode.SAME_STEP)
     obs_dim = envs.single_observation_space.shape[0]
     act_dim = envs.single_action_space.shape[0]
     low, high = envs.single_action_space.low, envs.single_action_space.high
@@ -289,7 +303,6 @@ def published(algo: str, task: str, steps: int, warmup: int, seed: int = 0) -> f
         "cpu",
         handle_timeout_termination=False,
     )
-    learning_starts = 1000
     obs, _ = envs.reset(seed=seed)
     start = None
     with tempfile.TemporaryDirectory() as logdir:
@@ -302,15 +315,17 @@ def published(algo: str, task: str, steps: int, warmup: int, seed: int = 0) -> f
             else:
                 actions = agent.act(obs)
             next_obs, rewards, terminations, truncations, infos = envs.step(actions)
-            if "final_info" in infos:
-                for info in infos["final_info"]:
-                    if info is not None:
-                        writer.add_scalar("charts/episodic_return", info["episode"]["r"], 0)
-                        break
+            if "final_info" in infos and "episode" in infos["final_info"]:
+                episode = infos["final_info"]["episode"]
+                for idx in np.flatnonzero(infos["final_info"]["_episode"]):
+                    writer.add_scalar("charts/episodic_return", episode["r"][idx], global_step)
+                    if returns is not None:
+                        returns.append((global_step, float(episode["r"][idx])))
+                    break
             real_next_obs = next_obs.copy()
             for idx, trunc in enumerate(truncations):
-                if trunc and "final_observation" in infos:
-                    real_next_obs[idx] = infos["final_observation"][idx]
+                if trunc:
+                    real_next_obs[idx] = infos["final_obs"][idx]
             rb.add(obs, real_next_obs, actions, rewards, terminations, infos)
             obs = next_obs
             if global_step > learning_starts:

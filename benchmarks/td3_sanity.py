@@ -1,0 +1,117 @@
+"""Is rrls's TD3 learning Hopper as TD3 does elsewhere? Its curve beside CleanRL's and the
+TD3 authors', at the same step counts.
+
+- ``--run``: CleanRL's ``td3_continuous_action.py`` loop as published (``cleanrl_loops``; its
+  defaults: 25 000 random steps, 256-256, batch 256) on the same Hopper-v5 physics, ``--seeds``
+  in parallel processes (one thread each) for ``--steps``; each training episode's return is
+  written to ``--out`` (CSV: seed, step, return).
+- then the table: at 50 k, 100 k, 150 k and 200 k steps, the mean training-episode return over
+  the preceding 10 000 steps (with exploration noise, as CleanRL logs it) of rrls's TD3 runs
+  (``docs/results/hopper/runs/td3-*/scalars.csv``) and of CleanRL's; rrls's deterministic
+  nominal evaluation; and the TD3 authors' published learning curves (Fujimoto et al. 2018,
+  ``sfujim/TD3`` ``learning_curves/Hopper/TD3_Hopper-v1_{0..9}.npy``: Hopper-v1 under mujoco-py,
+  10 seeds, 10 000 random steps, 400-300 networks, deterministic evaluation every 5 000 steps;
+  ``AUTHORS`` below holds their mean and std at these steps, read from those files).
+
+    python benchmarks/td3_sanity.py --run --seeds 0 1 2 --steps 200000   # ~25 min, 2 cores
+    python benchmarks/td3_sanity.py                                      # the table only
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import multiprocessing
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+ROOT = Path(__file__).resolve().parent.parent
+RUNS = ROOT / "docs" / "results" / "hopper" / "runs"
+OUT = ROOT / "docs" / "results" / "hopper" / "cleanrl_td3_returns.csv"
+STEPS = (50_000, 100_000, 150_000, 200_000)
+WINDOW = 10_000
+#: TD3 authors' Hopper-v1 evaluation returns (mean, std over 10 seeds) at STEPS
+AUTHORS = {50_000: (285, 69), 100_000: (659, 752), 150_000: (1211, 856), 200_000: (2441, 746)}
+
+
+def _one(job: tuple[int, int]) -> list[tuple[int, int, float]]:
+    import warnings
+
+    import torch
+    from cleanrl_loops import published
+
+    warnings.simplefilter("ignore")
+    torch.set_num_threads(1)
+    seed, steps = job
+    returns: list[tuple[int, float]] = []
+    published("td3", "hopper", steps - 25_000 - 1, 0, seed, learning_starts=25_000, returns=returns)
+    return [(seed, step, value) for step, value in returns]
+
+
+def run(seeds: list[int], steps: int, out: Path) -> None:
+    with multiprocessing.get_context("spawn").Pool(len(seeds)) as pool:
+        rows = [row for rows in pool.map(_one, [(s, steps) for s in seeds]) for row in rows]
+    out.parent.mkdir(parents=True, exist_ok=True)
+    with open(out, "w", newline="") as f:
+        writer = csv.writer(f)
+        writer.writerow(["seed", "step", "return"])
+        writer.writerows(rows)
+
+
+def windowed(frame: pd.DataFrame, step: int) -> list[float]:
+    """Per seed: the mean return of the episodes ending in ``(step - WINDOW, step]``."""
+    part = frame[(frame["step"] > step - WINDOW) & (frame["step"] <= step)]
+    return part.groupby("seed")["return"].mean().tolist()
+
+
+def cell(values: list[float]) -> str:
+    if not values:
+        return "-"
+    return f"{np.mean(values):.0f} ± {np.std(values):.0f} ({len(values)})"
+
+
+def table(out: Path) -> None:
+    train, nominal = [], []
+    for path in sorted(RUNS.glob("td3-hopper-*-seed*/scalars.csv")):
+        seed = int(path.parent.name.rpartition("seed")[2])
+        data = pd.read_csv(path)
+        rets = data[data["metric"] == "charts/episode_return"]
+        train.append(pd.DataFrame({"seed": seed, "step": rets["step"], "return": rets["value"]}))
+        nominal.append(data[data["metric"] == "eval/nominal_return"].assign(seed=seed))
+    rrls = pd.concat(train)
+    evals = pd.concat(nominal)
+    clean = pd.read_csv(out) if out.is_file() else pd.DataFrame(columns=["seed", "step", "return"])
+    print(
+        "\nHopper TD3, return at the same steps: mean ± std over seeds (seeds); training "
+        f"episodes: mean of those ending in the {WINDOW:,} steps before\n"
+    )
+    print(
+        "| steps | rrls TD3, training episodes | CleanRL TD3 loop, same physics, training "
+        "episodes | rrls TD3, nominal evaluation | TD3 authors (Hopper-v1), evaluation |"
+    )
+    print("|---|---|---|---|---|")
+    for step in STEPS:
+        ev = evals[evals["step"] == step]["value"].tolist()
+        mean, std = AUTHORS[step]
+        print(
+            f"| {step:,} | {cell(windowed(rrls, step))} | {cell(windowed(clean, step))} "
+            f"| {cell(ev)} | {mean} ± {std} (10) |"
+        )
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--run", action="store_true", help="train CleanRL's loop first")
+    parser.add_argument("--seeds", type=int, nargs="+", default=[0, 1, 2])
+    parser.add_argument("--steps", type=int, default=200_000)
+    parser.add_argument("--out", type=Path, default=OUT)
+    args = parser.parse_args()
+    if args.run:
+        run(args.seeds, args.steps, args.out)
+    table(args.out)
+
+
+if __name__ == "__main__":
+    main()
