@@ -327,6 +327,20 @@ def test_create_benchmark_has_the_presets_protocol(tmp_path):
     assert spec.algos == () and spec.protocol() == make_spec("quick").protocol()
 
 
+def test_shipped_hopper_reference_fits_the_hopper_preset(tmp_path):
+    ref = load_reference("hopper")
+    assert ref.physics == "v5" and ref.steps == 200_000 and ref.sets == ["3d"]
+    assert set(ref.algorithms()) == {"td3", "dr", "rarl", "nrmdp", "m2td3"}
+    static = [r for r in ref.rows if r["metric"] in ("worst_case", "average_case")]
+    assert static and all(len(r["values"]) == r["n_seeds"] == 3 for r in static)
+    assert ref.provenance["preset"] == "hopper" and ref.provenance["hidden"] == [256, 256]
+    assert ref.provenance["machines"] and ref.provenance["versions"]["torch"]
+    spec = create_benchmark(tmp_path / "b", "hopper", ("hopper",))
+    from rrls.experiments.reference import check_compatible
+
+    check_compatible(ref, spec.to_json())  # same physics, set, mesh, episodes
+
+
 def test_shipped_quick_reference_fits_the_quick_preset(tmp_path):
     ref = load_reference("quick")
     assert ref.physics == "v5" and ref.steps == 30_000 and ref.sets == ["1d"]

@@ -7,6 +7,7 @@ from __future__ import annotations
 import argparse
 
 from rrls.deprecation import DeprecatedOption
+from rrls.experiments.reference import SHIPPED
 from rrls.experiments.spec import ALGOS, BUILT_IN, PAPER_TASKS, PRESETS
 from rrls.seeds import EXAMPLES
 
@@ -180,7 +181,7 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:
     r.add_argument(
         "--reference",
         metavar="FILE",
-        help="reference results (.json/.csv, or a shipped name: paper, quick) normalising"
+        help=f"reference results (.json/.csv, or a shipped name: {', '.join(SHIPPED)}) normalising"
         " the tasks without their own TD3 and M2TD3 runs; refused if measured under another"
         " protocol (physics, set, mesh, episodes)",
     )

@@ -45,7 +45,11 @@ PAPER_PHYSICS = PAPER
 METRICS = ("worst_case", "average_case", "dynamic")
 COMPARED = ("physics", "uncertainty", "mesh", "endpoint", "episodes")
 #: references shipped with rrls, by name (``--reference paper``)
-SHIPPED = {"paper": "paper_reference.json", "quick": "quick_reference.json"}
+SHIPPED = {
+    "paper": "paper_reference.json",
+    "quick": "quick_reference.json",
+    "hopper": "hopper_reference.json",
+}
 _META = ("label", "physics", "mesh", "episodes", "endpoint", "steps", "eval_seed")
 _VERSION_KEYS = ("rrls", "gymnasium", "mujoco")
 

@@ -196,8 +196,9 @@ PRESETS: dict[str, dict[str, Any]] = {
     # A locomotion reference on rrls's physics, produced on 2-core machines in pieces: Hopper,
     # the paper's 3D set, its five baselines and hyper-parameters (256-256, batch 256, Adam 3e-4,
     # 25 k random steps), 3 seeds x 200 k steps (the paper: 10 x 5 M), the paper's mesh
-    # (10 points per dimension) with 2 episodes per point (the paper: 5). ~45 min a TD3 run on
-    # one core; docs/results/hopper/ is its shipped result, `--reference hopper` its numbers.
+    # (10 points per dimension) with 2 episodes per point (the paper: 5). 20-25 min a TD3 run on
+    # an idle core (7.7 h for the 15 runs); docs/results/hopper/ is its shipped result,
+    # `--reference hopper` its numbers.
     "hopper": dict(
         algos=ALGOS,
         tasks=("hopper",),
