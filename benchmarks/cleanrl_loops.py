@@ -71,6 +71,22 @@ def soft_update(pairs: tuple[tuple[nn.Module, nn.Module], ...], tau: float) -> N
             target_param.data.copy_(tau * param.data + (1 - tau) * target_param.data)
 
 
+def critic_step(agent: Any, o, a, next_q_value: torch.Tensor) -> dict[str, Any]:
+    """The twin critics' step, the same lines in both scripts: each ``Q_i(s, a)`` regressed on
+    ``next_q_value`` (MSE), one Adam step of both; the values and losses CleanRL logs."""
+    out: dict[str, Any] = {
+        "qf1_values": agent.qf1(o, a).view(-1),
+        "qf2_values": agent.qf2(o, a).view(-1),
+    }
+    out["qf1_loss"] = F.mse_loss(out["qf1_values"], next_q_value)
+    out["qf2_loss"] = F.mse_loss(out["qf2_values"], next_q_value)
+    out["qf_loss"] = out["qf1_loss"] + out["qf2_loss"]
+    agent.q_optimizer.zero_grad()
+    out["qf_loss"].backward()
+    agent.q_optimizer.step()
+    return out
+
+
 class CleanRLTD3:
     """``td3_continuous_action.py``'s networks, optimisers and update lines."""
 
@@ -104,16 +120,7 @@ class CleanRLTD3:
             qf2_next_target = self.qf2_target(no, next_state_actions)
             min_qf_next_target = torch.min(qf1_next_target, qf2_next_target)
             next_q_value = r.flatten() + (1 - d.flatten()) * 0.99 * min_qf_next_target.view(-1)
-        out: dict[str, Any] = {
-            "qf1_values": self.qf1(o, a).view(-1),
-            "qf2_values": self.qf2(o, a).view(-1),
-        }
-        out["qf1_loss"] = F.mse_loss(out["qf1_values"], next_q_value)
-        out["qf2_loss"] = F.mse_loss(out["qf2_values"], next_q_value)
-        out["qf_loss"] = out["qf1_loss"] + out["qf2_loss"]
-        self.q_optimizer.zero_grad()
-        out["qf_loss"].backward()
-        self.q_optimizer.step()
+        out = critic_step(self, o, a, next_q_value)
         if step % 2 == 0:
             out["actor_loss"] = -self.qf1(o, self.actor(o)).mean()
             self.actor_optimizer.zero_grad()
@@ -194,16 +201,7 @@ class CleanRLSAC:
                 torch.min(qf1_next_target, qf2_next_target) - self.alpha * next_state_log_pi
             )
             next_q_value = r.flatten() + (1 - d.flatten()) * 0.99 * min_qf_next_target.view(-1)
-        out: dict[str, Any] = {
-            "qf1_values": self.qf1(o, a).view(-1),
-            "qf2_values": self.qf2(o, a).view(-1),
-        }
-        out["qf1_loss"] = F.mse_loss(out["qf1_values"], next_q_value)
-        out["qf2_loss"] = F.mse_loss(out["qf2_values"], next_q_value)
-        out["qf_loss"] = out["qf1_loss"] + out["qf2_loss"]
-        self.q_optimizer.zero_grad()
-        out["qf_loss"].backward()
-        self.q_optimizer.step()
+        out = critic_step(self, o, a, next_q_value)
         if step % 2 == 0:
             for _ in range(2):  # CleanRL compensates the delay with as many policy steps
                 pi, log_pi, _ = self.actor.get_action(o)

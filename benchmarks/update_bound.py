@@ -1,17 +1,16 @@
 """What separates an update from the compute bound: its matrix products against everything else.
 
 For each algorithm (``--algos``, default CleanRL's TD3, rrls TD3, CleanRL's SAC, rrls SAC,
-M2TD3) and thread count (``--threads``, default
-1 2), a real ``rrls train`` run on Hopper (1 000 random steps first; CleanRL's rows:
-its published loop, ``cleanrl_loops.published``) whose learner's ``update``
-is wrapped: after ``--warmup`` updates, ``--updates`` are timed one by one (median), then
-``--profiled`` more run under ``torch.profiler``, which gives the share of the update spent in
-matrix products (``bmm``/``baddbmm``/``mm``/``addmm`` self time) and their FLOPs (from the
-recorded shapes). The bound is those FLOPs at this machine's measured matrix-product rate (a
-``(2, 256, 256) x (2, 256, 256)`` ``bmm``, the paper's critic layer, with the same threads):
-an update of nothing but its products at full speed.
+M2TD3) and thread count (``--threads``, default 1 2), a real ``rrls train`` run on Hopper
+(1 000 random steps first; CleanRL's rows: its published loop, ``cleanrl_loops.published``)
+whose learner's ``update`` is wrapped: after ``--warmup`` updates, ``--updates`` are timed one
+by one (median), then ``--profiled`` more run under ``torch.profiler``, which gives the share
+of the update spent in matrix products (``bmm``/``baddbmm``/``mm``/``addmm`` self time) and
+their FLOPs (from the recorded shapes). The bound is those FLOPs at this machine's measured
+matrix-product rate (a ``(2, 256, 256) x (2, 256, 256)`` ``bmm``, the paper's critic layer,
+with the same threads): an update of nothing but its products at full speed.
 
-    python benchmarks/update_bound.py [--algos td3 sac m2td3] [--threads 1 2]
+    python benchmarks/update_bound.py [--algos cleanrl td3 cleanrl-sac sac m2td3] [--threads 1 2]
 
 Prints one table: update ms, products ms (share), the rest, GFLOP per update, the bound,
 updates/s against it. Run it on a quiet machine; each row is a fresh process.
@@ -20,6 +19,7 @@ updates/s against it. Run it on a quiet machine; each row is a fresh process.
 from __future__ import annotations
 
 import argparse
+import math
 import multiprocessing
 import statistics
 import tempfile
@@ -52,17 +52,13 @@ def flops(event) -> float:
     if event.key in ("aten::baddbmm", "aten::addmm"):
         shapes = shapes[1:3]
     (*batch, m, k), (*_, n) = shapes[0], shapes[1]
-    count = 1
-    for d in batch:
-        count *= d
-    return 2.0 * count * m * k * n
+    return 2.0 * math.prod(batch) * m * k * n
 
 
 def measure(algo: str, threads: int, warmup: int, updates: int, profiled: int) -> dict:
     """One row, in this (fresh) process."""
     from torch.profiler import profile
 
-    from rrls.agents import TrainConfig, train
     from rrls.agents.lookup import algorithm
 
     warnings.simplefilter("ignore")
@@ -74,11 +70,11 @@ def measure(algo: str, threads: int, warmup: int, updates: int, profiled: int) -
         learner = algorithm(algo).Learner
     plain = learner.update
     times: list[float] = []
-    record: dict = {}
+    record: dict = {"n": 0}
 
     def update(self, *args):
-        if record.get("n", 0) < warmup:
-            record["n"] = record.get("n", 0) + 1
+        if record["n"] < warmup:
+            record["n"] += 1
             return plain(self, *args)
         if len(times) < updates:
             start = time.perf_counter()
@@ -102,24 +98,31 @@ def measure(algo: str, threads: int, warmup: int, updates: int, profiled: int) -
             cleanrl_loops.published(
                 algo.partition("-")[2] or "td3", "hopper", updates + profiled, warmup
             )
-            return summary(record, times, profiled, threads)
-        with tempfile.TemporaryDirectory() as out:
-            config = TrainConfig(
-                algo=algo,
-                task="hopper",
-                uncertainty="3d",
-                steps=1000 + warmup + updates + profiled + 1,
-                eval_every=0,
-                out=out,
-                progress=False,
-                checkpoint_every=10**9,
-                threads=threads,
-                hyper={"learning_starts": 1000},
-            )
-            train(config)
+        else:
+            train_for(algo, threads, warmup + updates + profiled)
     finally:
         learner.update = plain
     return summary(record, times, profiled, threads)
+
+
+def train_for(algo: str, threads: int, updates: int) -> None:
+    """``rrls train`` on Hopper: 1 000 random steps, then ``updates`` updates."""
+    from rrls.agents import TrainConfig, train
+
+    with tempfile.TemporaryDirectory() as out:
+        config = TrainConfig(
+            algo=algo,
+            task="hopper",
+            uncertainty="3d",
+            steps=1000 + updates + 1,
+            eval_every=0,
+            out=out,
+            progress=False,
+            checkpoint_every=10**9,
+            threads=threads,
+            hyper={"learning_starts": 1000},
+        )
+        train(config)
 
 
 def summary(record: dict, times: list[float], profiled: int, threads: int) -> dict:
