@@ -72,6 +72,7 @@ import statistics
 import tempfile
 import time
 import warnings
+from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 from typing import Any
 
@@ -209,26 +210,33 @@ def rrls_group(
     device: str = "cpu",
     barrier: Any = None,
     tail: int = 0,
+    compile: bool | None = None,
 ) -> float:
     """Aggregated env steps/s of ``k`` runs trained together (``train_group``), after learning
     starts: between the env-step stamps of loop steps ``learning_starts + warmup`` and
     ``+ steps``. ``barrier`` (separate processes) is waited on just before the window opens, so
-    concurrent processes time the same stretch; ``tail`` more steps follow the window (load)."""
-    import importlib
+    concurrent processes time the same stretch; ``tail`` more steps follow the window (load).
+    ``compile``: ``--compile`` (``None``: the default, off for runs this short)."""
+    from rrls.agents import loop
 
-    module = importlib.import_module(f"rrls.agents.{algo}")
     first = learning_starts + warmup
-    stamps: list[float] = []
+    stamps: list[float] = []  # one per loop step (k env steps), taken where the loop steps
+    plain = loop.make_envs  # the group's envs, in this process or in env workers
 
-    class Clock(gym.Wrapper):
-        def step(self, action):
-            if barrier is not None and len(stamps) == first * k:
+    def clocked(*args: Any, **kwargs: Any) -> Any:
+        envs = plain(*args, **kwargs)
+        step = envs.step
+
+        def stamped(actions: list[Any]) -> list[tuple]:
+            if barrier is not None and len(stamps) == first:
                 barrier.wait(timeout=3600)
             stamps.append(time.perf_counter())
-            return self.env.step(action)
+            return step(actions)
 
-    plain = module.make_env
-    module.make_env = lambda *a, **kw: Clock(plain(*a, **kw))
+        envs.step = stamped
+        return envs
+
+    loop.make_envs = clocked
     try:
         with tempfile.TemporaryDirectory() as out:
             configs = [
@@ -244,14 +252,15 @@ def rrls_group(
                     progress=False,
                     checkpoint_every=10**9,
                     threads=threads,
+                    compile=compile,
                     hyper={"learning_starts": learning_starts},
                 )
                 for seed in range(k)
             ]
             train_group(configs)
     finally:
-        module.make_env = plain
-    return k * steps / (stamps[(first + steps) * k] - stamps[first * k])
+        loop.make_envs = plain
+    return k * steps / (stamps[first + steps] - stamps[first])
 
 
 def _group_job(args: tuple) -> float:
@@ -337,8 +346,10 @@ def groups(args: argparse.Namespace) -> None:
                 for k in args.ks:
                     key = (device, algo, k)
                     job = (algo, args.task, k, args.group_steps, args.group_warmup)
-                    with ctx.Pool(1, maxtasksperchild=1) as pool:
-                        rate = pool.apply(_group_job, ((*job, args.learning_starts, None, device),))
+                    # not a Pool: its daemonic worker could not start the group's env workers
+                    with ProcessPoolExecutor(1, mp_context=ctx) as pool:
+                        whole = (*job, args.learning_starts, None, device)
+                        rate = pool.submit(_group_job, whole).result()
                     together.setdefault(key, []).append(rate)
                     apart.setdefault(key, []).append(
                         separate_processes(

@@ -213,3 +213,25 @@ def test_env_worker_processes_change_no_number(tmp_path, algo):
     local = train_group([_config(tmp_path, algo, s, "local") for s in (0, 1, 2)])
     spread = train_group([_config(tmp_path, algo, s, "spread", env_workers=2) for s in (0, 1, 2)])
     assert all(_same_run(a, b) for a, b in zip(local, spread))
+
+
+def test_a_pool_worker_steps_its_groups_envs_itself(tmp_path):
+    # a multiprocessing.Pool worker is daemonic and may not start processes: the default keeps
+    # a group's envs in-process there, and asking for env workers says why it cannot
+    import functools
+    import multiprocessing
+    import os
+    from types import SimpleNamespace
+
+    from rrls.agents import td3
+    from rrls.agents.envs import make_envs
+    from rrls.agents.loop import env_workers
+
+    on_gpu = SimpleNamespace(env_workers=None, device="cuda")
+    cores = len(os.sched_getaffinity(0))
+    assert env_workers(on_gpu, 32) == max(0, min(8, cores - 1))  # one per 4 envs, within cores
+    make = functools.partial(td3.make_env, "invertedpendulum", None, td3.Config())
+    with multiprocessing.get_context("spawn").Pool(1) as pool:
+        assert pool.apply(env_workers, (on_gpu, 32)) == 0
+        with pytest.raises(RuntimeError, match=r"env workers=2: a daemonic process"):
+            pool.apply(make_envs, (make, 2, 2))

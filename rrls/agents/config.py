@@ -69,7 +69,7 @@ class TrainConfig:
     env_workers: int | None = hp(
         None,
         "processes stepping the envs of runs trained together (0: this process; default: "
-        "0 on a CPU, on a GPU one per 8 envs of a group of 16 or more)",
+        "0 on a CPU, on a GPU one per 4 envs of a group of 16 or more)",
     )
     eval_every: int = hp(50_000, "evaluate every N steps (0: never)")
     eval_episodes: int = hp(5, "episodes per point of the periodic evaluation")

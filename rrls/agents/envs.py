@@ -74,6 +74,11 @@ class WorkerEnvs:
     """The group's envs spread over ``workers`` processes, each stepping its share at once."""
 
     def __init__(self, make: Callable[[], Any], n: int, workers: int) -> None:
+        if mp.current_process().daemon:
+            raise RuntimeError(
+                f"env workers={workers}: a daemonic process (a multiprocessing.Pool worker) "
+                "cannot start worker processes; use env_workers=0 (--env-workers 0)"
+            )
         ctx = mp.get_context("spawn")
         shares = np.array_split(np.arange(n), min(workers, n))
         self.owner: dict[int, Any] = {}
