@@ -40,8 +40,9 @@ class LocalEnvs:
     def reset(self, k: int, seed: int | None, options: dict | None) -> np.ndarray:
         return self.envs[k].reset(seed=seed, options=options)[0]
 
-    def rng_state(self, k: int) -> str:
-        return rng_state(self.envs[k].unwrapped.np_random)
+    def begin(self, k: int, seed: int | None, options: dict | None) -> tuple[str, np.ndarray]:
+        """An episode's start: the env's generator state (to replay it), then its reset."""
+        return rng_state(self.envs[k].unwrapped.np_random), self.reset(k, seed, options)
 
     def set_rng_state(self, k: int, state: str) -> None:
         set_rng_state(self.envs[k].unwrapped.np_random, state)
@@ -65,7 +66,7 @@ def _worker(make: Callable[[], Any], indices: list[int], conn: Any) -> None:
             return
         if command == "step":  # {k: action}
             conn.send({k: local.step_one(position[k], action) for k, action in args[0].items()})
-        else:  # reset / rng_state / set_rng_state / step_one on env k
+        else:  # begin / reset / set_rng_state / step_one on env k
             k, *rest = args
             conn.send(getattr(local, command)(position[k], *rest))
 
@@ -112,8 +113,8 @@ class WorkerEnvs:
     def reset(self, k: int, seed: int | None, options: dict | None) -> np.ndarray:
         return self._call("reset", k, seed, options)
 
-    def rng_state(self, k: int) -> str:
-        return self._call("rng_state", k)
+    def begin(self, k: int, seed: int | None, options: dict | None) -> tuple[str, np.ndarray]:
+        return self._call("begin", k, seed, options)
 
     def set_rng_state(self, k: int, state: str) -> None:
         self._call("set_rng_state", k, state)

@@ -131,8 +131,8 @@ class _Episode:
 
 
 def _begin(envs: Any, k: int, seed: int | None, options: dict | None) -> tuple:
-    episode = _Episode(envs.rng_state(k), seed, options)
-    return envs.reset(k, seed, options), episode
+    state, obs = envs.begin(k, seed, options)  # one round trip to an env worker, not two
+    return obs, _Episode(state, seed, options)
 
 
 def _replay(envs: Any, k: int, saved: dict[str, Any], path: Path) -> tuple:
