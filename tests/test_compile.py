@@ -88,7 +88,7 @@ def test_a_compiled_run_agrees_with_eager_and_resumes_exactly(tmp_path, monkeypa
     assert not compiled_fns
     compiled = train(_config(tmp_path, "td3", "compiled", compile=True))
     assert len(compiled_fns) == 1
-    assert graphs.COMPILE is False  # restored: a learner made outside the loop stays eager
+    assert graphs.current().compile is False  # restored: a learner made outside stays eager
     expected = graphs.USER_CACHE_DIR or str(Path.home() / ".cache" / "rrls" / "inductor")
     if os.environ.get("XDG_CACHE_HOME") and not graphs.USER_CACHE_DIR:
         expected = str(Path(os.environ["XDG_CACHE_HOME"]) / "rrls" / "inductor")
@@ -134,14 +134,15 @@ def test_rehearsal_reads_static_inputs_as_a_replayed_graph_would():
 
 
 @pytest.mark.parametrize("algo", ["td3", "sac", "m2td3", "nrmdp"])
-def test_the_rehearsed_cuda_graph_path_trains_and_resumes_as_eager(tmp_path, monkeypatch, algo):
+def test_the_rehearsed_cuda_graph_path_trains_and_resumes_as_eager(tmp_path, algo):
     eager = train(_config(tmp_path, algo, "eager", compile=False))
-    monkeypatch.setattr(graphs, "REHEARSE", True)
-    rehearsed = train(_config(tmp_path, algo, "rehearsed", compile=False))
+    with graphs.settings(rehearse=True):
+        rehearsed = train(_config(tmp_path, algo, "rehearsed", compile=False))
+        with stopping_at(260), pytest.raises(Interrupted):
+            train(_config(tmp_path, algo, "cut", compile=False))
+        resumed = train(_config(tmp_path, algo, "cut", compile=False), resume=True)
+    assert not graphs.current().rehearse  # undone after the block
     assert _gap(eager, rehearsed) == 0.0
-    with stopping_at(260), pytest.raises(Interrupted):
-        train(_config(tmp_path, algo, "cut", compile=False))
-    resumed = train(_config(tmp_path, algo, "cut", compile=False), resume=True)
     assert _gap(eager, resumed) == 0.0
 
 

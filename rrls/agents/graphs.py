@@ -22,10 +22,10 @@ autograd bookkeeping. LeanRL's recipe, in plain PyTorch:
   generators), which are copied into static tensors the graph reads, and the optimisers are
   ``torch.optim.Adam(capturable=True)`` (their step counts live on the GPU). If capture fails
   the update stays uncaptured, with a warning.
-- **rehearsal** (``REHEARSE``, for tests on a CPU): everything the CUDA-graph path does —
-  static input tensors per variant, copying the inputs in, reading the outputs the last call
-  left — except the capture: the function is called instead of replayed. So the CPU suite runs
-  every line of the GPU path but ``torch.cuda.graph`` itself.
+- **rehearsal** (``settings(rehearse=True)``, for tests on a CPU): everything the CUDA-graph
+  path does — static input tensors per variant, copying the inputs in, reading the outputs the
+  last call left — except the capture: the function is called instead of replayed. So the CPU
+  suite runs every line of the GPU path but ``torch.cuda.graph`` itself.
 
 Compiled code is cached on disk (``TORCHINDUCTOR_CACHE_DIR``; ``cache_dir``): the first
 compile on a machine costs ~35 s for TD3 on a CPU, later runs and resumes ~4 s.
@@ -35,18 +35,45 @@ from __future__ import annotations
 
 import os
 import warnings
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
+from contextvars import ContextVar
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
 import torch
 
-#: the loop's ``--cuda-graphs`` / ``--no-cuda-graphs`` (read when an ``Update`` is made)
-ENABLED = True
-#: the loop's ``--compile`` / ``--no-compile``, resolved (read when an ``Update`` is made)
-COMPILE = False
-#: do everything the CUDA-graph path does but the capture (tests; read when an ``Update`` is made)
-REHEARSE = False
+
+@dataclass(frozen=True)
+class Settings:
+    """How the ``Update`` objects made under ``settings(...)`` run, read when each is made:
+    the loop sets them around building a learner, so algorithm files need not pass them on."""
+
+    graphs: bool = True  # --cuda-graphs / --no-cuda-graphs
+    compile: bool = False  # --compile / --no-compile, resolved
+    rehearse: bool = False  # everything the CUDA-graph path does but the capture (tests)
+
+
+DEFAULTS = Settings()
+_SETTINGS: ContextVar[Settings] = ContextVar("rrls_update_settings", default=DEFAULTS)
+
+
+def current() -> Settings:
+    """The settings an ``Update`` made now would read."""
+    return _SETTINGS.get()
+
+
+@contextmanager
+def settings(**changes: bool) -> Iterator[Settings]:
+    """``with settings(compile=True): learner = Learner(...)``: the changes hold inside the block
+    (this thread or task only) and are undone after it, whatever happens there."""
+    token = _SETTINGS.set(replace(_SETTINGS.get(), **changes))
+    try:
+        yield _SETTINGS.get()
+    finally:
+        _SETTINGS.reset(token)
+
 
 #: Adam's options that depend on the device (``adam``), kept across ``load_optimizer``
 DEVICE_FLAGS = ("capturable", "fused", "foreach")
@@ -86,13 +113,14 @@ class Update:
         warmup: int = 3,
     ) -> None:
         self.device, self.warmup = torch.device(device), warmup
-        self.compiled = COMPILE if compile is None else compile
+        now = current()
+        self.compiled = now.compile if compile is None else compile
         if self.compiled:
             cache_dir()
             fn = torch.compile(fn)
         self.fn = fn
-        self.graphs = (ENABLED if graphs is None else graphs) and self.device.type == "cuda"
-        self.static = self.graphs or (REHEARSE if rehearse is None else rehearse)
+        self.graphs = (now.graphs if graphs is None else graphs) and self.device.type == "cuda"
+        self.static = self.graphs or (now.rehearse if rehearse is None else rehearse)
         self._entries: dict[Any, dict[str, Any]] = {}
         self._pool: Any = None
 

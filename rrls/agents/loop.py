@@ -227,13 +227,9 @@ def _collect(
     warmup = [s.numpy("warmup") for s in seeds]
     learning_starts = int(getattr(hyper, "learning_starts", 0))
     # the learner's updates read these when made; a learner made elsewhere keeps the defaults
-    previous = graphs.ENABLED, graphs.COMPILE
-    graphs.ENABLED = first.cuda_graphs
-    graphs.COMPILE = compiles(first, learning_starts, runs[0].step)
-    try:
+    compiled = compiles(first, learning_starts, runs[0].step)
+    with graphs.settings(graphs=first.cuda_graphs, compile=compiled):
         learner = algo.Learner(template, hyper, seeds, torch.device(first.device))
-    finally:
-        graphs.ENABLED, graphs.COMPILE = previous
     metas = [run.metadata(template) for run in runs]
 
     observations, episodes = [], []
