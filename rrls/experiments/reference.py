@@ -482,36 +482,22 @@ def _row(task: str, uncertainty: str, algo: str, metric: str, values: Any) -> di
 
 def paper_reference_from_results(paper: dict[str, Any]) -> Reference:
     """The paper's published tables (``paper_results.json``) as a reference (other physics)."""
-    rows = []
-    for metric, table in (("worst_case", "raw_worst_case"), ("average_case", "raw_average_case")):
-        for algo, cells in paper[table].items():
-            for task, (mean, std) in cells.items():
-                rows.append(
-                    {
-                        "task": task,
-                        "uncertainty": paper["uncertainty"],
-                        "algorithm": algo,
-                        "metric": metric,
-                        "mean": mean,
-                        "std": std,
-                        "n_seeds": paper["seeds"],
-                        "values": None,
-                    }
-                )
-    for algo, cells in paper["dynamic"].items():
-        for task, (mean, std) in cells.items():
-            rows.append(
-                {
-                    "task": task,
-                    "uncertainty": paper["uncertainty"],
-                    "algorithm": algo,
-                    "metric": "dynamic",
-                    "mean": mean,
-                    "std": std,
-                    "n_seeds": paper["seeds"],
-                    "values": None,
-                }
-            )
+    tables = (("worst_case", "raw_worst_case"), ("average_case", "raw_average_case"))
+    rows = [
+        {
+            "task": task,
+            "uncertainty": paper["uncertainty"],
+            "algorithm": algo,
+            "metric": metric,
+            "mean": mean,
+            "std": std,
+            "n_seeds": paper["seeds"],
+            "values": None,
+        }
+        for metric, table in (*tables, ("dynamic", "dynamic"))
+        for algo, cells in paper[table].items()
+        for task, (mean, std) in cells.items()
+    ]
     return Reference(
         label="paper, other physics",
         physics=PAPER_PHYSICS,
