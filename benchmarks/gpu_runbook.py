@@ -4,8 +4,8 @@ reference at the largest budget that fits, in ~35 minutes, writing only small fi
     python3 benchmarks/gpu_runbook.py OUT_DIR                 # on the GPU machine
     python3 benchmarks/gpu_runbook.py OUT_DIR --device cpu --tiny   # the dry run (the test suite)
 
-1. the CUDA tests (``tests/test_group.py``: CUDA graphs against the eager update, groups on the
-   GPU) -> ``tests.log``;
+1. the CUDA tests (``tests/test_group.py -k "cuda or worker"``: CUDA graphs against the eager
+   update, compiled too, and the env workers) -> ``tests.log``;
 2. the GPU speed table (``benchmarks/train_speed.py --groups --ks 1 8 32 --algos td3 m2td3
    --device cuda``), against the targets of ``docs/protocol.md`` -> ``speed.md``;
 3. two short probes of the five baselines' groups trained at once (5 seeds of Hopper 3D each, as
@@ -138,7 +138,9 @@ def main(argv: list[str] | None = None) -> int:
     args.out.mkdir(parents=True, exist_ok=True)
     book = Book(args.out)
     py = sys.executable
-    tests = [py, "-m", "pytest", "-q", "-rs", "tests/test_group.py"]
+    # the GPU's own tests and the env workers' (many cores here); the rest of the file is CPU
+    # work that CI runs anyway (on the first H100, all of it took over 200 s of the lease)
+    tests = [py, "-m", "pytest", "-q", "-rs", "tests/test_group.py", "-k", "cuda or worker"]
     tests += ["--collect-only"] if args.tiny else []  # the dry run: the command, not the GPU
     book.step("CUDA tests", tests, args.out / "tests.log", 1200)
     speed = [py, "benchmarks/train_speed.py", "--groups", "--algos", "td3", "m2td3"]
