@@ -241,3 +241,27 @@ def test_info_carries_the_current_params():
     env.set_params(thighmass=1.0)
     *_, info = env.step(env.action_space.sample())
     assert info["thighmass"] == 1.0 and info["torsomass"] == 2.0
+
+
+def test_an_xml_file_is_compiled_once_and_every_env_owns_an_identical_copy(tmp_path):
+    import shutil
+
+    def mjb(model):  # the whole model, as MuJoCo saves it
+        buf = np.zeros(mujoco.mj_sizeModel(model), np.uint8)
+        mujoco.mj_saveModel(model, None, buf)
+        return buf.tobytes()
+
+    cls = RobustHopper
+    a, b = cls(), cls()
+    assert mjb(a.model) == mjb(b.model) == mjb(mujoco.MjModel.from_xml_path(a.fullpath))
+    b.set_params(torsomass=9.0)
+    assert b.model.body_mass[1] == 9.0 and a.model.body_mass[1] != 9.0  # no shared buffers
+    assert mjb(cls().model) == mjb(a.model)  # the cached model is the compiled one, unchanged
+
+    # an edited file is compiled again
+    xml = tmp_path / "hopper.xml"
+    shutil.copy(a.fullpath, xml)
+    first = cls(xml_file=str(xml))
+    xml.write_text(xml.read_text().replace('timestep="0.002"', 'timestep="0.003"', 1))
+    edited = cls(xml_file=str(xml))
+    assert first.model.opt.timestep == 0.002 and edited.model.opt.timestep == 0.003
