@@ -78,7 +78,7 @@ class WorkerEnvs:
         if mp.current_process().daemon:
             raise RuntimeError(
                 f"env workers={workers}: a daemonic process (a multiprocessing.Pool worker) "
-                "cannot start worker processes; use env_workers=0 (--env-workers 0)"
+                "cannot start worker processes; use env_workers=0 (rrls train --workers 0)"
             )
         ctx = mp.get_context("spawn")
         shares = np.array_split(np.arange(n), min(workers, n))
