@@ -52,6 +52,34 @@ def _cleanrl(task: str, steps: int, warmup: int) -> float:
     return cleanrl(task, steps, warmup)
 
 
+def timed_config(
+    algo: str,
+    task: str,
+    steps: int,
+    out: str,
+    learning_starts: int,
+    threads: int | None,
+    compile: bool | None,
+    **extra: Any,
+) -> TrainConfig:
+    """A timed run's config (here and in ``train_speed.py``): the 3D set, no periodic
+    evaluation, checkpoint or progress bar inside the window."""
+    return TrainConfig(
+        algo=algo,
+        task=task,
+        uncertainty="3d",
+        steps=steps,
+        eval_every=0,
+        out=out,
+        progress=False,
+        checkpoint_every=10**9,
+        threads=threads,
+        compile=compile,
+        hyper={"learning_starts": learning_starts},
+        **extra,
+    )
+
+
 def rrls_group(
     algo: str,
     task: str,
@@ -93,20 +121,16 @@ def rrls_group(
     try:
         with tempfile.TemporaryDirectory() as out:
             configs = [
-                TrainConfig(
-                    algo=algo,
-                    task=task,
-                    uncertainty="3d",
-                    steps=first + steps + tail + 1,
+                timed_config(
+                    algo,
+                    task,
+                    first + steps + tail + 1,
+                    f"{out}/seed{seed}",
+                    learning_starts,
+                    threads,
+                    compile,
                     seed=seed,
-                    eval_every=0,
-                    out=f"{out}/seed{seed}",
                     device=device,
-                    progress=False,
-                    checkpoint_every=10**9,
-                    threads=threads,
-                    compile=compile,
-                    hyper={"learning_starts": learning_starts},
                 )
                 for seed in range(k)
             ]

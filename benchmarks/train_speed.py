@@ -59,9 +59,9 @@ from pathlib import Path
 import gymnasium as gym
 import torch
 from cleanrl_loops import cleanrl, cleanrl_sac, straightforward
-from group_speed import groups
+from group_speed import groups, timed_config
 
-from rrls.agents import TrainConfig, train
+from rrls.agents import train
 
 
 # -- (b), (c) rrls ---------------------------------------------------------------------------------
@@ -91,20 +91,8 @@ def rrls_algo(
     module.make_env = lambda *a, **k: Clock(plain(*a, **k))
     try:
         with tempfile.TemporaryDirectory() as out:
-            config = TrainConfig(
-                algo=algo,
-                task=task,
-                uncertainty="3d",
-                steps=learning_starts + warmup + steps + 1,
-                eval_every=0,
-                out=out,
-                progress=False,
-                checkpoint_every=10**9,
-                threads=threads,
-                compile=compile,
-                hyper={"learning_starts": learning_starts},
-            )
-            train(config)
+            steps_in_all = learning_starts + warmup + steps + 1
+            train(timed_config(algo, task, steps_in_all, out, learning_starts, threads, compile))
     finally:
         module.make_env = plain
     first = learning_starts + warmup
