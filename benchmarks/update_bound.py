@@ -107,22 +107,12 @@ def measure(algo: str, threads: int, warmup: int, updates: int, profiled: int) -
 
 def train_for(algo: str, threads: int, updates: int) -> None:
     """``rrls train`` on Hopper: 1 000 random steps, then ``updates`` updates."""
-    from rrls.agents import TrainConfig, train
+    from group_speed import timed_config
+
+    from rrls.agents import train
 
     with tempfile.TemporaryDirectory() as out:
-        config = TrainConfig(
-            algo=algo,
-            task="hopper",
-            uncertainty="3d",
-            steps=1000 + updates + 1,
-            eval_every=0,
-            out=out,
-            progress=False,
-            checkpoint_every=10**9,
-            threads=threads,
-            hyper={"learning_starts": 1000},
-        )
-        train(config)
+        train(timed_config(algo, "hopper", 1000 + updates + 1, out, 1000, threads, None))
 
 
 def summary(record: dict, times: list[float], profiled: int, threads: int) -> dict:
