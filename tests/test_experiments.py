@@ -302,14 +302,17 @@ def test_paper_preset_is_the_protocol_and_prints_an_estimate(tmp_path):
     assert (spec.uncertainty, len(spec.seeds), spec.steps) == ("3d", 10, 5_000_000)
     assert (spec.mesh, spec.episodes, spec.dynamic_episodes) == (10, 5, 10)
     assert spec.learning_rate is None and spec.hidden == (256, 256)  # the paper's 3e-4
+    assert (spec.endpoint, spec.learning_starts) == (False, None)  # np.arange; own warm-ups
+    assert [spec.warmup(a) for a in spec.algos] == [25_000] * 4 + [100_000]  # M2TD3's authors'
     est = estimate(spec, jobs=2)
     # 125 rounds of 2 runs, then the report
     assert est["runs"] == 250 and est["wall_s"] == pytest.approx(est["cpu_s"] / 2 + REPORT_S)
     # each run: the start-up, its random warm-up, then its learning steps at its algorithm's
     # calibrated single-thread rate (256-256: the calibration's size)
+    warmups = [spec.warmup(a) for a in spec.algos]
     rates = [TRAIN_STEPS_PER_S[a] for a in spec.algos]
-    learning = 50 * (5e6 - 25_000) * sum(1 / r for r in rates)
-    warmup = 250 * 25_000 / RANDOM_STEPS_PER_S
+    learning = 50 * sum((5e6 - w) / r for w, r in zip(warmups, rates))
+    warmup = 50 * sum(warmups) / RANDOM_STEPS_PER_S
     assert est["train_s"] == pytest.approx(learning + warmup + 250 * STARTUP_S)
     # a 15-run preset on 2 cores: 8 rounds (the last leaves a core idle)
     quick = estimate(make_spec("quick"), jobs=2)

@@ -22,9 +22,10 @@ Robustness to Model Misspecification"), on the TD3 core, following the authors' 
 Where the table is silent we follow the authors' code: ω̂ are re-initialised and drawn once per
 episode; the omega std stays at ``omega_std_rate`` (their code defines a linear decay towards
 ``min_omega_std_rate`` but never calls it). Deliberate differences: the authors store
-time-limit truncations as terminal, here truncated transitions bootstrap, as in our TD3; the
-authors' random warm-up is ``start_steps`` = 100 k steps, here TD3's table value 25 k (the RRLS
-table gives none for M2TD3; ``--learning-starts 100000`` restores theirs).
+time-limit truncations as terminal, here truncated transitions bootstrap, as in our TD3. The
+random warm-up is the authors' ``start_steps`` = 100 k steps (``src/main_m2td3.py:16`` of the
+RRLS authors' port, ``SuReLI/TCRMDP``; akimotolab/M2TD3's configs), four times TD3's 25 k: the
+RRLS table gives none for M2TD3, so its authors' code decides.
 
 Opt-in (``normalize_omega`` / ``--normalize-omega``): the critics see ω rescaled to [-1, 1]. The
 authors feed raw values; on InvertedPendulum's pole mass (1-31) raw ω swamps the first layer and
@@ -49,6 +50,7 @@ from rrls.agents.replay import ReplayBuffer, transition_fields
 from rrls.agents.seeds import NumpyGenerators, RunSeeds
 from rrls.agents.td3 import TD3, TD3Config
 from rrls.agents.td3 import Learner as TD3Learner
+from rrls.algorithms import warmup
 
 
 @dataclass
@@ -56,6 +58,11 @@ class Config(TD3Config):
     """The paper's M2TD3 table (``hyperparameters_m2td3``) on top of TD3's."""
 
     batch_size: int = hp(100, "replay batch size (M2TD3's table: 100)")
+    learning_starts: int = hp(
+        warmup("m2td3"),
+        "uniformly random steps before learning starts (the authors' start_steps = 1e5: "
+        "SuReLI/TCRMDP src/main_m2td3.py:16, akimotolab/M2TD3's configs)",
+    )
     hatomega_number: int = hp(5, "candidate worst-case parameters ω̂")
     hatomega_learning_rate: float = hp(3e-4, "Adam step size of the ω̂ (the table's own rate)")
     hatomega_parameter_distance: float = hp(0.1, "restart a ω̂ this close (L1) to another")

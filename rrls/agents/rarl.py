@@ -2,11 +2,19 @@
 
 A protagonist and an adversary, both TD3 learners, play the zero-sum game of
 ``DynamicAdversarial``: each step the adversary picks the perturbation and the protagonist acts;
-the protagonist maximises the reward, the adversary ``-reward``. Both act at every step; their
-updates alternate in phases, as in RARL's Algorithm 1: ``phase_steps`` env steps during which
-only the protagonist learns (the adversary plays its current policy), then as many during which
-only the adversary learns.
+the protagonist maximises the reward, the adversary ``-reward``. Both act at every step.
 
+- **Schedule** (``schedule``). ``simultaneous`` (the default, what the presets and the shipped
+  references run): both players take one TD3 update at every env step after the warm-up, the
+  protagonist's first, as the RRLS authors' own trainer does (``SuReLI/TCRMDP``,
+  ``src/td3/trainer.py:418-431``, ``TrainerAdversarial._update_agents``, called every step at
+  ``trainer.py:224-225`` and run by ``src/main_rarl.py`` on RRLS's ``DynamicAdversarial``).
+  ``alternating`` is Pinto et al.'s Algorithm 1: phases of ``phase_steps`` env steps during
+  which only the protagonist learns (the adversary plays its current policy), then as many
+  during which only the adversary learns. RARL's reference code (``lerrel/rllab-adv``,
+  ``train_adversary.py``) alternates ``n_pro_itr = n_adv_itr = 1`` TRPO iteration per player,
+  each on a fresh batch of ``batch_size = 4000`` env steps with both players acting; here a
+  phase is those 4 000 env steps, each followed by one update of the learning player.
 - **Set.** By default the paper's benchmark set (RRLS §5 trains every baseline on the 3D
   parameter set, 2D on InvertedPendulum): the adversary chooses the physical parameters every
   step. ``--uncertainty rarl`` gives RARL's own game, forces on named bodies (RRLS Table 3).
@@ -47,12 +55,21 @@ from rrls.agents.seeds import NumpyGenerators, RunSeeds
 from rrls.agents.td3 import TD3, TD3Config
 from rrls.wrappers.tc_rmdp import OBSERVE, RATE_GAMES
 
+SCHEDULES = ("simultaneous", "alternating")
+
 
 @dataclass
 class Config(TD3Config):
-    """TD3's table for both players, plus the phase length."""
+    """TD3's table for both players, plus when each one learns."""
 
-    phase_steps: int = hp(4000, "env steps per phase (protagonist, then adversary, ...)")
+    schedule: str = hp(
+        "simultaneous",
+        "when the players learn: simultaneous (both every env step, as the RRLS authors' "
+        "trainer, SuReLI/TCRMDP src/td3/trainer.py:418-431) or alternating (Pinto et al.'s "
+        "phases of --phase-steps env steps: protagonist, then adversary, ...)",
+        choices=list(SCHEDULES),
+    )
+    phase_steps: int = hp(4000, "--schedule alternating: env steps per phase")
     rate_limit: float | None = hp(
         None,
         "TC-RMDP's time-constrained adversary: each step it moves every parameter by at most "
@@ -81,6 +98,10 @@ class Config(TD3Config):
 
     def __post_init__(self) -> None:
         super().__post_init__()
+        if self.schedule not in SCHEDULES:
+            raise ValueError(
+                f"schedule must be one of {', '.join(SCHEDULES)}, got {self.schedule!r}"
+            )
         if self.phase_steps < 1:
             raise ValueError(f"phase_steps must be >= 1, got {self.phase_steps}")
         if self.rate_limit is not None and not (
@@ -220,27 +241,35 @@ class Learner(_Learner):
                 terminated=terminated,
             )
 
-    def learning(self, step: int) -> int:
-        """0 while the protagonist's phase, 1 during the adversary's (counted from the first
-        update, so the first phase is a whole one)."""
-        return (step - self.config.learning_starts - 1) // self.config.phase_steps % 2
+    def learning(self, step: int) -> tuple[int, ...]:
+        """The players that learn at ``step``: both (``simultaneous``), or the protagonist in
+        its phases and the adversary in its (``alternating``; counted from the first update, so
+        the first phase is a whole one)."""
+        if self.config.schedule == "simultaneous":
+            return (0, 1)
+        return ((step - self.config.learning_starts - 1) // self.config.phase_steps % 2,)
 
     def update(self, step: int) -> dict[str, torch.Tensor]:
-        i, size = self.learning(step), self.config.batch_size
-        draws = {"idx": self.buffers[i].draw(size), "eps": self.players[i].draw(size)}
-        losses = self._update((i, step % self.config.policy_frequency == 0), draws)
-        name = ("protagonist", "adversary")[i]
-        return {f"{name}_{k}": v for k, v in losses.items()}
+        learning, size = self.learning(step), self.config.batch_size
+        draws = {}
+        for i in learning:  # the protagonist's draws first, as its update comes first
+            draws[f"idx{i}"] = self.buffers[i].draw(size)
+            draws[f"eps{i}"] = self.players[i].draw(size)
+        return self._update((learning, step % self.config.policy_frequency == 0), draws)
 
-    def _compute(self, variant: tuple[int, bool], x: dict[str, torch.Tensor]) -> dict:
-        """The device work of an update: the learning player's TD3 step."""
-        i, update_actor = variant
-        player, data = self.players[i], self.buffers[i].gather(x["idx"])
-        y = player.td_target(data, x["eps"])
-        losses = {"critic_loss": player.critic_step(data["obs"], data["action"], y)}
-        if update_actor:
-            losses["actor_loss"] = player.actor_step(data["obs"])
-            player.soft_update()
+    def _compute(self, variant: tuple[tuple[int, ...], bool], x: dict[str, torch.Tensor]) -> dict:
+        """The device work of an update: each learning player's TD3 step, the protagonist's
+        first (``trainer.py:428-430``: ``agent.update`` then ``adversary.update``)."""
+        learning, update_actor = variant
+        losses = {}
+        for i in learning:
+            player, data = self.players[i], self.buffers[i].gather(x[f"idx{i}"])
+            y = player.td_target(data, x[f"eps{i}"])
+            name = ("protagonist", "adversary")[i]
+            losses[f"{name}_critic_loss"] = player.critic_step(data["obs"], data["action"], y)
+            if update_actor:
+                losses[f"{name}_actor_loss"] = player.actor_step(data["obs"])
+                player.soft_update()
         return losses
 
     def episode_end(self, k: int, episode_return: float, length: int) -> dict[str, float]:

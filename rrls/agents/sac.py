@@ -33,6 +33,7 @@ from rrls.agents.learner import Learner as _Learner
 from rrls.agents.nets import Critic, GaussianActor, polyak, to_mlp_policy
 from rrls.agents.replay import ReplayBuffer, transition_fields
 from rrls.agents.seeds import Generators, NumpyGenerators, RunSeeds
+from rrls.algorithms import warmup
 
 
 @dataclass
@@ -43,7 +44,7 @@ class Config:
     q_lr: float = hp(1e-3, "Adam step size of the critics (and of the temperature)")
     gamma: float = hp(0.99, "discount factor")
     tau: float = hp(0.005, "Polyak rate of the target networks")
-    learning_starts: int = hp(5_000, "uniformly random steps before learning starts")
+    learning_starts: int = hp(warmup("sac"), "uniformly random steps before learning starts")
     policy_frequency: int = hp(2, "critic updates per (burst of) policy updates")
     target_network_frequency: int = hp(1, "critic updates per Polyak step")
     entropy_coef: float = hp(

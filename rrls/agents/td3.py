@@ -27,6 +27,7 @@ from rrls.agents.learner import Learner as _Learner
 from rrls.agents.nets import Actor, Critic, NumpyActor, deterministic, polyak, to_mlp_policy
 from rrls.agents.replay import ReplayBuffer, transition_fields
 from rrls.agents.seeds import Generators, NumpyGenerators, RunSeeds
+from rrls.algorithms import warmup
 
 
 @dataclass
@@ -39,7 +40,7 @@ class Config:
     policy_noise: float = hp(0.2, "target policy smoothing noise (times the action scale)")
     noise_clip: float = hp(0.5, "clip of the smoothing noise (times the action scale)")
     exploration_noise: float = hp(0.1, "Gaussian exploration noise (times the action scale)")
-    learning_starts: int = hp(25_000, "uniformly random steps before learning starts")
+    learning_starts: int = hp(warmup("td3"), "uniformly random steps before learning starts")
     policy_frequency: int = hp(2, "critic updates per actor update (TD3's delay)")
     batch_size: int = hp(256, "replay batch size")
     buffer_size: int = hp(1_000_000, "replay capacity (transitions)")

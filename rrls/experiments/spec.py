@@ -11,7 +11,7 @@ from __future__ import annotations
 from dataclasses import asdict, dataclass, fields
 from typing import Any
 
-from rrls.algorithms import built_in, paper_five
+from rrls.algorithms import built_in, paper_five, warmup
 from rrls.evaluation.protocol import Protocol
 from rrls.physics import V5, is_paper, physics_label
 
@@ -39,15 +39,18 @@ class Spec:
     uncertainty: str = "3d"
     seeds: tuple[int, ...] = tuple(range(10))
     steps: int = 5_000_000
-    learning_starts: int = 25_000
+    #: random warm-up steps of every run; None: each algorithm's own (its row in
+    #: ``rrls.algorithms``: 25 000 for the TD3 family, M2TD3's authors' 100 000)
+    learning_starts: int | None = None
     eval_every: int = 50_000  # periodic nominal evaluation during training (curves)
     eval_episodes: int = 5
     eval_mesh: int = 0  # >0: periodic evaluations also over a coarse mesh (eval/worst_case)
     mesh: int = 10
     #: whether the mesh reaches the set's upper bounds (``np.linspace``); False is the paper's
     #: mesh (``np.arange`` from the lower bound in steps of (high - low) / mesh, the upper bound
-    #: never reached). True is what a benchmark.json written before this field evaluated on.
-    endpoint: bool = True
+    #: never reached); None: the physics' default (False on the paper's physics, else True:
+    #: what a benchmark.json written before this field evaluated on)
+    endpoint: bool | None = None
     episodes: int = 5
     dynamic_episodes: int = 10
     learning_rate: float | None = None  # None: the paper's 3e-4
@@ -111,7 +114,7 @@ class Spec:
     def hyperparameters(self, algo: str) -> dict[str, Any]:
         """The preset's overrides of ``algo``'s paper hyper-parameters (``TrainConfig.hyper``)."""
         hyper: dict[str, Any] = {
-            "learning_starts": min(self.learning_starts, self.steps),
+            "learning_starts": self.warmup(algo),
             "hidden": tuple(self.hidden),
         }
         if self.learning_rate is not None and algo in ALGOS:  # TD3's rate (SAC has two)
@@ -126,6 +129,11 @@ class Spec:
             if self.observe != "vanilla":
                 hyper["observe"] = self.observe
         return hyper
+
+    def warmup(self, algo: str) -> int:
+        """``algo``'s random warm-up steps in this benchmark (at most its steps)."""
+        steps = warmup(algo) if self.learning_starts is None else self.learning_starts
+        return min(steps, self.steps)
 
     def protocol(self) -> dict[str, Any]:
         """The fields two invocations over one directory must agree on."""
@@ -210,7 +218,6 @@ PRESETS: dict[str, dict[str, Any]] = {
         uncertainty="3d",
         seeds=(0, 1, 2),
         steps=200_000,
-        learning_starts=25_000,
         eval_every=10_000,
         eval_episodes=5,
         mesh=10,
@@ -230,7 +237,6 @@ PRESETS: dict[str, dict[str, Any]] = {
         uncertainty="3d",
         seeds=(0, 1, 2, 3, 4),
         steps=300_000,
-        learning_starts=25_000,
         eval_every=10_000,
         eval_episodes=5,
         mesh=10,
@@ -246,7 +252,6 @@ PRESETS: dict[str, dict[str, Any]] = {
         uncertainty="3d",
         seeds=tuple(range(10)),
         steps=5_000_000,
-        learning_starts=25_000,
         eval_every=50_000,
         eval_episodes=5,
         mesh=10,
@@ -295,7 +300,11 @@ def make_spec(preset: str = "paper", **overrides: Any) -> Spec:
         given["seeds"] = tuple(first + s for s in values["seeds"])
     given.pop("first_seed", None)
     if "steps" in given and "learning_starts" not in given:  # a short run still learns
-        given["learning_starts"] = min(values["learning_starts"], given["steps"] // 5)
+        algos = given.get("algos", values["algos"])
+        first = values.get("learning_starts")
+        longest = max(warmup(a) for a in algos) if first is None else first
+        if longest > given["steps"] // 5:
+            given["learning_starts"] = min(longest, given["steps"] // 5)
     values.update(given)
     try:
         values["physics"] = physics_label(values.get("physics"))
@@ -355,7 +364,7 @@ def validate(spec: Spec) -> None:
         if getattr(spec, name) < 1:
             raise SpecError(f"--{name.replace('_', '-')} must be >= 1, got {getattr(spec, name)}")
     for name in ("learning_starts", "eval_every", "eval_mesh"):
-        if getattr(spec, name) < 0:
+        if (getattr(spec, name) or 0) < 0:
             raise SpecError(f"--{name.replace('_', '-')} must be >= 0, got {getattr(spec, name)}")
     if not spec.seeds or min(spec.seeds) < 0:
         raise SpecError("--seeds must be >= 1")
@@ -433,7 +442,7 @@ def estimate(spec: Spec, jobs: int, max_episode_steps: int = 1000) -> dict[str, 
     train = evals = 0.0
     for key in spec.runs():
         rate = TRAIN_STEPS_PER_S.get(key.algo, TRAIN_STEPS_PER_S["td3"]) / size_factor(spec.hidden)
-        random_steps = min(spec.learning_starts, spec.steps)
+        random_steps = spec.warmup(key.algo)
         train += STARTUP_S + random_steps / RANDOM_STEPS_PER_S
         train += (spec.steps - random_steps) / rate
         dims = len(get_uncertainty_set(key.task, spec.uncertainty).names)
