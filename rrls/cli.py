@@ -154,7 +154,7 @@ def build_parser(with_train: bool = True) -> argparse.ArgumentParser:
         "--physics",
         choices=["v5", "paper"],
         default=None,
-        help="v5 (Gymnasium v5, rrls's parameter semantics) or paper (the paper's Gymnasium v4 "
+        help="v5 (Gymnasium v5, rrls's parameter semantics) or paper (the paper's Gymnasium v5 "
         "envs, the original code's parameter writes, np.arange mesh); default: the physics the "
         "policy was trained on (rrls train records it), else v5",
     )

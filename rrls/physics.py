@@ -5,7 +5,7 @@ metadata, ``benchmark.json``, reference files), always with one of these labels,
 ``--physics`` takes:
 
 - ``v5`` (default): Gymnasium v5 envs with rrls's corrected parameter semantics;
-- ``paper``: the paper's physics (Gymnasium v4 envs, the original code's parameter writes:
+- ``paper``: the paper's physics (the Gymnasium v5 envs the original code built, its parameter writes:
   :mod:`rrls.envs.paper`, the ``np.arange`` mesh), what ``paper=True`` builds.
 
 Files written before the labels were the command-line words say ``rrls-v5`` and ``paper-v4``

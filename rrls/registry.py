@@ -74,7 +74,7 @@ class TaskSpec:
     env_kwargs: dict[str, Any] = field(default_factory=dict)
     max_episode_steps: int = MAX_EPISODE_STEPS
     aliases: tuple[str, ...] = ()
-    #: the Gymnasium id of the paper's physics (v4), for ``paper=True``; None: no such physics
+    #: the Gymnasium id of the paper's physics (the env the original code built), for ``paper=True``; None: no such physics
     paper_id: str | None = None
 
     @property
@@ -83,13 +83,13 @@ class TaskSpec:
         return self.v5_id
 
     def base_class(self, paper: bool = False) -> type:
-        """The Gymnasium env class the robust and force classes extend (``paper``: the v4 env
-        the paper's code ran)."""
+        """The Gymnasium env class the robust and force classes extend (``paper``: the env the
+        paper's code ran)."""
         if paper:
             if self.paper_id is None:
                 raise ValueError(
                     f"task {self.key!r} has no paper physics (paper=True is for the paper's "
-                    "six tasks: their Gymnasium v4 envs)"
+                    "six tasks: the v5 envs their code built)"
                 )
             env_id = self.paper_id
         elif self.env_class is not None:
@@ -215,7 +215,7 @@ def register_task(
     class: ``Swimmer`` -> ``RobustSwimmer``). ``planar``: every joint moves in the world x-z
     plane (``<part>force_y`` is then vertical). ``env_kwargs``: keywords of the env class.
     ``max_episode_steps``: default from the id, else 1000. ``paper_env``: the Gymnasium id of
-    the same task's older physics that ``paper=True`` builds (the paper's tasks: their v4 ids).
+    the env the original code built, that ``paper=True`` builds (the paper's tasks: v5 ids).
 
     With ``check`` (the default) the model is compiled once and every row's body, geom, joint or
     actuator is looked up in it: a bad declaration raises a ``ValueError`` listing the valid

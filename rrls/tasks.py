@@ -80,7 +80,9 @@ def _task(
         sets=sets,
         aliases=aliases,
         max_episode_steps=max_episode_steps,
-        paper_env=f"{cls.removesuffix('Env')}-v4" if paper else None,
+        # the paper's experiments ran the original code after SuReLI/RRLS@68beb84
+        # (2023-11-28), which builds every env with gym.make("<Task>-v5") (docs/differences.md)
+        paper_env=f"{cls.removesuffix('Env')}-v5" if paper else None,
         check=False,
     )
 
@@ -146,7 +148,7 @@ _task(
     "ant",
     "Ant",
     "AntEnv",
-    paper=True,  # paper=True: the v4 env the paper ran
+    paper=True,  # paper=True: the original code's env and writes
     planar=False,
     friction=False,
     parts=_ANT_PARTS,
@@ -174,7 +176,7 @@ _task(
     "HalfCheetah",
     "HalfCheetahEnv",
     aliases=("half_cheetah",),
-    paper=True,  # paper=True: the v4 env the paper ran
+    paper=True,  # paper=True: the original code's env and writes
     planar=True,
     friction=True,
     parts={
@@ -216,7 +218,7 @@ _task(
     "hopper",
     "Hopper",
     "HopperEnv",
-    paper=True,  # paper=True: the v4 env the paper ran
+    paper=True,  # paper=True: the original code's env and writes
     planar=True,
     friction=True,
     parts={"torso": "torso", "thigh": "thigh", "leg": "leg", "foot": "foot"},
@@ -237,7 +239,7 @@ _task(
     "HumanoidStandUp",
     "HumanoidStandupEnv",
     aliases=("humanoid_standup",),
-    paper=True,  # paper=True: the v4 env the paper ran
+    paper=True,  # paper=True: the original code's env and writes
     planar=False,
     friction=False,
     parts=_HUMANOID_PARTS,
@@ -267,7 +269,7 @@ _task(
     "InvertedPendulum",
     "InvertedPendulumEnv",
     aliases=("inverted_pendulum",),
-    paper=True,  # paper=True: the v4 env the paper ran
+    paper=True,  # paper=True: the original code's env and writes
     planar=True,
     friction=False,
     parts={"pole": "pole", "cart": "cart"},
@@ -284,7 +286,7 @@ _task(
     "Walker2d",
     "Walker2dEnv",
     aliases=("walker2d",),
-    paper=True,  # paper=True: the v4 env the paper ran
+    paper=True,  # paper=True: the original code's env and writes
     planar=True,
     friction=True,
     parts={

@@ -1,5 +1,5 @@
-"""paper=True: the paper's physics (Gymnasium v4 envs, the original code's writes, the
-np.arange mesh) on demand; the default stays v5 with rrls's semantics; results record which."""
+"""paper=True: the paper's physics (the Gymnasium v5 envs the original code built at the paper's
+time, its parameter writes, the np.arange mesh) on demand; the default stays v5 with rrls's semantics; results record which."""
 
 from __future__ import annotations
 
@@ -16,7 +16,7 @@ from rrls.envs import ROBUST_ENVS, RobustHopper, RobustWalker2d
 from rrls.evaluation import evaluate
 
 
-def _v4(env_id: str) -> gym.Env:
+def _plain(env_id: str) -> gym.Env:
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", DeprecationWarning)
         return gym.make(env_id)
@@ -33,14 +33,30 @@ def _rollout(env, actions, seed=0):
     return np.array(out)
 
 
-@pytest.mark.parametrize(
-    "task, v4", [("hopper", "Hopper-v4"), ("walker", "Walker2d-v4"), ("ant", "Ant-v4")]
-)
-def test_paper_env_is_the_v4_env_bit_for_bit(task, v4):
+#: what the original code builds at the paper's time: SuReLI/RRLS@428665c (2024-06-06, pins
+#: gymnasium==1.0.0a1), rrls/envs/<file>, gym.make("<Task>-v5") since 68beb84 (2023-11-28)
+ORIGINAL_IDS = {
+    "ant": "Ant-v5",  # ant.py:96
+    "halfcheetah": "HalfCheetah-v5",  # half_cheetah.py:82
+    "hopper": "Hopper-v5",  # hopper.py:67
+    "humanoidstandup": "HumanoidStandup-v5",  # humanoid.py:94
+    "invertedpendulum": "InvertedPendulum-v5",  # pendulum.py:52
+    "walker": "Walker2d-v5",  # walker.py:77
+}
+
+
+def test_paper_physics_builds_the_envs_the_original_code_built_at_the_papers_time():
+    from rrls.tasks import TASKS
+
+    assert {k: t.paper_id for k, t in TASKS.items() if t.paper_id} == ORIGINAL_IDS
+
+
+@pytest.mark.parametrize("task", ["hopper", "walker", "ant"])
+def test_paper_env_is_the_original_codes_v5_env_bit_for_bit(task):
     env = gym.make(f"rrls/robust-{task}-v0", paper=True)
     assert type(env.unwrapped).__name__.startswith("PaperRobust")
     assert env.unwrapped.paper and not gym.make(f"rrls/robust-{task}-v0").unwrapped.paper
-    plain = _v4(v4)
+    plain = _plain(ORIGINAL_IDS[task])
     assert env.observation_space.shape == plain.observation_space.shape
     actions = np.random.default_rng(0).uniform(-1, 1, (50, *plain.action_space.shape))
     np.testing.assert_array_equal(_rollout(env, actions), _rollout(plain, actions))
@@ -50,7 +66,7 @@ def test_paper_worldfriction_writes_the_floor_only():
     env = RobustWalker2d(paper=True)
     env.set_params(worldfriction=0.3)
     friction = env.model.geom_friction[:, 0]
-    assert friction[0] == 0.3 and friction[4] == 0.9 and friction[7] == 1.9  # v4's feet
+    assert friction[0] == 0.3 and friction[4] == 1.9 and friction[7] == 1.9  # v5's feet
     assert RobustWalker2d(worldfriction=0.3).model.geom_friction[:, 0].tolist() == [0.3] * 8
     env.reset_params()
     assert env.model.geom_friction[0, 0] == 0.7
@@ -70,7 +86,7 @@ def test_tasks_without_paper_physics_refuse_it():
         evaluate(lambda o: np.zeros((len(o), 2)), "swimmer", "1d", paper=True, workers=1)
 
 
-def test_evaluate_paper_uses_v4_and_the_arange_mesh_and_records_it(tmp_path):
+def test_evaluate_paper_uses_the_arange_mesh_and_records_it(tmp_path):
     def policy(obs):
         return np.tanh(obs[:, :3])
 
@@ -119,7 +135,7 @@ def test_physics_labels_are_one_vocabulary_and_old_ones_read_as_today():
         physics_label("v3")
 
 
-def test_train_physics_paper_uses_the_v4_twin_and_records_it(tmp_path):
+def test_train_physics_paper_uses_the_paper_twin_and_records_it(tmp_path):
     pytest.importorskip("torch")
     from rrls.agents import TrainConfig, algorithm, hyperparameters, train
     from rrls.agents.envs import env_factory

@@ -193,7 +193,7 @@ def test_paper_env_writes_exactly_the_original_fields(task, family):
 
 @pytest.mark.parametrize("task", ["halfcheetah", "hopper", "walker"])
 def test_paper_worldfriction_is_the_original_write_bit_for_bit(task):
-    """The paper env with worldfriction set runs as the v4 env with the original's write."""
+    """The paper env with worldfriction set runs as the original's env with its write."""
     env = _paper(task, "robust")
     env.set_params(worldfriction=0.1)
     with warnings.catch_warnings():

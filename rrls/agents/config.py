@@ -84,7 +84,7 @@ class TrainConfig:
     )
     physics: str = hp(
         "v5",
-        "v5 (Gymnasium v5 envs, rrls's parameter semantics) or paper (the paper's Gymnasium v4 "
+        "v5 (Gymnasium v5 envs, rrls's parameter semantics) or paper (the paper's Gymnasium v5 "
         "envs, the original code's parameter writes; the paper's six tasks)",
         choices=["v5", "paper"],
     )

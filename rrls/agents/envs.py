@@ -136,7 +136,7 @@ def make_envs(make: Callable[[], Any], n: int, workers: int) -> LocalEnvs | Work
 def task_env(task: str, uncertainty: Any = "nominal", paper: bool = False) -> tuple[Any, Any]:
     """A bare env of ``task`` (no time limit: the loop truncates) of the family ``uncertainty``
     needs (``rrls.envs.resolve``, the one place that decides), and the set's box (``None`` for
-    the nominal task). ``paper``: on the paper's physics (the v4 twin, ``paper_class``)."""
+    the nominal task). ``paper``: on the paper's physics (the paper twin, ``paper_class``)."""
     from rrls.envs import paper_class, resolve
 
     resolved = resolve(task, uncertainty)

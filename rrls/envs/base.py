@@ -77,7 +77,7 @@ class ModifiedParamsMixin:
 
     task: ClassVar[TaskSpec]
     param_specs: ClassVar[tuple[ParamSpec, ...]]
-    #: built on the paper's physics (the v4 env and the original code's writes: rrls.envs.paper)
+    #: built on the paper's physics (the original code's env and writes: rrls.envs.paper)
     paper: ClassVar[bool] = False
     #: the class of the same task and family on the paper's physics (None: there is none)
     paper_twin: ClassVar[Callable[[], type] | None] = None
@@ -89,7 +89,7 @@ class ModifiedParamsMixin:
             if cls.paper_twin is None:
                 raise ValueError(
                     f"{cls.__name__} has no paper physics (paper=True is for the paper's six "
-                    "tasks: their Gymnasium v4 envs)"
+                    "tasks: the v5 envs their code built)"
                 )
             twin = cls.paper_twin()
             obj = twin.__new__(twin, *args, **kwargs)

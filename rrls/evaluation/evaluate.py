@@ -74,7 +74,7 @@ def evaluate(
     episodes per worker). With ``out_dir``, finished chunks are kept there and a re-run with the
     same arguments resumes; ``summary.json`` and the episode table are written at the end.
     ``max_episode_steps`` defaults to the task's episode length (1000 for the paper's tasks).
-    ``paper=True`` runs the paper's protocol on the paper's physics: the Gymnasium v4 envs with
+    ``paper=True`` runs the paper's protocol on the paper's physics: the Gymnasium v5 envs with
     the original code's parameter writes (:mod:`rrls.envs.paper`), and (unless ``endpoint`` says
     otherwise) the original code's ``np.arange`` mesh, which stops short of the upper bounds. The
     default is Gymnasium v5 with rrls's parameter semantics and a mesh reaching both bounds;

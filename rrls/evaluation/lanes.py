@@ -45,7 +45,7 @@ class RolloutSpec:
     seeds: np.ndarray  # (P, E) uint32
     max_episode_steps: int = 1000
     stack: Any = None  # an EnvStack (disruptors, schedule, context) around each bare env
-    paper: bool = False  # the paper's physics (v4 envs, the original's writes)
+    paper: bool = False  # the paper's physics (the original's envs and writes)
 
     @property
     def n_episodes(self) -> int:

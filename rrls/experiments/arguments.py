@@ -42,7 +42,9 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:
         default="paper",
         metavar="{" + ",".join(PRESETS) + "}",
         help="smoke (seconds, for tests), quick (~18 min on 2 cores, reduced protocol), "
-        "hopper (~9.5 CPU-hours: the locomotion reference), paper (the paper's protocol); "
+        "hopper (~9.5 CPU-hours: the early-training locomotion reference), halfcheetah (~30 "
+        "CPU-hours: the locomotion reference where the agents have learned), paper (the "
+        "paper's protocol); "
         "default: %(default)s (250 runs: try --dry-run first)",
     )
     b.add_argument(
@@ -74,7 +76,7 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:
         "--physics",
         choices=["v5", "paper"],
         help="v5 (default: Gymnasium v5, rrls's parameter semantics) or paper (the paper's "
-        "Gymnasium v4 envs, the original code's parameter writes, np.arange mesh) for training and "
+        "Gymnasium v5 envs, the original code's parameter writes, np.arange mesh) for training and "
         "evaluation; recorded as given in benchmark.json",
     )
     b.add_argument(
@@ -106,7 +108,8 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:
         "--learning-starts",
         type=int,
         metavar="N",
-        help="random steps before learning (default: the preset's; paper 25 000, quick 1 000; "
+        help="random steps before learning (default: the preset's; paper: each algorithm's own, "
+        "25 000, M2TD3 100 000; quick 1 000; "
         "with --steps alone, at most a fifth of the budget)",
     )
     b.add_argument(

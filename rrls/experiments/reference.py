@@ -40,7 +40,7 @@ FORMAT = "rrls-reference"
 VERSION = 1
 #: rrls's default physics: Gymnasium v5 envs, rrls's parameter semantics (docs/differences.md)
 PHYSICS = V5
-#: the paper's: v4 envs, the original code's writes, the ``np.arange`` mesh
+#: the paper's: the original code's v5 envs, the original code's writes, the ``np.arange`` mesh
 PAPER_PHYSICS = PAPER
 METRICS = ("worst_case", "average_case", "dynamic")
 COMPARED = ("physics", "uncertainty", "mesh", "endpoint", "episodes")
@@ -317,11 +317,13 @@ def _bool(value: Any) -> bool:
 # --- a benchmark and a reference --------------------------------------------------------------
 def benchmark_protocol(spec: dict[str, Any]) -> dict[str, Any]:
     """What a reference must share with a benchmark (``benchmark.json``'s content)."""
+    physics = physics_label(spec.get("physics"))
+    endpoint = spec.get("endpoint")  # None (or absent): the physics' default, as Protocol
     return {
-        "physics": physics_label(spec.get("physics")),
+        "physics": physics,
         "uncertainty": spec["uncertainty"],
         "mesh": int(spec["mesh"]),
-        "endpoint": bool(spec.get("endpoint", True)),
+        "endpoint": physics != PAPER if endpoint is None else bool(endpoint),
         "episodes": int(spec["episodes"]),
     }
 
@@ -508,7 +510,7 @@ def paper_reference_from_results(paper: dict[str, Any]) -> Reference:
         eval_seed=None,
         versions={},
         notes="The RRLS paper's published tables (raw worst / average case, Appendix Tables 7-8; "
-        "Table 6): v4 envs, floor-only friction, np.arange mesh (docs/differences.md). Not a "
-        "reference for rrls's default physics (rrls-v5).",
+        "Table 6): the original code's v5 envs, floor-only friction, np.arange mesh "
+        "(docs/differences.md). Not a reference for rrls's default physics (v5).",
         rows=rows,
     )

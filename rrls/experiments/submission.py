@@ -175,8 +175,8 @@ def create_benchmark(
 def _env_shapes(
     task: str, uncertainty: str, paper: bool = False
 ) -> tuple[tuple[int, ...], tuple[int, ...], int]:
-    """The task's observation and action shapes (on the benchmark's physics: Ant-v4 has 27
-    observations, Ant-v5 105), and the set's dimension (one env built)."""
+    """The task's observation and action shapes (on the benchmark's physics: a task's physics
+    may change them), and the set's dimension (one env built)."""
     import gymnasium as gym
 
     from rrls.envs import resolve
