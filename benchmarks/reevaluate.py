@@ -11,7 +11,9 @@ own code path) and ``result.json`` is written anew. The dynamic evaluation does 
 the mesh: its ``dynamic.csv`` and fields are kept. ``rrls benchmark --preset P --out DEST``
 then trains only what is missing (the runs whose training changed), and ``rrls report DEST``
 reports all of them. A run whose training hyper-parameters differ from the preset's today is
-refused: it needs training again, not a re-evaluation.
+refused: it needs training again, not a re-evaluation — unless ``--keep-training`` says to
+re-evaluate it as trained (an interim reference whose page names the difference; ``result.json``
+then records ``trained_otherwise``, what differs).
 """
 
 from __future__ import annotations
@@ -32,7 +34,9 @@ COPIED = ("policy.npz", "adversary.npz", "run.json", "scalars.csv", "dynamic.csv
 DYNAMIC = ("dynamic_mean", "dynamic_std", "dynamic_env")
 
 
-def reevaluate(src: Path, dest: Path, preset: str, algos: list[str], workers: int) -> list[str]:
+def reevaluate(
+    src: Path, dest: Path, preset: str, algos: list[str], workers: int, keep: bool = False
+) -> list[str]:
     """The names of the runs re-evaluated into ``dest`` (those already there are skipped)."""
     spec = make_spec(preset)
     dest.mkdir(parents=True, exist_ok=True)
@@ -45,7 +49,9 @@ def reevaluate(src: Path, dest: Path, preset: str, algos: list[str], workers: in
         old, new = src / "runs" / name, dest / "runs" / name
         if (new / rundir.RESULT).exists() or not (old / rundir.RESULT).exists():
             continue
-        _check_training(spec, key, old)
+        differ = _training_differences(spec, key, old)
+        if differ and not keep:
+            raise SystemExit(f"{name} was trained otherwise ({differ}): train it again")
         new.mkdir(parents=True, exist_ok=True)
         for rel in COPIED:
             for path in (old / rel, old / f"{rel}{rundir.SEAL_SUFFIX}"):
@@ -61,6 +67,8 @@ def reevaluate(src: Path, dest: Path, preset: str, algos: list[str], workers: in
         result.update({k: before[k] for k in DYNAMIC if k in before})
         # the training's seconds as first recorded, plus this evaluation's
         result["seconds"] = float(before.get("seconds", 0.0)) + time.time() - start
+        if differ:
+            result["trained_otherwise"] = {k: v[0] for k, v in differ.items()}
         rundir.write_checked_json(new / rundir.RESULT, result)
         print(
             f"{name}: worst {before['worst_case']:.1f} -> {result['worst_case']:.1f}, "
@@ -71,8 +79,8 @@ def reevaluate(src: Path, dest: Path, preset: str, algos: list[str], workers: in
     return done
 
 
-def _check_training(spec, key: RunKey, run: Path) -> None:
-    """Refuse a run trained with other hyper-parameters than the preset gives it today."""
+def _training_differences(spec, key: RunKey, run: Path) -> dict:
+    """``{hyper-parameter: (the run's, the preset's today)}`` where they differ."""
     hyper = json.loads((run / rundir.RUN_JSON).read_text())["hyperparameters"]
     today = spec.hyperparameters(key.algo)
     differ = {
@@ -82,8 +90,7 @@ def _check_training(spec, key: RunKey, run: Path) -> None:
     }
     if key.algo == "rarl" and hyper.get("schedule", "alternating") != "simultaneous":
         differ["schedule"] = (hyper.get("schedule", "alternating"), "simultaneous")
-    if differ:
-        raise SystemExit(f"{run.name} was trained otherwise ({differ}): train it again")
+    return differ
 
 
 if __name__ == "__main__":
@@ -95,6 +102,10 @@ if __name__ == "__main__":
     parser.add_argument("--preset", required=True)
     parser.add_argument("--algos", required=True, help="comma-separated")
     parser.add_argument("--workers", type=int, default=1)
+    parser.add_argument(
+        "--keep-training", action="store_true", help="re-evaluate runs trained otherwise"
+    )
     args = parser.parse_args()
-    names = reevaluate(args.src, args.dest, args.preset, args.algos.split(","), args.workers)
+    algos = args.algos.split(",")
+    names = reevaluate(args.src, args.dest, args.preset, algos, args.workers, args.keep_training)
     print("\n".join(names) if names else "nothing to re-evaluate")

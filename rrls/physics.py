@@ -5,8 +5,8 @@ metadata, ``benchmark.json``, reference files), always with one of these labels,
 ``--physics`` takes:
 
 - ``v5`` (default): Gymnasium v5 envs with rrls's corrected parameter semantics;
-- ``paper``: the paper's physics (the Gymnasium v5 envs the original code built, its parameter writes:
-  :mod:`rrls.envs.paper`, the ``np.arange`` mesh), what ``paper=True`` builds.
+- ``paper``: the paper's physics (the Gymnasium v5 envs the original code built, its parameter
+  writes: :mod:`rrls.envs.paper`, the ``np.arange`` mesh), what ``paper=True`` builds.
 
 Files written before the labels were the command-line words say ``rrls-v5`` and ``paper-v4``
 (the shipped references and docs/results still do): they are read as the same two, so every

@@ -74,7 +74,8 @@ class TaskSpec:
     env_kwargs: dict[str, Any] = field(default_factory=dict)
     max_episode_steps: int = MAX_EPISODE_STEPS
     aliases: tuple[str, ...] = ()
-    #: the Gymnasium id of the paper's physics (the env the original code built), for ``paper=True``; None: no such physics
+    #: the Gymnasium id of the paper's physics (the env the original code built), for
+    #: ``paper=True``; None: no such physics
     paper_id: str | None = None
 
     @property

@@ -1,5 +1,6 @@
 """paper=True: the paper's physics (the Gymnasium v5 envs the original code built at the paper's
-time, its parameter writes, the np.arange mesh) on demand; the default stays v5 with rrls's semantics; results record which."""
+time, its parameter writes, the np.arange mesh) on demand; the default stays v5 with rrls's
+semantics; results record which."""
 
 from __future__ import annotations
 

@@ -172,7 +172,8 @@ def test_every_subcommand_describes_itself_and_every_option():
 
 def test_help_gives_defaults_and_choices_where_they_exist():
     benchmark = build_parser(with_train=False).subcommands["benchmark"].format_help()
-    for needle in ("{local,ray}", "default: local", "{smoke,quick,hopper,halfcheetah,paper}", "default: paper"):
+    presets = "{smoke,quick,hopper,halfcheetah,paper}"
+    for needle in ("{local,ray}", "default: local", presets, "default: paper"):
         assert needle in benchmark
     assert "random steps before learning" in benchmark  # --learning-starts
     submit = build_parser(with_train=False).subcommands["submit"].format_help()

@@ -5,8 +5,8 @@ further kind of its task table (friction, centre of mass, joints, gears, gravity
 ``Force<Task>`` exposes ``<body>force_x/_y/_z`` external forces. Both are the Gymnasium v5 env
 with a ``set_params``/``get_params`` interface on top (see :mod:`rrls.envs.base`); the classes
 are built from the task declarations (:func:`rrls.register_task`) on first use.
-``Robust<Task>(paper=True)`` builds ``PaperRobust<Task>``: the paper's physics (the v5 env the original code built and
-the original code's writes, :mod:`rrls.envs.paper`) for the paper's six tasks.
+``Robust<Task>(paper=True)`` builds ``PaperRobust<Task>``: the paper's physics (the v5 env the
+original code built and its writes, :mod:`rrls.envs.paper`) for the paper's six tasks.
 
 >>> from rrls.envs import RobustHopper, HopperParamsBound
 >>> env = RobustHopper(torsomass=2.0)
@@ -41,8 +41,8 @@ _CLASSES: dict[tuple[str, str, bool], tuple[TaskSpec, type]] = {}
 
 def _env_class(task: TaskSpec, kind: str, paper: bool = False) -> type:
     """``Robust<Task>`` (kind "robust") or ``Force<Task>`` (kind "force"), built once per task;
-    ``paper``: ``PaperRobust<Task>``/``PaperForce<Task>`` on the paper's physics (the original's v5 env, the
-    original code's writes: :mod:`rrls.envs.paper`), what ``Robust<Task>(paper=True)`` builds."""
+    ``paper``: ``PaperRobust<Task>``/``PaperForce<Task>`` on the paper's physics (the original's
+    v5 env and writes: :mod:`rrls.envs.paper`), what ``Robust<Task>(paper=True)`` builds."""
     cached = _CLASSES.get((task.key, kind, paper))
     if cached is not None and cached[0] is task:
         return cached[1]

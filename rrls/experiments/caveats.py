@@ -21,8 +21,8 @@ __all__ = [
 
 FEW = "†"  # marks a cell from fewer than 3 seeds
 FEW_SEEDS_NOTE = (
-    f"{FEW} fewer than 3 seeds: ± is the seeds' spread and a bracketed interval is a bootstrap "
-    "of at most two values, not a confidence interval; one seed shows its value alone."
+    f"{FEW} fewer than 3 seeds: ± is the seeds' spread and a bracketed interval from two values "
+    "is not to be trusted; one seed shows its value alone."
 )
 FEW_SEEDS_TEX = (
     "$^{\\dagger}$ fewer than 3 seeds: not a confidence interval (one seed: its value alone)."

@@ -45,7 +45,7 @@ def pm(cell: Cell, digits: int = 2, unstable: bool = False) -> str:
 
 
 def ci(cell: Cell, digits: int = 2, unstable: bool = False) -> str:
-    """``mean [lo, hi]`` (the 95 % bootstrap CI of the mean; without one, the mean alone),
+    """``mean [lo, hi]`` (the 95 % t interval of the mean; without one, the mean alone),
     then its marks."""
     if not cell or cell.get("mean") is None:
         return "–"

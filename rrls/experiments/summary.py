@@ -31,8 +31,9 @@ ADVERSARIAL = ("rarl", "nrmdp")
 
 CONVENTIONS = {
     "worst_case": "per run: min over mesh points of the mean return over the point's "
-    "episodes; cell: mean/std (ddof=0)/IQM/95% percentile-bootstrap CI of the mean over "
-    "seeds",
+    "episodes; cell: mean/std (ddof=0)/IQM/95% Student-t CI of the mean over seeds "
+    "(mean ± t(0.975, n-1)·s/√n, s with ddof=1: honest at 3-5 seeds, where a percentile "
+    "bootstrap cannot leave the values' range)",
     "average_case": "per run: mean over mesh points of the per-point mean return",
     "normalised": "(v - v_TD3) / |v_M2TD3 - v_TD3| with v_TD3, v_M2TD3 the seed means on "
     "the task (this benchmark's runs; without them, the reference file's means — see "
