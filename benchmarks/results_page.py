@@ -1,0 +1,207 @@
+"""The numbers of a results page (``docs/results/<name>/README.md``), generated from its data.
+
+    python3 benchmarks/results_page.py docs/results/hopper --reference hopper --write
+    python3 benchmarks/results_page.py docs/results/hopper --reference hopper --check
+
+A page holds blocks between ``<!-- generated:NAME -->`` and ``<!-- /generated -->``; this script
+rewrites each from the shipped data: the report's per-run table (``tables/per_run.csv``: each
+seed's worst and average case and final nominal return), the reference file's per-seed values
+against the runs' own adversaries (checked equal to the per-run table on the other criteria)
+and, where the folder has ``runs/``, each run's ``result.json``.
+``--check`` (what ``tests/test_results_pages.py`` runs) fails when a block differs from what the
+data give, so no number on a page is typed by hand. Blocks:
+
+- ``summary``: per algorithm, the mean over seeds with its 95 % Student-t interval (the report's
+  method, ``rrls.experiments.stats.t_interval``), each seed's final nominal return;
+- ``orderings``: every pair of algorithms whose intervals do not overlap, per criterion, and the
+  lowest and highest mean: the only orderings a page may state;
+- ``runs``: one row per shipped run.
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import json
+import re
+import sys
+from pathlib import Path
+
+from rrls.algorithms import display_name, sort_algos
+from rrls.experiments.reference import load_reference
+from rrls.experiments.stats import t_interval
+
+METRICS = {"worst_case": "worst case", "average_case": "average case"}
+#: a block; ``SUB/NAME`` is the block NAME of the report in the page's folder SUB (no reference)
+BLOCK = re.compile(r"(<!-- generated:([\w/-]+) -->\n)(.*?)(<!-- /generated -->)", re.S)
+
+
+def per_seed(folder: Path) -> dict[str, dict[str, list[float]]]:
+    """``{algo: {worst_case, average_case, nominal: values by seed}}`` from the report's
+    ``tables/per_run.csv``."""
+    out: dict[str, dict[int, dict[str, float]]] = {}
+    with open(folder / "tables" / "per_run.csv", newline="") as f:
+        for row in csv.DictReader(f):
+            out.setdefault(row["algorithm"], {})[int(row["seed"])] = {
+                "worst_case": float(row["worst_case"]),
+                "average_case": float(row["average_case"]),
+                "nominal": float(row["final_nominal_return"]),
+            }
+    return {
+        algo: {
+            k: [seeds[s][k] for s in sorted(seeds)]
+            for k in ("worst_case", "average_case", "nominal")
+        }
+        for algo, seeds in out.items()
+    }
+
+
+def dynamic(folder: Path, reference: str | None) -> dict[str, str]:
+    """``{algo: cell}`` of the runs against their own adversaries: the reference's per-seed
+    values where it has them (checked against the folder's per-run table), else the report's
+    mean ± std."""
+    cells: dict[str, str] = {}
+    if reference is not None:
+        data = per_seed(folder)
+        for row in load_reference(reference).rows:
+            values = list(row["values"] or [])
+            if row["metric"] == "dynamic":
+                cells[row["algorithm"]] = _cell(values)
+            elif values != data[row["algorithm"]][row["metric"]]:
+                raise SystemExit(
+                    f"{reference}: {row['algorithm']} {row['metric']} per seed "
+                    f"differs from {folder}/tables/per_run.csv"
+                )
+        return cells
+    path = folder / "tables" / "dynamic.csv"
+    if path.exists():
+        with open(path, newline="") as f:
+            for row in csv.DictReader(f):
+                mean, std = float(row["mean"]), float(row["std"])
+                cells[row["algorithm"]] = f"{mean:.1f} ± {std:.1f} (std)"
+    return cells
+
+
+def _cell(values: list[float]) -> str:
+    if not values:
+        return ""
+    mean = sum(values) / len(values)
+    ci = t_interval(values)
+    return f"{mean:.1f}" if ci is None else f"{mean:.1f} [{ci[0]:.1f}, {ci[1]:.1f}]"
+
+
+def summary(data: dict[str, dict[str, list[float]]], dyn: dict[str, str]) -> str:
+    lines = [
+        "| algorithm | seeds | worst case | average case | final nominal return per seed "
+        "| vs own adversary |",
+        "|---|---|---|---|---|---|",
+    ]
+    for algo in sort_algos(data):
+        cells = data[algo]
+        nom = ", ".join(f"{v:.0f}" for v in cells["nominal"])
+        lines.append(
+            f"| {display_name(algo)} | {len(cells['worst_case'])} | "
+            f"{_cell(cells['worst_case'])} | {_cell(cells['average_case'])} | {nom} | "
+            f"{dyn.get(algo, '')} |"
+        )
+    return "\n".join(lines) + "\n"
+
+
+def orderings(data: dict[str, dict[str, list[float]]]) -> str:
+    lines = []
+    for metric, words in METRICS.items():
+        stats = {}
+        for algo in sort_algos(data):
+            values = data[algo].get(metric, [])
+            if len(values) >= 2:
+                stats[algo] = (sum(values) / len(values), t_interval(values))
+        if not stats:
+            continue
+        pairs = [
+            f"{display_name(a)} above {display_name(b)}"
+            for a in stats
+            for b in stats
+            if a != b and stats[a][1][0] > stats[b][1][1]
+        ]
+        low = min(stats, key=lambda a: stats[a][0])
+        high = max(stats, key=lambda a: stats[a][0])
+        resolved = "; ".join(pairs) if pairs else "none (every pair of intervals overlaps)"
+        lines.append(
+            f"- **{words}**: lowest mean {display_name(low)} ({stats[low][0]:.1f}), highest "
+            f"{display_name(high)} ({stats[high][0]:.1f}); non-overlapping 95 % intervals: "
+            f"{resolved}."
+        )
+    return "\n".join(lines) + "\n"
+
+
+def runs(folder: Path) -> str:
+    lines = [
+        "| run | CPU | seconds | worst case | average case | own adversary |",
+        "|---|---|---|---|---|---|",
+    ]
+    rows = []
+    for result in folder.glob("runs/*/result.json"):
+        info = json.loads(result.read_text())
+        run = json.loads((result.parent / "run.json").read_text())
+        simd = (run.get("provenance", {}).get("machine") or {}).get("simd", "")
+        rows.append((info, simd))
+    order = {a: i for i, a in enumerate(sort_algos({i["algorithm"] for i, _ in rows}))}
+    for info, simd in sorted(rows, key=lambda r: (r[0]["seed"], order[r[0]["algorithm"]])):
+        dyn = f"{info['dynamic_mean']:.1f}" if "dynamic_mean" in info else ""
+        lines.append(
+            f"| {display_name(info['algorithm'])} seed {info['seed']} | {simd} | "
+            f"{info.get('seconds', 0):.0f} | {info['worst_case']:.1f} | "
+            f"{info['average_case']:.1f} | {dyn} |"
+        )
+    return "\n".join(lines) + "\n"
+
+
+def blocks(folder: Path, reference: str | None) -> dict[str, str]:
+    data = per_seed(folder)
+    out = {"summary": summary(data, dynamic(folder, reference)), "orderings": orderings(data)}
+    if (folder / "runs").is_dir():
+        out["runs"] = runs(folder)
+    return out
+
+
+def page_blocks(folder: Path, reference: str | None) -> dict[str, str]:
+    """Every block the folder's page names: its own, and ``SUB/NAME`` of its sub-folders."""
+    text = (folder / "README.md").read_text()
+    generated = blocks(folder, reference)
+    for sub in {n.rpartition("/")[0] for n in BLOCK_NAMES.findall(text) if "/" in n}:
+        generated.update({f"{sub}/{k}": v for k, v in blocks(folder / sub, None).items()})
+    return generated
+
+
+BLOCK_NAMES = re.compile(r"<!-- generated:([\w/-]+) -->")
+
+
+def update(page: Path, generated: dict[str, str]) -> tuple[str, list[str]]:
+    """The page with its blocks regenerated, and the names of the blocks that changed."""
+    text, changed = page.read_text(), []
+
+    def fill(match: re.Match) -> str:
+        name = match.group(2)
+        if name not in generated:
+            raise SystemExit(f"{page}: no data for the block {name!r}")
+        if match.group(3) != generated[name]:
+            changed.append(name)
+        return match.group(1) + generated[name] + match.group(4)
+
+    return BLOCK.sub(fill, text), changed
+
+
+if __name__ == "__main__":
+    parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    parser.add_argument("folder", type=Path)
+    parser.add_argument("--reference", help="the folder's shipped reference (name or file)")
+    what = parser.add_mutually_exclusive_group(required=True)
+    what.add_argument("--write", action="store_true")
+    what.add_argument("--check", action="store_true")
+    args = parser.parse_args()
+    page = args.folder / "README.md"
+    text, changed = update(page, page_blocks(args.folder, args.reference))
+    if args.write:
+        page.write_text(text)
+    elif changed:
+        sys.exit(f"{page}: generated blocks out of date: {', '.join(changed)}")
