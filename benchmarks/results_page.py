@@ -156,11 +156,37 @@ def runs(folder: Path) -> str:
     return "\n".join(lines) + "\n"
 
 
+def uncertainty_set(folder: Path) -> str:
+    """The benchmark's set per task: each parameter's bounds and the model's nominal value,
+    inside the set or not (the task's XML as compiled, what an unperturbed env runs)."""
+    from rrls.envs import ROBUST_ENVS, get_uncertainty_set
+
+    spec = json.loads((folder / "benchmark.json").read_text())
+    lines = [
+        "| task | parameter | set | model's nominal value | in the set |",
+        "|---|---|---|---|---|",
+    ]
+    for task in spec["tasks"]:
+        box = get_uncertainty_set(task, spec["uncertainty"])
+        nominal = ROBUST_ENVS[task]().get_params()
+        for name, lo, hi in zip(box.names, box.low, box.high):
+            value = nominal[name]
+            inside = "yes" if lo <= value <= hi else "no"
+            lines.append(f"| {task} | {name} | [{lo:g}, {hi:g}] | {value:.3f} | {inside} |")
+    return "\n".join(lines) + "\n"
+
+
 def blocks(folder: Path, reference: str | None) -> dict[str, str]:
     data = per_seed(folder)
     out = {"summary": summary(data, dynamic(folder, reference)), "orderings": orderings(data)}
+    if (folder / "benchmark.json").exists():
+        out["set"] = uncertainty_set(folder)
     if (folder / "runs").is_dir():
         out["runs"] = runs(folder)
+    if (folder / "cleanrl_td3_returns.csv").is_file():
+        import td3_sanity  # beside this file
+
+        out["sanity"] = td3_sanity.table(folder, folder / "cleanrl_td3_returns.csv")
     return out
 
 

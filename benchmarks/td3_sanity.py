@@ -72,9 +72,17 @@ def cell(values: list[float]) -> str:
     return f"{np.mean(values):.0f} ± {np.std(values):.0f} ({len(values)})"
 
 
-def table(out: Path) -> None:
+def table(
+    folder: Path = RUNS.parent,
+    cleanrl: Path = OUT,
+    steps: tuple[int, ...] = STEPS,
+    authors: dict[int, tuple[int, int]] | None = None,
+) -> str:
+    """The side-by-side table (markdown) of a results folder's TD3 runs, CleanRL's loop's
+    returns (``cleanrl``) and, where given, the TD3 authors' published figures."""
+    authors = AUTHORS if authors is None else authors
     train, nominal = [], []
-    for path in sorted(RUNS.glob("td3-hopper-*-seed*/scalars.csv")):
+    for path in sorted(folder.glob("runs/td3-*-seed*/scalars.csv")):
         seed = int(path.parent.name.rpartition("seed")[2])
         data = pd.read_csv(path)
         rets = data[data["metric"] == "charts/episode_return"]
@@ -82,23 +90,28 @@ def table(out: Path) -> None:
         nominal.append(data[data["metric"] == "eval/nominal_return"].assign(seed=seed))
     rrls = pd.concat(train)
     evals = pd.concat(nominal)
-    clean = pd.read_csv(out) if out.is_file() else pd.DataFrame(columns=["seed", "step", "return"])
-    print(
-        "\nHopper TD3, return at the same steps: mean ± std over seeds (seeds); training "
-        f"episodes: mean of those ending in the {WINDOW:,} steps before\n"
+    clean = (
+        pd.read_csv(cleanrl)
+        if cleanrl.is_file()
+        else pd.DataFrame(columns=["seed", "step", "return"])
     )
-    print(
+    head = (
         "| steps | rrls TD3, training episodes | CleanRL TD3 loop, same physics, training "
-        "episodes | rrls TD3, nominal evaluation | TD3 authors (Hopper-v1), evaluation |"
+        "episodes | rrls TD3, nominal evaluation |"
     )
-    print("|---|---|---|---|---|")
-    for step in STEPS:
+    lines = [
+        head + (" TD3 authors, evaluation |" if authors else ""),
+        "|---" * (5 if authors else 4) + "|",
+    ]
+    for step in steps:
         ev = evals[evals["step"] == step]["value"].tolist()
-        mean, std = AUTHORS[step]
-        print(
-            f"| {step:,} | {cell(windowed(rrls, step))} | {cell(windowed(clean, step))} "
-            f"| {cell(ev)} | {mean} ± {std} (10) |"
-        )
+        row = f"| {step:,} | {cell(windowed(rrls, step))} | {cell(windowed(clean, step))} | "
+        row += f"{cell(ev)} |"
+        if authors:
+            mean, std = authors[step]
+            row += f" {mean} ± {std} (10) |"
+        lines.append(row)
+    return "\n".join(lines) + "\n"
 
 
 def main() -> None:
@@ -110,7 +123,11 @@ def main() -> None:
     args = parser.parse_args()
     if args.run:
         run(args.seeds, args.steps, args.out)
-    table(args.out)
+    print(
+        "\nHopper TD3, return at the same steps: mean ± std over seeds (seeds); training "
+        f"episodes: mean of those ending in the {WINDOW:,} steps before\n"
+    )
+    print(table(cleanrl=args.out))
 
 
 if __name__ == "__main__":
