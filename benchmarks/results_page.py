@@ -176,6 +176,37 @@ def uncertainty_set(folder: Path) -> str:
     return "\n".join(lines) + "\n"
 
 
+def evaluation(folder: Path) -> str:
+    """How the shipped runs were evaluated (their ``eval/summary.json``): the mesh, whether it
+    reaches the upper bounds, episodes per point; and how many worst points lie on an upper
+    bound (slices the paper's ``np.arange`` mesh does not have)."""
+    kinds, on_edge, n = set(), 0, 0
+    for path in sorted(folder.glob("runs/*/eval/summary.json")):
+        info = json.loads(path.read_text())
+        box = info["uncertainty"]
+        kinds.add((info["mesh"], bool(info["endpoint"]), info["episodes"]))
+        worst = [info["worst_point"][name] for name in box["names"]]
+        on_edge += any(abs(w - hi) <= 1e-9 * max(1.0, abs(hi)) for w, hi in zip(worst, box["high"]))
+        n += 1
+    lines = []
+    for mesh, endpoint, episodes in sorted(kinds):
+        how = (
+            "`np.linspace`, both bounds included (rrls's default mesh, not the paper's)"
+            if endpoint
+            else "`np.arange` from the lower bound, the upper bound excluded (the paper's mesh)"
+        )
+        lines.append(
+            f"- {mesh} points per dimension ({mesh ** len(box['names']):,} points), {how}, "
+            f"{episodes} episodes per point."
+        )
+    if any(endpoint for _, endpoint, _ in kinds):
+        lines.append(
+            f"- {on_edge} of {n} runs have their worst point on an upper bound of the set, a "
+            "slice the paper's mesh does not have."
+        )
+    return "\n".join(lines) + "\n"
+
+
 def blocks(folder: Path, reference: str | None) -> dict[str, str]:
     data = per_seed(folder)
     out = {"summary": summary(data, dynamic(folder, reference)), "orderings": orderings(data)}
@@ -183,6 +214,7 @@ def blocks(folder: Path, reference: str | None) -> dict[str, str]:
         out["set"] = uncertainty_set(folder)
     if (folder / "runs").is_dir():
         out["runs"] = runs(folder)
+        out["evaluation"] = evaluation(folder)
     if (folder / "cleanrl_td3_returns.csv").is_file():
         import td3_sanity  # beside this file
 

@@ -1,0 +1,86 @@
+"""Every number and ordering a results page states is read from its shipped data: the pages'
+generated blocks equal what ``benchmarks/results_page.py`` makes of the data today, and the
+claims their prose makes are checked here against the same data."""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pytest
+
+ROOT = Path(__file__).resolve().parent.parent
+RESULTS = ROOT / "docs" / "results"
+sys.path.insert(0, str(ROOT / "benchmarks"))
+
+import results_page  # noqa: E402
+import td3_sanity  # noqa: E402
+
+#: each results page with its shipped reference (None: a page without one)
+PAGES = {"quick": "quick", "hopper": "hopper", "halfcheetah": "halfcheetah"}
+
+
+def _pages():
+    return [(name, ref) for name, ref in PAGES.items() if (RESULTS / name / "README.md").exists()]
+
+
+@pytest.mark.parametrize("name, reference", _pages())
+def test_every_generated_block_of_a_page_is_what_its_data_give(name, reference):
+    folder = RESULTS / name
+    page = folder / "README.md"
+    assert "<!-- generated:summary -->" in page.read_text()
+    _, changed = results_page.update(page, results_page.page_blocks(folder, reference))
+    assert not changed, f"{page}: out of date ({changed}); run benchmarks/results_page.py --write"
+
+
+def _disjoint_pairs(folder: Path, metric: str) -> list[tuple[str, str]]:
+    data = results_page.per_seed(folder)
+    ci = {a: results_page.t_interval(v[metric]) for a, v in data.items()}
+    return [(a, b) for a in ci for b in ci if a != b and ci[a][0] > ci[b][1]]
+
+
+@pytest.mark.parametrize("folder", ["quick", "quick/second-draw", "hopper"])
+def test_pages_that_say_no_difference_is_resolved_have_none(folder):
+    # quick: "No pair of intervals is disjoint on either criterion"; hopper: "No difference
+    # is resolved, on either criterion"
+    for metric in ("worst_case", "average_case"):
+        assert _disjoint_pairs(RESULTS / folder, metric) == [], (folder, metric)
+
+
+@pytest.mark.parametrize("folder", ["quick", "quick/second-draw"])
+def test_quick_pages_claims_about_who_learned_the_nominal_task(folder):
+    nominal = {a: v["nominal"] for a, v in results_page.per_seed(RESULTS / folder).items()}
+    # "TD3 balances the nominal pole on all 3 seeds in both draws"; NR-MDP too
+    assert nominal["td3"] == [1000.0] * 3 and nominal["nrmdp"] == [1000.0] * 3
+    # "DR, M2TD3 and RARL leave seeds short of the nominal task in each draw"
+    assert all(min(nominal[a]) < 800 for a in ("dr", "m2td3", "rarl"))
+
+
+def test_hopper_td3_learns_as_cleanrls_loop_within_a_standard_deviation():
+    # the page: "within one standard deviation (the larger of the two) of rrls's TD3 from 100 k
+    # steps on, and within 1.2 at 50 k, where CleanRL's loop is slightly ahead"
+    folder = RESULTS / "hopper"
+    clean = pd.read_csv(folder / "cleanrl_td3_returns.csv")
+    frames = []
+    for path in sorted(folder.glob("runs/td3-*/scalars.csv")):
+        data = pd.read_csv(path)
+        rets = data[data["metric"] == "charts/episode_return"]
+        seed = int(path.parent.name.rpartition("seed")[2])
+        frames.append(pd.DataFrame({"seed": seed, "step": rets["step"], "return": rets["value"]}))
+    rrls = pd.concat(frames)
+    for step in td3_sanity.STEPS:
+        ours, theirs = td3_sanity.windowed(rrls, step), td3_sanity.windowed(clean, step)
+        gap, spread = abs(np.mean(ours) - np.mean(theirs)), max(np.std(ours), np.std(theirs))
+        assert gap <= (1.0 if step >= 100_000 else 1.2) * spread, step
+        assert step >= 100_000 or np.mean(theirs) > np.mean(ours)
+
+
+def test_the_hopper_page_says_which_mesh_its_runs_were_evaluated_on():
+    text = (RESULTS / "hopper" / "README.md").read_text()
+    block = results_page.evaluation(RESULTS / "hopper")
+    assert block in text
+    mesh_claims = ("evaluated on the paper's mesh", "on the paper's mesh (10 points")
+    if "`np.linspace`" in block:  # a linspace evaluation never claims the paper's mesh
+        assert not any(claim in text for claim in mesh_claims)
