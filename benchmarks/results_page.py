@@ -207,11 +207,57 @@ def evaluation(folder: Path) -> str:
     return "\n".join(lines) + "\n"
 
 
+def paper_comparison(folder: Path) -> str:
+    """This folder's runs beside the paper's Table 7 / 8 row of the same task (raw worst and
+    average case, mean ± std over the paper's 10 seeds), and for every pair of algorithms the
+    paper orders: reproduced (this benchmark's 95 % intervals disjoint, the same way),
+    contradicted (disjoint, the other way) or unresolved (they overlap)."""
+    from rrls.experiments.report import paper_results
+
+    paper = paper_results()
+    spec = json.loads((folder / "benchmark.json").read_text())
+    (task,) = spec["tasks"]
+    data = per_seed(folder)
+    lines = [
+        "| algorithm | worst case, here | worst case, paper | average case, here | average "
+        "case, paper |",
+        "|---|---|---|---|---|",
+    ]
+    tables = {"worst_case": "raw_worst_case", "average_case": "raw_average_case"}
+    for algo in sort_algos(data):
+        cells = []
+        for metric, table in tables.items():
+            mean, std = paper[table][algo][task]
+            cells += [_cell(data[algo][metric]), f"{mean:.1f} ± {std:.1f}"]
+        lines.append(f"| {display_name(algo)} | " + " | ".join(cells) + " |")
+    lines.append("")
+    for metric, table in tables.items():
+        verdicts: dict[str, list[str]] = {"reproduced": [], "contradicted": [], "unresolved": []}
+        algos = sort_algos(data)
+        ci = {a: t_interval(data[a][metric]) for a in algos}
+        for i, a in enumerate(algos):
+            for b in algos[i + 1 :]:
+                hi, lo = (a, b) if paper[table][a][task][0] > paper[table][b][task][0] else (b, a)
+                pair = f"{display_name(hi)} > {display_name(lo)}"
+                if ci[hi][0] > ci[lo][1]:
+                    verdicts["reproduced"].append(pair)
+                elif ci[lo][0] > ci[hi][1]:
+                    verdicts["contradicted"].append(pair)
+                else:
+                    verdicts["unresolved"].append(pair)
+        text = "; ".join(
+            f"{k} ({len(v)}): {', '.join(v) if v else 'none'}" for k, v in verdicts.items()
+        )
+        lines.append(f"- **{METRICS[metric]}**, the paper's orderings here: {text}.")
+    return "\n".join(lines) + "\n"
+
+
 def blocks(folder: Path, reference: str | None) -> dict[str, str]:
     data = per_seed(folder)
     out = {"summary": summary(data, dynamic(folder, reference)), "orderings": orderings(data)}
     if (folder / "benchmark.json").exists():
         out["set"] = uncertainty_set(folder)
+        out["paper"] = paper_comparison(folder)
     if (folder / "runs").is_dir():
         out["runs"] = runs(folder)
         out["evaluation"] = evaluation(folder)
