@@ -257,7 +257,9 @@ def blocks(folder: Path, reference: str | None) -> dict[str, str]:
     out = {"summary": summary(data, dynamic(folder, reference)), "orderings": orderings(data)}
     if (folder / "benchmark.json").exists():
         out["set"] = uncertainty_set(folder)
-        out["paper"] = paper_comparison(folder)
+        text = (folder / "README.md").read_text() if (folder / "README.md").exists() else ""
+        if "<!-- generated:paper -->" in text:
+            out["paper"] = paper_comparison(folder)
     if (folder / "runs").is_dir():
         out["runs"] = runs(folder)
         out["evaluation"] = evaluation(folder)
