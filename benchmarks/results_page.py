@@ -266,7 +266,8 @@ def blocks(folder: Path, reference: str | None) -> dict[str, str]:
     if (folder / "cleanrl_td3_returns.csv").is_file():
         import td3_sanity  # beside this file
 
-        out["sanity"] = td3_sanity.table(folder, folder / "cleanrl_td3_returns.csv")
+        steps = td3_sanity.TASKS[folder.name][0]
+        out["sanity"] = td3_sanity.table(folder, folder / "cleanrl_td3_returns.csv", steps)
     return out
 
 

@@ -1,5 +1,5 @@
-"""Is rrls's TD3 learning Hopper as TD3 does elsewhere? Its curve beside CleanRL's and the
-TD3 authors', at the same step counts.
+"""Is rrls's TD3 learning a task as TD3 does elsewhere? Its curve beside CleanRL's (and, on
+Hopper, the TD3 authors'), at the same step counts.
 
 - ``--run``: CleanRL's ``td3_continuous_action.py`` loop as published (``cleanrl_loops``; its
   defaults: 25 000 random steps, 256-256, batch 256) on the same Hopper-v5 physics, ``--seeds``
@@ -15,6 +15,10 @@ TD3 authors', at the same step counts.
 
     python benchmarks/td3_sanity.py --run --seeds 0 1 2 --steps 200000   # ~25 min, 2 cores
     python benchmarks/td3_sanity.py                                      # the table only
+    python benchmarks/td3_sanity.py --task halfcheetah --run --seeds 0 1 --steps 300000
+
+``--task halfcheetah`` reads ``docs/results/halfcheetah/`` and writes its
+``cleanrl_td3_returns.csv``, at 100 k, 200 k and 300 k steps (no published authors' column).
 """
 
 from __future__ import annotations
@@ -36,7 +40,14 @@ WINDOW = 10_000
 AUTHORS = {50_000: (285, 69), 100_000: (659, 752), 150_000: (1211, 856), 200_000: (2441, 746)}
 
 
-def _one(job: tuple[int, int]) -> list[tuple[int, int, float]]:
+#: per task: the step counts of the table and the TD3 authors' figures (None: not shipped)
+TASKS = {
+    "hopper": (STEPS, AUTHORS),
+    "halfcheetah": ((100_000, 200_000, 300_000), None),
+}
+
+
+def _one(job: tuple[int, int, str]) -> list[tuple[int, int, float]]:
     import warnings
 
     import torch
@@ -44,15 +55,16 @@ def _one(job: tuple[int, int]) -> list[tuple[int, int, float]]:
 
     warnings.simplefilter("ignore")
     torch.set_num_threads(1)
-    seed, steps = job
+    seed, steps, task = job
     returns: list[tuple[int, float]] = []
-    published("td3", "hopper", steps - 25_000 - 1, 0, seed, learning_starts=25_000, returns=returns)
+    published("td3", task, steps - 25_000 - 1, 0, seed, learning_starts=25_000, returns=returns)
     return [(seed, step, value) for step, value in returns]
 
 
-def run(seeds: list[int], steps: int, out: Path) -> None:
+def run(seeds: list[int], steps: int, out: Path, task: str = "hopper") -> None:
     with multiprocessing.get_context("spawn").Pool(len(seeds)) as pool:
-        rows = [row for rows in pool.map(_one, [(s, steps) for s in seeds]) for row in rows]
+        jobs = [(s, steps, task) for s in seeds]
+        rows = [row for rows in pool.map(_one, jobs) for row in rows]
     out.parent.mkdir(parents=True, exist_ok=True)
     with open(out, "w", newline="") as f:
         writer = csv.writer(f)
@@ -80,7 +92,7 @@ def table(
 ) -> str:
     """The side-by-side table (markdown) of a results folder's TD3 runs, CleanRL's loop's
     returns (``cleanrl``) and, where given, the TD3 authors' published figures."""
-    authors = AUTHORS if authors is None else authors
+    authors = TASKS.get(folder.name, (steps, AUTHORS))[1] if authors is None else authors
     train, nominal = [], []
     for path in sorted(folder.glob("runs/td3-*-seed*/scalars.csv")):
         seed = int(path.parent.name.rpartition("seed")[2])
@@ -116,18 +128,21 @@ def table(
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--task", choices=list(TASKS), default="hopper")
     parser.add_argument("--run", action="store_true", help="train CleanRL's loop first")
     parser.add_argument("--seeds", type=int, nargs="+", default=[0, 1, 2])
     parser.add_argument("--steps", type=int, default=200_000)
-    parser.add_argument("--out", type=Path, default=OUT)
+    parser.add_argument("--out", type=Path, help="default: the task's results folder")
     args = parser.parse_args()
+    folder = ROOT / "docs" / "results" / args.task
+    out = args.out or folder / "cleanrl_td3_returns.csv"
     if args.run:
-        run(args.seeds, args.steps, args.out)
+        run(args.seeds, args.steps, out, args.task)
     print(
-        "\nHopper TD3, return at the same steps: mean ± std over seeds (seeds); training "
+        f"\n{args.task} TD3, return at the same steps: mean ± std over seeds (seeds); training "
         f"episodes: mean of those ending in the {WINDOW:,} steps before\n"
     )
-    print(table(cleanrl=args.out))
+    print(table(folder, out, TASKS[args.task][0]))
 
 
 if __name__ == "__main__":
