@@ -7,6 +7,7 @@ import sys
 from typing import Any
 
 from rrls.argtypes import nonnegative_int, positive_int, set_name, task_key
+from rrls.extras import install_hint
 
 #: what a command may raise for bad input: reported as ``rrls <command>: <message>``, exit 2
 USAGE_ERRORS = (ValueError, FileNotFoundError, FileExistsError, NotADirectoryError)
@@ -253,7 +254,7 @@ def main(argv: list[str] | None = None) -> int:
         try:
             import torch  # noqa: F401
         except ImportError as err:
-            print(f"rrls train needs torch: pip install 'rrls[train]' ({err})", file=sys.stderr)
+            print(f"rrls train needs torch: {install_hint('train')} ({err})", file=sys.stderr)
             return 2
     parser = build_parser(with_train)
     args, extras = parser.parse_known_args(argv)

@@ -1,4 +1,4 @@
-"""Tutorial: add your own robust task with ``rrls.register_task`` (issue 18, tutorial b).
+"""Tutorial: add your own robust task with ``rrls.register_task`` (tutorial b).
 
 Any Gymnasium MuJoCo env becomes an rrls task by *declaring* its parameters and uncertainty
 sets as data: which body, joint or actuator each parameter writes, looked up by name in the

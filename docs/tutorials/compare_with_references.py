@@ -1,7 +1,7 @@
 """Tutorial (c): compare your method with shipped reference results, without re-training the
 baselines.
 
-    pip install "rrls[sb3,eval]"
+    python3 -m pip install -c constraints.txt ".[sb3,eval]"   # in the rrls checkout
     python docs/tutorials/compare_with_references.py --steps 20000 --seeds 2
     python docs/tutorials/compare_with_references.py --steps 200 --seeds 1      # seconds
 

@@ -1,7 +1,7 @@
 """Tutorial (a): train a Stable-Baselines3 agent with domain randomisation, evaluate it over the
 Hopper 3D uncertainty set, submit it into a benchmark and get its column in the report.
 
-    pip install "rrls[sb3,eval]"     # stable-baselines3 (+ torch), matplotlib, pyarrow, scipy
+    python3 -m pip install -c constraints.txt ".[sb3,eval]"   # in the checkout: SB3 (+ torch), ...
     python docs/tutorials/submit_sb3_agent.py --steps 100000 --bench bench-hopper
     python docs/tutorials/submit_sb3_agent.py --steps 200 --mesh 2 --episodes 1   # seconds
 

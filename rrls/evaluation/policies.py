@@ -28,6 +28,7 @@ from typing import Any, Protocol, runtime_checkable
 import numpy as np
 
 from rrls.evaluation.exact import ExactLinear
+from rrls.extras import install_hint
 
 BLOCK = 64  # rows per policy call inside BatchInvariant (invariance measured in tests)
 
@@ -367,7 +368,7 @@ def load_sb3(path: str | Path) -> SB3Policy:
     except ImportError:
         raise ValueError(
             f"{path} is a Stable-Baselines3 zip: loading it needs stable-baselines3 "
-            "(pip install 'rrls[sb3]')"
+            f"({install_hint('sb3')})"
         ) from None
     try:
         data, params, _ = load_from_zip_file(str(path), device="cpu")

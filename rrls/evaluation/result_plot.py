@@ -1,7 +1,7 @@
 """Return over the uncertainty set, drawn from an evaluation's saved table (never from a live run).
 
 1D: mean return per point (± std over episodes, episodes as dots). 2D: a heatmap of the mean.
-3D: the three 2D slices through the worst mesh point. Needs matplotlib (``pip install rrls[plot]``).
+3D: the three 2D slices through the worst mesh point. Needs matplotlib (the ``plot`` extra).
 """
 
 from __future__ import annotations
@@ -12,13 +12,14 @@ from typing import Any
 import numpy as np
 
 from rrls.evaluation.result import EvaluationResult
+from rrls.extras import install_hint
 
 
 def pyplot() -> Any:
     try:
         import matplotlib
     except ImportError as err:
-        raise ImportError("plots need matplotlib: pip install 'rrls[plot]'") from err
+        raise ImportError(f"plots need matplotlib: {install_hint('plot')}") from err
     matplotlib.use("Agg")  # files only: works on headless machines
     import matplotlib.pyplot as plt
 

@@ -13,6 +13,7 @@ from typing import Any
 from rrls.deprecation import notice
 from rrls.experiments.arguments import CONFIRM_ABOVE
 from rrls.experiments.spec import PRESETS, SpecError
+from rrls.extras import install_hint
 from rrls.seeds import EXAMPLES, as_range, count_form, parse_seeds
 
 
@@ -29,7 +30,7 @@ def run(args: argparse.Namespace) -> int:
     try:
         import scipy  # noqa: F401
     except ImportError:
-        return _fail(args.command, "the report needs SciPy: pip install 'rrls[train]'")
+        return _fail(args.command, f"the report needs SciPy: {install_hint('train')}")
     try:
         if args.command == "report":
             return _report(args)
@@ -102,11 +103,11 @@ def _benchmark(args: argparse.Namespace) -> int:
         try:
             import ray  # noqa: F401
         except ImportError:
-            return _fail("benchmark", "--backend ray needs Ray: pip install 'rrls[ray]'")
+            return _fail("benchmark", f"--backend ray needs Ray: {install_hint('ray')}")
     try:
         import torch  # noqa: F401
     except ImportError:
-        return _fail("benchmark", "training needs torch: pip install 'rrls[train]'")
+        return _fail("benchmark", f"training needs torch: {install_hint('train')}")
     from pathlib import Path
 
     from rrls.agents import algorithm
@@ -231,7 +232,7 @@ def _quickstart(args: argparse.Namespace) -> int:
     try:
         import torch  # noqa: F401
     except ImportError:
-        return _fail("quickstart", "needs torch: pip install 'rrls[train]'")
+        return _fail("quickstart", f"needs torch: {install_hint('train')}")
     from rrls.experiments.runner import benchmark
 
     spec = make_spec("quick", steps=args.steps, seeds=quickstart_seeds(args))

@@ -19,12 +19,15 @@ from typing import Any
 import gymnasium as gym
 from gymnasium import spaces
 
+from rrls.extras import install_hint
 from rrls.interface import all_params
 
 try:
     from pettingzoo import ParallelEnv
 except ImportError as exc:  # pragma: no cover - exercised only without the extra
-    raise ImportError("the PettingZoo view needs `pip install rrls[pettingzoo]`") from exc
+    raise ImportError(
+        f"the PettingZoo view needs PettingZoo: {install_hint('pettingzoo')}"
+    ) from exc
 
 PROTAGONIST, ADVERSARY = "protagonist", "adversary"
 

@@ -1,0 +1,44 @@
+"""The docs and the CLI's messages stand alone: no file outside the repository, no talk of the
+project's issue tracker, and every install line one that works from a clone (rrls is not on a
+package index: ``python3 -m pip install -c constraints.txt ".[extra]"`` in the checkout)."""
+
+from __future__ import annotations
+
+import re
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parent.parent
+TEXTS = sorted(
+    [ROOT / "README.md", *ROOT.glob("docs/**/*.md"), *ROOT.glob("docs/**/*.py")]
+    + list(ROOT.glob("rrls/**/*.py"))
+)
+FORBIDDEN = {
+    "a file outside the repository": re.compile(r"\.\./shared|MEASURED\.md|DESIGN\.md"),
+    "the issue tracker": re.compile(r"\bissues?\s+\d+|\bthe issue\b|\bissue's\b", re.I),
+    "an install from a package index": re.compile(r"pip install\s+[\"']?rrls\["),
+}
+
+
+@pytest.mark.parametrize("what", list(FORBIDDEN))
+def test_docs_and_messages_stand_alone(what):
+    bad = [
+        f"{path.relative_to(ROOT)}:{n}"
+        for path in TEXTS
+        for n, line in enumerate(path.read_text(encoding="utf-8").splitlines(), 1)
+        if FORBIDDEN[what].search(line)
+    ]
+    assert not bad, f"{what}: {', '.join(bad[:10])}"
+
+
+def test_missing_extras_name_the_install_line_that_works():
+    from rrls.extras import install_hint
+
+    assert (
+        install_hint("train")
+        == 'in the rrls checkout: python3 -m pip install -c constraints.txt ".[train]"'
+    )
+    from rrls.extras import __doc__ as doc
+
+    assert "constraints.txt" in doc
