@@ -42,3 +42,23 @@ def test_missing_extras_name_the_install_line_that_works():
     from rrls.extras import __doc__ as doc
 
     assert "constraints.txt" in doc
+
+
+def test_a_module_attribute_policy_imports_from_the_current_directory(tmp_path):
+    import os
+    import subprocess
+    import sys
+
+    (tmp_path / "mypol.py").write_text(
+        "import numpy as np\n\ndef zeros(obs):\n    return np.zeros((len(obs), 1))\n"
+    )
+    args = ["evaluate", "mypol:zeros", "--task", "invertedpendulum", "--uncertainty", "1d"]
+    args += ["--mesh", "2", "--episodes", "1", "--workers", "1", "--out", "out"]
+    code = f"import sys; from rrls.cli import main; sys.exit(main({args!r}))"
+    # -P: the current directory is not on sys.path, as for the installed `rrls` script
+    env = {**os.environ, "PYTHONPATH": str(ROOT)}
+    proc = subprocess.run(
+        [sys.executable, "-P", "-c", code], cwd=tmp_path, capture_output=True, text=True, env=env
+    )
+    assert proc.returncode == 0, proc.stderr
+    assert (tmp_path / "out" / "summary.json").is_file()

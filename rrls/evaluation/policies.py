@@ -335,12 +335,24 @@ def is_attribute_reference(text: str) -> bool:
 
 def load_attribute(reference: str) -> Callable[[np.ndarray], np.ndarray]:
     """The policy named by ``module:attribute`` (``pkg.mod:obj`` or ``pkg.mod:obj.attr``),
-    adapted with :func:`as_policy`. Importing the module runs its code."""
+    adapted with :func:`as_policy`. Importing the module runs its code. A module in the current
+    directory is found as ``python -m`` finds it: the directory joins ``sys.path`` (last, so it
+    shadows no installed package; worker processes inherit it)."""
     import importlib
+    import os
+    import sys
 
     module_name, _, attr = reference.partition(":")
     try:
-        obj: Any = importlib.import_module(module_name)
+        try:
+            obj: Any = importlib.import_module(module_name)
+        except ModuleNotFoundError as err:
+            here = os.getcwd()
+            top = module_name.partition(".")[0]
+            if err.name != top or here in sys.path or "" in sys.path:
+                raise
+            sys.path.append(here)
+            obj = importlib.import_module(module_name)
     except ImportError as err:
         raise ValueError(f"{reference}: cannot import module {module_name!r} ({err})") from None
     for part in attr.split("."):
