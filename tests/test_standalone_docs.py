@@ -62,3 +62,25 @@ def test_a_module_attribute_policy_imports_from_the_current_directory(tmp_path):
     )
     assert proc.returncode == 0, proc.stderr
     assert (tmp_path / "out" / "summary.json").is_file()
+
+
+def test_rrls_commands_drop_the_shipped_xmls_deprecation_but_user_code_sees_it(tmp_path):
+    import os
+    import subprocess
+    import sys
+
+    env = {k: v for k, v in os.environ.items() if k != "RRLS_QUIET_XML_DEPRECATIONS"}
+    env["PYTHONPATH"] = str(ROOT)
+    (tmp_path / "cheetah.py").write_text(
+        "import numpy as np\n\ndef zeros(obs):\n    return np.zeros((len(obs), 6))\n"
+    )
+    args = ["evaluate", "cheetah:zeros", "--task", "halfcheetah", "--uncertainty", "1d"]
+    args += ["--mesh", "2", "--episodes", "1", "--workers", "2", "--out", "out"]
+    code = f"import sys; from rrls.cli import main; sys.exit(main({args!r}))"
+    run = dict(cwd=tmp_path, capture_output=True, text=True, env=env)
+    proc = subprocess.run([sys.executable, "-c", code], **run)
+    assert proc.returncode == 0, proc.stderr
+    assert "settotalmass" not in proc.stderr  # the command and its two workers
+    user = "import gymnasium as gym, rrls; gym.make('rrls/robust-halfcheetah-v0')"
+    proc = subprocess.run([sys.executable, "-W", "always", "-c", user], **run)
+    assert "settotalmass' is deprecated" in proc.stderr  # a user's own code still sees it

@@ -44,18 +44,31 @@ _SAVED = (
 )
 
 
+#: the environment variable that silences the deprecations of Gymnasium's XML (rrls's commands)
+QUIET_XML_DEPRECATIONS = "RRLS_QUIET_XML_DEPRECATIONS"
+
+
 @contextlib.contextmanager
 def mujoco_warnings_to_python() -> Iterator[None]:
     """Route MuJoCo's warnings to Python's ``warnings`` instead of ``MUJOCO_LOG.TXT``.
 
     MuJoCo's default handler appends every warning (e.g. the deprecated ``settotalmass`` in
     HalfCheetah's XML) to a file in the working directory; we only swap the handler while we
-    compile a model, so a user's own handler stays in place otherwise.
+    compile a model, so a user's own handler stays in place otherwise. With
+    ``RRLS_QUIET_XML_DEPRECATIONS=1`` in the environment (what rrls's own commands set, so their
+    worker processes inherit it) the deprecations of Gymnasium's shipped XML files are dropped:
+    a user's own code still sees them.
     """
+    import os
     import warnings
 
+    def warn(msg: str) -> None:
+        quiet = os.environ.get(QUIET_XML_DEPRECATIONS) == "1"
+        if not (quiet and "is deprecated" in msg and "compiler attribute" in msg):
+            warnings.warn(f"MuJoCo: {msg}", stacklevel=3)
+
     previous = mujoco.get_mju_user_warning()
-    mujoco.set_mju_user_warning(lambda msg: warnings.warn(f"MuJoCo: {msg}", stacklevel=2))
+    mujoco.set_mju_user_warning(warn)
     try:
         yield
     finally:
