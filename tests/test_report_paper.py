@@ -85,16 +85,16 @@ def test_every_tex_table_carries_the_references_rows_and_a_ci(tmp_path):
     assert "\\begin{tabular}" in tex and "\\begin{table}\n" not in tex  # \input-able
     assert tex.index("\\toprule") < tex.index("\\midrule") < tex.index("\\bottomrule")
     # the reference, named, with its CI: Student t over 5, 6, 7 (6 ± 4.303 · 1 / sqrt(3))
-    assert "TD3 (lab-a) & $6.00\\,[3.52, 8.48]$" in tex
+    assert "TD3 (ref. lab-a) & $6.00\\,[3.52, 8.48]$" in tex
     td3 = summary["results"]["invertedpendulum"]["td3"]["worst_case"]
     lo, hi = (f"{v:.2f}" for v in td3["ci95"])
     assert f"TD3 & $12.00\\,[{lo}, {hi}]$" in tex
     assert "\\mathbf{42.00}" in tex  # the best own mean of the column
     std = (root / "tables" / "raw_worst_case_std.tex").read_text()
-    assert "TD3 & $12.00 \\pm 1.63$" in std and "TD3 (lab-a) & $6.00 \\pm 0.82$" in std
+    assert "TD3 & $12.00 \\pm 1.63$" in std and "TD3 (ref. lab-a) & $6.00 \\pm 0.82$" in std
     # the reference's rows normalised with this benchmark's TD3 and M2TD3 means
     norm = (root / "tables" / "normalised_worst_case.tex").read_text()
-    assert "TD3 (lab-a) & $-0.20" in norm  # (6 - 12) / |42 - 12|
+    assert "TD3 (ref. lab-a) & $-0.20" in norm  # (6 - 12) / |42 - 12|
     csv = pd.read_csv(root / "tables" / "raw_worst_case.csv")
     assert set(csv["source"]) == {"benchmark", "lab-a"}
     # no run against its own adversary: no empty Table 6, and the reason is recorded
@@ -122,7 +122,7 @@ def test_a_dynamic_table_with_rows_is_written(tmp_path):
 def test_the_terminal_table_shows_the_reference_rows(tmp_path):
     summary = summarise(_store(tmp_path), _reference())
     text = terminal_table(summary)
-    assert "TD3 (lab-a)" in text and "M2TD3 (lab-a)" in text
+    assert "TD3 (ref. lab-a)" in text and "M2TD3 (ref. lab-a)" in text
     rarl = next(line for line in text.splitlines() if line.split()[1:2] == ["RARL"])
     assert "±" not in rarl and "†" in rarl  # one seed: no "± 0.0"
 
@@ -275,3 +275,49 @@ def test_heatmaps_of_a_2d_set_stop_at_the_sets_box(tmp_path):
         plot_heatmaps(ev.drop(columns="cartmass"), "invertedpendulum", tmp_path / "x.png", "1d")
         is None
     )
+
+
+def test_tex_bolds_the_best_of_every_row_shown_escapes_names_and_renames_rows(tmp_path):
+    import shutil
+    import subprocess
+
+    # a submitted-looking name with LaTeX specials, and a reference row above every own row
+    returns = {**RETURNS, "my_sac": [[1.0, 2.0, 3.0], [1.5, 2.5, 3.5], [1.2, 2.2, 3.2]]}
+    rows = [
+        {**r, "values": [v + 100 for v in r["values"]], "mean": r["mean"] + 100}
+        if r["algorithm"] == "td3" and r["metric"] == "worst_case"
+        else r
+        for r in REFERENCE_ROWS
+    ]
+    ref = Reference(label="lab A", physics="rrls-v5", mesh=3, episodes=2, rows=rows)
+    root = _store(tmp_path, returns)
+    summary = summarise(root, ref)
+    summary["labels"] = {"m2td3@lab A": "M2TD3, lab A's runs", "dr": "DR_uniform"}
+    write_tables(summary, root / "tables", paper_results())
+    tex = (root / "tables" / "raw_worst_case.tex").read_text()
+    # the best of the column is the reference's TD3 (106): bold there, nowhere else
+    assert "TD3 (ref. lab A) & $\\mathbf{106.00}" in tex and tex.count("\\mathbf") == 1
+    assert "Bold: the highest mean of each column over every row shown." in tex
+    assert "my\\_sac &" in tex and "my_sac" not in tex.replace("my\\_sac", "")
+    assert "M2TD3, lab A's runs &" in tex and "DR\\_uniform &" in tex
+    engine = shutil.which("pdflatex")
+    if engine:  # compile each table in a minimal document
+        doc = tmp_path / "doc.tex"
+        doc.write_text(
+            "\\documentclass{article}\\usepackage{booktabs}\\begin{document}"
+            f"\\input{{{root / 'tables' / 'raw_worst_case'}}}\\end{{document}}\n"
+        )
+        proc = subprocess.run(
+            [engine, "-interaction=nonstopmode", "-halt-on-error", doc.name],
+            cwd=tmp_path,
+            capture_output=True,
+        )
+        assert proc.returncode == 0, proc.stdout[-2000:]
+
+
+def test_report_rename_is_name_equals_text(tmp_path, capsys):
+    from rrls.cli import main
+
+    root = _store(tmp_path / "bench")
+    assert main(["report", str(root), "--no-plots", "--rename", "td3"]) == 2
+    assert "--rename 'td3': write NAME=TEXT" in capsys.readouterr().err

@@ -195,6 +195,13 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:
         "reference file (.json, or .csv) another lab can pass to --reference",
     )
     r.add_argument("--label", help="--export-reference: the reference's label")
+    r.add_argument(
+        "--rename",
+        action="append",
+        metavar="NAME=TEXT",
+        help="show algorithm NAME's row as TEXT in every table and figure (NAME@REF: the "
+        "reference REF's row, e.g. td3@quick='TD3, rrls quick'); repeatable",
+    )
 
     s = sub.add_parser(
         "submit",

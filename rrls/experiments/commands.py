@@ -194,8 +194,18 @@ def _report(args: argparse.Namespace) -> int:
         build_store(root)
     from rrls.experiments.reference import ReferenceError, export_reference
 
+    labels = {}
+    for item in args.rename or []:
+        name, sep, text = item.partition("=")
+        if not sep or not name.strip() or not text.strip():
+            return _fail(
+                "report", f"--rename {item!r}: write NAME=TEXT (NAME@REF for a reference row)"
+            )
+        labels[name.strip()] = text.strip()
     try:
-        path = make_report(root, plots=not args.no_plots, reference=args.reference)
+        path = make_report(
+            root, plots=not args.no_plots, reference=args.reference, labels=labels or None
+        )
         exported = None
         if args.export_reference:
             exported = export_reference(root, args.export_reference, label=args.label)

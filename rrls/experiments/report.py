@@ -49,11 +49,17 @@ def paper_results() -> dict[str, Any]:
     return json.loads(text)
 
 
-def make_report(root: str | Path, plots: bool = True, reference: Any = None) -> Path:
+def make_report(
+    root: str | Path,
+    plots: bool = True,
+    reference: Any = None,
+    labels: dict[str, str] | None = None,
+) -> Path:
     """Write ``root/report/`` (summary.json, report.md, tables/, figures) from the store.
 
     ``reference``: a reference file's path, a shipped name (``paper``) or a loaded
     ``Reference``; refused (``ReferenceError``) unless measured under the benchmark's protocol.
+    ``labels``: ``{algorithm (or algorithm@reference): row name}`` for every table and figure.
     """
     from rrls._io import atomic_write_bytes, atomic_write_json
 
@@ -69,6 +75,8 @@ def make_report(root: str | Path, plots: bool = True, reference: Any = None) -> 
             raise ValueError(f"{root} holds no benchmark.json: a reference needs its protocol")
         check_compatible(reference, benchfile.read_spec_json(root))
     summary = summarise(root, reference)
+    if labels:
+        summary["labels"] = dict(labels)
     paper = paper_results()
     out = root / "report"
     out.mkdir(parents=True, exist_ok=True)

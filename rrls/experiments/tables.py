@@ -3,10 +3,13 @@ for the terminal, all from ``summary.json`` and all with the reference's rows.
 
 LaTeX: ``tables/<name>.tex`` is a bare ``tabular`` (booktabs rules) that ``\\input`` drops into a
 paper's own ``table`` float: algorithms × tasks, each cell ``mean [95 % CI]`` over seeds, the best
-mean of a column in bold; ``tables/<name>_std.tex`` is the same table as ``mean ± std`` (the
-paper's style, to set beside its Tables 4-8). The reference's rows (``TD3 (quick)``) follow a
-rule. The caveats are printed under the table, not only in a comment: † fewer than 3 seeds, §
-an unstable normalisation. A table without a row is not written (``write_tables`` says why).
+mean of a column over every row shown (the reference's included) in bold;
+``tables/<name>_std.tex`` is the same table as ``mean ± std`` (the paper's style, to set beside
+its Tables 4-8). The reference's rows (``TD3 (ref. quick)``: a source, not a task) follow a
+rule; ``rrls report --rename NAME=TEXT`` renames a row (``NAME@REF`` a reference's). Row names
+are LaTeX-escaped. The caveats are printed under the table, not only in a comment: † fewer
+than 3 seeds, § an unstable normalisation. A table without a row is not written
+(``write_tables`` says why).
 """
 
 from __future__ import annotations
@@ -29,6 +32,7 @@ __all__ = [
     "md_table",
     "table_rows",
     "terminal_table",
+    "tex_escape",
     "write_tables",
 ]
 
@@ -50,7 +54,10 @@ Row = tuple[str, str, str]
 
 
 def label(summary: dict[str, Any], algo: str) -> str:
-    """An algorithm's name in the report; submitted ones are marked."""
+    """An algorithm's name in the report (``--rename`` first); submitted ones are marked."""
+    renamed = (summary.get("labels") or {}).get(algo)
+    if renamed:
+        return renamed
     name = NAMES.get(algo, algo)
     if any(s["algorithm"] == algo for s in summary.get("submitted") or []):
         return f"{name} (submitted)"
@@ -81,8 +88,13 @@ def table_rows(summary: dict[str, Any], name: str) -> list[Row]:
     algos = list(
         dict.fromkeys(a for by in (summary.get("reference_results") or {}).values() for a in by)
     )
+    renamed = summary.get("labels") or {}
     theirs = [
-        (f"{NAMES.get(a, a)} ({ref.get('name')})", a, "reference_results")
+        (
+            renamed.get(f"{a}@{ref.get('name')}") or f"{NAMES.get(a, a)} (ref. {ref.get('name')})",
+            a,
+            "reference_results",
+        )
         for a in sort_algos(algos)
         if any(cell(summary, ("", a, "reference_results"), t, getter) for t in summary["tasks"])
     ]
@@ -202,11 +214,9 @@ def _tex(
     # Table 6 as the paper prints it: each task in its own unit (10^k), no bold (the paper:
     # the two algorithms play different adversaries, so no ranking)
     scale = {t: paper["dynamic_scale"].get(t, 1.0) if name == "dynamic" else 1.0 for t in tasks}
-    best = {}
+    best = {}  # over every row shown, the reference's included (the note under the table)
     for task in tasks:
-        means = [
-            (cell(summary, r, task, getter) or {}).get("mean") for r in rows if r[2] == "results"
-        ]
+        means = [(cell(summary, r, task, getter) or {}).get("mean") for r in rows]
         finite = [m for m in means if m is not None]
         best[task] = max(finite) if finite else None
     cols = [
@@ -220,7 +230,14 @@ def _tex(
         "% needs \\usepackage{booktabs}; in a paper:",
         f"% \\begin{{table}}\\centering\\caption{{{title}}}\\input{{{name}{suffix}}}"
         f"\\label{{tab:rrls-{name}}}\\end{{table}}",
-        *([f"% reference rows: {ref.get('label')} ({ref.get('file')})"] if ref else []),
+        *(
+            [
+                f"% reference rows: {ref.get('label')}"
+                + (f" ({ref['file']})" if ref.get("file") else "")
+            ]
+            if ref
+            else []
+        ),
         "\\begin{tabular}{l" + "c" * len(cols) + "}",
         "\\toprule",
         " & " + " & ".join(cols) + " \\\\",
@@ -235,12 +252,11 @@ def _tex(
         for task in tasks:
             c = cell(summary, row, task, getter)
             is_best = (
-                row[2] == "results"
-                and c is not None
+                c is not None
                 and c.get("mean") is not None
                 and c["mean"] == best[task]
                 and name != "dynamic"
-                and own > 1
+                and len(rows) > 1
             )
             if c and c.get("mean") is not None and scale[task] != 1:
                 c = {
@@ -258,9 +274,11 @@ def _tex(
             avg = _average(summary, row, getter)
             few |= few_seeds(avg)
             cells.append(tex_pm(avg, digits))
-        lines.append(f"{row[0]} & " + " & ".join(cells) + " \\\\")
+        lines.append(f"{tex_escape(row[0])} & " + " & ".join(cells) + " \\\\")
     lines.append("\\bottomrule")
     notes = ([FEW_SEEDS_TEX] if few else []) + ([UNSTABLE_TEX] if unstable_seen else [])
+    if name != "dynamic" and len(rows) > 1:
+        notes.insert(0, "Bold: the highest mean of each column over every row shown.")
     if normalised:
         notes.append("Average: mean over tasks of the means $\\pm$ of the stds.")
     lines += [
@@ -268,6 +286,25 @@ def _tex(
     ]
     lines.append("\\end{tabular}")
     return "\n".join(lines) + "\n"
+
+
+_TEX_SPECIAL = {
+    "\\": r"\textbackslash{}",
+    "&": r"\&",
+    "%": r"\%",
+    "$": r"\$",
+    "#": r"\#",
+    "_": r"\_",
+    "{": r"\{",
+    "}": r"\}",
+    "~": r"\textasciitilde{}",
+    "^": r"\textasciicircum{}",
+}
+
+
+def tex_escape(text: str) -> str:
+    """``text`` as LaTeX prints it literally (a row name such as ``my_sac``)."""
+    return "".join(_TEX_SPECIAL.get(ch, ch) for ch in text)
 
 
 def md_table(summary: dict[str, Any], name: str, paper: dict[str, Any]) -> list[str]:
