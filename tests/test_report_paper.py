@@ -321,3 +321,36 @@ def test_report_rename_is_name_equals_text(tmp_path, capsys):
     root = _store(tmp_path / "bench")
     assert main(["report", str(root), "--no-plots", "--rename", "td3"]) == 2
     assert "--rename 'td3': write NAME=TEXT" in capsys.readouterr().err
+
+
+def test_every_figure_draws_the_references_rows_beside_the_benchmarks(tmp_path, monkeypatch):
+    from rrls.experiments import figures, plots
+    from rrls.experiments.store import load_store
+
+    drawn: dict[str, set[str]] = {}
+
+    def record(fig, path):
+        texts = set()
+        for ax in fig.axes:
+            legend = ax.get_legend()
+            if legend is not None:
+                texts |= {t.get_text() for t in legend.get_texts()}
+            texts |= {t.get_text() for t in ax.get_yticklabels()}
+        drawn[path.name] = texts
+        return path
+
+    monkeypatch.setattr(figures, "save", record)
+    monkeypatch.setattr(plots, "save", record)
+    root = _store(tmp_path)
+    summary = summarise(root, _reference())
+    summary["labels"] = {"rarl": "RARL, renamed"}
+    plots.make_figures(load_store(root), summary, tmp_path / "figures", _reference())
+    refs = {"TD3 (ref. lab-a)", "M2TD3 (ref. lab-a)"}
+    assert refs <= drawn["performance_profiles.png"]
+    assert refs <= drawn["iqm.png"]
+    assert {f"{r}: average over the set" for r in refs} <= drawn["returns_invertedpendulum.png"]
+    assert "RARL, renamed" in drawn["returns_invertedpendulum.png"]
+    # the first algorithm outside the table gets a dark colour, not yellow
+    from rrls.experiments.figstyle import LIGHT, colours
+
+    assert colours(["td3", "my-sac"])["my-sac"] not in LIGHT

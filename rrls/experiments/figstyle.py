@@ -32,7 +32,9 @@ TOL_MUTED = (
     "#AA4499",
     "#DDDDDD",
 )
-PALETTE = OKABE_ITO + TOL_MUTED
+#: light colours (yellow, sand, pale grey) are hard to see on white: used last
+LIGHT = ("#F0E442", "#DDCC77", "#DDDDDD")
+PALETTE = tuple(c for c in OKABE_ITO + TOL_MUTED if c not in LIGHT) + LIGHT
 MARKERS = ("o", "s", "^", "D", "v", "P", "X", "*", "<", ">")
 RC = {
     "font.size": 8,

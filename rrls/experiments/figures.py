@@ -3,7 +3,9 @@ profiles of the normalised scores, the IQM with its 95 % CI, and probabilities o
 
 Each figure is a PNG with a vector PDF beside it (``figstyle.save``); its caption says what the
 bands are, and names the tasks whose normalisation is unstable (§) and the cells from fewer than
-3 seeds, whose intervals are not confidence intervals.
+3 seeds, whose intervals are not confidence intervals. Every row of the tables is drawn: the
+reference's rows (``TD3 (ref. quick)``, from their per-seed values) in their algorithm's colour,
+dashed, with open markers, beside the benchmark's own solid ones.
 """
 
 from __future__ import annotations
@@ -16,23 +18,44 @@ import numpy as np
 from rrls.evaluation.metrics import SCORES
 from rrls.experiments import profiles, stats
 from rrls.experiments.figstyle import PANEL, colours, markers, pyplot, save
-from rrls.experiments.names import NAMES, sort_algos
+from rrls.experiments.names import NAMES
 from rrls.experiments.summary import Scores
+from rrls.experiments.tables import Row, table_rows
 
 __all__ = ["aggregate_figures"]
 
 TITLES = {"worst_case": "worst case", "average_case": "average case"}
 
 
-def _normalised(scores: Scores, tasks: list[str], algos: list[str], metric: str) -> dict:
-    """``{algo: [per-seed normalised scores of each task]}`` (tasks with a normaliser)."""
-    out: dict[str, list[np.ndarray]] = {}
-    for algo in algos:
+def _values(scores: Scores, row: Row, task: str, metric: str) -> np.ndarray:
+    """A table row's per-seed ``metric`` on ``task``: the benchmark's runs, or the reference's
+    per-seed values (empty where it has none)."""
+    if row[2] == "results":
+        return scores.values(task, row[1], metric)
+    ref = scores.reference_row(task, row[1], metric) or {}
+    return np.asarray(ref.get("values") or [], dtype=float)
+
+
+def _normalised(scores: Scores, tasks: list[str], rows: list[Row], metric: str) -> dict:
+    """``{row: [per-seed normalised scores of each task]}`` (tasks with a normaliser)."""
+    out: dict[Row, list[np.ndarray]] = {}
+    for row in rows:
         for task in tasks:
-            ref, x = scores.norm_refs(task, metric), scores.values(task, algo, metric)
+            ref, x = scores.norm_refs(task, metric), _values(scores, row, task, metric)
             if ref is not None and len(x):
-                out.setdefault(algo, []).append(stats.normalise(x, ref["td3"], ref["m2td3"]))
+                out.setdefault(row, []).append(stats.normalise(x, ref["td3"], ref["m2td3"]))
     return out
+
+
+def _style(row: Row, colour: dict[str, str], marker: dict[str, str]) -> dict[str, Any]:
+    """A row's line: its algorithm's colour; a reference's dashed with open markers."""
+    own = row[2] == "results"
+    return {
+        "color": colour[row[1]],
+        "ls": "-" if own else "--",
+        "marker": marker[row[1]],
+        "mfc": colour[row[1]] if own else "white",
+    }
 
 
 def _caveats(summary: dict[str, Any], normalised: bool = True) -> str:
@@ -55,33 +78,35 @@ def _caveats(summary: dict[str, Any], normalised: bool = True) -> str:
 
 def plot_profiles(summary: dict[str, Any], scores: Scores, path: Path) -> tuple[str, Path] | None:
     """One panel per score: the fraction of runs with a normalised score above τ."""
-    algos = summary["algorithms"]
-    data = {m: _normalised(scores, summary["tasks"], algos, m) for m in SCORES}
+    rows = table_rows(summary, "raw_worst_case")
+    data = {m: _normalised(scores, summary["tasks"], rows, m) for m in SCORES}
     if not any(data.values()):
         return None
     plt = pyplot()
+    algos = [r[1] for r in rows]
     colour, marker = colours(algos), markers(algos)
     fig, axes = plt.subplots(1, 2, figsize=(2 * PANEL[0], PANEL[1]), squeeze=False)
     for ax, metric in zip(axes[0], SCORES):
-        per_algo = data[metric]
-        if not per_algo:
+        per_row = data[metric]
+        if not per_row:
             ax.set_visible(False)
             continue
-        grid = profiles.taus(per_algo)
-        for algo in sort_algos(per_algo):
-            rng = stats.rng_for(algo, metric, "profile")
-            prof = profiles.performance_profile(per_algo[algo], grid, rng)
-            ax.plot(grid, prof["profile"], color=colour[algo], label=NAMES.get(algo, algo))
+        grid = profiles.taus(per_row)
+        every = max(1, len(grid) // 6)
+        for row in [r for r in rows if r in per_row]:
+            rng = stats.rng_for(row[1], row[2], metric, "profile")
+            prof = profiles.performance_profile(per_row[row], grid, rng)
+            style = _style(row, colour, marker)
+            ax.plot(grid, prof["profile"], color=style["color"], ls=style["ls"], label=row[0])
             ax.plot(
-                grid[:: len(grid) // 6],
-                prof["profile"][:: len(grid) // 6],
+                grid[::every],
+                prof["profile"][::every],
                 ls="none",
-                marker=marker[algo],
                 ms=3,
-                color=colour[algo],
+                **{k: v for k, v in style.items() if k != "ls"},
             )
             if prof["low"] is not None:
-                ax.fill_between(grid, prof["low"], prof["high"], color=colour[algo], alpha=0.2)
+                ax.fill_between(grid, prof["low"], prof["high"], color=style["color"], alpha=0.15)
         ax.set_xlabel(f"normalised {TITLES[metric]} τ")
         ax.set_ylabel("fraction of runs > τ")
         ax.set_ylim(0, 1.02)
@@ -95,33 +120,43 @@ def plot_profiles(summary: dict[str, Any], scores: Scores, path: Path) -> tuple[
     caption = (
         "Performance profiles: fraction of (task, seed) runs whose normalised score exceeds τ, "
         "with 95% stratified-bootstrap bands (rliable's definition; drawn only where every "
-        f"task has {profiles.MIN_SEEDS} seeds or more)" + _caveats(summary)
+        f"task has {profiles.MIN_SEEDS} seeds or more); reference rows dashed" + _caveats(summary)
     )
     return caption, path
 
 
-def plot_iqm(summary: dict[str, Any], path: Path) -> tuple[str, Path] | None:
-    """Per score, the IQM of the normalised scores of each algorithm and its 95 % CI."""
-    agg = summary["aggregate"]
-    algos = [a for a in summary["algorithms"] if (agg.get(a) or {}).get("normalised_worst_case")]
-    algos = [a for a in algos if agg[a]["normalised_worst_case"].get("iqm") is not None]
-    if not algos:
+def plot_iqm(summary: dict[str, Any], scores: Scores, path: Path) -> tuple[str, Path] | None:
+    """Per score, the IQM of the normalised scores of each row (the benchmark's algorithms and
+    the reference's) and its 95 % CI."""
+    rows = table_rows(summary, "raw_worst_case")
+    cells: dict[Row, dict[str, dict[str, Any]]] = {}
+    for metric in SCORES:
+        for row, per_task in _normalised(scores, summary["tasks"], rows, metric).items():
+            rng = stats.rng_for(row[1], row[2], metric, "iqm")
+            cells.setdefault(row, {})[metric] = stats.aggregate_iqm(per_task, rng)
+    rows = [r for r in rows if (cells.get(r, {}).get("worst_case") or {}).get("iqm") is not None]
+    if not rows:
         return None
     plt = pyplot()
-    colour = colours(summary["algorithms"])
-    height = max(PANEL[1], 0.3 * len(algos) + 0.8)
+    colour = colours([r[1] for r in rows])
+    height = max(PANEL[1], 0.3 * len(rows) + 0.8)
     fig, axes = plt.subplots(1, 2, figsize=(2 * PANEL[0], height), squeeze=False, sharey=True)
-    y = np.arange(len(algos))[::-1]
+    y = np.arange(len(rows))[::-1]
     for ax, metric in zip(axes[0], SCORES):
-        for yi, algo in zip(y, algos):
-            cell = agg[algo][f"normalised_{metric}"]
+        for yi, row in zip(y, rows):
+            cell = cells[row].get(metric) or {}
             if cell.get("iqm") is None:
                 continue
+            own = row[2] == "results"
             ci = cell.get("ci95")
             if ci:
-                ax.plot(ci, [yi, yi], color=colour[algo], lw=5, alpha=0.45, solid_capstyle="butt")
-            ax.plot([cell["iqm"]], [yi], "|", color=colour[algo], ms=12, mew=2)
-        ax.set_yticks(y, [NAMES.get(a, a) for a in algos])
+                ax.plot(
+                    ci, [yi, yi], color=colour[row[1]], lw=5, alpha=0.45 if own else 0.2,
+                    solid_capstyle="butt",
+                )  # fmt: skip
+            ax.plot([cell["iqm"]], [yi], "|" if own else "d", color=colour[row[1]], ms=10,
+                    mew=2, mfc=colour[row[1]] if own else "white")  # fmt: skip
+        ax.set_yticks(y, [r[0] for r in rows])
         ax.set_xlabel(f"IQM normalised {TITLES[metric]}")
         ax.axvline(0, color="grey", lw=0.6, ls=":")
         ax.axvline(1, color="grey", lw=0.6, ls=":")
@@ -130,7 +165,8 @@ def plot_iqm(summary: dict[str, Any], path: Path) -> tuple[str, Path] | None:
     plt.close(fig)
     caption = (
         "Interquartile mean of the normalised scores over all (task, seed) runs, with its 95% "
-        "stratified-bootstrap CI (no bar: fewer than two runs per task)" + _caveats(summary)
+        "stratified-bootstrap CI (no bar: fewer than two runs per task); reference rows as "
+        "open diamonds" + _caveats(summary)
     )
     return caption, path
 
@@ -176,7 +212,7 @@ def aggregate_figures(
     scores = Scores(tables, reference, summary["uncertainty"])
     made = [
         plot_profiles(summary, scores, out / "performance_profiles.png"),
-        plot_iqm(summary, out / "iqm.png"),
+        plot_iqm(summary, scores, out / "iqm.png"),
         plot_poi(summary, scores, out / "probability_of_improvement.png"),
     ]
     return [m for m in made if m is not None]

@@ -23,8 +23,9 @@ BINS = 50
 MIN_BAND_SEEDS = 3
 
 
-def _algo_label(algo: str) -> str:
-    return NAMES.get(algo, algo)
+def _algo_label(algo: str, names: dict[str, str] | None = None) -> str:
+    """An algorithm's name in a figure: the report's (``--rename``, submitted marks) if given."""
+    return (names or {}).get(algo) or NAMES.get(algo, algo)
 
 
 def _binned(curves: Any, metric: str, steps: int) -> tuple[np.ndarray, dict[tuple, np.ndarray]]:
@@ -71,7 +72,13 @@ def _band(values: np.ndarray, rng: np.random.Generator) -> tuple[np.ndarray, np.
 
 
 def plot_curves(
-    curves: Any, metric: str, steps: int, path: Path, ylabel: str, colour: dict[str, str]
+    curves: Any,
+    metric: str,
+    steps: int,
+    path: Path,
+    ylabel: str,
+    colour: dict[str, str],
+    names: dict[str, str] | None = None,
 ) -> Path | None:
     """One panel per task, one line per algorithm: the seed mean and its 95 % band (from
     ``MIN_BAND_SEEDS`` seeds; fewer: each seed as a thin line, as a band from two seeds would
@@ -90,7 +97,7 @@ def plot_curves(
             with warnings.catch_warnings():  # bins before a run's first episode are empty
                 warnings.simplefilter("ignore", RuntimeWarning)
                 mean = np.nanmean(values, axis=0)
-            label = f"{_algo_label(algo)} ({len(values)})"
+            label = f"{_algo_label(algo, names)} ({len(values)})"
             ax.plot(centres, mean, label=label, color=colour[algo])
             if len(values) >= MIN_BAND_SEEDS:
                 lo, hi = _band(values, stats.rng_for(task, algo, metric, "band"))
@@ -148,7 +155,13 @@ def set_parameters(data: Any) -> list[str]:
     ]
 
 
-def plot_heatmaps(evaluations: Any, task: str, path: Path, uncertainty: str | None) -> Path | None:
+def plot_heatmaps(
+    evaluations: Any,
+    task: str,
+    path: Path,
+    uncertainty: str | None,
+    names: dict[str, str] | None = None,
+) -> Path | None:
     """For a 2-D set: one panel per algorithm, the mean return (over seeds and episodes) at
     each mesh point on a shared colour scale (viridis), the worst point marked, the axes the
     set's box."""
@@ -190,7 +203,7 @@ def plot_heatmaps(evaluations: Any, task: str, path: Path, uncertainty: str | No
         ax.scatter([xs[ix]], [ys[iy]], marker="x", color="#D55E00", s=30, clip_on=False)
         ax.set_xlim(min(xlo, xs[0]), max(xhi, xs[-1]))
         ax.set_ylim(min(ylo, ys[0]), max(yhi, ys[-1]))
-        ax.set_title(_algo_label(algo))
+        ax.set_title(_algo_label(algo, names))
         ax.set_xlabel(a)
     axes[0][0].set_ylabel(b)
     fig.colorbar(mesh, ax=list(axes[0]), label="mean return")
@@ -201,10 +214,18 @@ def plot_heatmaps(evaluations: Any, task: str, path: Path, uncertainty: str | No
 
 
 def plot_over_set(
-    evaluations: Any, task: str, path: Path, colour: dict[str, str], uncertainty: str | None
+    evaluations: Any,
+    task: str,
+    path: Path,
+    colour: dict[str, str],
+    uncertainty: str | None,
+    names: dict[str, str] | None = None,
+    reference: list[tuple[str, str, float]] | None = None,
 ) -> Path | None:
     """Mean return (over seeds, episodes and the other parameters) along each parameter, the
-    axis bounded by the set's box."""
+    axis bounded by the set's box. ``reference``: ``(label, algorithm, average case)`` of the
+    reference's rows on this task, drawn as dashed horizontal lines (a reference file holds no
+    per-point returns: its average over the set is what these curves average to)."""
     data = evaluations[evaluations["task"] == task]
     params = set_parameters(data)
     if not params:
@@ -222,9 +243,11 @@ def plot_over_set(
                 curve.to_numpy(),
                 marker="o",
                 ms=3,
-                label=_algo_label(algo),
+                label=_algo_label(algo, names),
                 color=colour[algo],
             )
+        for text, algo, value in reference or []:
+            ax.axhline(value, color=colour.get(algo, "grey"), ls="--", lw=1.2, label=text)
         ax.set_xlim(*set_bounds(task, uncertainty, data, name))
         ax.set_xlabel(name)
         ax.set_ylabel("mean return" if len(params) == 1 else "mean return (others averaged)")
@@ -240,10 +263,14 @@ def make_figures(
     tables: dict[str, Any], summary: dict[str, Any], out: Path, reference: Any = None
 ) -> list[tuple]:
     """Every figure of the report: ``[(caption, path)]`` (each PNG with a PDF beside it)."""
+    from rrls.experiments.tables import cell, label, table_rows
+
     curves, ev = tables["curves"], tables["evaluations"]
     steps = int(curves["steps"].max()) if len(curves) and "steps" in curves else 0
     present = [*summary["algorithms"], *(ev["algorithm"].unique() if len(ev) else [])]
-    colour = colours(present)
+    theirs = [r for r in table_rows(summary, "raw_average_case") if r[2] != "results"]
+    colour = colours([*present, *(r[1] for r in theirs)])
+    names = {a: label(summary, a) for a in present}
     figures = []
     with pyplot().rc_context(RC):
         if steps:
@@ -253,18 +280,28 @@ def make_figures(
                 ("eval_worst_case", "Periodic evaluation: worst case (coarse mesh)", "worst case"),
             ):
                 path = plot_curves(
-                    curves, metric, steps, out / f"curves_{metric}.png", ylabel, colour
+                    curves, metric, steps, out / f"curves_{metric}.png", ylabel, colour, names
                 )
                 if path is not None:
-                    figures.append((caption + _band_caption(curves, metric), path))
+                    note = " (a reference holds no curves)" if theirs else ""
+                    figures.append((caption + _band_caption(curves, metric) + note, path))
         for task in summary["tasks"]:
             if len(ev) and (ev["task"] == task).any():
+                lines = [
+                    (f"{r[0]}: average over the set", r[1], c["mean"])
+                    for r in theirs
+                    if (c := cell(summary, r, task, "average_case")) and c.get("mean") is not None
+                ]
                 path = plot_over_set(
-                    ev, task, out / f"returns_{task}.png", colour, summary["uncertainty"]
-                )
+                    ev, task, out / f"returns_{task}.png", colour, summary["uncertainty"],
+                    names, lines,
+                )  # fmt: skip
                 if path is not None:
-                    figures.append((f"Return over the uncertainty set: {task}", path))
-                path = plot_heatmaps(ev, task, out / f"heatmap_{task}.png", summary["uncertainty"])
+                    note = "; reference rows: their average over the set, dashed" if lines else ""
+                    figures.append((f"Return over the uncertainty set: {task}{note}", path))
+                path = plot_heatmaps(
+                    ev, task, out / f"heatmap_{task}.png", summary["uncertainty"], names
+                )
                 if path is not None:
                     caption = f"Mean return over the 2-D set, per algorithm: {task}"
                     figures.append((caption + " (axes bounded by the set)", path))
