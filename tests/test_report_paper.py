@@ -253,13 +253,14 @@ def test_figures_are_bounded_by_the_set_and_written_as_pdf_too(tmp_path):
     assert "Performance profiles" in md and "fewer than 3 seeds" in md
 
 
-def test_heatmaps_of_a_2d_set_stop_at_the_sets_box(tmp_path):
-    from rrls.evaluation.result_plot import bounded_edges
+def test_heatmaps_draw_every_mesh_point_as_a_full_cell_and_outline_the_set(tmp_path):
+    from rrls.evaluation.result_plot import cell_edges
+    from rrls.experiments import plots
     from rrls.experiments.plots import plot_heatmaps
 
-    # a [0.1, 3] friction set meshed with 2 points: cells end at the bounds, not at -1.35 / 4.45
-    assert bounded_edges(np.array([0.1, 3.0]), 0.1, 3.0).tolist() == [0.1, 1.55, 3.0]
-    assert bounded_edges(np.array([1.0, 2.0, 3.0]), 1.0, 3.5).tolist() == [1.0, 1.5, 2.5, 3.5]
+    # every cell as wide as its neighbours, centred on its point (no half-width edge cells)
+    np.testing.assert_allclose(cell_edges(np.array([0.1, 3.0])), [-1.35, 1.55, 4.45])
+    assert cell_edges(np.array([1.0, 2.0, 3.0])).tolist() == [0.5, 1.5, 2.5, 3.5]
     pytest.importorskip("matplotlib")
     rows = []
     for algo in ("td3", "m2td3"):
@@ -269,8 +270,24 @@ def test_heatmaps_of_a_2d_set_stop_at_the_sets_box(tmp_path):
                 | {"polemass": float(pole), "cartmass": float(cart), "return": float(point)}
             )
     ev = pd.DataFrame(rows)
-    path = plot_heatmaps(ev, "invertedpendulum", tmp_path / "heat.png", "2d")
+    seen, save = {}, plots.save
+
+    def keep(fig, path):
+        seen["fig"] = fig
+        return save(fig, path)
+
+    plots.save = keep
+    try:
+        path = plot_heatmaps(ev, "invertedpendulum", tmp_path / "heat.png", "2d")
+    finally:
+        plots.save = save
     assert path.stat().st_size > 5_000 and path.with_suffix(".pdf").exists()
+    fig = seen["fig"]
+    assert fig._suptitle.get_text().startswith("InvertedPendulum: ")
+    for ax in fig.axes[:2]:  # the worst point's marker inside the axes, the set outlined
+        ((x, y),) = ax.collections[-1].get_offsets()
+        assert ax.get_xlim()[0] < x < ax.get_xlim()[1] and ax.get_ylim()[0] < y < ax.get_ylim()[1]
+        assert ax.patches, "the set's bounds are outlined"
     assert (
         plot_heatmaps(ev.drop(columns="cartmass"), "invertedpendulum", tmp_path / "x.png", "1d")
         is None

@@ -107,26 +107,22 @@ def _heatmap(
     limits: tuple[float, float] | None = None,
     box: Any = None,
 ) -> Any:
-    """The mean return over two axes; cells and axes end at the set's bounds (``box``)."""
+    """The mean return over two axes: every mesh point a full cell centred on it, the set's
+    bounds (``box``) drawn as a dashed outline."""
     grid = table.pivot_table(index=b, columns=a, values="mean_return")
-    xs, ys = grid.columns.to_numpy(), grid.index.to_numpy()
-
-    def edges(name: str, centres: np.ndarray) -> np.ndarray:
-        if box is None or name not in box.names:
-            return bounded_edges(centres, float(centres[0]), float(centres[-1]))
-        i = box.names.index(name)
-        return bounded_edges(centres, float(box.low[i]), float(box.high[i]))
-
+    xs, ys = grid.columns.to_numpy(dtype=float), grid.index.to_numpy(dtype=float)
     vmin, vmax = limits if limits is not None else (None, None)
     mesh = ax.pcolormesh(
-        edges(a, xs),
-        edges(b, ys),
+        cell_edges(xs),
+        cell_edges(ys),
         grid.to_numpy(),
         shading="flat",
         cmap="viridis",
         vmin=vmin,
         vmax=vmax,
     )
+    if box is not None and a in box.names and b in box.names:
+        outline_box(ax, box.to_dict(box.low), box.to_dict(box.high), a, b)
     ax.scatter([worst[a]], [worst[b]], marker="x", color="red", s=60, label="worst point")
     ax.set_xlabel(a)
     ax.set_ylabel(b)
@@ -141,19 +137,34 @@ def _policy_name(config: dict[str, Any]) -> str:
     if config.get("policy_seed") is not None:
         parts.append(f"seed {config['policy_seed']}")
     if where:
-        parts.append(f"({Path(str(where)).name})")
+        parts.append(f"({Path(str(where)).resolve().name or where})")
     if not parts:
         parts.append(f"policy {config.get('policy_fingerprint', '?')}")
     return " ".join(parts)
 
 
-def bounded_edges(centres: np.ndarray, low: float, high: float) -> np.ndarray:
+def cell_edges(centres: np.ndarray) -> np.ndarray:
     """Cell edges around sorted mesh coordinates, for ``pcolormesh``: midpoints between
-    neighbours, the outer edges at the set's bounds (not half a cell beyond them)."""
-    if len(centres) == 1:
-        return np.array([low, high]) if low < high else np.array([low - 0.5, low + 0.5])
-    mid = (centres[1:] + centres[:-1]) / 2
-    return np.concatenate([[min(low, centres[0])], mid, [max(high, centres[-1])]])
+    neighbours, and half a spacing beyond the first and last point, so every cell has the
+    width of its neighbours (a mesh point on a bound has its cell half outside the set: the
+    set's bounds are drawn as an outline, ``outline_box``)."""
+    c = np.asarray(centres, dtype=float)
+    if len(c) == 1:
+        return np.array([c[0] - 0.5, c[0] + 0.5])
+    mid = (c[1:] + c[:-1]) / 2
+    return np.concatenate([[c[0] - (c[1] - c[0]) / 2], mid, [c[-1] + (c[-1] - c[-2]) / 2]])
 
 
-__all__ = ["bounded_edges", "plot_result", "pyplot"]
+def outline_box(ax: Any, low: dict[str, float], high: dict[str, float], a: str, b: str) -> None:
+    """The set's bounds on axes ``a`` (x) and ``b`` (y) as a dashed white rectangle."""
+    from matplotlib.patches import Rectangle
+
+    ax.add_patch(
+        Rectangle(
+            (low[a], low[b]), high[a] - low[a], high[b] - low[b],
+            fill=False, ec="white", ls="--", lw=0.8, zorder=2,
+        )
+    )  # fmt: skip
+
+
+__all__ = ["cell_edges", "outline_box", "plot_result", "pyplot"]

@@ -12,7 +12,7 @@ from typing import Any
 
 import numpy as np
 
-from rrls.evaluation.result_plot import bounded_edges
+from rrls.evaluation.result_plot import cell_edges, outline_box
 from rrls.experiments import stats
 from rrls.experiments.figstyle import PANEL, RC, colours, pyplot, save
 from rrls.experiments.figures import aggregate_figures
@@ -190,9 +190,10 @@ def plot_heatmaps(
     for ax, algo in zip(axes[0], algos):
         grid = grids[algo]
         xs, ys = grid.columns.to_numpy(dtype=float), grid.index.to_numpy(dtype=float)
+        xe, ye = cell_edges(xs), cell_edges(ys)
         mesh = ax.pcolormesh(
-            bounded_edges(xs, xlo, xhi),
-            bounded_edges(ys, ylo, yhi),
+            xe,
+            ye,
             grid.to_numpy(),
             shading="flat",
             cmap="viridis",
@@ -200,14 +201,18 @@ def plot_heatmaps(
             vmax=vmax,
         )
         iy, ix = np.unravel_index(np.nanargmin(grid.to_numpy()), grid.shape)
-        ax.scatter([xs[ix]], [ys[iy]], marker="x", color="#D55E00", s=30, clip_on=False)
-        ax.set_xlim(min(xlo, xs[0]), max(xhi, xs[-1]))
-        ax.set_ylim(min(ylo, ys[0]), max(yhi, ys[-1]))
+        outline_box(ax, {a: xlo, b: ylo}, {a: xhi, b: yhi}, a, b)
+        ax.scatter([xs[ix]], [ys[iy]], marker="x", color="#D55E00", s=30, zorder=3)
+        ax.set_xlim(min(xlo, xe[0]), max(xhi, xe[-1]))
+        ax.set_ylim(min(ylo, ye[0]), max(yhi, ye[-1]))
         ax.set_title(_algo_label(algo, names))
         ax.set_xlabel(a)
     axes[0][0].set_ylabel(b)
     fig.colorbar(mesh, ax=list(axes[0]), label="mean return")
-    fig.suptitle(f"{task_name(task)}: mean return over the set (x: worst point)")
+    fig.suptitle(
+        f"{task_name(task) or task}: mean return over the set (x: worst point; dashed: the "
+        "set's bounds)"
+    )
     save(fig, path)
     plt.close(fig)
     return path
@@ -252,7 +257,7 @@ def plot_over_set(
         ax.set_xlabel(name)
         ax.set_ylabel("mean return" if len(params) == 1 else "mean return (others averaged)")
         ax.legend(frameon=False)
-    fig.suptitle(f"{task_name(task)}: return over the uncertainty set")
+    fig.suptitle(f"{task_name(task) or task}: return over the uncertainty set")
     fig.tight_layout()
     save(fig, path)
     plt.close(fig)
