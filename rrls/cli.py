@@ -228,7 +228,7 @@ def build_parser(with_train: bool = True) -> argparse.ArgumentParser:
 
     from rrls.experiments.arguments import add_parsers
 
-    add_parsers(sub)  # benchmark, report
+    add_parsers(sub)  # benchmark, report, submit, withdraw
 
     plot = sub.add_parser(
         "plot",
@@ -286,7 +286,7 @@ def _dispatch(args: argparse.Namespace) -> int:
         return _train(args)
     if args.command == "evaluate-dynamic":
         return _evaluate_dynamic(args)
-    if args.command in ("benchmark", "report", "submit", "quickstart"):
+    if args.command in ("benchmark", "report", "submit", "withdraw", "quickstart"):
         from rrls.experiments.commands import run
 
         return run(args)

@@ -149,14 +149,17 @@ def test_installed_plug_in_names_are_reserved(bench, tmp_path, monkeypatch, caps
 
 def test_a_refused_submission_for_a_new_task_adds_no_task(bench, tmp_path, capsys):
     before = _snapshot(bench)
+    with pytest.raises(SubmitError, match="'hopper' is not in the benchmark .* --add-task"):
+        submit(bench, "mine", "hopper", 0, zeros, workers=1)  # not on purpose: refused
+    assert _snapshot(bench) == before
     with pytest.raises(SubmitError, match="maps observations"):  # wrong shapes for hopper
-        submit(bench, "mine", "hopper", 0, zeros, workers=1)
+        submit(bench, "mine", "hopper", 0, zeros, workers=1, add_task=True)
     assert _snapshot(bench) == before
     paper = tmp_path / "paper"
     create_benchmark(paper, "smoke", ("invertedpendulum",), physics="paper")
     before = _snapshot(paper)
     with pytest.raises(SubmitError, match="'swimmer' has no paper physics"):
-        submit(paper, "mine", "swimmer", 0, zeros, workers=1)
+        submit(paper, "mine", "swimmer", 0, zeros, workers=1, add_task=True)
     assert _snapshot(paper) == before
 
 
@@ -187,9 +190,11 @@ def _during_evaluation(monkeypatch, action) -> None:
 
 def test_concurrent_submissions_adding_tasks_lose_no_update(bench, monkeypatch):
     _during_evaluation(
-        monkeypatch, lambda: submit(bench, "b", "inverteddoublependulum", 0, zeros, workers=1)
+        monkeypatch,
+        lambda: submit(bench, "b", "inverteddoublependulum", 0, zeros, workers=1, add_task=True),
     )
-    submit(bench, "a", "reacher", 0, lambda obs: np.zeros((len(obs), 2)), workers=1)
+    act = lambda obs: np.zeros((len(obs), 2))  # noqa: E731
+    submit(bench, "a", "reacher", 0, act, workers=1, add_task=True)
     tasks = json.loads((bench / "benchmark.json").read_text())["tasks"]
     assert set(tasks) == {"invertedpendulum", "inverteddoublependulum", "reacher"}
     runs = sorted(p.name for p in (bench / "runs").iterdir())
@@ -205,3 +210,19 @@ def test_the_same_name_at_once_with_two_policies_is_refused_once(bench, monkeypa
     result = json.loads(next((bench / "runs").glob("mine-*/result.json")).read_text())
     assert result["submitted"]["source"].endswith("zeros")  # the first one stayed
     assert not list((bench / "submissions" / ".staging").iterdir())
+
+
+def test_withdraw_takes_a_submission_out_and_later_reports_stay_complete(bench, capsys):
+    from rrls.cli import main
+
+    act = lambda obs: np.zeros((len(obs), 2))  # noqa: E731
+    submit(bench, "mine", "invertedpendulum", 0, zeros, workers=1)
+    submit(bench, "other", "reacher", 0, act, workers=1, add_task=True)
+    assert "reacher" in json.loads((bench / "benchmark.json").read_text())["tasks"]
+    assert main(["withdraw", str(bench), "--algo", "other"]) == 0
+    assert "withdrawn: other-reacher-1d-seed0" in capsys.readouterr().out
+    # the task only it had leaves the submissions-only benchmark: no missing cells later
+    assert json.loads((bench / "benchmark.json").read_text())["tasks"] == ["invertedpendulum"]
+    assert sorted(p.name for p in (bench / "runs").iterdir()) == ["mine-invertedpendulum-1d-seed0"]
+    assert main(["withdraw", str(bench), "--algo", "other"]) == 2
+    assert "no submission of other" in capsys.readouterr().err

@@ -218,8 +218,20 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:
     s.add_argument("bench_dir", metavar="BENCH_DIR", help="a `rrls benchmark --out` directory")
     s.add_argument("policy", metavar="POLICY", help=".npz, run directory, SB3 .zip or mod:attr")
     s.add_argument("--algo", required=True, metavar="NAME", help="the algorithm's name in reports")
-    s.add_argument("--task", required=True, metavar="TASK", help="one of the benchmark's tasks")
+    s.add_argument(
+        "--task",
+        required=True,
+        metavar="TASK",
+        help="one of the benchmark's tasks (another one only with --add-task)",
+    )
     s.add_argument("--seed", required=True, type=int, metavar="S", help="the policy's seed")
+    s.add_argument(
+        "--add-task",
+        action="store_true",
+        help="a submissions-only benchmark: add --task to its tasks on purpose (a benchmark "
+        "with baselines never grows here: `rrls benchmark --tasks` trains them)",
+    )
+
     s.add_argument(
         "--adversary", metavar="ADV_POLICY", help="also play this adversary (Table 6), same kinds"
     )
@@ -245,6 +257,22 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:
         metavar="N",
         help="worker processes: the evaluation's (default: the number of cores)",
     )
+    add_withdraw(sub)
 
 
-__all__ = ["CONFIRM_ABOVE", "add_parsers"]
+def add_withdraw(sub: argparse._SubParsersAction) -> None:
+    """``rrls withdraw``: take submissions out of a benchmark."""
+    w = sub.add_parser(
+        "withdraw",
+        help="take an algorithm's submissions out of a benchmark (undoes `rrls submit`)",
+        description="Remove the submitted runs of --algo (all, or those of --task / --seed) "
+        "from BENCH_DIR; a task left without runs leaves a submissions-only benchmark's task "
+        "list, so later reports stay complete. The benchmark's own runs are never removed.",
+    )
+    w.add_argument("bench_dir", metavar="BENCH_DIR", help="a benchmark directory")
+    w.add_argument("--algo", required=True, metavar="NAME", help="the submitted algorithm")
+    w.add_argument("--task", metavar="TASK", help="only its runs on this task")
+    w.add_argument("--seed", type=int, metavar="S", help="only its runs of this seed")
+
+
+__all__ = ["CONFIRM_ABOVE", "add_parsers", "add_withdraw"]

@@ -27,6 +27,8 @@ def run(args: argparse.Namespace) -> int:
     line, exit 2."""
     if args.command == "submit":  # no SciPy needed
         return _submit(args)
+    if args.command == "withdraw":
+        return _withdraw(args)
     try:
         import scipy  # noqa: F401
     except ImportError:
@@ -278,6 +280,18 @@ def quickstart_seeds(args: argparse.Namespace) -> list[int] | None:
         raise SpecError(str(err)) from None
 
 
+def _withdraw(args: argparse.Namespace) -> int:
+    from rrls.experiments.submission import SubmitError, remove_submission
+
+    try:
+        names = remove_submission(args.bench_dir, args.algo, args.task, args.seed)
+    except SubmitError as err:
+        return _fail("withdraw", str(err))
+    print("withdrawn: " + ", ".join(names))
+    print(f"report: rrls report {args.bench_dir}")
+    return 0
+
+
 def _submit(args: argparse.Namespace) -> int:
     from rrls.evaluation import PolicyError
     from rrls.experiments.submission import SubmitError, submit
@@ -298,6 +312,7 @@ def _submit(args: argparse.Namespace) -> int:
             preset=args.preset,
             workers=args.workers,
             progress=None,
+            add_task=args.add_task,
         )
     except (SubmitError, PolicyError) as err:
         return _fail("submit", str(err))

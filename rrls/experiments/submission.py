@@ -310,6 +310,7 @@ def submit(
     preset: str | None = None,
     workers: int | None = None,
     progress: bool | None = None,
+    add_task: bool = False,
 ) -> Submission:
     """Evaluate ``policy`` under ``bench_dir``'s protocol and store it as run ``(algo, task,
     seed)``; ``rrls report bench_dir`` then shows ``algo`` beside the baselines.
@@ -324,7 +325,9 @@ def submit(
     game an rrls adversary file records, else ``adversarial``.
     The same (algo, task, seed) again with the same policy (the same actions) does nothing;
     with another policy it is refused unless ``overwrite``. ``preset``: if ``bench_dir`` holds
-    no benchmark yet, start an empty one with that preset's protocol on ``task``.
+    no benchmark yet, start an empty one with that preset's protocol on ``task``. A task the
+    benchmark does not have is refused unless ``add_task`` (a submissions-only benchmark then
+    grows it; one with baselines never does: their runs would be missing).
 
     A refused submission changes nothing: the benchmark (its task list included) and the run
     directory are written only once the evaluation succeeded, under the benchmark's lock.
@@ -348,7 +351,7 @@ def submit(
     else:
         spec = load_spec(root)
     if key not in spec.tasks:
-        _check_new_task(root, spec, key)
+        _check_new_task(root, spec, key, add_task)
         spec = replace(spec, tasks=(*spec.tasks, key))  # written once the submission is in
     if game is not None and game not in GAMES:
         raise SubmitError(f"unknown game {game!r}; valid: {', '.join(GAMES)}")
@@ -425,8 +428,9 @@ def submit(
     return Submission(final, result, evaluated=True)
 
 
-def _check_new_task(root: Path, spec: Spec, key: str) -> None:
-    """Whether ``key`` may join ``spec`` (a submissions-only benchmark grows its tasks)."""
+def _check_new_task(root: Path, spec: Spec, key: str, add_task: bool) -> None:
+    """Whether ``key`` may join ``spec``: only on purpose (``add_task``), and only in a
+    submissions-only benchmark."""
     from rrls.envs import get_uncertainty_set
     from rrls.tasks import TASKS, get_task
 
@@ -438,6 +442,11 @@ def _check_new_task(root: Path, spec: Spec, key: str) -> None:
             f"task {key!r} is not in the benchmark {root} (its tasks: "
             f"{', '.join(spec.tasks)}); add it with `rrls benchmark --out {root} --tasks "
             f"{','.join((*spec.tasks, key))} ...`"
+        )
+    if not add_task:
+        raise SubmitError(
+            f"task {key!r} is not in the benchmark {root} (its tasks: {', '.join(spec.tasks)}); "
+            "--add-task adds it on purpose"
         )
     try:
         get_uncertainty_set(key, spec.uncertainty)
@@ -461,6 +470,58 @@ def _record_task(root: Path, spec: Spec, key: str) -> None:
             f"{benchfile.spec_path(root)} changed during the evaluation (another protocol); "
             "nothing was submitted: submit again"
         )
-    if key not in stored.tasks:
-        _check_new_task(root, stored, key)
+    if key not in stored.tasks:  # submit() checked it may join (add_task)
+        _check_new_task(root, stored, key, add_task=True)
         benchfile.write_spec(root, replace(stored, tasks=(*stored.tasks, key)))
+
+
+def remove_submission(
+    bench_dir: str | Path, algo: str, task: str | None = None, seed: int | None = None
+) -> list[str]:
+    """Take submitted runs of ``algo`` (all, or of ``task`` / ``seed``) out of ``bench_dir``;
+    a task no run is left on, in a submissions-only benchmark, leaves its task list too, so
+    later reports stay complete. Returns the removed runs' names. A benchmark's own runs
+    (trained by ``rrls benchmark``) are refused: they are its baselines."""
+    import shutil
+    from dataclasses import replace
+
+    from rrls import rundir
+    from rrls.experiments import benchfile
+
+    root = Path(bench_dir)
+    spec = load_spec(root)
+    removed = []
+    with benchfile.locked(root):
+        for run in sorted((root / "runs").glob("*/")):
+            try:
+                result = rundir.read_checked_json(run / rundir.RESULT)
+            except (OSError, ValueError):
+                continue
+            if result.get("algorithm") != algo:
+                continue
+            if (task is not None and result.get("task") != task) or (
+                seed is not None and int(result.get("seed", -1)) != seed
+            ):
+                continue
+            if "submitted" not in result:
+                raise SubmitError(
+                    f"{run.name} is one of the benchmark's own runs, not a submission: "
+                    "remove nothing"
+                )
+            removed.append(run)
+        if not removed:
+            which = " ".join(
+                x for x in (algo, task and f"on {task}", seed is not None and f"seed {seed}") if x
+            )
+            raise SubmitError(f"no submission of {which} in {root}")
+        for run in removed:
+            shutil.rmtree(run)
+        if not spec.algos:  # a submissions-only benchmark: drop the tasks left without runs
+            left = {
+                rundir.read_checked_json(p).get("task")
+                for p in (root / "runs").glob(f"*/{rundir.RESULT}")
+            }
+            tasks = tuple(t for t in spec.tasks if t in left) or spec.tasks
+            if tasks != spec.tasks:
+                benchfile.write_spec(root, replace(spec, tasks=tasks))
+    return [r.name for r in removed]
