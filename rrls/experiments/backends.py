@@ -20,7 +20,15 @@ from rrls.experiments.spec import RunKey, Spec
 
 # --- local backend: one spawned process per group ----------------------------------------------
 def _group_main(root: str, spec_json: dict[str, Any], keys: list[tuple[str, str, int]]) -> None:
-    """Entry point of a group's process: dies with the driver, writes error.txt on failure."""
+    """Entry point of a group's process: dies with the driver, writes error.txt on failure.
+    Ctrl-C is the driver's to handle (it stops the groups and says how to resume): a group
+    ignores SIGINT, so that it is not torn down half-way through its own cleanup."""
+    import signal
+
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    # the driver stops a group with SIGTERM: exit through Python, so that multiprocessing's
+    # finalizers release the group's semaphores (no "leaked semaphore" warning at shutdown)
+    signal.signal(signal.SIGTERM, lambda *_: sys.exit(143))
     die_with_parent()
     try:
         execute_recorded(root, spec_json, keys)
