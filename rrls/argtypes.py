@@ -33,6 +33,30 @@ def nonnegative_int(text: str) -> int:
     return value
 
 
+#: the most steps any count may say (1e12: ~30 000 years of one env at 1 000 steps/s)
+MAX_STEPS = 10**12
+#: suffixes a step count may carry: 100k, 1.5M, 2g
+_SCALE = {"k": 1_000, "m": 1_000_000, "g": 1_000_000_000}
+
+
+def step_count(text: str) -> int:
+    """argparse ``type=``: a whole number of steps from 0 to ``MAX_STEPS``, written as 30000,
+    30_000, 1e4, 100k or 1.5M (a count that is not whole, such as 1.5 or 0.0005k, is refused)."""
+    raw = str(text).strip().lower().replace("_", "")
+    scale = _SCALE.get(raw[-1:], 1)
+    number = raw[:-1] if scale != 1 else raw
+    try:
+        value = float(number) * scale
+    except ValueError:
+        value = float("nan")
+    if not (0 <= value <= MAX_STEPS and value == int(value)):  # NaN fails both
+        raise argparse.ArgumentTypeError(
+            f"must be a whole number of steps from 0 to {MAX_STEPS:.0e} (e.g. 30000, 1e4, "
+            f"100k), got {text}"
+        )
+    return int(value)
+
+
 def positive_float(text: str) -> float:
     """argparse ``type=``: a finite float > 0 (learning rates, scales)."""
     import math

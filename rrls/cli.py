@@ -6,7 +6,7 @@ import argparse
 import sys
 from typing import Any
 
-from rrls.argtypes import nonnegative_int, positive_int, set_name, task_key
+from rrls.argtypes import nonnegative_int, positive_int, set_name, step_count, task_key
 from rrls.extras import install_hint
 
 #: what a command may raise for bad input: reported as ``rrls <command>: <message>``, exit 2
@@ -215,7 +215,10 @@ def build_parser(with_train: bool = True) -> argparse.ArgumentParser:
         "--out", default="quickstart", help="output directory (default: %(default)s)"
     )
     quick.add_argument(
-        "--steps", type=int, default=None, help="steps per run (default: the preset's 30 000)"
+        "--steps",
+        type=step_count,
+        default=None,
+        help="steps per run: 30000, 1e4, 100k (default: the preset's 30 000)",
     )
     quick.add_argument(
         "--seeds",

@@ -106,7 +106,8 @@ def test_submitted_callable_is_a_column_of_every_table(bench):
         table = pd.read_csv(bench / "report" / "tables" / f"{name}.csv")
         assert "my-method" in set(table["algorithm"])
     md = (bench / "report" / "report.md").read_text()
-    assert "| my-method (submitted) |" in md and "## Submitted policies" in md
+    # no budget stated: marked, as a row whose budget differs from the benchmark's
+    assert "| my-method (submitted)‡ |" in md and "## Submitted policies" in md
     runs = pd.read_parquet(bench / "results" / "runs.parquet")
     assert dict(zip(runs["algorithm"], runs["source"]))["my-method"] == "submitted"
 
@@ -215,7 +216,7 @@ def test_adversary_adds_the_dynamic_evaluation(bench):
     summary = report(bench)
     assert summary["results"]["invertedpendulum"]["mine"]["dynamic"]["n_seeds"] == 1
     assert (
-        "| mine (submitted) |"
+        "| mine (submitted)‡ |"  # no budget stated
         in (bench / "report" / "report.md").read_text().split("Dynamic evaluation")[1]
     )
     wrong = MLPPolicy.random(obs_dim=4, act_dim=3, hidden=(8,))

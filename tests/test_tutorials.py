@@ -41,7 +41,7 @@ def test_tutorial_a_submits_an_sb3_agent_into_a_benchmark(tmp_path):
     summary = json.loads((tmp_path / "bench-hopper" / "report" / "summary.json").read_text())
     assert summary["results"]["hopper"]["sb3-sac-dr"]["worst_case"]["n_seeds"] == 1
     assert summary["submitted"][0]["policy_kind"] == "sb3-zip"
-    assert "| sb3-sac-dr (submitted) |" in (tmp_path / "bench-hopper/report/report.md").read_text()
+    assert "| sb3-sac-dr (submitted)‡ |" in (tmp_path / "bench-hopper/report/report.md").read_text()
 
 
 def test_tutorial_c_compares_a_method_with_the_shipped_quick_reference(tmp_path):

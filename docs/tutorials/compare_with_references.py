@@ -97,7 +97,7 @@ def main(argv: list[str] | None = None) -> dict:
             policy_kwargs={"net_arch": [64, 64]},
         )
         model.learn(total_timesteps=args.steps)
-        done = submit(bench, args.name, task, seed, model)
+        done = submit(bench, args.name, task, seed, model, steps=args.steps)  # its budget
         print(f"seed {seed}: worst case {done.worst_case:.1f}, average {done.average_case:.1f}")
 
     # 4. The report: normalised with the reference's TD3 / M2TD3 (it says so), the probability

@@ -79,7 +79,7 @@ def main(argv: list[str] | None = None) -> dict:
     bench = Path(args.bench)
     if not (bench / "benchmark.json").exists():
         create_benchmark(bench, "paper", ("hopper",), mesh=args.mesh, episodes=args.episodes)
-    done = submit(bench, args.name, "hopper", args.seed, str(path))
+    done = submit(bench, args.name, "hopper", args.seed, str(path), steps=args.steps)
     state = "submitted" if done.evaluated else "already submitted"
     print(f"{state}: {done.run_dir} (worst case {done.worst_case:.1f})")
 

@@ -18,6 +18,7 @@ from typing import Any
 from rrls.agents.config import TrainConfig
 from rrls.agents.lookup import algorithm
 from rrls.algorithms import built_in
+from rrls.argtypes import step_count
 from rrls.deprecation import DeprecatedOption
 from rrls.seeds import EXAMPLES, parse_seeds
 
@@ -40,8 +41,16 @@ def _kind(hint: Any) -> Any:
     return hint
 
 
+#: integer options that count env steps: they accept 1e4, 100k, 1.5M (``argtypes.step_count``)
+STEP_OPTIONS = frozenset(
+    {"steps", "learning_starts", "eval_every", "checkpoint_every", "phase_steps", "buffer_size"}
+)
+
+
 def _add(parser: argparse._ActionsContainer, name: str, kind: Any, **kwargs: Any) -> None:
     flag = "--" + name.replace("_", "-")
+    if kind is int and name in STEP_OPTIONS:
+        kind = step_count
     if kind is bool:
         parser.add_argument(flag, action=argparse.BooleanOptionalAction, **kwargs)
     elif isinstance(kind, tuple):

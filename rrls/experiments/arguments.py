@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import argparse
 
+from rrls.argtypes import step_count
 from rrls.deprecation import DeprecatedOption
 from rrls.experiments.reference import SHIPPED
 from rrls.experiments.spec import ALGOS, BUILT_IN, PAPER_TASKS, PRESETS
@@ -102,11 +103,14 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:
         "rrls report gives in- and out-of-distribution worst/average case apart",
     )
     b.add_argument(
-        "--steps", type=int, metavar="N", help="training steps per run (default: the preset's)"
+        "--steps",
+        type=step_count,
+        metavar="N",
+        help="training steps per run: 30000, 1e4, 100k (default: the preset's)",
     )
     b.add_argument(
         "--learning-starts",
-        type=int,
+        type=step_count,
         metavar="N",
         help="random steps before learning (default: the preset's; paper: each algorithm's own, "
         "25 000, M2TD3 100 000; quick 1 000; "
@@ -114,7 +118,7 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:
     )
     b.add_argument(
         "--eval-every",
-        type=int,
+        type=step_count,
         metavar="N",
         help="periodic evaluation every N steps (0: off; default: the preset's)",
     )
@@ -225,6 +229,19 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:
         help="one of the benchmark's tasks (another one only with --add-task)",
     )
     s.add_argument("--seed", required=True, type=int, metavar="S", help="the policy's seed")
+    s.add_argument(
+        "--steps",
+        type=step_count,
+        metavar="N",
+        help="the training budget you declare (env steps: 30000, 1e4, 100k; default: what the "
+        "policy records, else not stated); the report prints it beside the benchmark's",
+    )
+    s.add_argument(
+        "--budget",
+        action="append",
+        metavar="KEY=VALUE",
+        help="anything else about the training budget (e.g. 'gpu hours=3'); repeatable",
+    )
     s.add_argument(
         "--add-task",
         action="store_true",

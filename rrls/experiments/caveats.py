@@ -7,6 +7,10 @@ from __future__ import annotations
 from typing import Any
 
 __all__ = [
+    "BUDGET",
+    "BUDGET_NOTE",
+    "BUDGET_TEX",
+    "budget_differs",
     "FEW",
     "FEW_SEEDS_NOTE",
     "FEW_SEEDS_TEX",
@@ -89,3 +93,24 @@ def unstable_normalisation(summary: dict[str, Any]) -> list[str]:
         f"{e['reason']}; its normalised scores divide by noise (read the raw table)"
         for e in entries
     ]
+
+
+BUDGET = "‡"  # marks a row trained with another budget than the benchmark's runs
+BUDGET_NOTE = (
+    f"{BUDGET} trained with another budget than this benchmark's runs, or a budget not stated "
+    "(see Budgets): not a like-for-like comparison."
+)
+
+
+BUDGET_TEX = (
+    "$^{\\ddagger}$ trained with another budget than this benchmark's runs, or a budget not "
+    "stated: not a like-for-like comparison."
+)
+
+
+def budget_differs(summary: dict[str, Any], algo: str) -> bool:
+    """Whether any submitted run of ``algo`` states another training budget than the
+    benchmark's (or none)."""
+    steps = (summary.get("benchmark") or {}).get("steps")
+    runs = [r for r in summary.get("submitted") or [] if r["algorithm"] == algo]
+    return bool(runs) and any(r.get("steps") != steps for r in runs)

@@ -298,6 +298,12 @@ def _submit(args: argparse.Namespace) -> int:
 
     if args.workers is not None and args.workers < 1:
         return _fail("submit", f"--workers must be >= 1, got {args.workers}")
+    budget = {}
+    for item in args.budget or []:
+        key, sep, value = item.partition("=")
+        if not sep or not key.strip():
+            return _fail("submit", f"--budget {item!r}: write KEY=VALUE (e.g. 'gpu hours=3')")
+        budget[key.strip()] = value.strip()
     try:
         done = submit(
             args.bench_dir,
@@ -313,6 +319,8 @@ def _submit(args: argparse.Namespace) -> int:
             workers=args.workers,
             progress=None,
             add_task=args.add_task,
+            steps=args.steps,
+            budget=budget,
         )
     except (SubmitError, PolicyError) as err:
         return _fail("submit", str(err))

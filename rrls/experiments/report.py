@@ -29,9 +29,12 @@ from typing import Any
 
 from rrls.evaluation.metrics import SPLIT_SCORES
 from rrls.experiments.caveats import (
+    BUDGET,
+    BUDGET_NOTE,
     FEW,
     FEW_SEEDS_NOTE,
     UNSTABLE_NOTE,
+    budget_differs,
     few_seeds,
     unstable_normalisation,
 )
@@ -156,7 +159,8 @@ def _markdown(
         lines += [
             f"- preset `{spec.get('preset')}`: {len(spec['algos'])} built-in algorithms × "
             f"{len(spec['tasks'])} tasks × {len(spec['seeds'])} seeds, {spec['steps']:,} "
-            f"training steps per run, set `{spec['uncertainty']}`, mesh {spec['mesh']} per "
+            f"training steps per built-in run (other sources: Budgets below), set "
+            f"`{spec['uncertainty']}`, mesh {spec['mesh']} per "
             f"dimension × {spec['episodes']} episodes, dynamic evaluation "
             f"{spec['dynamic_episodes']} episodes",
         ]
@@ -180,6 +184,7 @@ def _markdown(
         else "- `(paper ...)`: the paper's published number for the same cell"
     )
     lines.append("")
+    lines += _budget_lines(summary)
     if summary["missing"]:
         lines += ["## Missing cells", ""] + [f"- {m}" for m in summary["missing"]] + [""]
     lines += _normalisation_lines(summary)
@@ -306,6 +311,63 @@ def _reference_lines(summary: dict[str, Any]) -> list[str]:
         "`tables/*.tex`; normalised with this report's TD3 and M2TD3 means.",
         "",
     ]
+
+
+def _budget_lines(summary: dict[str, Any]) -> list[str]:
+    """Each source's training budget beside the benchmark's: its own runs, every submitted
+    algorithm (what its submitter declared, or its policy recorded), the reference."""
+    spec = summary.get("benchmark") or {}
+    own, submitted = spec.get("steps"), summary.get("submitted") or []
+    ref = summary.get("reference") or {}
+    if not submitted and not ref.get("rows"):
+        return []
+
+    def steps_text(steps: Any) -> str:
+        return f"{steps:,}" if steps else "not stated"
+
+    rows = []
+    if spec.get("algos"):
+        rows.append(("this benchmark's runs", steps_text(own), "", ""))
+    by_algo: dict[str, list[dict[str, Any]]] = {}
+    for run in submitted:
+        by_algo.setdefault(run["algorithm"], []).append(run)
+    for algo, runs in by_algo.items():
+        values = sorted({r.get("steps") or 0 for r in runs})
+        extra = sorted({f"{k} {v}" for r in runs for k, v in (r.get("budget") or {}).items()
+                        if k not in ("steps", "declared_by") and v is not None})  # fmt: skip
+        who = sorted({(r.get("budget") or {}).get("declared_by") or "nobody" for r in runs})
+        differs = budget_differs(summary, algo)
+        rows.append(
+            (
+                f"{algo} (submitted{BUDGET if differs else ''})",
+                ", ".join(steps_text(v) for v in values),
+                "; ".join(extra),
+                f"declared by {', '.join(who)}" + ("; **differs**" if differs else ""),
+            )
+        )
+    if ref.get("rows"):
+        differs = bool(own) and ref.get("steps") not in (None, own)
+        rows.append(
+            (
+                f"reference {ref.get('name')}",
+                steps_text(ref.get("steps")),
+                "",
+                "its file" + ("; **differs**" if differs else ""),
+            )
+        )
+    lines = [
+        "## Budgets",
+        "",
+        f"Training steps per run of each source; this benchmark's protocol: {steps_text(own)}.",
+        "",
+        "| source | training steps | other budget | note |",
+        "|---|---|---|---|",
+        *[f"| {a} | {b} | {c or '–'} | {d or '–'} |" for a, b, c, d in rows],
+        "",
+    ]
+    if any(budget_differs(summary, a) for a in by_algo):
+        lines += [BUDGET_NOTE, ""]
+    return lines
 
 
 def _submitted_lines(summary: dict[str, Any]) -> list[str]:

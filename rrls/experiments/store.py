@@ -17,6 +17,7 @@ always give the same files.
 
 from __future__ import annotations
 
+import json
 from pathlib import Path
 from typing import Any
 
@@ -118,6 +119,7 @@ def build_store(root: str | Path) -> Path:
                         "policy_kind": (result.get("submitted") or {}).get("kind"),
                         "policy_source": (result.get("submitted") or {}).get("source"),
                         "policy_sha256": (result.get("submitted") or {}).get("sha256"),
+                        "budget": json.dumps((result.get("submitted") or {}).get("budget") or {}),
                         "run_dir": run.name,
                     }
                 ]

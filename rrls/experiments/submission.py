@@ -311,6 +311,8 @@ def submit(
     workers: int | None = None,
     progress: bool | None = None,
     add_task: bool = False,
+    steps: int | None = None,
+    budget: dict[str, str] | None = None,
 ) -> Submission:
     """Evaluate ``policy`` under ``bench_dir``'s protocol and store it as run ``(algo, task,
     seed)``; ``rrls report bench_dir`` then shows ``algo`` beside the baselines.
@@ -327,7 +329,10 @@ def submit(
     with another policy it is refused unless ``overwrite``. ``preset``: if ``bench_dir`` holds
     no benchmark yet, start an empty one with that preset's protocol on ``task``. A task the
     benchmark does not have is refused unless ``add_task`` (a submissions-only benchmark then
-    grows it; one with baselines never does: their runs would be missing).
+    grows it; one with baselines never does: their runs would be missing). ``steps``: the
+    training budget the submitter declares (else what the policy's metadata records; neither:
+    not stated); ``budget``: anything else about it (``{"env steps": "1e6", ...}``); both go
+    into the run's files and the report prints each source's budget beside the benchmark's.
 
     A refused submission changes nothing: the benchmark (its task list included) and the run
     directory are written only once the evaluation succeeded, under the benchmark's lock.
@@ -341,6 +346,8 @@ def submit(
 
     check_name(algo)
     seed = check_seed(seed)
+    if steps is not None and (isinstance(steps, bool) or not isinstance(steps, int) or steps < 1):
+        raise SubmitError(f"--steps must be a whole number >= 1, got {steps!r}")
     try:
         key = get_task(task).key
     except ValueError as err:
@@ -391,6 +398,9 @@ def submit(
     try:
         staging.mkdir(parents=True)
         result = run_evaluation(spec, algo, key, seed, adapted, staging, workers, progress)
+        declared = "submitter" if steps is not None else "policy" if result["steps"] else None
+        if steps is not None:
+            result["steps"] = int(steps)
         if adv is not None:
             game = game or "adversarial"
             result.update(run_dynamic(spec, key, adapted, adv, game, alpha, staging))
@@ -405,6 +415,11 @@ def submit(
         "fingerprint": fingerprint,
         "metadata": jsonable(getattr(adapted, "metadata", None) or {}),
         "submitted_at": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime()),
+        "budget": {
+            "steps": result["steps"] or None,
+            "declared_by": declared,  # submitter, the policy's metadata, or None: not stated
+            **{str(k): str(v) for k, v in (budget or {}).items()},
+        },
         "adversary": None
         if adv is None
         else {

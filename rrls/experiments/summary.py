@@ -14,6 +14,7 @@ The scores themselves are ``rrls.evaluation.metrics``' (one definition); the sta
 
 from __future__ import annotations
 
+import json
 from pathlib import Path
 from typing import Any
 
@@ -256,7 +257,12 @@ def provenance(tables: dict[str, Any]) -> dict[str, Any]:
                 k: (None if isinstance(row.get(k), float) and np.isnan(row[k]) else row.get(k))
                 for k in keys
             }
-            submitted.append({**entry, "seed": int(entry["seed"])})
+            budget = row.get("budget")
+            budget = json.loads(budget) if isinstance(budget, str) and budget else {}
+            steps = int(row["steps"]) if row.get("steps") else None
+            submitted.append(
+                {**entry, "seed": int(entry["seed"]), "steps": steps or None, "budget": budget}
+            )
     return {"versions": versions, "submitted": submitted}
 
 

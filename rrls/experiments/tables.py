@@ -20,7 +20,15 @@ from typing import Any
 
 import numpy as np
 
-from rrls.experiments.caveats import FEW_SEEDS_TEX, UNSTABLE_TEX, few_seeds, is_unstable
+from rrls.experiments.caveats import (
+    BUDGET,
+    BUDGET_TEX,
+    FEW_SEEDS_TEX,
+    UNSTABLE_TEX,
+    budget_differs,
+    few_seeds,
+    is_unstable,
+)
 from rrls.experiments.cells import ci, pm, tex_ci, tex_pm
 from rrls.experiments.names import NAMES, sort_algos, task_name
 
@@ -60,7 +68,7 @@ def label(summary: dict[str, Any], algo: str) -> str:
         return renamed
     name = NAMES.get(algo, algo)
     if any(s["algorithm"] == algo for s in summary.get("submitted") or []):
-        return f"{name} (submitted)"
+        return f"{name} (submitted)" + (BUDGET if budget_differs(summary, algo) else "")
     return name
 
 
@@ -274,9 +282,12 @@ def _tex(
             avg = _average(summary, row, getter)
             few |= few_seeds(avg)
             cells.append(tex_pm(avg, digits))
-        lines.append(f"{tex_escape(row[0])} & " + " & ".join(cells) + " \\\\")
+        shown = tex_escape(row[0]).replace(BUDGET, "$^{\\ddagger}$")
+        lines.append(f"{shown} & " + " & ".join(cells) + " \\\\")
     lines.append("\\bottomrule")
     notes = ([FEW_SEEDS_TEX] if few else []) + ([UNSTABLE_TEX] if unstable_seen else [])
+    if any(BUDGET in r[0] for r in rows):
+        notes.append(BUDGET_TEX)
     if name != "dynamic" and len(rows) > 1:
         notes.insert(0, "Bold: the highest mean of each column over every row shown.")
     if normalised:
