@@ -143,6 +143,21 @@ def plan(
 ) -> str:
     """What is about to run, and the compute estimate (printed before anything starts)."""
     est = estimate(spec, jobs or 1)
+    if spec.device.startswith("cuda"):
+        from rrls.experiments.gpu_estimate import describe
+
+        estimate_line = "\n" + describe(spec, pack)
+    else:
+        estimate_line = (
+            "\nestimate for the whole grid (from measured single-thread speeds on a 2-core CPU; "
+            f"an estimate, +-30 %): {format_duration(est['cpu_s'])} of compute (training "
+            f"{format_duration(est['train_s'])}, evaluation <= {format_duration(est['eval_s'])})"
+            + (
+                f", about {format_duration(est['wall_s'])} wall time with {jobs} parallel runs"
+                if jobs
+                else ", divided among the cluster's CPUs"
+            )
+        )
     return (
         f"rrls benchmark {root}: preset {spec.preset}, {len(spec.algos)} algorithms x "
         f"{len(spec.tasks)} tasks x {len(spec.seeds)} seeds = {est['runs']} runs "
@@ -151,14 +166,7 @@ def plan(
         + (f", split {spec.split} (training on the inner box)" if spec.split else "")
         + (f", {jobs} workers" if jobs else "")
         + (f", up to {pack} seeds of a cell trained together per process" if pack > 1 else "")
-        + "\nestimate for the whole grid (from measured single-thread speeds on a 2-core CPU; "
-        f"an estimate, +-30 %): {format_duration(est['cpu_s'])} of compute (training "
-        f"{format_duration(est['train_s'])}, evaluation <= {format_duration(est['eval_s'])})"
-        + (
-            f", about {format_duration(est['wall_s'])} wall time with {jobs} parallel runs"
-            if jobs
-            else ", divided among the cluster's CPUs"
-        )
+        + estimate_line
     )
 
 

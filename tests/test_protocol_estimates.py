@@ -1,0 +1,38 @@
+"""docs/protocol.md's wall-time figures are the estimates the code prints: the CPU table per
+cluster size, and the one-GPU estimate from rrls's own H100 measurement (what the dry run with
+``--device cuda`` prints, not the CPU figure)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from rrls.experiments.gpu_estimate import GPU_RECORD, gpu_estimate
+from rrls.experiments.spec import estimate, format_duration, make_spec
+
+PAGE = (Path(__file__).resolve().parent.parent / "docs" / "protocol.md").read_text()
+
+
+def test_the_cpu_table_is_the_estimate():
+    spec = make_spec("paper")
+    for cores, label in ((16, "16 (one machine)"), (64, "64"), (128, "128")):
+        assert f"| {label} | ≈ {format_duration(estimate(spec, cores)['wall_s'])} |" in PAGE
+
+
+def test_the_gpu_estimate_is_rrls_own_measurement_and_the_dry_run_prints_it(tmp_path, capsys):
+    from rrls.cli import main
+
+    spec = make_spec("paper", device="cuda")
+    est = gpu_estimate(spec, len(spec.seeds))
+    assert not est["measured"]  # K = 10 and DR/RARL/NR-MDP are extrapolated: the page says so
+    assert (
+        f"**≈ {format_duration(est['wall_s'])}** (training {format_duration(est['train_s'])}"
+        in PAGE
+    )
+    assert f"against ≈ {format_duration(estimate(make_spec('paper'), 16)['wall_s'])} for" in PAGE
+    assert (Path(__file__).resolve().parent.parent / GPU_RECORD).is_file()
+    args = ["benchmark", "--out", str(tmp_path / "b"), "--dry-run", "--device", "cuda"]
+    assert main(args) == 0
+    out = capsys.readouterr()
+    text = out.out + out.err
+    assert f"estimate on one GPU (rrls's own H100 figures, {GPU_RECORD}" in text
+    assert format_duration(est["wall_s"]) in text and "of compute (training" not in text
