@@ -136,9 +136,10 @@ def build_parser(with_train: bool = True) -> argparse.ArgumentParser:
     )
     ev.add_argument(
         "--workers",
-        type=positive_int,
+        type=nonnegative_int,
         default=None,
-        help="worker processes (default: the number of cores; results do not depend on it)",
+        help="worker processes; 0: in this process (default: the number of cores; results do "
+        "not depend on it)",
     )
     ev.add_argument(
         "--batch-size",

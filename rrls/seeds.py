@@ -3,14 +3,20 @@
 
 ``0-4`` is seeds 0, 1, 2, 3, 4; ``0,3,5`` those three; ``0-2,7`` four; a lone ``3`` is the one
 seed 3 (``--seed 3`` says the same where a command takes one seed). ``rrls benchmark --seeds 3``
-used to mean *three seeds*, 0-2: it still does for now, with a notice (:func:`count_form`), and
-will then mean seed 3 as everywhere else. Nothing here imports anything: every layer may use it.
+used to mean *three seeds*, 0-2; that form is now refused with the two ways to write what was
+meant (:func:`count_form`). Seeds are < 2**32 and a list holds at most ``MAX_SEEDS``, checked
+before any list is made; the grammar is linear in the text's length. Nothing here imports
+anything: every layer may use it.
 """
 
 from __future__ import annotations
 
 #: what the help texts and error messages show
 EXAMPLES = "0-4, 0,3,5 or 0-2,7"
+#: the most seeds one list may give, and the largest seed (numpy's SeedSequence takes any, but
+#: run directories and reports are per seed: 10 000 runs of a cell is far beyond any benchmark)
+MAX_SEEDS = 10_000
+MAX_SEED = 2**32 - 1
 
 
 def parse_seeds(text: str) -> list[int]:
@@ -23,6 +29,7 @@ def parse_seeds(text: str) -> list[int]:
     ([0, 1, 2, 7], [3])
     """
     seeds: list[int] = []
+    seen: set[int] = set()
     for part in str(text).split(","):
         part = part.strip()
         if not part:
@@ -38,16 +45,26 @@ def parse_seeds(text: str) -> list[int]:
             ) from None
         if high < low:
             raise ValueError(f"--seeds {text!r}: the range {part!r} is empty (write low-high)")
-        seeds.extend(range(low, high + 1))
-    repeated = sorted({s for s in seeds if seeds.count(s) > 1})
-    if repeated:
-        raise ValueError(f"--seeds {text!r} gives seed {', '.join(map(str, repeated))} twice")
+        if low < 0 or high > MAX_SEED:
+            raise ValueError(f"--seeds {text!r}: seeds are integers from 0 to {MAX_SEED}")
+        if len(seeds) + high - low + 1 > MAX_SEEDS:  # before the list is made
+            raise ValueError(f"--seeds {text!r}: more than {MAX_SEEDS:,} seeds (at most that many)")
+        block = range(low, high + 1)
+        twice = (
+            sorted(seen.intersection(block))
+            if len(seen) < len(block)
+            else sorted(s for s in seen if low <= s <= high)
+        )
+        if twice:
+            raise ValueError(f"--seeds {text!r} gives seed {', '.join(map(str, twice))} twice")
+        seeds.extend(block)
+        seen.update(block)
     return seeds
 
 
 def count_form(text: str) -> int | None:
-    """``N`` when ``text`` is a bare integer: the deprecated *count* form of ``rrls benchmark
-    --seeds N`` (seeds 0..N-1); ``None`` for anything else (a list or a range)."""
+    """``N`` when ``text`` is a bare integer: the retired *count* form of ``rrls benchmark
+    --seeds N`` (seeds 0..N-1, refused now); ``None`` for anything else (a list or a range)."""
     text = str(text).strip()
     return int(text) if text.isdigit() else None
 
@@ -67,4 +84,4 @@ def as_range(seeds: list[int]) -> str:
     return ",".join(p if "-" in p or len(seeds) > 1 else f"{p}-{p}" for p in parts)
 
 
-__all__ = ["EXAMPLES", "as_range", "count_form", "parse_seeds"]
+__all__ = ["EXAMPLES", "MAX_SEED", "MAX_SEEDS", "as_range", "count_form", "parse_seeds"]

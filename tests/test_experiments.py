@@ -272,7 +272,7 @@ def test_ray_backend_runs_the_same_function(smoke, tmp_path):
         (["--algos", "td3,ppo"], "unknown algorithm 'ppo'"),
         (["--tasks", "pong"], "unknown task 'pong'"),
         (["--tasks", "invertedpendulum", "--uncertainty", "3d"], "no uncertainty set '3d'"),
-        (["--seeds", "0"], "--seeds 0: no seed to run"),
+        (["--seeds", "0"], "--seeds 0: a bare number is no longer a count of seeds"),
         (["--workers", "0"], "--workers must be >= 1"),
         (["--backend", "slurm"], "unknown backend"),
     ],

@@ -47,7 +47,7 @@ def test_tutorial_a_submits_an_sb3_agent_into_a_benchmark(tmp_path):
 def test_tutorial_c_compares_a_method_with_the_shipped_quick_reference(tmp_path):
     pytest.importorskip("stable_baselines3")
     pytest.importorskip("scipy")
-    out = run_tutorial("compare_with_references.py", "--steps", "200", "--seeds", "1", cwd=tmp_path)
+    out = run_tutorial("compare_with_references.py", "--steps", "200", "--seeds", "0", cwd=tmp_path)
     assert "the paper's tables are refused here" in out and "physics: 'paper' there" in out
     summary = json.loads((tmp_path / "bench-mine" / "report" / "summary.json").read_text())
     assert summary["normalisation"]["invertedpendulum"]["worst_case"] == "reference"

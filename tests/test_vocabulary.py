@@ -74,18 +74,18 @@ def test_benchmark_seeds_take_a_list_or_a_range(tmp_path, capsys):
     assert _dry_seeds(capsys, tmp_path, "4-5,9") == ([4, 5, 9], "")
 
 
-def test_benchmark_seeds_count_form_still_works_and_says_how_to_write_it(tmp_path, capsys):
-    seeds, err = _dry_seeds(capsys, tmp_path, "3")
-    assert seeds == [0, 1, 2]
-    assert err.strip() == (
-        "rrls benchmark: warning: --seeds 3 as a number of seeds is deprecated (it will mean "
-        "seed 3 alone, as in rrls train); write --seeds 0-2"
+def test_benchmark_seeds_count_form_is_retired_with_what_to_write(tmp_path, capsys):
+    assert main(["benchmark", "--preset", "smoke", "--out", str(tmp_path), "--seeds", "3"]) == 2
+    assert capsys.readouterr().err.strip() == (
+        "rrls benchmark: error: --seeds 3: a bare number is no longer a count of seeds here (it "
+        "is one seed in every command); write --seeds 0-2 for 3 seeds from 0, or --seeds 3-3 for "
+        "seed 3 alone"
     )
 
 
 @pytest.mark.parametrize(
     ("seeds", "needle"),
-    [("0", "--seeds 0: no seed to run"), ("a", "'a' is not a seed"), ("2-1", "empty")],
+    [("0", "write --seeds 0-0 for seed 0 alone"), ("a", "'a' is not a seed"), ("2-1", "empty")],
 )
 def test_bad_benchmark_seeds_are_one_line(tmp_path, capsys, seeds, needle):
     assert main(["benchmark", "--preset", "smoke", "--out", str(tmp_path), "--seeds", seeds]) == 2

@@ -2,8 +2,8 @@
 baselines.
 
     python3 -m pip install -c constraints.txt ".[sb3,eval]"   # in the rrls checkout
-    python docs/tutorials/compare_with_references.py --steps 20000 --seeds 2
-    python docs/tutorials/compare_with_references.py --steps 200 --seeds 1      # seconds
+    python docs/tutorials/compare_with_references.py --steps 20000 --seeds 0-1
+    python docs/tutorials/compare_with_references.py --steps 200 --seeds 0      # seconds
 
 A reference file holds what someone measured under one protocol — per task, set and algorithm
 the worst / average case over seeds — with the physics, mesh, episodes and budget it was
@@ -31,11 +31,15 @@ import argparse
 import json
 from pathlib import Path
 
+from rrls.seeds import parse_seeds
+
 
 def main(argv: list[str] | None = None) -> dict:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--steps", type=int, default=20_000, help="SAC steps per seed")
-    parser.add_argument("--seeds", type=int, default=2, help="seeds of your method")
+    parser.add_argument(
+        "--seeds", type=parse_seeds, default=[0, 1], help="seeds of your method: 0-1, 0,3 or 4"
+    )
     parser.add_argument("--reference", default="quick", help="a shipped name or a file")
     parser.add_argument("--bench", default="bench-mine", help="benchmark directory to create")
     parser.add_argument("--name", default="my-sac", help="your method's name in the report")
@@ -87,7 +91,7 @@ def main(argv: list[str] | None = None) -> dict:
     # 3. Your method: here SAC (Stable-Baselines3) with domain randomisation over the set, one
     #    agent per seed; any policy works (a callable, an nn.Module, a .zip, module:attribute).
     torch.set_num_threads(1)  # SB3's default (a thread per core) oversubscribes a shared machine
-    for seed in range(args.seeds):
+    for seed in args.seeds:
         env = gym.make(f"rrls/robust-{task}-domain-randomization-{uncertainty}-v0")
         model = SAC(
             "MlpPolicy",

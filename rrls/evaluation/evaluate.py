@@ -126,6 +126,8 @@ def evaluate(
     if view is None:
         view = policy_view(policy)
     plan = protocol.plan(task, view)
+    if workers == 0:  # 0: in this process, as every rrls command reads it (= one worker)
+        workers = 1
     if workers is not None:
         check_counts(workers=workers)
     if batch_size is not None:

@@ -70,8 +70,8 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:
     b.add_argument(
         "--seeds",
         metavar="SEEDS",
-        help=f"the seeds, a list or range: {EXAMPLES} (default: the preset's). A bare N "
-        "(--seeds 3) is still read as N seeds 0..N-1, with a notice: deprecated, write 0-2",
+        help=f"the seeds, a list or range: {EXAMPLES} (default: the preset's). A bare N, once "
+        "a count of seeds here, is refused: write 0-2 for three seeds, 3-3 for seed 3",
     )
     b.add_argument(
         "--physics",
@@ -138,7 +138,9 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:
         "--workers",
         type=int,
         metavar="N",
-        help="worker processes: runs in parallel (default: the number of cores; Ray: the cluster)",
+        help="worker processes: runs in parallel, >= 1 (each run has its own process: 0, 'in "
+        "this process' elsewhere, does not apply; default: the number of cores; Ray: the "
+        "cluster)",
     )
     b.add_argument("--jobs", dest="workers", type=int, action=DeprecatedOption, new="--workers")
     b.add_argument(
@@ -272,7 +274,8 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:
         "--workers",
         type=int,
         metavar="N",
-        help="worker processes: the evaluation's (default: the number of cores)",
+        help="worker processes: the evaluation's; 0: in this process (default: the number of "
+        "cores)",
     )
     add_withdraw(sub)
 

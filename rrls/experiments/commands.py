@@ -14,7 +14,7 @@ from rrls.deprecation import notice
 from rrls.experiments.arguments import CONFIRM_ABOVE
 from rrls.experiments.spec import PRESETS, SpecError
 from rrls.extras import install_hint
-from rrls.seeds import EXAMPLES, as_range, count_form, parse_seeds
+from rrls.seeds import as_range, count_form, parse_seeds
 
 
 def _fail(command: str, message: str) -> int:
@@ -51,7 +51,10 @@ def _spec_from(args: argparse.Namespace) -> tuple:
     if args.backend not in ("local", "ray"):
         raise SpecError(f"unknown backend {args.backend!r}; valid: local, ray")
     if args.workers is not None and args.workers < 1:
-        raise SpecError(f"--workers must be >= 1, got {args.workers}")
+        raise SpecError(
+            f"--workers must be >= 1 here, got {args.workers} (each benchmark run has its own "
+            "process: 0, 'in this process', does not apply)"
+        )
     if getattr(args, "pack", None) is not None and args.pack < 1:
         raise SpecError(f"--pack must be >= 1, got {args.pack}")
     if args.device is not None and not (args.device == "cpu" or args.device.startswith("cuda")):
@@ -78,25 +81,24 @@ def _spec_from(args: argparse.Namespace) -> tuple:
 
 
 def benchmark_seeds(text: str | None) -> list[int] | None:
-    """``--seeds`` of ``rrls benchmark``: a list or range (:mod:`rrls.seeds`), or the deprecated
-    count ``N`` (seeds 0..N-1, with a notice saying how to write it)."""
+    """``--seeds`` of ``rrls benchmark``: a list or range (:mod:`rrls.seeds`). A bare ``N`` was
+    once a count of seeds here and one seed everywhere else: it is refused with the two ways to
+    write what was meant (``N-N``: that seed alone)."""
     if text is None:
         return None
     count = count_form(text)
-    if count is None:
-        try:
-            return parse_seeds(text)
-        except ValueError as err:
-            raise SpecError(str(err)) from None
-    if count < 1:
-        raise SpecError(f"--seeds {text}: no seed to run (write the seeds: {EXAMPLES})")
-    seeds = list(range(count))
-    notice(
-        "benchmark",
-        f"--seeds {count} as a number of seeds is deprecated (it will mean seed {count} alone, "
-        f"as in rrls train); write --seeds {as_range(seeds)}",
-    )
-    return seeds
+    if count is not None:
+        many = (
+            f"--seeds {as_range(list(range(count)))} for {count} seeds from 0, or " if count else ""
+        )
+        raise SpecError(
+            f"--seeds {text}: a bare number is no longer a count of seeds here (it is one seed "
+            f"in every command); write {many}--seeds {count}-{count} for seed {count} alone"
+        )
+    try:
+        return parse_seeds(text)
+    except ValueError as err:
+        raise SpecError(str(err)) from None
 
 
 def _benchmark(args: argparse.Namespace) -> int:
@@ -296,8 +298,8 @@ def _submit(args: argparse.Namespace) -> int:
     from rrls.evaluation import PolicyError
     from rrls.experiments.submission import SubmitError, submit
 
-    if args.workers is not None and args.workers < 1:
-        return _fail("submit", f"--workers must be >= 1, got {args.workers}")
+    if args.workers is not None and args.workers < 0:
+        return _fail("submit", f"--workers must be >= 0 (0: in this process), got {args.workers}")
     budget = {}
     for item in args.budget or []:
         key, sep, value = item.partition("=")
