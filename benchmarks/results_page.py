@@ -252,17 +252,87 @@ def paper_comparison(folder: Path) -> str:
     return "\n".join(lines) + "\n"
 
 
+def status(folder: Path) -> str:
+    """How much of the benchmark's grid the folder holds (a reference produced in pieces)."""
+    spec = json.loads((folder / "benchmark.json").read_text())
+    done: dict[str, list[int]] = {}
+    for path in folder.glob("runs/*/result.json"):
+        info = json.loads(path.read_text())
+        done.setdefault(info["algorithm"], []).append(int(info["seed"]))
+    total = len(spec["algos"]) * len(spec["tasks"]) * len(spec["seeds"])
+    n = sum(len(v) for v in done.values())
+    parts = [
+        f"{display_name(a)} seeds {', '.join(map(str, sorted(done[a])))}" for a in sort_algos(done)
+    ]
+    missing = [display_name(a) for a in sort_algos(spec["algos"]) if a not in done]
+    return (
+        f"**{n} of {total} runs finished** ({'; '.join(parts) or 'none'})"
+        + (f"; not started: {', '.join(missing)}" if missing else "")
+        + ".\n"
+    )
+
+
+def compute(folder: Path) -> str:
+    """The runs' own record of their cost: seconds in ``result.json`` (single-threaded runs:
+    CPU-seconds at most) and the CPU kinds in ``run.json``."""
+    seconds, kinds = 0.0, {}
+    for path in folder.glob("runs/*/result.json"):
+        seconds += float(json.loads(path.read_text()).get("seconds") or 0.0)
+        machine = json.loads((path.parent / "run.json").read_text()).get("provenance", {})
+        machine = machine.get("machine") or {}
+        cores, cpu, simd = (machine.get(k, "?") for k in ("cores", "cpu", "simd"))
+        kind = f"{cores}-core {cpu} ({simd})"
+        kinds[kind] = kinds.get(kind, 0) + 1
+    where = ", ".join(f"{k}: {n} runs" for k, n in sorted(kinds.items()))
+    return (
+        f"{seconds / 3600:.1f} hours of run time summed over the runs (each single-threaded: at "
+        f"most that many CPU-hours); {where or 'no run yet'}.\n"
+    )
+
+
+def td3_budget(folder: Path, threshold: float = 4_000.0) -> str:
+    """TD3's nominal return per seed at every 50 000 steps and where it first reaches
+    ``threshold``: how the preset's budget was chosen (the TD3 runs measured first)."""
+    rows = {}
+    for path in sorted(folder.glob("runs/td3-*/scalars.csv")):
+        seed = int(path.parent.name.rpartition("seed")[2])
+        with open(path, newline="") as f:
+            rows[seed] = {
+                int(r["step"]): float(r["value"])
+                for r in csv.DictReader(f)
+                if r["metric"] == "eval/nominal_return"
+            }
+    if not rows:
+        return "(no TD3 run yet)\n"
+    steps = sorted({s for r in rows.values() for s in r if s % 50_000 == 0})
+    lines = [
+        "| seed | "
+        + " | ".join(f"{s // 1000} k" for s in steps)
+        + f" | first ≥ {threshold:,.0f} |",
+        "|---" * (len(steps) + 2) + "|",
+    ]
+    for seed, by_step in sorted(rows.items()):
+        first = next((s for s in sorted(by_step) if by_step[s] >= threshold), None)
+        cells = [f"{by_step[s]:.0f}" if s in by_step else "" for s in steps]
+        reach = f"{first // 1000} k" if first is not None else "not reached"
+        lines.append(f"| {seed} | " + " | ".join(cells) + f" | {reach} |")
+    return "\n".join(lines) + "\n"
+
+
 def blocks(folder: Path, reference: str | None) -> dict[str, str]:
     data = per_seed(folder)
     out = {"summary": summary(data, dynamic(folder, reference)), "orderings": orderings(data)}
     if (folder / "benchmark.json").exists():
         out["set"] = uncertainty_set(folder)
+        out["status"] = status(folder)
         text = (folder / "README.md").read_text() if (folder / "README.md").exists() else ""
         if "<!-- generated:paper -->" in text:
             out["paper"] = paper_comparison(folder)
     if (folder / "runs").is_dir():
         out["runs"] = runs(folder)
         out["evaluation"] = evaluation(folder)
+        out["td3_budget"] = td3_budget(folder)
+        out["compute"] = compute(folder)
     if (folder / "cleanrl_td3_returns.csv").is_file():
         import td3_sanity  # beside this file
 
