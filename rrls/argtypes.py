@@ -57,6 +57,21 @@ def step_count(text: str) -> int:
     return int(value)
 
 
+def seed_value(text: str) -> int:
+    """argparse ``type=``: one seed, an integer from 0 to 2**32 - 1 (the one wording of
+    ``rrls.seeds.seed_message`` in every command)."""
+    from rrls.seeds import MAX_SEED, seed_message
+
+    try:
+        value = int(str(text).strip())
+    except ValueError:
+        value = -1
+    if not 0 <= value <= MAX_SEED:
+        shown = text if len(str(text)) <= 24 else f"{str(text)[:10]}... ({len(str(text))} digits)"
+        raise argparse.ArgumentTypeError(seed_message(shown))
+    return value
+
+
 def positive_float(text: str) -> float:
     """argparse ``type=``: a finite float > 0 (learning rates, scales)."""
     import math

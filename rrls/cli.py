@@ -6,7 +6,7 @@ import argparse
 import sys
 from typing import Any
 
-from rrls.argtypes import nonnegative_int, positive_int, set_name, step_count, task_key
+from rrls.argtypes import nonnegative_int, positive_int, seed_value, set_name, step_count, task_key
 from rrls.extras import install_hint
 
 #: what a command may raise for bad input: reported as ``rrls <command>: <message>``, exit 2
@@ -24,6 +24,10 @@ class Parser(argparse.ArgumentParser):
         kwargs.setdefault("allow_abbrev", False)
         super().__init__(*args, **kwargs)
 
+    def error(self, message: str) -> Any:
+        """One line, exit status 2 (argparse's usage block is what ``--help`` is for)."""
+        self.exit(2, f"{self.prog}: error: {message}\n")
+
 
 def unknown_option(parser: argparse.ArgumentParser, command: str, extras: list[str]) -> str:
     """One line for options ``rrls COMMAND`` does not know, with the closest valid flag."""
@@ -32,11 +36,11 @@ def unknown_option(parser: argparse.ArgumentParser, command: str, extras: list[s
 
     flag = extras[0].split("=", 1)[0]
     if not flag.startswith("-"):
-        return f"rrls {command}: unexpected argument {flag!r}; see rrls {command} --help"
+        return f"rrls {command}: error: unexpected argument {flag!r}; see rrls {command} --help"
     options = sorted(set(re.findall(r"--[\w-]+", parser.format_help())))
     close = difflib.get_close_matches(flag, options, n=1, cutoff=0.75)
     hint = f" (did you mean {close[0]}?)" if close else ""
-    return f"rrls {command}: unknown option {flag}{hint}; see rrls {command} --help"
+    return f"rrls {command}: error: unknown option {flag}{hint}; see rrls {command} --help"
 
 
 class UsageError(ValueError):
@@ -91,7 +95,7 @@ def build_parser(with_train: bool = True) -> argparse.ArgumentParser:
     )
     check.add_argument(
         "--seed",
-        type=nonnegative_int,
+        type=seed_value,
         default=0,
         help="seed of resets and actions (default: %(default)s)",
     )
@@ -130,7 +134,7 @@ def build_parser(with_train: bool = True) -> argparse.ArgumentParser:
     )
     ev.add_argument(
         "--seed",
-        type=nonnegative_int,
+        type=seed_value,
         default=0,
         help="root of the per-episode seeds (default 0); results depend only on it",
     )
@@ -199,7 +203,7 @@ def build_parser(with_train: bool = True) -> argparse.ArgumentParser:
         "--episodes", type=positive_int, default=10, help="episodes (default 10, the paper's)"
     )
     ed.add_argument(
-        "--seed", type=nonnegative_int, default=0, help="seed of the episodes' resets (default 0)"
+        "--seed", type=seed_value, default=0, help="seed of the episodes' resets (default 0)"
     )
 
     quick = sub.add_parser(
@@ -227,7 +231,7 @@ def build_parser(with_train: bool = True) -> argparse.ArgumentParser:
         default=None,
         help=f"the seeds, a list or range: {EXAMPLES} (default: the preset's 0-2)",
     )
-    quick.add_argument("--seed", type=nonnegative_int, default=None, help=argparse.SUPPRESS)
+    quick.add_argument("--seed", type=seed_value, default=None, help=argparse.SUPPRESS)
     quick.add_argument("--yes", action="store_true", help="start without asking (see benchmark)")
 
     from rrls.experiments.arguments import add_parsers
@@ -267,7 +271,10 @@ def main(argv: list[str] | None = None) -> int:
             print(f"rrls train needs torch: {install_hint('train')} ({err})", file=sys.stderr)
             return 2
     parser = build_parser(with_train)
-    args, extras = parser.parse_known_args(argv)
+    try:
+        args, extras = parser.parse_known_args(argv)
+    except SystemExit as stop:  # a bad option (one line already printed), --help, --version
+        return stop.code if isinstance(stop.code, int) else 2
     if extras:
         sub = parser.subcommands.get(args.command, parser)
         print(unknown_option(sub, args.command, extras), file=sys.stderr)
@@ -275,7 +282,7 @@ def main(argv: list[str] | None = None) -> int:
     try:
         return _dispatch(args)
     except USAGE_ERRORS as err:
-        print(f"rrls {args.command}: {err}", file=sys.stderr)
+        print(f"rrls {args.command}: error: {err}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:
         print(interrupted(args.command, argv), file=sys.stderr)

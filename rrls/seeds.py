@@ -19,6 +19,11 @@ MAX_SEEDS = 10_000
 MAX_SEED = 2**32 - 1
 
 
+def seed_message(value: object) -> str:
+    """The one wording of a bad seed, in every command and flag."""
+    return f"a seed is an integer from 0 to {MAX_SEED}, got {value}"
+
+
 def parse_seeds(text: str) -> list[int]:
     """The seeds ``text`` lists: comma-separated integers >= 0 and inclusive ranges ``LOW-HIGH``.
 
@@ -34,6 +39,8 @@ def parse_seeds(text: str) -> list[int]:
         part = part.strip()
         if not part:
             raise ValueError(f"--seeds {text!r}: empty item (write {EXAMPLES})")
+        if part.startswith("-"):
+            raise ValueError(f"--seeds {text!r}: {seed_message(part)}")
         first, dash, last = part.partition("-")
         try:
             low = int(first)
@@ -46,7 +53,7 @@ def parse_seeds(text: str) -> list[int]:
         if high < low:
             raise ValueError(f"--seeds {text!r}: the range {part!r} is empty (write low-high)")
         if low < 0 or high > MAX_SEED:
-            raise ValueError(f"--seeds {text!r}: seeds are integers from 0 to {MAX_SEED}")
+            raise ValueError(f"--seeds {text!r}: {seed_message(high if high > MAX_SEED else low)}")
         if len(seeds) + high - low + 1 > MAX_SEEDS:  # before the list is made
             raise ValueError(f"--seeds {text!r}: more than {MAX_SEEDS:,} seeds (at most that many)")
         block = range(low, high + 1)
@@ -84,4 +91,12 @@ def as_range(seeds: list[int]) -> str:
     return ",".join(p if "-" in p or len(seeds) > 1 else f"{p}-{p}" for p in parts)
 
 
-__all__ = ["EXAMPLES", "MAX_SEED", "MAX_SEEDS", "as_range", "count_form", "parse_seeds"]
+__all__ = [
+    "EXAMPLES",
+    "MAX_SEED",
+    "MAX_SEEDS",
+    "as_range",
+    "count_form",
+    "parse_seeds",
+    "seed_message",
+]

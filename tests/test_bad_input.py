@@ -70,7 +70,7 @@ def _run(argv: list[str], capsys) -> tuple[int, str]:
         (["evaluate", "{d}/bare.npz", "--uncertainty", "9d"], "--uncertainty"),
         (["evaluate", "{d}/bare.npz", "--mesh", "0"], "--mesh"),
         (["evaluate", "{d}/bare.npz", "--episodes", "0"], "--episodes"),
-        (["evaluate", "{d}/bare.npz", "--workers", "0"], "--workers"),
+        (["evaluate", "{d}/bare.npz", "--workers", "-1"], "--workers"),  # 0: in this process
         (["evaluate", "{d}/bare.npz", "--batch-size", "-2"], "--batch-size"),
         (["evaluate", "{d}/bare.npz", "--seed", "-1"], "--seed"),
     ],
@@ -118,7 +118,7 @@ def test_cli_from_a_shell_prints_no_traceback(tmp_path):
         cwd=ROOT,
     )
     assert out.returncode == 2
-    assert out.stderr == f"rrls evaluate: no policy file {tmp_path / 'nope.npz'}\n"
+    assert out.stderr == f"rrls evaluate: error: no policy file {tmp_path / 'nope.npz'}\n"
 
 
 def test_argparse_type_helpers():
@@ -248,7 +248,7 @@ def test_a_policy_returning_non_numbers_is_a_policy_error():
 
 
 def test_evaluate_refuses_bad_counts_naming_them():
-    for name, value in [("episodes", 0), ("mesh", -1), ("workers", 0), ("batch_size", 0)]:
+    for name, value in [("episodes", 0), ("mesh", -1), ("workers", -1), ("batch_size", 0)]:
         with pytest.raises(ValueError, match=f"{name} must be an integer >= 1, got {value}"):
             evaluate(_ip_policy(), "invertedpendulum", "1d", **{name: value})
 

@@ -564,7 +564,7 @@ def test_cli_evaluate_needs_a_task(tmp_path, capsys):
     path = _policy("hopper").save(tmp_path / "p.npz")
     assert main(["evaluate", str(path)]) == 2
     assert capsys.readouterr().err.strip() == (
-        "rrls evaluate: --task is required (the policy does not record its task)"
+        "rrls evaluate: error: --task is required (the policy does not record its task)"
     )
 
 

@@ -103,7 +103,7 @@ def test_a_module_raising_on_import_is_one_line(bench, tmp_path, monkeypatch, ca
 @pytest.mark.parametrize("seed", ["9" * 40, "-1", str(2**32)])
 def test_seeds_outside_what_the_store_keeps_are_refused(bench, policies, capsys, seed):
     assert _submit(bench, "probepolicies:good", "--algo", "big", "--seed", seed) == 2
-    assert f"--seed must be an integer in 0..{MAX_SEED}" in _one_line(capsys)
+    assert f"--seed: a seed is an integer from 0 to {MAX_SEED}" in _one_line(capsys)
     assert not (bench / "runs").exists()
 
 

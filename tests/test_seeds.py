@@ -75,7 +75,7 @@ def test_seeds_train_together_with_the_numbers_of_each_seed_alone(tmp_path, caps
     [
         (["--seeds", "5-2"], "empty"),
         (["--seeds", "a-b"], "not a seed"),
-        (["--seeds=-1"], "not a seed"),
+        (["--seeds=-1"], "a seed is an integer from 0 to 4294967295, got -1"),
         (["--seeds", "0,2,0"], "twice"),
         (["--seeds", "0-3,2"], "twice"),
         (["--seeds", ""], "empty"),

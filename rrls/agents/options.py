@@ -18,7 +18,7 @@ from typing import Any
 from rrls.agents.config import TrainConfig
 from rrls.agents.lookup import algorithm
 from rrls.algorithms import built_in
-from rrls.argtypes import step_count
+from rrls.argtypes import seed_value, step_count
 from rrls.deprecation import DeprecatedOption
 from rrls.seeds import EXAMPLES, parse_seeds
 
@@ -51,6 +51,8 @@ def _add(parser: argparse._ActionsContainer, name: str, kind: Any, **kwargs: Any
     flag = "--" + name.replace("_", "-")
     if kind is int and name in STEP_OPTIONS:
         kind = step_count
+    elif kind is int and name == "seed":
+        kind = seed_value
     if kind is bool:
         parser.add_argument(flag, action=argparse.BooleanOptionalAction, **kwargs)
     elif isinstance(kind, tuple):

@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import argparse
 
-from rrls.argtypes import step_count
+from rrls.argtypes import seed_value, step_count
 from rrls.deprecation import DeprecatedOption
 from rrls.experiments.reference import SHIPPED
 from rrls.experiments.spec import ALGOS, BUILT_IN, PAPER_TASKS, PRESETS
@@ -230,7 +230,7 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:
         metavar="TASK",
         help="one of the benchmark's tasks (another one only with --add-task)",
     )
-    s.add_argument("--seed", required=True, type=int, metavar="S", help="the policy's seed")
+    s.add_argument("--seed", required=True, type=seed_value, metavar="S", help="the policy's seed")
     s.add_argument(
         "--steps",
         type=step_count,
@@ -292,7 +292,7 @@ def add_withdraw(sub: argparse._SubParsersAction) -> None:
     w.add_argument("bench_dir", metavar="BENCH_DIR", help="a benchmark directory")
     w.add_argument("--algo", required=True, metavar="NAME", help="the submitted algorithm")
     w.add_argument("--task", metavar="TASK", help="only its runs on this task")
-    w.add_argument("--seed", type=int, metavar="S", help="only its runs of this seed")
+    w.add_argument("--seed", type=seed_value, metavar="S", help="only its runs of this seed")
 
 
 __all__ = ["CONFIRM_ABOVE", "add_parsers", "add_withdraw"]

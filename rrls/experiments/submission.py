@@ -106,12 +106,14 @@ def check_name(name: str) -> str:
 
 def check_seed(seed: Any) -> int:
     """``seed`` as an int if it is one in ``0..MAX_SEED``, else ``SubmitError`` (one line)."""
+    from rrls.seeds import seed_message
+
     if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)):
-        raise SubmitError(f"--seed must be an integer in 0..{MAX_SEED}, got {seed!r}")
+        raise SubmitError(f"--seed: {seed_message(repr(seed))}")
     if not 0 <= int(seed) <= MAX_SEED:
         text = str(int(seed))
         shown = text if len(text) <= 24 else f"{text[:10]}...{text[-4:]} ({len(text)} digits)"
-        raise SubmitError(f"--seed must be an integer in 0..{MAX_SEED}, got {shown}")
+        raise SubmitError(f"--seed: {seed_message(shown)}")
     return int(seed)
 
 
