@@ -19,7 +19,7 @@ import results_page  # noqa: E402
 import td3_sanity  # noqa: E402
 
 #: each results page with its shipped reference (None: a page without one)
-PAGES = {"quick": "quick", "hopper": "hopper", "halfcheetah": "halfcheetah"}
+PAGES = {"quick": "quick", "hopper": "hopper", "halfcheetah": None}  # halfcheetah: no reference yet
 
 
 def _pages():
