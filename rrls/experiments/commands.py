@@ -283,7 +283,8 @@ def quickstart_seeds(args: argparse.Namespace) -> list[int] | None:
 
 
 def _withdraw(args: argparse.Namespace) -> int:
-    from rrls.experiments.submission import SubmitError, remove_submission
+    from rrls.experiments.submission import SubmitError
+    from rrls.experiments.withdraw import remove_submission
 
     try:
         names = remove_submission(args.bench_dir, args.algo, args.task, args.seed)
