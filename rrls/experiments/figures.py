@@ -129,9 +129,17 @@ def plot_iqm(summary: dict[str, Any], scores: Scores, path: Path) -> tuple[str, 
     """Per score, the IQM of the normalised scores of each row (the benchmark's algorithms and
     the reference's) and its 95 % CI."""
     rows = table_rows(summary, "raw_worst_case")
-    cells: dict[Row, dict[str, dict[str, Any]]] = {}
+    # the benchmark's own rows: the summary's aggregates (the numbers summary.json states); the
+    # reference's: the same statistic over its per-seed values
+    agg = summary["aggregate"]
+    cells: dict[Row, dict[str, dict[str, Any]]] = {
+        r: {m: (agg.get(r[1]) or {}).get(f"normalised_{m}") or {} for m in SCORES}
+        for r in rows
+        if r[2] == "results"
+    }
+    theirs = [r for r in rows if r[2] != "results"]
     for metric in SCORES:
-        for row, per_task in _normalised(scores, summary["tasks"], rows, metric).items():
+        for row, per_task in _normalised(scores, summary["tasks"], theirs, metric).items():
             rng = stats.rng_for(row[1], row[2], metric, "iqm")
             cells.setdefault(row, {})[metric] = stats.aggregate_iqm(per_task, rng)
     rows = [r for r in rows if (cells.get(r, {}).get("worst_case") or {}).get("iqm") is not None]

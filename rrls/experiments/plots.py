@@ -56,18 +56,13 @@ def _binned(curves: Any, metric: str, steps: int) -> tuple[np.ndarray, dict[tupl
 
 
 def _band(values: np.ndarray, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
-    """95 % Student-t band of the mean over seeds, per bin (``stats.t_interval``'s method,
-    vectorised over bins; ``rng`` unused)."""
-    from scipy.stats import t
-
+    """95 % Student-t band of the mean over seeds, per bin (``stats.t_bounds``; ``rng``
+    unused)."""
     lo, hi = np.full(values.shape[1], np.nan), np.full(values.shape[1], np.nan)
     ok = ~np.isnan(values).any(axis=0)
-    n = values.shape[0]
-    if n < 2 or not ok.any():
+    if values.shape[0] < 2 or not ok.any():
         return lo, hi
-    sub = values[:, ok]
-    half = t.ppf(0.975, n - 1) * sub.std(axis=0, ddof=1) / np.sqrt(n)
-    lo[ok], hi[ok] = sub.mean(axis=0) - half, sub.mean(axis=0) + half
+    lo[ok], hi[ok] = stats.t_bounds(values[:, ok], axis=0)
     return lo, hi
 
 

@@ -331,12 +331,13 @@ def _budget_lines(summary: dict[str, Any]) -> list[str]:
     by_algo: dict[str, list[dict[str, Any]]] = {}
     for run in submitted:
         by_algo.setdefault(run["algorithm"], []).append(run)
+    differing = {a for a in by_algo if budget_differs(summary, a)}
     for algo, runs in by_algo.items():
         values = sorted({r.get("steps") or 0 for r in runs})
         extra = sorted({f"{k} {v}" for r in runs for k, v in (r.get("budget") or {}).items()
                         if k not in ("steps", "declared_by") and v is not None})  # fmt: skip
         who = sorted({(r.get("budget") or {}).get("declared_by") or "nobody" for r in runs})
-        differs = budget_differs(summary, algo)
+        differs = algo in differing
         rows.append(
             (
                 f"{algo} (submitted{BUDGET if differs else ''})",
@@ -365,7 +366,7 @@ def _budget_lines(summary: dict[str, Any]) -> list[str]:
         *[f"| {a} | {b} | {c or '–'} | {d or '–'} |" for a, b, c, d in rows],
         "",
     ]
-    if any(budget_differs(summary, a) for a in by_algo):
+    if differing:
         lines += [BUDGET_NOTE, ""]
     return lines
 

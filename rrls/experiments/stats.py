@@ -70,15 +70,24 @@ def bootstrap_ci(
     return [float(res.confidence_interval.low), float(res.confidence_interval.high)]
 
 
-def t_interval(x: Sequence[float] | np.ndarray, confidence: float = 0.95) -> list[float] | None:
-    """Student's t interval of the mean of ``x`` (``None`` with fewer than two values)."""
+def t_bounds(x: np.ndarray, axis: int = 0, confidence: float = 0.95) -> tuple[Any, Any]:
+    """Student's t interval of the mean of ``x`` along ``axis`` (at least two values there):
+    ``(low, high)``, vectorised over the other axes (the curves' bands use it per bin)."""
     from scipy.stats import t
 
+    n = x.shape[axis]
+    mean = x.mean(axis=axis)
+    half = t.ppf((1 + confidence) / 2, n - 1) * x.std(axis=axis, ddof=1) / np.sqrt(n)
+    return mean - half, mean + half
+
+
+def t_interval(x: Sequence[float] | np.ndarray, confidence: float = 0.95) -> list[float] | None:
+    """Student's t interval of the mean of ``x`` (``None`` with fewer than two values)."""
     x = np.asarray(x, dtype=float)
     if len(x) < 2:
         return None
-    half = float(t.ppf((1 + confidence) / 2, len(x) - 1) * x.std(ddof=1) / np.sqrt(len(x)))
-    return [float(x.mean()) - half, float(x.mean()) + half]
+    low, high = t_bounds(x, 0, confidence)
+    return [float(low), float(high)]
 
 
 def describe(x: Sequence[float] | np.ndarray, rng: np.random.Generator) -> dict[str, Any]:
