@@ -84,3 +84,21 @@ def test_the_hopper_page_says_which_mesh_its_runs_were_evaluated_on():
     mesh_claims = ("evaluated on the paper's mesh", "on the paper's mesh (10 points")
     if "`np.linspace`" in block:  # a linspace evaluation never claims the paper's mesh
         assert not any(claim in text for claim in mesh_claims)
+
+
+def test_the_halfcheetah_page_quotes_the_papers_table_7_as_shipped():
+    # "worst case: TD3 −546 ± 159, DR 2 211 ± 916, M2TD3 2 032 ± 410", from the paper's tables
+    from rrls.experiments.report import paper_results
+
+    text = (RESULTS / "halfcheetah" / "README.md").read_text()
+    worst = paper_results()["raw_worst_case"]
+    for algo, name in (("td3", "TD3"), ("dr", "DR"), ("m2td3", "M2TD3")):
+        mean, std = worst[algo]["halfcheetah"]
+        quoted = f"{name} {mean:,.0f} ± {std:.0f}".replace(",", " ").replace("-", "−")
+        assert quoted in text, quoted
+
+
+def test_the_quick_pages_td3_balances_on_every_shipped_seed():
+    # "TD3's final nominal return is 1000 on all three seeds"
+    nominal = results_page.per_seed(RESULTS / "quick")["td3"]["nominal"]
+    assert nominal == [1000.0] * 3
