@@ -1,0 +1,12 @@
+"""MuJoCo Warp twins of rrls's tasks: a parameter point per world, on a GPU, for training.
+
+Needs the ``warp`` extra (``pip install "rrls[warp]"``: ``warp-lang`` and ``mujoco-warp``);
+importing this package imports warp. Evaluation stays on CPU MuJoCo. See :class:`WarpTwin`.
+"""
+
+from __future__ import annotations
+
+from rrls.twin.env import WarpTwin
+from rrls.twin.tasks import REFUSED, TWIN_TASKS, TwinTask
+
+__all__ = ["REFUSED", "TWIN_TASKS", "TwinTask", "WarpTwin"]

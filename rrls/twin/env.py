@@ -1,0 +1,342 @@
+"""``WarpTwin``: a task's MuJoCo Warp twin, a Gymnasium ``VectorEnv`` whose every world runs at a
+parameter point of its own, on a GPU (or warp's CPU device).
+
+Why a twin: training the paper's protocol is millions of env steps per run, and CPU MuJoCo is
+what a GPU waits on. The twin is built from the same XML as the CPU env, and each world's model
+fields are *copied from a CPU model at that world's point* (rrls's ``set_params``: the derived
+constants that ``mj_setConst`` recomputes after a mass write included), so the twin's parameter
+convention is the CPU env's by construction. Evaluation stays on CPU MuJoCo (float64, exact on
+every machine); the twin is float32 and its trajectories drift from the CPU's (chaotically, as
+any two float paths do: the docs show by how much).
+
+Points: ``points=`` gives each world a fixed point (an ``(n, dim)`` array over the set's
+names); ``domain_randomization=True`` draws each world a new point at every reset, uniformly from
+a pool of ``pool`` points of the set drawn from the seed (the pool's fields are computed once by
+CPU MuJoCo, so a reset never leaves the device); neither: the nominal model.
+
+Autoreset is Gymnasium's ``SAME_STEP`` mode: a world that ends returns its first observation of
+the next episode, its last one in ``info["final_obs"]``. Arrays stay on the device:
+``array="torch"`` returns torch tensors sharing the device memory (and takes torch actions
+without a copy), ``"warp"`` warp arrays, ``"numpy"`` (the default) host copies.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import gymnasium as gym
+import mujoco
+import numpy as np
+from gymnasium.vector import AutoresetMode, VectorEnv
+
+from rrls.envs import resolve
+from rrls.registry import get_task
+from rrls.twin.tasks import REFUSED, TWIN_TASKS, UNSUPPORTED_FIELDS, constants
+from rrls.uncertainty import UncertaintySet
+
+#: MuJoCo Warp's batched model fields that rrls's kinds write or ``mj_setConst`` derives
+MODEL_FIELDS = (
+    "body_mass",
+    "body_inertia",
+    "body_ipos",
+    "body_subtreemass",
+    "body_invweight0",
+    "geom_friction",
+    "dof_damping",
+    "dof_armature",
+    "dof_frictionloss",
+    "dof_invweight0",
+    "actuator_gear",
+    "actuator_acc0",
+)
+ARRAYS = ("numpy", "torch", "warp")
+POOL_KEY = 2**31 - 1  # the pool's stream: a spawn key no world uses
+
+
+def _floats(a: Any, n: int) -> Any:
+    """A batched warp array seen as ``(n, floats per world)`` float32, sharing its memory."""
+    import warp as wp
+
+    return wp.array(
+        ptr=a.ptr, dtype=wp.float32, shape=(n, a.capacity // 4 // n), device=a.device, copy=False
+    )
+
+
+class WarpTwin(VectorEnv):
+    """A task's MuJoCo Warp twin with ``num_envs`` worlds (see the module's docstring)."""
+
+    metadata = {"autoreset_mode": AutoresetMode.SAME_STEP}
+
+    def __init__(
+        self,
+        task: str,
+        num_envs: int,
+        uncertainty: str | UncertaintySet = "3d",
+        *,
+        points: np.ndarray | None = None,
+        domain_randomization: bool = False,
+        pool: int = 1024,
+        seed: int = 0,
+        device: str = "cuda",
+        array: str = "numpy",
+        nconmax: int = 32,
+        njmax: int = 160,
+        max_episode_steps: int | None = None,
+        **env_kwargs: Any,
+    ) -> None:
+        import mujoco_warp as mjw
+        import warp as wp
+
+        from rrls.twin import kernels
+
+        key = get_task(task).key
+        if key in REFUSED:
+            raise ValueError(f"no Warp twin for {key!r}: {REFUSED[key]}")
+        if key not in TWIN_TASKS:
+            raise ValueError(f"no Warp twin for {key!r}; tasks with one: {', '.join(TWIN_TASKS)}")
+        if array not in ARRAYS:
+            raise ValueError(f"array={array!r}; valid: {', '.join(ARRAYS)}")
+        if not isinstance(num_envs, int) or num_envs < 1:
+            raise ValueError(f"num_envs must be a positive integer, got {num_envs!r}")
+        if points is not None and domain_randomization:
+            raise ValueError("give fixed points or domain_randomization=True, not both")
+        self._wp, self._mjw, self._k = wp, mjw, kernels
+        self.task, self.array = TWIN_TASKS[key], array
+        self.resolved = resolve(key, uncertainty)
+        self.box = self.resolved.box
+        self.cpu = self.resolved.make_env(**env_kwargs)
+        for spec in self.cpu.param_specs:
+            if spec.name in self.box.names and spec.field in UNSUPPORTED_FIELDS:
+                raise ValueError(f"parameter {spec.name!r}: {UNSUPPORTED_FIELDS[spec.field]}")
+        self.num_envs = n = num_envs
+        self.device = wp.get_device(device)
+        self.max_episode_steps = max_episode_steps or get_task(key).max_episode_steps or 1000
+        self.single_observation_space = self.cpu.observation_space
+        self.single_action_space = self.cpu.action_space
+        self.observation_space = gym.vector.utils.batch_space(self.single_observation_space, n)
+        self.action_space = gym.vector.utils.batch_space(self.single_action_space, n)
+        self.pool_points = self._pool(points, domain_randomization, pool, seed)
+        self.redraw = int(domain_randomization)
+        self.formula = self._formula(kernels.Formula())
+        self._build(nconmax, njmax)
+        self._seed(seed)
+
+    # -- construction -----------------------------------------------------------------------
+    def _pool(self, points: Any, dr: bool, size: int, seed: int) -> np.ndarray:
+        """The points the worlds draw from: the given ones (one per world), a seeded uniform
+        pool of the set (DR), or the nominal point."""
+        dim = self.box.dim
+        if points is not None:
+            pts = np.asarray(points, dtype=np.float64)
+            if pts.shape != (self.num_envs, dim):
+                raise ValueError(
+                    f"points has shape {pts.shape}; expected ({self.num_envs}, {dim}): one row "
+                    f"per world over {list(self.box.names)}"
+                )
+            for row in pts:
+                if not self.box.contains(row):
+                    raise ValueError(f"point {row.tolist()} lies outside {self.box.label}")
+            return pts
+        if dr:
+            if not isinstance(size, int) or size < 1:
+                raise ValueError(f"pool must be a positive integer, got {size!r}")
+            rng = np.random.default_rng(np.random.SeedSequence(seed, spawn_key=(POOL_KEY,)))
+            return np.asarray(self.box.sample(rng, size), dtype=np.float64).reshape(size, dim)
+        return np.asarray(self.box.nominal, dtype=np.float64).reshape(1, dim)
+
+    def _formula(self, f: Any) -> Any:
+        t, c = self.task, constants(self.cpu, self.task)
+        f.pos_start, f.clip_vel, f.health = t.pos_start, t.clip_vel, t.health
+        f.cfrc, f.forward, f.normal_qvel = int(t.cfrc), int(t.forward), int(t.normal_qvel)
+        for name in (
+            "forward_weight",
+            "ctrl_weight",
+            "healthy_reward",
+            "z_low",
+            "z_high",
+            "angle_low",
+            "angle_high",
+            "state_low",
+            "state_high",
+            "contact_weight",
+            "cfrc_low",
+            "cfrc_high",
+            "noise",
+        ):
+            setattr(f, name, getattr(c, name))
+        f.terminate = int(c.terminate)
+        f.frame_skip = int(self.cpu.frame_skip)
+        f.max_steps = int(self.max_episode_steps)
+        return f
+
+    def _host_fields(self, pts: np.ndarray) -> dict[str, np.ndarray]:
+        """Each point's packed fields, as a CPU model at that point holds them."""
+        cpu, names = self.cpu, self.box.names
+        rows: dict[str, list[np.ndarray]] = {}
+        for p in pts:
+            cpu.set_params(**dict(zip(names, p.tolist(), strict=True)))
+            got = {f: getattr(cpu.model, f) for f in MODEL_FIELDS}
+            got["timestep"] = np.array([cpu.model.opt.timestep])
+            got["gravity"] = np.array(cpu.model.opt.gravity)
+            got["xfrc_applied"] = np.array(cpu.data.xfrc_applied)
+            for f, v in got.items():
+                rows.setdefault(f, []).append(np.asarray(v, dtype=np.float32).ravel())
+        cpu.reset_params()
+        return {f: np.stack(v) for f, v in rows.items()}
+
+    def _build(self, nconmax: int, njmax: int) -> None:
+        wp, mjw, n = self._wp, self._mjw, self.num_envs
+        mjm = self.cpu.model
+        self.nq, self.nv, self.nu = mjm.nq, mjm.nv, mjm.nu
+        with wp.ScopedDevice(self.device):
+            batch = {f: n for f in MODEL_FIELDS}
+            self.m = mjw.put_model(mjm, batch_sizes=batch)
+            self.m.opt.timestep = wp.zeros(n, dtype=float)
+            self.m.opt.gravity = wp.zeros(n, dtype=wp.vec3)
+            self.d = mjw.put_data(mjm, mujoco.MjData(mjm), nworld=n, nconmax=nconmax, njmax=njmax)
+            targets = {f: getattr(self.m, f) for f in MODEL_FIELDS}
+            targets |= {"timestep": self.m.opt.timestep, "gravity": self.m.opt.gravity}
+            targets["xfrc_applied"] = self.d.xfrc_applied
+            host = self._host_fields(self.pool_points)
+            self.fields = [(_floats(targets[f], n), wp.array(host[f], dtype=float)) for f in host]
+            for view, pool in self.fields:
+                if view.shape[1] != pool.shape[1]:
+                    raise RuntimeError(f"field sizes differ: {view.shape} vs {pool.shape}")
+            self.qpos0 = wp.array(np.asarray(self.cpu.init_qpos, dtype=np.float32), dtype=float)
+            self.obs = wp.zeros((n, self.single_observation_space.shape[0]), dtype=float)
+            self.final_obs = wp.zeros_like(self.obs)
+            self.reward = wp.zeros(n, dtype=float)
+            self.terminated = wp.zeros(n, dtype=int)
+            self.truncated = wp.zeros(n, dtype=int)
+            self.done = wp.zeros(n, dtype=int)
+            self.all = wp.ones(n, dtype=int)
+            self.steps = wp.zeros(n, dtype=int)
+            self.episode = wp.zeros(n, dtype=int)
+            self.x_before = wp.zeros(n, dtype=float)
+            self.point = wp.array(np.arange(n, dtype=np.int32) % len(self.pool_points), dtype=int)
+            self.action = wp.zeros((n, self.nu), dtype=float)
+            self.seeds = wp.zeros(n, dtype=int)
+
+    def _seed(self, seed: int) -> None:
+        """World ``w``'s stream: ``SeedSequence(seed, spawn_key=(w,))``, whatever the count."""
+        words = [
+            np.random.SeedSequence(seed, spawn_key=(w,)).generate_state(1, np.uint32)[0]
+            for w in range(self.num_envs)
+        ]
+        self.seeds.assign(np.array(words, dtype=np.uint32).view(np.int32))
+        self.episode.zero_()
+
+    # -- the VectorEnv API --------------------------------------------------------------------
+    def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
+        if seed is not None:
+            self._seed(seed)
+        with self._wp.ScopedDevice(self.device):
+            self._reset(self.all)
+        return self._out(self.obs), {}
+
+    def step(self, actions: Any):
+        wp, k, n = self._wp, self._k, self.num_envs
+        with wp.ScopedDevice(self.device):
+            action = self._actions(actions)
+            wp.launch(k.begin_step, (n, self.nu), [action, self.d.qpos, self.d.ctrl, self.x_before])
+            for _ in range(self.formula.frame_skip):
+                self._mjw.step(self.m, self.d)
+            if self.task.cfrc:
+                self._mjw.rne_postconstraint(self.m, self.d)
+            wp.launch(
+                k.finish_step,
+                n,
+                [
+                    self.formula,
+                    self.d.qpos,
+                    self.d.qvel,
+                    self.d.cfrc_ext,
+                    action,
+                    self.x_before,
+                    self.m.opt.timestep,
+                    self.steps,
+                    self.reward,
+                    self.terminated,
+                    self.truncated,
+                    self.done,
+                ],
+            )
+            wp.launch(
+                k.observe,
+                n,
+                [self.formula, self.d.qpos, self.d.qvel, self.d.cfrc_ext, self.all, self.obs],
+            )
+            wp.copy(self.final_obs, self.obs)
+            self._reset(self.done)
+        info = {"final_obs": self._out(self.final_obs), "_final_obs": self._out(self.done)}
+        return (
+            self._out(self.obs),
+            self._out(self.reward),
+            self._out(self.terminated, bool),
+            self._out(self.truncated, bool),
+            info,
+        )
+
+    def _reset(self, mask: Any) -> None:
+        wp, k, n = self._wp, self._k, self.num_envs
+        self._mjw.reset_data(self.m, self.d, reset=mask)
+        wp.launch(
+            k.reset_worlds,
+            n,
+            [
+                self.formula,
+                mask,
+                self.seeds,
+                self.episode,
+                self.qpos0,
+                len(self.pool_points),
+                self.redraw,
+                self.d.qpos,
+                self.d.qvel,
+                self.steps,
+                self.point,
+            ],
+        )
+        for view, pool in self.fields:
+            wp.launch(k.copy_point, view.shape, [mask, self.point, pool, view])
+        wp.launch(
+            k.observe, n, [self.formula, self.d.qpos, self.d.qvel, self.d.cfrc_ext, mask, self.obs]
+        )
+
+    def _actions(self, actions: Any) -> Any:
+        wp = self._wp
+        if isinstance(actions, wp.array):
+            return actions
+        if type(actions).__module__.startswith("torch"):
+            return wp.from_torch(actions.detach().float().contiguous())
+        a = np.asarray(actions, dtype=np.float32)
+        if a.shape != (self.num_envs, self.nu):
+            raise ValueError(f"actions have shape {a.shape}; expected ({self.num_envs}, {self.nu})")
+        self.action.assign(a)
+        return self.action
+
+    def _out(self, a: Any, dtype: Any = None) -> Any:
+        if self.array == "warp":
+            return a
+        if self.array == "torch":
+            t = self._wp.to_torch(a)
+            return t.bool() if dtype is bool else t
+        out = a.numpy().copy()
+        return out.astype(dtype) if dtype is not None else out
+
+    # -- what a check or a log needs ----------------------------------------------------------
+    def points(self) -> np.ndarray:
+        """Each world's current point, ``(num_envs, dim)`` over ``box.names`` (a host copy)."""
+        return self.pool_points[self.point.numpy()]
+
+    def state(self) -> tuple[np.ndarray, np.ndarray]:
+        """Each world's ``(qpos, qvel)`` (host copies, float32)."""
+        return self.d.qpos.numpy().copy(), self.d.qvel.numpy().copy()
+
+    def set_state(self, qpos: np.ndarray, qvel: np.ndarray) -> None:
+        """Put every world at a state (the episode's step count is kept)."""
+        self.d.qpos.assign(np.asarray(qpos, dtype=np.float32))
+        self.d.qvel.assign(np.asarray(qvel, dtype=np.float32))
+
+    def close(self, **kwargs: Any) -> None:
+        self.cpu.close()
