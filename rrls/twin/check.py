@@ -12,7 +12,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from rrls.envs import nominal_params, resolve
-from rrls.params import KINDS
+from rrls.params import FIELDS, KINDS
 from rrls.twin.env import WarpTwin
 from rrls.twin.tasks import UNSUPPORTED_FIELDS
 from rrls.uncertainty import UncertaintySet
@@ -22,21 +22,24 @@ TWIN_KINDS = tuple(k for k, fields in KINDS.items() if not set(fields) & set(UNS
 
 
 def kind_set(task: str, kind: str, spread: float = 0.3) -> UncertaintySet:
-    """A box over one kind's parameters of ``task``: nominal x (1 +- spread), or +-0.02 around a
-    zero nominal (centre-of-mass offsets); forces: the task's ``rarl`` set."""
+    """A box over one kind's parameters of ``task``: nominal x (1 +- spread); around a zero
+    nominal, +-0.02 (centre-of-mass offsets) or [0, spread] (a field that must be >= 0, dry
+    friction); forces: the task's ``rarl`` set."""
     if kind == "force":
         return resolve(task, "rarl").box
     cls = resolve(task, "3d").env_class
     fields = set(KINDS[kind])
-    names = [s.name for s in cls.param_specs if s.field in fields]
+    specs = [s for s in cls.param_specs if s.field in fields]
+    names = [s.name for s in specs]
     if not names:
         raise ValueError(f"task {task!r} has no {kind!r} parameters")
     nominal = nominal_params(task)
     low, high = [], []
-    for name in names:
-        v = nominal[name]
-        low.append(v * (1 - spread) if v else -0.02)
-        high.append(v * (1 + spread) if v else 0.02)
+    for spec in specs:
+        v = nominal[spec.name]
+        signed = FIELDS[spec.field].low < 0
+        low.append(v * (1 - spread) if v else (-0.02 if signed else 0.0))
+        high.append(v * (1 + spread) if v else (0.02 if signed else spread))
     return UncertaintySet(tuple(names), low, high, label=f"{task}/{kind}")
 
 

@@ -30,6 +30,7 @@ import numpy as np
 from gymnasium.vector import AutoresetMode, VectorEnv
 
 from rrls.envs import resolve
+from rrls.extras import install_hint
 from rrls.registry import get_task
 from rrls.twin.tasks import REFUSED, TWIN_TASKS, UNSUPPORTED_FIELDS, constants
 from rrls.uncertainty import UncertaintySet
@@ -84,16 +85,21 @@ class WarpTwin(VectorEnv):
         max_episode_steps: int | None = None,
         **env_kwargs: Any,
     ) -> None:
-        import mujoco_warp as mjw
-        import warp as wp
-
-        from rrls.twin import kernels
-
         key = get_task(task).key
         if key in REFUSED:
             raise ValueError(f"no Warp twin for {key!r}: {REFUSED[key]}")
         if key not in TWIN_TASKS:
             raise ValueError(f"no Warp twin for {key!r}; tasks with one: {', '.join(TWIN_TASKS)}")
+        try:
+            import mujoco_warp as mjw
+            import warp as wp
+        except ImportError as e:
+            raise ImportError(
+                f"the Warp twin needs the warp extra ({e}); {install_hint('warp')}"
+            ) from e
+
+        from rrls.twin import kernels
+
         if array not in ARRAYS:
             raise ValueError(f"array={array!r}; valid: {', '.join(ARRAYS)}")
         if not isinstance(num_envs, int) or num_envs < 1:
