@@ -7,6 +7,6 @@ importing this package imports warp. Evaluation stays on CPU MuJoCo. See :class:
 from __future__ import annotations
 
 from rrls.twin.env import WarpTwin
-from rrls.twin.tasks import REFUSED, TWIN_TASKS, TwinTask
+from rrls.twin.tasks import DIVERGES, REFUSED, TWIN_TASKS, TwinTask
 
-__all__ = ["REFUSED", "TWIN_TASKS", "TwinTask", "WarpTwin"]
+__all__ = ["DIVERGES", "REFUSED", "TWIN_TASKS", "TwinTask", "WarpTwin"]

@@ -54,6 +54,13 @@ ARRAYS = ("numpy", "torch", "warp")
 POOL_KEY = 2**31 - 1  # the pool's stream: a spawn key no world uses
 
 
+def default_set(task: str) -> str:
+    """The task's largest paper set (``3d``, else ``2d``, else ``1d``): what DR draws from and
+    what ``points`` are over when no set is named."""
+    sets = get_task(task).sets
+    return next(name for name in ("3d", "2d", "1d", "nominal") if name in sets or name == "nominal")
+
+
 def _floats(a: Any, n: int) -> Any:
     """A batched warp array seen as ``(n, floats per world)`` float32, sharing its memory."""
     import warp as wp
@@ -72,7 +79,7 @@ class WarpTwin(VectorEnv):
         self,
         task: str,
         num_envs: int,
-        uncertainty: str | UncertaintySet = "3d",
+        uncertainty: str | UncertaintySet | None = None,
         *,
         points: np.ndarray | None = None,
         domain_randomization: bool = False,
@@ -108,7 +115,7 @@ class WarpTwin(VectorEnv):
             raise ValueError("give fixed points or domain_randomization=True, not both")
         self._wp, self._mjw, self._k = wp, mjw, kernels
         self.task, self.array = TWIN_TASKS[key], array
-        self.resolved = resolve(key, uncertainty)
+        self.resolved = resolve(key, uncertainty or default_set(key))
         self.box = self.resolved.box
         self.cpu = self.resolved.make_env(**env_kwargs)
         for spec in self.cpu.param_specs:
@@ -126,6 +133,7 @@ class WarpTwin(VectorEnv):
         self.formula = self._formula(kernels.Formula())
         self._build(nconmax, njmax)
         self._seed(seed)
+        self._graph: Any = None
 
     # -- construction -----------------------------------------------------------------------
     def _pool(self, points: Any, dr: bool, size: int, seed: int) -> np.ndarray:
@@ -241,39 +249,21 @@ class WarpTwin(VectorEnv):
         return self._out(self.obs), {}
 
     def step(self, actions: Any):
-        wp, k, n = self._wp, self._k, self.num_envs
+        wp = self._wp
         with wp.ScopedDevice(self.device):
-            action = self._actions(actions)
-            wp.launch(k.begin_step, (n, self.nu), [action, self.d.qpos, self.d.ctrl, self.x_before])
-            for _ in range(self.formula.frame_skip):
-                self._mjw.step(self.m, self.d)
-            if self.task.cfrc:
-                self._mjw.rne_postconstraint(self.m, self.d)
-            wp.launch(
-                k.finish_step,
-                n,
-                [
-                    self.formula,
-                    self.d.qpos,
-                    self.d.qvel,
-                    self.d.cfrc_ext,
-                    action,
-                    self.x_before,
-                    self.m.opt.timestep,
-                    self.steps,
-                    self.reward,
-                    self.terminated,
-                    self.truncated,
-                    self.done,
-                ],
-            )
-            wp.launch(
-                k.observe,
-                n,
-                [self.formula, self.d.qpos, self.d.qvel, self.d.cfrc_ext, self.all, self.obs],
-            )
-            wp.copy(self.final_obs, self.obs)
-            self._reset(self.done)
+            self._actions(actions)
+            if not self.device.is_cuda:
+                self._advance()
+            elif self._graph is None:  # the first step compiles; the second is captured
+                self._advance()
+                self._graph = False
+            elif self._graph is False:
+                with wp.ScopedCapture() as capture:
+                    self._advance()
+                self._graph = capture.graph
+                wp.capture_launch(self._graph)
+            else:
+                wp.capture_launch(self._graph)
         info = {"final_obs": self._out(self.final_obs), "_final_obs": self._out(self.done)}
         return (
             self._out(self.obs),
@@ -282,6 +272,42 @@ class WarpTwin(VectorEnv):
             self._out(self.truncated, bool),
             info,
         )
+
+    def _advance(self) -> None:
+        """One env step of every world, then the reset of those that ended: only kernel
+        launches on fixed arrays, so on a GPU it is captured once in a CUDA graph."""
+        wp, k, n = self._wp, self._k, self.num_envs
+        action = self.action
+        wp.launch(k.begin_step, (n, self.nu), [action, self.d.qpos, self.d.ctrl, self.x_before])
+        for _ in range(self.formula.frame_skip):
+            self._mjw.step(self.m, self.d)
+        if self.task.cfrc:
+            self._mjw.rne_postconstraint(self.m, self.d)
+        wp.launch(
+            k.finish_step,
+            n,
+            [
+                self.formula,
+                self.d.qpos,
+                self.d.qvel,
+                self.d.cfrc_ext,
+                action,
+                self.x_before,
+                self.m.opt.timestep,
+                self.steps,
+                self.reward,
+                self.terminated,
+                self.truncated,
+                self.done,
+            ],
+        )
+        wp.launch(
+            k.observe,
+            n,
+            [self.formula, self.d.qpos, self.d.qvel, self.d.cfrc_ext, self.all, self.obs],
+        )
+        wp.copy(self.final_obs, self.obs)
+        self._reset(self.done)
 
     def _reset(self, mask: Any) -> None:
         wp, k, n = self._wp, self._k, self.num_envs
@@ -309,17 +335,22 @@ class WarpTwin(VectorEnv):
             k.observe, n, [self.formula, self.d.qpos, self.d.qvel, self.d.cfrc_ext, mask, self.obs]
         )
 
-    def _actions(self, actions: Any) -> Any:
+    def _actions(self, actions: Any) -> None:
+        """Copy the actions into the twin's action array (on the device: a device copy)."""
         wp = self._wp
-        if isinstance(actions, wp.array):
-            return actions
         if type(actions).__module__.startswith("torch"):
-            return wp.from_torch(actions.detach().float().contiguous())
+            actions = wp.from_torch(actions.detach().float().contiguous())
+        if isinstance(actions, wp.array):
+            if actions.shape != self.action.shape:
+                raise ValueError(
+                    f"actions have shape {actions.shape}; expected {self.action.shape}"
+                )
+            wp.copy(self.action, actions)
+            return
         a = np.asarray(actions, dtype=np.float32)
         if a.shape != (self.num_envs, self.nu):
             raise ValueError(f"actions have shape {a.shape}; expected ({self.num_envs}, {self.nu})")
         self.action.assign(a)
-        return self.action
 
     def _out(self, a: Any, dtype: Any = None) -> Any:
         if self.array == "warp":

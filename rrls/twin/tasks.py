@@ -51,6 +51,13 @@ REFUSED: dict[str, str] = {
     "(it supports Newton and CG)",
 }
 
+#: where a twin is known to part from CPU MuJoCo faster than float32 rounding explains
+DIVERGES: dict[str, str] = {
+    "ant": "MuJoCo Warp and CPU MuJoCo part at the feet's first contacts (the ant lands within "
+    "3 env steps of a reset): ~1e-3 in qpos after one contact on Gymnasium's own Ant-v5, with "
+    "RK4 or Euler; 0.1-0.4 after 10 env steps",
+}
+
 #: rrls parameter fields the twin carries per world (``opt_viscosity``: MuJoCo Warp applies
 #: per-world viscosity only to models built with fluid forces on, which these are not)
 UNSUPPORTED_FIELDS: dict[str, str] = {
