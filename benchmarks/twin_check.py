@@ -9,10 +9,10 @@ random actions; the largest ``|qpos - qpos_cpu|`` after 1 and 10 env steps, ``|q
 after 10, the largest reward difference over the 10 steps and the worlds whose termination
 differed.
 
-Divergence (``divergence.csv``, ``divergence.png``): the paper's 3D set, 8 worlds, 1 000 env
-steps of random actions; per step the largest ``|qpos - qpos_cpu|`` over the worlds still in
-their first episode (Hopper, Walker2d and Ant end episodes early under random actions: their
-curves stop where the last world ends).
+Divergence (``divergence.csv``, ``divergence.png``): the task's largest paper set, 8 worlds,
+1 000 env steps of random actions; per step the largest ``|qpos - qpos_cpu|`` over the worlds
+still in their first episode (Hopper, Walker2d and Ant end episodes early under random actions:
+their curves stop where the last world ends).
 """
 
 from __future__ import annotations
@@ -27,6 +27,7 @@ import numpy as np
 
 from rrls.twin import TWIN_TASKS
 from rrls.twin.check import TWIN_KINDS, divergence, kind_set
+from rrls.twin.env import default_set
 
 HORIZON = 1000
 
@@ -76,7 +77,7 @@ def curves(out: Path, device: str, tasks: list[str]) -> None:
     series = {}
     for task in tasks:
         start = time.perf_counter()
-        d = divergence(task, "3d", worlds=8, steps=HORIZON, device=device)
+        d = divergence(task, default_set(task), worlds=8, steps=HORIZON, device=device)
         series[task] = d.qpos
         alive = int(np.sum(~np.isnan(d.qpos)))
         print(f"{task}: {alive} steps compared ({time.perf_counter() - start:.0f} s)", flush=True)
@@ -92,7 +93,7 @@ def curves(out: Path, device: str, tasks: list[str]) -> None:
     ax.set_yscale("log")
     ax.set_xlabel("env steps")
     ax.set_ylabel("max |qpos twin - qpos CPU|")
-    ax.set_title("Warp twin (float32) vs CPU MuJoCo (float64), 3D set, 8 worlds")
+    ax.set_title("Warp twin (float32) vs CPU MuJoCo (float64), 8 worlds each")
     ax.legend(fontsize=8)
     fig.tight_layout()
     fig.savefig(out / "divergence.png", dpi=120)
@@ -104,10 +105,12 @@ def main() -> None:
     parser.add_argument("--device", default="cpu")
     parser.add_argument("--tasks", nargs="+", default=list(TWIN_TASKS), choices=list(TWIN_TASKS))
     parser.add_argument("--no-curves", dest="curves", action="store_false")
+    parser.add_argument("--no-table", dest="table", action="store_false")
     args = parser.parse_args()
     warnings.simplefilter("ignore")
     args.out.mkdir(parents=True, exist_ok=True)
-    table(args.out, args.device, args.tasks)
+    if args.table:
+        table(args.out, args.device, args.tasks)
     if args.curves:
         curves(args.out, args.device, args.tasks)
 
