@@ -13,7 +13,7 @@ import numpy as np
 
 from rrls.envs import nominal_params, resolve
 from rrls.params import FIELDS, KINDS
-from rrls.twin.env import WarpTwin
+from rrls.twin.env import WarpTwin, default_set
 from rrls.twin.tasks import UNSUPPORTED_FIELDS
 from rrls.uncertainty import UncertaintySet
 
@@ -27,7 +27,7 @@ def kind_set(task: str, kind: str, spread: float = 0.3) -> UncertaintySet:
     friction); forces: the task's ``rarl`` set."""
     if kind == "force":
         return resolve(task, "rarl").box
-    cls = resolve(task, "3d").env_class
+    cls = resolve(task, default_set(task)).env_class
     fields = set(KINDS[kind])
     specs = [s for s in cls.param_specs if s.field in fields]
     names = [s.name for s in specs]

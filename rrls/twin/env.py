@@ -22,6 +22,7 @@ without a copy), ``"warp"`` warp arrays, ``"numpy"`` (the default) host copies.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from typing import Any
 
 import gymnasium as gym
@@ -84,7 +85,7 @@ class WarpTwin(VectorEnv):
         points: np.ndarray | None = None,
         domain_randomization: bool = False,
         pool: int = 1024,
-        seed: int = 0,
+        seed: int | Sequence[int] = 0,
         device: str = "cuda",
         array: str = "numpy",
         nconmax: int = 32,
@@ -136,7 +137,7 @@ class WarpTwin(VectorEnv):
         self._graph: Any = None
 
     # -- construction -----------------------------------------------------------------------
-    def _pool(self, points: Any, dr: bool, size: int, seed: int) -> np.ndarray:
+    def _pool(self, points: Any, dr: bool, size: int, seed: Any) -> np.ndarray:
         """The points the worlds draw from: the given ones (one per world), a seeded uniform
         pool of the set (DR), or the nominal point."""
         dim = self.box.dim
@@ -154,7 +155,8 @@ class WarpTwin(VectorEnv):
         if dr:
             if not isinstance(size, int) or size < 1:
                 raise ValueError(f"pool must be a positive integer, got {size!r}")
-            rng = np.random.default_rng(np.random.SeedSequence(seed, spawn_key=(POOL_KEY,)))
+            entropy = int(seed) if isinstance(seed, (int, np.integer)) else [int(x) for x in seed]
+            rng = np.random.default_rng(np.random.SeedSequence(entropy, spawn_key=(POOL_KEY,)))
             return np.asarray(self.box.sample(rng, size), dtype=np.float64).reshape(size, dim)
         return np.asarray(self.box.nominal, dtype=np.float64).reshape(1, dim)
 
@@ -231,12 +233,16 @@ class WarpTwin(VectorEnv):
             self.action = wp.zeros((n, self.nu), dtype=float)
             self.seeds = wp.zeros(n, dtype=int)
 
-    def _seed(self, seed: int) -> None:
-        """World ``w``'s stream: ``SeedSequence(seed, spawn_key=(w,))``, whatever the count."""
-        words = [
-            np.random.SeedSequence(seed, spawn_key=(w,)).generate_state(1, np.uint32)[0]
-            for w in range(self.num_envs)
-        ]
+    def _seed(self, seed: int | Sequence[int]) -> None:
+        """World ``w``'s stream: ``SeedSequence(seed, spawn_key=(w,))`` whatever the count, or
+        ``SeedSequence(seed[w])`` for one seed per world (``K`` runs, one world each)."""
+        if isinstance(seed, (int, np.integer)):
+            seqs = [np.random.SeedSequence(int(seed), spawn_key=(w,)) for w in range(self.num_envs)]
+        else:
+            if len(seed) != self.num_envs:
+                raise ValueError(f"{len(seed)} seeds for {self.num_envs} worlds: give one each")
+            seqs = [np.random.SeedSequence(int(s)) for s in seed]
+        words = [q.generate_state(1, np.uint32)[0] for q in seqs]
         self.seeds.assign(np.array(words, dtype=np.uint32).view(np.int32))
         self.episode.zero_()
 

@@ -1,0 +1,125 @@
+"""Training on the Warp twin: aggregated env steps/s of K stacked TD3 runs, and a sim-to-sim
+check of one policy trained on the twin, evaluated on CPU MuJoCo and on the twin at the same
+points.
+
+    python3 benchmarks/twin_train.py OUT --device cuda --ks 1 32 128 --train-steps 60000
+    python3 benchmarks/twin_train.py OUT --device cpu --ks 2 --window 20 --train-steps 300  # dry
+
+Speed: ``train_on_twin("td3", task, seeds=range(K))`` with ``learning_starts`` 1 000; the clock
+runs over the ``--window`` steps after ``2 * window + 1000`` (the first updates capture their
+CUDA graphs). Sim-to-sim: one TD3 run of ``--train-steps`` on the twin (nominal model;
+``--starts`` random steps first), then
+``--points`` points of the task's largest set, one episode each (deterministic policy): the
+return on CPU MuJoCo (float64, rrls's evaluation physics) and on the twin (float32), both from
+the twin's reset state of that world.
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+import warnings
+from pathlib import Path
+
+import numpy as np
+
+from rrls.agents.on_twin import train_on_twin
+from rrls.envs import resolve
+from rrls.twin import WarpTwin
+from rrls.twin.env import default_set
+
+STARTS = 1000
+
+
+def speed(task: str, k: int, window: int, device: str) -> float:
+    marks: dict[int, float] = {}
+
+    def mark(step: int, _returns: object) -> None:
+        marks[step] = time.perf_counter()
+
+    steps = STARTS + 3 * window
+    train_on_twin(
+        "td3",
+        task,
+        seeds=tuple(range(k)),
+        steps=steps,
+        device=device,
+        hyper={"learning_starts": STARTS},
+        on_progress=mark,
+        progress_every=window,
+    )
+    a, b = STARTS + 2 * window, STARTS + 3 * window
+    return k * window / (marks[b] - marks[a])
+
+
+def sim_to_sim(
+    task: str, steps: int, starts: int, n_points: int, device: str, out: Path
+) -> list[tuple]:
+    hyper = {"learning_starts": starts}
+    result = train_on_twin("td3", task, seeds=(0,), steps=steps, device=device, hyper=hyper)
+    policy = result.policies[0]
+    policy.save(out / f"td3-{task}-twin-{steps}.npz")
+    resolved = resolve(task, default_set(task))
+    rng = np.random.default_rng(1)
+    points = np.asarray(resolved.box.sample(rng, n_points)).reshape(n_points, -1)
+    twin = WarpTwin(task, n_points, resolved.box, points=points, device=device, seed=5)
+    obs, _ = twin.reset()
+    qpos, qvel = twin.state()
+    twin_ret = np.zeros(n_points)
+    done = np.zeros(n_points, dtype=bool)
+    while not done.all():
+        obs, r, term, trunc, _ = twin.step(policy(obs).astype(np.float32))
+        twin_ret += np.where(done, 0.0, r)
+        done |= term | trunc
+    rows = []
+    for w in range(n_points):
+        env = resolved.make_env()
+        env.reset(seed=0)
+        env.set_params(**dict(zip(resolved.box.names, points[w].tolist(), strict=True)))
+        env.set_state(qpos[w].astype(np.float64), qvel[w].astype(np.float64))
+        o, ret = env.unwrapped._get_obs(), 0.0
+        for _ in range(twin.max_episode_steps):
+            o, r, term, _, _ = env.step(policy(o[None])[0])
+            ret += r
+            if term:
+                break
+        rows.append((points[w].tolist(), ret, float(twin_ret[w])))
+    return rows
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("out", type=Path)
+    parser.add_argument("--device", default="cuda")
+    parser.add_argument("--task", default="hopper")
+    parser.add_argument("--ks", nargs="+", type=int, default=[1, 32, 128])
+    parser.add_argument("--window", type=int, default=500)
+    parser.add_argument("--train-steps", type=int, default=60_000)
+    parser.add_argument("--points", type=int, default=10)
+    parser.add_argument("--starts", type=int, default=5000, help="sim-to-sim run's warm-up")
+    args = parser.parse_args()
+    warnings.simplefilter("ignore")
+    args.out.mkdir(parents=True, exist_ok=True)
+    print("| algo | task | K | aggregated env steps/s | per run |")
+    print("|---|---|---|---|---|")
+    for k in args.ks:
+        rate = speed(args.task, k, args.window, args.device)
+        print(f"| td3 | {args.task} | {k} | {rate:,.0f} | {rate / k:,.0f} |", flush=True)
+    if args.train_steps:
+        start = time.perf_counter()
+        rows = sim_to_sim(args.task, args.train_steps, args.points, args.device, args.out)
+        print(
+            f"\nsim-to-sim: TD3, {args.train_steps} steps on the twin "
+            f"({time.perf_counter() - start:.0f} s with the evaluation)"
+        )
+        print("| point | return on CPU MuJoCo | return on the twin | twin / CPU |")
+        print("|---|---|---|---|")
+        for point, cpu, tw in rows:
+            ratio = tw / cpu if cpu else float("nan")
+            print(
+                f"| {', '.join(f'{x:.2f}' for x in point)} | {cpu:.1f} | {tw:.1f} | {ratio:.2f} |"
+            )
+
+
+if __name__ == "__main__":
+    main()

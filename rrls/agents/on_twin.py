@@ -1,0 +1,125 @@
+"""Training on the MuJoCo Warp twin: ``K`` runs of one algorithm, run ``k`` on world ``k``.
+
+The learner is the algorithm's own (``rrls.agents.<algo>:Learner``, the same object the CPU
+loop drives: one batched update for the ``K`` runs); only the physics moves to the GPU. Each
+run keeps the paper's protocol of one env per run: its world resets on its own, and for DR
+draws a new point of the set at every episode (from the twin's pool). The policies it returns
+are evaluated where rrls evaluates everything, on CPU MuJoCo.
+
+What this loop does not do yet, and ``rrls train`` does: checkpoints and resume, run
+directories, TensorBoard, periodic evaluations; the adversarial games (RARL, NR-MDP: an
+adversary acting every step) and M2TD3 (a point chosen per episode by the learner) are refused.
+Observations and actions cross to the host once per step (``K`` rows each), where the learners'
+seeded exploration draws live.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+import torch
+
+from rrls.agents.lookup import algorithm
+from rrls.agents.seeds import NumpyGenerators, RunSeeds
+from rrls.algorithms import warmup
+
+#: algorithm -> does its world draw a new point of the set at every episode (DR)
+ON_TWIN: dict[str, bool] = {"td3": False, "sac": False, "dr": True, "sacdr": True}
+NOT_ON_TWIN: dict[str, str] = {
+    "rarl": "its adversary's forces act at every step (not wired to the twin yet)",
+    "nrmdp": "its adversary's actions mix into every step (not wired to the twin yet)",
+    "m2td3": "it picks each episode's point itself (not wired to the twin yet)",
+}
+
+
+@dataclass
+class TwinTraining:
+    """What a twin run gives back: each run's final policy (an ``MLPPolicy``), its episode
+    returns in order, the env steps taken per run and the wall time."""
+
+    policies: list[Any]
+    returns: list[list[float]] = field(default_factory=list)
+    steps: int = 0
+    wall_s: float = 0.0
+
+    @property
+    def steps_per_second(self) -> float:
+        """Aggregated env steps per second (all runs)."""
+        return len(self.policies) * self.steps / self.wall_s if self.wall_s else 0.0
+
+
+def train_on_twin(
+    algo: str = "td3",
+    task: str = "hopper",
+    seeds: tuple[int, ...] = (0,),
+    steps: int = 100_000,
+    *,
+    uncertainty: str | None = None,
+    device: str = "cuda",
+    hyper: dict[str, Any] | None = None,
+    twin_options: dict[str, Any] | None = None,
+    on_progress: Any = None,
+    progress_every: int = 1000,
+) -> TwinTraining:
+    """Train ``len(seeds)`` runs of ``algo`` on ``task``'s twin, world ``k`` for seed ``k``;
+    ``on_progress(step, returns)`` every ``progress_every`` steps."""
+    from rrls.twin import WarpTwin
+
+    if algo in NOT_ON_TWIN:
+        raise ValueError(f"{algo} does not train on the Warp twin: {NOT_ON_TWIN[algo]}")
+    if algo not in ON_TWIN:
+        raise ValueError(f"algo={algo!r}; on the Warp twin: {', '.join(ON_TWIN)}")
+    if not seeds:
+        raise ValueError("seeds: give at least one")
+    info = algorithm(algo)
+    config = info.Config(**(hyper or {}))
+    run_seeds = [RunSeeds(s) for s in seeds]
+    twin = WarpTwin(
+        task,
+        len(seeds),
+        uncertainty,
+        domain_randomization=ON_TWIN[algo],
+        seed=[s.integer("env") for s in run_seeds],
+        device=device,
+        **(twin_options or {}),
+    )
+    learner = info.Learner(twin.cpu, config, run_seeds, torch.device(device))
+    explore = NumpyGenerators(run_seeds, "warmup")
+    space = twin.single_action_space
+    starts = int(getattr(config, "learning_starts", warmup(algo)))
+    k = len(seeds)
+    returns: list[list[float]] = [[] for _ in range(k)]
+    ret = np.zeros(k)
+    obs, _ = twin.reset()
+    infos = [{} for _ in range(k)]
+    start = time.perf_counter()
+    for step in range(1, steps + 1):
+        if step <= starts:
+            actions = np.stack([rng.uniform(space.low, space.high) for rng in explore])
+        else:
+            actions = np.stack(learner.act(obs))
+        next_obs, reward, terminated, truncated, info_ = twin.step(actions.astype(np.float32))
+        ended = terminated | truncated
+        # the transition's next state is the episode's last observation, not the reset's
+        last = np.where(ended[:, None], info_["final_obs"], next_obs)
+        learner.observe(obs, list(actions), reward.astype(np.float64), last, terminated, infos)
+        if step > starts:
+            learner.update(step)
+        ret += reward
+        for w in np.flatnonzero(ended):
+            returns[w].append(float(ret[w]))
+            ret[w] = 0.0
+        obs = next_obs
+        if on_progress is not None and step % progress_every == 0:
+            if device.startswith("cuda"):
+                torch.cuda.synchronize()
+            on_progress(step, returns)
+    if device.startswith("cuda"):
+        torch.cuda.synchronize()
+    wall = time.perf_counter() - start
+    policies = [learner.export(w)["policy"] for w in range(k)]
+    twin.close()
+    return TwinTraining(policies, returns, steps, wall)
