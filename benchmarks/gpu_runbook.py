@@ -8,13 +8,19 @@ reference at the largest budget that fits, in ~35 minutes, writing only small fi
    update, compiled too, and the env workers) -> ``tests.log``;
 2. the GPU speed table (``benchmarks/train_speed.py --groups --ks 1 8 32 --algos td3 m2td3
    --device cuda``), against the targets of ``docs/protocol.md`` -> ``speed.md``;
-3. two short probes of the five baselines' groups trained at once (5 seeds of Hopper 3D each, as
+3. the Warp twin (``--no-twin`` skips it; needs the ``warp`` extra): MuJoCo Warp's physics
+   alone and the twin's whole step at 32 to 8 192 worlds, the per-task, per-kind check against
+   CPU MuJoCo, K = 1, 32, 128 TD3 runs trained on it and a sim-to-sim check of one trained
+   policy -> ``warp_speed.log``, ``twin_speed.log``, ``twin_check/``, ``twin_train/``;
+4. two short probes of the five baselines' groups trained at once (5 seeds of Hopper 3D each, as
    ``rrls benchmark --device cuda`` packs them) give seconds per learning step; with the
    evaluation's upper bound (every episode at full length, on all the machine's cores), the
    largest budget of ``MENU`` whose whole ``hopper`` preset (5 seeds) fits ``--minutes`` is run
    with ``rrls benchmark``, then ``rrls report`` writes its report, figures and reference file
    -> ``hopper-<steps>/`` (run files without checkpoints);
-4. ``runbook.md``: the machine, each step's command, wall time and outcome.
+5. ``runbook.md``: the machine, each step's command, wall time and outcome.
+
+On a short lease, ``--no-preset`` skips step 4 (the longest).
 
 A step that fails is recorded and the next one still runs; the exit status is 1 if any failed.
 """
@@ -128,12 +134,40 @@ def copy_small(bench: Path, dest: Path) -> None:
             shutil.copy2(path, target)
 
 
+def twin_steps(book: Book, args: argparse.Namespace, py: str) -> None:
+    """The Warp twin (the ``warp`` extra): physics alone and the whole step per world count,
+    each world against CPU MuJoCo, and K stacked TD3 runs trained on it (with a sim-to-sim
+    check of one trained policy)."""
+    d, tiny = args.device, args.tiny
+    worlds = ["2"] if tiny else ["32", "256", "1024", "4096", "8192"]
+    physics = [py, "benchmarks/warp_speed.py", "--device", d, "--worlds", *worlds]
+    physics += ["--steps", "2", "--tasks", "hopper"] if tiny else []
+    book.step("Warp twin: physics alone", physics, args.out / "warp_speed.log", 600)
+    whole = [py, "benchmarks/twin_speed.py", "--device", d, "--worlds", *worlds]
+    whole += ["--steps", "2", "--tasks", "hopper"] if tiny else []
+    book.step("Warp twin: the whole step", whole, args.out / "twin_speed.log", 600)
+    check = [py, "benchmarks/twin_check.py", str(args.out / "twin_check"), "--device", d]
+    check += ["--no-curves"] + (["--tasks", "invertedpendulum"] if tiny else [])
+    book.step("Warp twin vs CPU MuJoCo", check, args.out / "twin_check.log", 900)
+    train = [py, "benchmarks/twin_train.py", str(args.out / "twin_train"), "--device", d]
+    if tiny:
+        train += ["--ks", "1", "--window", "5", "--train-steps", "30", "--starts", "10"]
+        train += ["--points", "1"]
+    book.step("training on the twin", train, args.out / "twin_train.log", 900)
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("out", type=Path, metavar="OUT_DIR")
     parser.add_argument("--device", default="cuda", help="cuda (default) or cpu (a dry run)")
     parser.add_argument("--minutes", type=float, default=20.0, help="the Hopper preset's budget")
     parser.add_argument("--tiny", action="store_true", help="tiny sizes: the CPU dry run")
+    parser.add_argument(
+        "--no-preset", dest="preset", action="store_false", help="skip the Hopper preset step"
+    )
+    parser.add_argument(
+        "--no-twin", dest="twin", action="store_false", help="skip the Warp twin's steps"
+    )
     args = parser.parse_args(argv)
     args.out.mkdir(parents=True, exist_ok=True)
     book = Book(args.out)
@@ -150,6 +184,11 @@ def main(argv: list[str] | None = None) -> int:
         speed += ["--learning-starts", "20"]
     seeds = 1 if args.tiny else SEEDS
     book.step("GPU speed table", speed, args.out / "speed.md", 900)
+    if args.twin:
+        twin_steps(book, args, py)
+    if not args.preset:
+        book.write(f"## done: {len(book.failed)} step(s) failed {book.failed}\n")
+        return 1 if book.failed else 0
 
     from rrls.experiments.spec import estimate, make_spec
 

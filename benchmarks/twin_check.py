@@ -68,6 +68,24 @@ def table(out: Path, device: str, tasks: list[str]) -> None:
             writer.writerow({k: f"{v:.3e}" if isinstance(v, float) else v for k, v in row.items()})
 
 
+def markdown(path: Path) -> str:
+    """``check.csv`` as the docs' table (the docs' copy is checked against this by a test)."""
+    with path.open() as f:
+        rows = list(csv.DictReader(f))
+    lines = [
+        "| task | kind | parameters | max dqpos, 1 step | max dqpos, 10 steps | max dqvel, "
+        "10 steps | max dreward | terminations differing |",
+        "|---|---|---|---|---|---|---|---|",
+    ]
+    for r in rows:
+        lines.append(
+            f"| {r['task']} | {r['kind']} | {r['parameters']} | {float(r['qpos_1']):.1e} | "
+            f"{float(r['qpos_10']):.1e} | {float(r['qvel_10']):.1e} | "
+            f"{float(r['reward_10']):.1e} | {r['termination_mismatches']} |"
+        )
+    return "\n".join(lines) + "\n"
+
+
 def curves(out: Path, device: str, tasks: list[str]) -> None:
     import matplotlib
 

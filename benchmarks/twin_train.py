@@ -107,9 +107,12 @@ def main() -> None:
         print(f"| td3 | {args.task} | {k} | {rate:,.0f} | {rate / k:,.0f} |", flush=True)
     if args.train_steps:
         start = time.perf_counter()
-        rows = sim_to_sim(args.task, args.train_steps, args.points, args.device, args.out)
+        rows = sim_to_sim(
+            args.task, args.train_steps, args.starts, args.points, args.device, args.out
+        )
         print(
             f"\nsim-to-sim: TD3, {args.train_steps} steps on the twin "
+            f"(learning_starts {args.starts}) "
             f"({time.perf_counter() - start:.0f} s with the evaluation)"
         )
         print("| point | return on CPU MuJoCo | return on the twin | twin / CPU |")

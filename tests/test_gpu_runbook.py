@@ -25,11 +25,19 @@ def _runbook():
 def test_the_gpu_runbook_runs_end_to_end_on_a_cpu(tmp_path):
     runbook = _runbook()
     out = tmp_path / "out"
-    assert runbook.main([str(out), "--device", "cpu", "--tiny"]) == 0
+    twin = bool(importlib.util.find_spec("warp") and importlib.util.find_spec("mujoco_warp"))
+    argv = [str(out), "--device", "cpu", "--tiny"] + ([] if twin else ["--no-twin"])
+    assert runbook.main(argv) == 0
     summary = json.loads((out / "runbook.json").read_text())
     assert summary["failed"] == [] and summary["steps"] in runbook.TINY_MENU
     book = (out / "runbook.md").read_text()
-    for step in ("CUDA tests: ok", "GPU speed table: ok", "Hopper preset: ok", "report and"):
+    steps = ["CUDA tests: ok", "GPU speed table: ok", "Hopper preset: ok", "report and"]
+    if twin:
+        steps += ["Warp twin: physics alone: ok", "Warp twin: the whole step: ok"]
+        steps += ["Warp twin vs CPU MuJoCo: ok", "training on the twin: ok"]
+        assert (out / "twin_check" / "check.csv").exists()
+        assert "sim-to-sim" in (out / "twin_train.log").read_text()
+    for step in steps:
         assert step in book, step
     bench = out / f"hopper-{summary['steps']}"
     reference = json.loads((bench / "reference.json").read_text())

@@ -123,3 +123,6 @@ def train_on_twin(
     policies = [learner.export(w)["policy"] for w in range(k)]
     twin.close()
     return TwinTraining(policies, returns, steps, wall)
+
+
+__all__ = ["NOT_ON_TWIN", "ON_TWIN", "TwinTraining", "train_on_twin"]

@@ -1,6 +1,7 @@
 """MuJoCo Warp twins of rrls's tasks: a parameter point per world, on a GPU, for training.
 
-Needs the ``warp`` extra (``pip install "rrls[warp]"``: ``warp-lang`` and ``mujoco-warp``);
+Needs the ``warp`` extra (``warp-lang`` and ``mujoco-warp``; in the checkout:
+``python3 -m pip install -c constraints.txt ".[warp]"``);
 importing this package imports warp. Evaluation stays on CPU MuJoCo. See :class:`WarpTwin`.
 """
 

@@ -108,3 +108,6 @@ def divergence(
     return Divergence(
         np.array(out["qpos"]), np.array(out["qvel"]), np.array(out["reward"]), mismatches, worlds
     )
+
+
+__all__ = ["TWIN_KINDS", "Divergence", "divergence", "kind_set"]

@@ -383,3 +383,6 @@ class WarpTwin(VectorEnv):
 
     def close(self, **kwargs: Any) -> None:
         self.cpu.close()
+
+
+__all__ = ["MODEL_FIELDS", "WarpTwin", "default_set"]

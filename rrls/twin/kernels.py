@@ -220,3 +220,14 @@ def copy_point(
     w, j = wp.tid()
     if mask[w] != 0:
         field[w, j] = pool[point[w], j]
+
+
+__all__ = [
+    "Formula",
+    "begin_step",
+    "copy_point",
+    "finish_step",
+    "healthy",
+    "observe",
+    "reset_worlds",
+]

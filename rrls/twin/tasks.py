@@ -112,3 +112,19 @@ def constants(env: Any, task: TwinTask) -> Constants:
         cfrc_high=float(cfrc[1]),
         noise=float(get("_reset_noise_scale", 0.0)),
     )
+
+
+__all__ = [
+    "DIVERGES",
+    "NO_TERMINATION",
+    "PENDULUM",
+    "REFUSED",
+    "TWIN_TASKS",
+    "UNSUPPORTED_FIELDS",
+    "Z_ANGLE",
+    "Z_ANGLE_STATE",
+    "Z_FINITE",
+    "Constants",
+    "TwinTask",
+    "constants",
+]

@@ -1,0 +1,83 @@
+"""The Warp twin's pages state only what their shipped data show: the check table is rendered
+from ``check.csv``, every speed table is the logs' own, and each number quoted in prose is read
+from the logs or ``divergence.csv`` here (no warp needed)."""
+
+from __future__ import annotations
+
+import csv
+import importlib.util
+import re
+import sys
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+DOCS = ROOT / "docs"
+RECORD = DOCS / "results" / "gpu" / "h100-2026-11-27"
+
+
+def _twin_check():
+    spec = importlib.util.spec_from_file_location("twin_check", ROOT / "benchmarks/twin_check.py")
+    module = importlib.util.module_from_spec(spec)
+    sys.modules["twin_check"] = module
+    spec.loader.exec_module(module)
+    return module
+
+
+def table_lines(path: Path) -> list[str]:
+    return [line for line in path.read_text().splitlines() if line.startswith("|")]
+
+
+def row(log: str, *cells: str) -> list[str]:
+    """The cells of the log's table row that starts with ``cells``."""
+    for line in table_lines(RECORD / log):
+        parts = [c.strip() for c in line.strip("|").split("|")]
+        if parts[: len(cells)] == list(cells):
+            return parts
+    raise AssertionError(f"no row {cells} in {log}")
+
+
+def test_the_check_tables_are_rendered_from_the_shipped_csvs():
+    markdown = _twin_check().markdown
+    twin, record = (DOCS / "twin.md").read_text(), (RECORD.parent / f"{RECORD.name}.md").read_text()
+    assert markdown(DOCS / "results" / "twin" / "check.csv") in twin
+    assert markdown(RECORD / "twin_check.csv") in record
+
+
+def test_the_speed_tables_are_the_logs_own():
+    twin, record = (DOCS / "twin.md").read_text(), (RECORD.parent / f"{RECORD.name}.md").read_text()
+    for log in ("warp_speed.log", "twin_speed.log", "twin_train.log"):
+        for line in table_lines(RECORD / log):
+            assert line in record, (log, line)
+    for log in ("twin_speed.log", "twin_train.log"):
+        for line in table_lines(RECORD / log):
+            assert line in twin, (log, line)
+
+
+def test_prose_numbers_are_read_from_the_data():
+    twin = (DOCS / "twin.md").read_text()
+    performance = (DOCS / "performance.md").read_text()
+    protocol = (DOCS / "protocol.md").read_text()
+    hopper_4096 = row("twin_speed.log", "hopper", "4096")[2]
+    rate = float(hopper_4096.replace(",", ""))
+    assert f"runs {hopper_4096} env steps/s, {rate / 200_000:.1f}× the 200 000" in twin
+    assert f"Hopper: {hopper_4096} env steps/s at 4 096 worlds" in " ".join(performance.split())
+    k = {n: row("twin_train.log", "td3", "hopper", n)[3] for n in ("1", "32", "128")}
+    text = " ".join(protocol.split())
+    assert f"train at {k['128']} env steps/s together (K = 1: {k['1']}, K = 32: {k['32']})" in text
+    hours = 250 * 5_000_000 / float(k["128"].replace(",", "")) / 3600
+    assert f"≈ {hours:.0f} h** of training" in text
+
+    with (DOCS / "results" / "twin" / "divergence.csv").open() as f:
+        rows = {int(r["step"]): r for r in csv.DictReader(f)}
+
+    def at(task: str, step: int) -> float:
+        return float(rows[step][task])
+
+    prose = " ".join(twin.split())
+    cheetah10 = max(at("halfcheetah", t) for t in range(1, 11))
+    assert f"HalfCheetah stays within {cheetah10:.1e} for 10 steps" in prose
+    assert f"({at('halfcheetah', 100):.2f} at 100 steps, {at('halfcheetah', 1000):.1f} at" in prose
+    assert f"Ant is the contact difference above ({at('ant', 100):.1f} at 100 steps)" in prose
+    for task in ("hopper", "walker", "invertedpendulum"):  # "stop early": within 50 steps
+        assert all(r[task] == "nan" for s, r in rows.items() if s > 50), task
+    assert re.search(r"end Hopper's, Walker2d's and\s+InvertedPendulum's episodes within 50", twin)
