@@ -6,10 +6,11 @@ import io
 import json
 import os
 import tempfile
+import threading
 from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
-from typing import Any
+from typing import Any, ClassVar
 
 import numpy as np
 
@@ -101,12 +102,22 @@ class DirectoryLock:
     ``flock`` held by the open file, so a killed process releases it (no stale lock files).
     """
 
+    #: (directory, thread) pairs held, and how many holders: a thread may nest its own locks (a
+    #: benchmark's run holds its directory, then trains there); another thread or process may not
+    _held: ClassVar[dict[tuple[Path, int], int]] = {}
+
     def __init__(self, directory: str | Path) -> None:
         self.directory = Path(directory)
         self._fd: int | None = None
+        self._nested = False
 
     def __enter__(self) -> DirectoryLock:
         self.directory.mkdir(parents=True, exist_ok=True)
+        key = (self.directory.resolve(), threading.get_ident())
+        if key in self._held:
+            self._held[key] += 1
+            self._nested = True
+            return self
         fd = os.open(self.directory / ".lock", os.O_RDWR | os.O_CREAT, 0o666)
         try:
             import fcntl
@@ -122,9 +133,18 @@ class DirectoryLock:
                 "finish or use another output directory"
             ) from None
         self._fd = fd
+        self._held[key] = 1
         return self
 
     def __exit__(self, *exc: object) -> None:
+        key = (self.directory.resolve(), threading.get_ident())
+        if key in self._held:
+            self._held[key] -= 1
+            if self._held[key] == 0:
+                del self._held[key]
+        if self._nested:
+            self._nested = False
+            return
         if self._fd is not None:
             os.close(self._fd)  # closing the descriptor releases the flock
             self._fd = None

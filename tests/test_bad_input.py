@@ -10,6 +10,7 @@ import stat
 import subprocess
 import sys
 import textwrap
+import threading
 import time
 import warnings
 
@@ -152,10 +153,23 @@ def test_an_evaluation_directory_is_locked_while_in_use(tmp_path):
     from rrls._io import DirectoryLock
 
     out = tmp_path / "ev"
-    with DirectoryLock(out):
+    held, release = threading.Event(), threading.Event()
+
+    def hold() -> None:  # another holder (a thread here; another process the same)
+        with DirectoryLock(out):
+            held.set()
+            release.wait(30)
+
+    holder = threading.Thread(target=hold)
+    holder.start()
+    held.wait(30)
+    try:
         with pytest.raises(FileExistsError, match=f"{out} is in use"):
             evaluate(_ip_policy(), "invertedpendulum", "1d", mesh=2, episodes=1, out_dir=out)
         assert not (out / "evaluation.json").exists() and not (out / "chunks").exists()
+    finally:
+        release.set()
+        holder.join()
     # released: the same evaluation now runs
     evaluate(_ip_policy(), "invertedpendulum", "1d", mesh=2, episodes=1, out_dir=out)
     assert (out / "summary.json").exists()

@@ -17,12 +17,14 @@ from __future__ import annotations
 import json
 import multiprocessing
 from collections.abc import Callable
+from contextlib import ExitStack
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 import torch
 
+from rrls._io import DirectoryLock
 from rrls.agents import graphs
 from rrls.agents.config import Diverged, TrainConfig
 from rrls.agents.envs import env_factory, make_envs
@@ -65,6 +67,14 @@ def train_group(
         return []
     hyper = hyperparameters(configs[0])
     _check_group(configs, hyper)
+    with ExitStack() as locks:  # a second command writing the same run directory is refused
+        for c in configs:
+            if c.out is not None:
+                locks.enter_context(DirectoryLock(c.out))
+        return _train_runs(configs, resume, hyper, on_episode)
+
+
+def _train_runs(configs, resume, hyper, on_episode) -> list[Path]:
     runs = [Run(c, resume, hyper) for c in configs]
     try:
         pending = [k for k, run in enumerate(runs) if not run.finished]

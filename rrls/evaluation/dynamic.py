@@ -174,8 +174,7 @@ def evaluate_dynamic(
     from rrls.evaluation.lanes import episode_seeds
     from rrls.evaluation.policies import as_policy
 
-    if episodes < 1:
-        raise ValueError(f"episodes must be >= 1, got {episodes}")
+    _check_arguments(episodes, batch_size, history, seed, alpha, rate_limit)
     tc = game == "adversarial" and rate_limit is not None and rate_game == "tc"
     extras = {
         "rate_limit": rate_limit,
@@ -301,6 +300,26 @@ def evaluate_run_dynamic(
     )
 
 
+def _check_arguments(
+    episodes: Any, batch_size: Any, history: Any, seed: Any, alpha: Any, rate_limit: Any
+) -> None:
+    """The static evaluation's rules, one line naming the argument and what is valid."""
+    from rrls.evaluation.protocol import check_counts
+
+    check_counts(episodes=episodes, batch_size=batch_size, history=history)
+    if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or not 0 <= seed < 2**32:
+        raise ValueError(f"seed must be an integer in [0, 2**32), got {seed!r}")
+    if isinstance(alpha, bool) or not isinstance(alpha, (int, float)) or not 0 <= alpha <= 1:
+        raise ValueError(f"alpha must be a number in [0, 1], got {alpha!r}")
+    if rate_limit is not None and (
+        isinstance(rate_limit, bool)
+        or not isinstance(rate_limit, (int, float))
+        or not np.isfinite(rate_limit)
+        or rate_limit <= 0
+    ):
+        raise ValueError(f"rate_limit must be None or a finite number > 0, got {rate_limit!r}")
+
+
 def _actions(out: Any, who: str, n: int) -> np.ndarray:
     """A policy's batch of actions, or a ``PolicyError`` naming which policy misbehaved."""
     from rrls.evaluation.lanes import PolicyError
@@ -310,6 +329,8 @@ def _actions(out: Any, who: str, n: int) -> np.ndarray:
         raise PolicyError(f"the {who} returned {actions.dtype} values; actions must be numbers")
     if actions.ndim != 2 or len(actions) != n:
         raise PolicyError(f"the {who} returned shape {actions.shape} for {n} observations")
+    if not np.isfinite(actions).all():
+        raise PolicyError(f"the {who} returned non-finite actions (NaN or inf)")
     return actions
 
 

@@ -1,0 +1,78 @@
+"""``rrls train`` holds its run directory's lock, as a benchmark's runs and ``submit`` do: a
+second command writing the same directory is refused in one line, and nothing it would have
+written (a second copy of every curve row) reaches the first run's files."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+import textwrap
+
+import pytest
+
+pytest.importorskip("torch")
+
+from rrls._io import DirectoryLock
+from rrls.cli import main
+
+HOLD = textwrap.dedent(
+    """
+    import sys, time
+    from rrls._io import DirectoryLock
+    with DirectoryLock(sys.argv[1]):
+        print("held", flush=True)
+        time.sleep(60)
+    """
+)
+
+
+def test_a_second_train_into_a_held_directory_is_refused_in_one_line(tmp_path, capsys):
+    out = tmp_path / "run"
+    holder = subprocess.Popen([sys.executable, "-c", HOLD, str(out)], stdout=subprocess.PIPE)
+    try:
+        assert holder.stdout.readline().strip() == b"held"
+        argv = ["train", "--algo", "td3", "--task", "invertedpendulum", "--steps", "50"]
+        argv += ["--learning-starts", "20", "--eval-every", "0", "--out", str(out)]
+        code = main(argv)
+        err = capsys.readouterr().err.strip().splitlines()
+    finally:
+        holder.kill()
+        holder.wait()
+    assert code == 2
+    assert len(err) == 1 and "in use by another running rrls command" in err[0], err
+    assert str(out) in err[0]
+    assert not (out / "scalars.csv").exists()
+    # the holder gone, the same command trains
+    assert main(argv) == 0 and (out / "policy.npz").exists()
+
+
+def test_a_process_nests_its_own_locks_but_another_may_not(tmp_path):
+    with DirectoryLock(tmp_path), DirectoryLock(tmp_path):  # a run inside its benchmark's lock
+        pass
+    with DirectoryLock(tmp_path):
+        probe = "from rrls._io import DirectoryLock; import sys\n"
+        probe += "try:\n    DirectoryLock(sys.argv[1]).__enter__()\nexcept FileExistsError:\n"
+        probe += "    sys.exit(7)\n"
+        code = subprocess.run([sys.executable, "-c", probe, str(tmp_path)]).returncode
+    assert code == 7
+    # released: another process may take it now
+    assert subprocess.run([sys.executable, "-c", probe, str(tmp_path)]).returncode == 0
+
+
+def test_another_thread_of_the_same_process_may_not_take_a_held_lock(tmp_path):
+    import threading
+
+    refused = []
+
+    def probe() -> None:
+        try:
+            with DirectoryLock(tmp_path):
+                pass
+        except FileExistsError as err:
+            refused.append(str(err))
+
+    with DirectoryLock(tmp_path):
+        t = threading.Thread(target=probe)
+        t.start()
+        t.join()
+    assert refused and "in use by another running rrls command" in refused[0]
