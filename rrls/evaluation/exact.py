@@ -31,6 +31,8 @@ True
 
 from __future__ import annotations
 
+import threading
+
 import numpy as np
 
 __all__ = ["ExactLinear", "slice_bits"]
@@ -72,16 +74,27 @@ class ExactLinear:
         self.w_hi = hi
         self.w_both = np.ascontiguousarray(np.concatenate([hi, lo], axis=1))  # [k, 2n]
         # Work buffers by batch size: fresh multi-megabyte arrays page-fault on first touch,
-        # which cost ~5x the arithmetic (measured, B = 1000, k = 256).
-        self._scratch: dict[int, tuple[np.ndarray, ...]] = {}
+        # which cost ~5x the arithmetic (measured, B = 1000, k = 256). One set per thread: a
+        # policy called from several threads at once must not share them.
+        self._local = threading.local()
 
     def _buffers(self, b: int) -> tuple[np.ndarray, ...]:
-        if b not in self._scratch:
-            if len(self._scratch) >= 4:
-                self._scratch.pop(next(iter(self._scratch)))
+        scratch: dict[int, tuple[np.ndarray, ...]] = self._local.__dict__.setdefault("s", {})
+        if b not in scratch:
+            if len(scratch) >= 4:
+                scratch.pop(next(iter(scratch)))
             k, n = self.k, self.n
-            self._scratch[b] = (*(np.empty((b, k)) for _ in range(3)), np.empty((b, 2 * n)))
-        return self._scratch[b]
+            scratch[b] = (*(np.empty((b, k)) for _ in range(3)), np.empty((b, 2 * n)))
+        return scratch[b]
+
+    def __getstate__(self) -> dict:
+        state = self.__dict__.copy()
+        del state["_local"]  # work buffers are not pickled: each process makes its own
+        return state
+
+    def __setstate__(self, state: dict) -> None:
+        self.__dict__.update(state)
+        self._local = threading.local()
 
     def __call__(self, x: np.ndarray) -> np.ndarray:
         x = np.asarray(x)
