@@ -588,3 +588,20 @@ def test_committed_runs_resume_a_benchmark_on_a_fresh_machine(smoke, tmp_path, c
     assert main([*SMOKE, "--out", str(fresh)]) == 0
     assert "(5 finished, 0 to run)" in capsys.readouterr().err
     assert (fresh / "report" / "report.md").exists()
+
+
+@needs_torch
+def test_a_benchmark_whose_runs_all_failed_says_so_without_a_report(tmp_path, capsys):
+    out = tmp_path / "bench"
+    algos = ["--algos", "td3,dr"]
+    for algo in ("td3", "dr"):  # every run fails: a damaged checkpoint each
+        run = out / "runs" / f"{algo}-invertedpendulum-1d-seed0"
+        run.mkdir(parents=True)
+        (run / "checkpoint.pt").write_bytes(b"not a checkpoint")
+    assert main([*SMOKE, "--out", str(out), *algos]) == 1
+    err = capsys.readouterr().err
+    assert "2 run(s) failed" in err and "Traceback" not in err
+    assert not (out / "report").exists()
+    assert main(["report", str(out)]) == 2
+    lines = capsys.readouterr().err.strip().splitlines()
+    assert len(lines) == 1 and "no run has finished (2 failed" in lines[0], lines

@@ -67,6 +67,7 @@ def make_report(
     from rrls._io import atomic_write_bytes, atomic_write_json
 
     root = Path(root)
+    _check_has_runs(root)
     if reference is not None:
         from rrls.experiments.reference import Reference, check_compatible, load_reference
 
@@ -103,6 +104,17 @@ def make_report(
         text = text.replace(dynamic, "\n".join(per_run) + "\n" + dynamic, 1)
     atomic_write_bytes(out / "report.md", text.encode())
     return out / "report.md"
+
+
+def _check_has_runs(root: Path) -> None:
+    """A benchmark none of whose runs finished has nothing to report: say so in one line."""
+    from rrls.experiments.store import load_store
+
+    if len(load_store(root)["evaluations"]):
+        return
+    failed = sorted(p.parent.name for p in (root / "runs").glob("*/error.txt"))
+    why = f"{len(failed)} failed (see {root / 'runs'}/*/error.txt)" if failed else "none ran"
+    raise ValueError(f"{root}: no run has finished ({why}); there is nothing to report yet")
 
 
 def _per_run(root: Path, tables: Path) -> list[str]:

@@ -222,7 +222,7 @@ def benchmark(
     from rrls.experiments.store import build_store
 
     build_store(root)
-    if report:
+    if report and (finished or len(display.failures) < len(todo)):  # else: nothing to report
         from rrls.experiments.report import make_report
 
         path = make_report(root)
