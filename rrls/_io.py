@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import errno
 import io
 import json
 import os
@@ -148,3 +149,22 @@ class DirectoryLock:
         if self._fd is not None:
             os.close(self._fd)  # closing the descriptor releases the flock
             self._fd = None
+
+
+def resource_error(err: BaseException) -> str:
+    """A filesystem or memory error in words: what failed, on which file, and what to do."""
+    if isinstance(err, MemoryError):
+        return "out of memory: choose smaller sizes (--mesh, --episodes, --workers, --seeds)"
+    name = getattr(err, "filename", None)
+    what = getattr(err, "strerror", None) or str(err) or type(err).__name__
+    hint = {
+        errno.EROFS: "the file system is read-only: choose another --out",
+        errno.ENOSPC: "the disk is full: free space or choose another --out",
+        errno.EDQUOT: "the disk quota is exceeded: free space or choose another --out",
+        errno.EACCES: "permission denied: choose another --out",
+        errno.EPERM: "permission denied: choose another --out",
+        errno.EISDIR: "a directory stands where a file is expected",
+        errno.ENOTDIR: "a file stands where a directory is expected",
+    }.get(getattr(err, "errno", None), "")
+    where = f" ({name})" if name else ""
+    return f"{what}{where}" + (f"; {hint}" if hint else "")
