@@ -417,5 +417,13 @@ class Split:
     def __repr__(self) -> str:
         return f"Split({self.kind}, region={self.region!r} of {self.box!r})"
 
+    def __eq__(self, other: object) -> bool:  # by value: a split read back equals its source
+        if not isinstance(other, Split):
+            return NotImplemented
+        return (self.kind, self.box, self.region) == (other.kind, other.box, other.region)
+
+    def __hash__(self) -> int:
+        return hash((self.kind, self.box, self.region))
+
 
 __all__ = ["ArrayLike", "Point", "Split", "UncertaintySet"]

@@ -360,7 +360,7 @@ def test_library_entry_points_refuse_bad_sets_and_seeds_before_building_anything
     with pytest.raises(ValueError, match="torsomass is a mass"):
         generate_evaluation_set(factory, {"torsomass": [-1.0, 2.0]})
     assert not built
-    with pytest.raises(ValueError, match="seed must be an integer >= 0, got -1"):
+    with pytest.raises(ValueError, match=r"seed must be an integer in \[0, 2\*\*32\), got -1"):
         evaluate(_ip_policy(), "invertedpendulum", "1d", seed=-1)
 
 

@@ -26,8 +26,11 @@ import numpy as np
 
 from rrls.physics import is_paper, physics_label
 from rrls.uncertainty import Split, UncertaintySet
+from rrls.wrappers.tc_rmdp import RATE_GAMES
 
 __all__ = ["Plan", "Protocol", "check_counts"]
+
+SPLIT_KEYS = ("kind", "names", "low", "high", "region_low", "region_high")
 
 
 def check_counts(**values: Any) -> None:
@@ -87,11 +90,60 @@ class Protocol:
         if self.max_episode_steps is not None:
             check_counts(max_episode_steps=self.max_episode_steps)
         seed = self.seed
-        if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
-            raise ValueError(f"seed must be an integer >= 0, got {seed!r}")
+        if (
+            isinstance(seed, bool)
+            or not isinstance(seed, (int, np.integer))
+            or not 0 <= seed < 2**32
+        ):
+            raise ValueError(f"seed must be an integer in [0, 2**32), got {seed!r}")
+        if not isinstance(self.uncertainty, (str, UncertaintySet)):
+            raise ValueError(
+                f"uncertainty must be a set's name or an UncertaintySet, got {self.uncertainty!r}"
+            )
+        for name in ("endpoint", "context"):  # JSON's true/false, not "no" or "false"
+            value = getattr(self, name)
+            if not isinstance(value, bool) and not (name == "endpoint" and value is None):
+                valid = "true, false or null" if name == "endpoint" else "true or false"
+                raise ValueError(f"{name} must be {valid}, got {value!r}")
+        if not isinstance(self.physics, str):
+            raise ValueError(f"physics must be v5 or paper, got {self.physics!r}")
+        if self.split is not None and not isinstance(self.split, (str, Split)):
+            raise ValueError(f"split must be a split's text or a Split, got {self.split!r}")
+        rate = self.rate_limit
+        if rate is not None and (
+            isinstance(rate, bool)
+            or not isinstance(rate, (int, float, np.floating))
+            or not np.isfinite(rate)
+            or rate <= 0
+        ):
+            raise ValueError(f"rate_limit must be null or a finite number > 0, got {rate!r}")
+        if self.rate_game not in RATE_GAMES:
+            raise ValueError(
+                f"rate_game must be one of {', '.join(RATE_GAMES)}, got {self.rate_game!r}"
+            )
         object.__setattr__(self, "physics", physics_label(self.physics))
         if isinstance(self.disruptors, Mapping):
             object.__setattr__(self, "disruptors", tuple(self.disruptors.items()))
+        if not isinstance(self.disruptors, (list, tuple)) or not all(
+            isinstance(p, (list, tuple)) and len(p) == 2 and isinstance(p[0], str)
+            for p in self.disruptors
+        ):
+            raise ValueError(
+                f"disruptors must be name: strength pairs (a strength, or [low, high]), got "
+                f"{self.disruptors!r:.80}"
+            )
+        for name, value in self.disruptors:
+            values = value if isinstance(value, (list, tuple, np.ndarray)) else [value]
+            if not all(
+                isinstance(x, (int, float, np.number))
+                and not isinstance(x, bool)
+                and np.isfinite(x)
+                for x in values
+            ):
+                raise ValueError(
+                    f"disruptor {name!r}: its strength must be a finite number or [low, high], "
+                    f"got {value!r}"
+                )
         pairs = tuple(
             (str(n), tuple(float(x) for x in v) if isinstance(v, (list, tuple, np.ndarray)) else v)
             for n, v in self.disruptors
@@ -130,13 +182,19 @@ class Protocol:
 
     @classmethod
     def from_json(cls, data: Mapping[str, Any]) -> Protocol:
-        """The inverse of ``to_json`` (unknown keys are refused)."""
+        """The inverse of ``to_json`` (unknown keys, wrong types and values are refused)."""
+        if not isinstance(data, Mapping):
+            raise ValueError(f"a protocol is a JSON object of fields, got {data!r:.60}")
         known = set(cls.__dataclass_fields__)
         unknown = sorted(set(data) - known)
         if unknown:
             raise ValueError(f"not protocol fields: {', '.join(unknown)}; valid: {sorted(known)}")
         kw = dict(data)
         box = kw.get("uncertainty")
+        for part, need in ((box, ("names", "low", "high")), (kw.get("split"), SPLIT_KEYS)):
+            if isinstance(part, Mapping) and not set(need) <= set(part):
+                missing = ", ".join(sorted(set(need) - set(part)))
+                raise ValueError(f"protocol field missing {missing} in {dict(part)!r:.80}")
         if isinstance(box, Mapping):
             kw["uncertainty"] = UncertaintySet(
                 tuple(box["names"]),
@@ -153,9 +211,10 @@ class Protocol:
                 "a protocol over a schedule family is recorded as JSON but not rebuilt from it: "
                 "pass the ScheduleFamily again (Protocol(..., schedule=family))"
             )
-        kw["disruptors"] = tuple(
-            (n, tuple(v) if isinstance(v, list) else v) for n, v in kw.get("disruptors", ())
-        )
+        pairs = kw.get("disruptors", ())
+        if isinstance(pairs, list) and all(isinstance(p, list) and len(p) == 2 for p in pairs):
+            pairs = tuple((n, tuple(v) if isinstance(v, list) else v) for n, v in pairs)
+        kw["disruptors"] = pairs  # anything else: refused by the constructor, by name
         return cls(**kw)
 
     # --- planning ----------------------------------------------------------------------------

@@ -1,0 +1,80 @@
+"""``Protocol`` accepts only what it claims: every field's type and range is checked however the
+protocol is made (``Protocol(...)`` or ``from_json``), with one line naming the field and value,
+and every protocol reads back from its JSON as itself."""
+
+from __future__ import annotations
+
+import json
+import math
+
+import pytest
+
+from rrls.evaluation.protocol import Protocol
+from rrls.uncertainty import Split, UncertaintySet
+
+HOSTILE = [
+    ([], "a protocol is a JSON object"),
+    ("", "a protocol is a JSON object"),
+    (None, "a protocol is a JSON object"),
+    ({"endpoint": "no"}, "endpoint must be true, false or null"),
+    ({"endpoint": 1}, "endpoint must be"),
+    ({"context": "false"}, "context must be true or false"),
+    ({"rate_limit": math.nan}, "rate_limit must be"),
+    ({"rate_limit": math.inf}, "rate_limit must be"),
+    ({"rate_limit": -1}, "rate_limit must be"),
+    ({"rate_limit": "x"}, "rate_limit must be"),
+    ({"rate_limit": True}, "rate_limit must be"),
+    ({"rate_game": "bogus"}, "rate_game must be one of"),
+    ({"mesh": 2.9}, "mesh must be an integer"),
+    ({"mesh": "3"}, "mesh must be an integer"),
+    ({"episodes": 0}, "episodes must be an integer"),
+    ({"dynamic_episodes": -2}, "dynamic_episodes must be"),
+    ({"max_episode_steps": 0}, "max_episode_steps must be"),
+    ({"seed": -1}, "seed must be an integer"),
+    ({"seed": 2**32}, "seed must be an integer"),
+    ({"seed": 1e400}, "seed must be an integer"),
+    ({"physics": "v9"}, "unknown physics"),
+    ({"physics": 5}, "physics must be"),
+    ({"uncertainty": 3}, "uncertainty must be"),
+    ({"uncertainty": {"names": ["torsomass"], "high": [2.0]}}, "missing low"),
+    ({"uncertainty": {"names": ["torsomass"], "low": [math.nan], "high": [2.0]}}, "finite"),
+    ({"split": 3}, "split must be"),
+    ({"split": {"kind": "extrapolation"}}, "missing"),
+    ({"disruptors": 5}, "disruptors must be name: strength pairs"),
+    ({"disruptors": [["obs_noise", "x"]]}, "strength must be a finite number"),
+    ({"disruptors": [["obs_noise", math.nan]]}, "strength must be a finite number"),
+    ({"not_a_field": 1}, "not protocol fields"),
+]
+
+
+@pytest.mark.parametrize(("data", "message"), HOSTILE)
+def test_a_hostile_protocol_is_refused_naming_the_field(data, message):
+    with pytest.raises(ValueError, match=message):
+        Protocol.from_json(data)
+
+
+def test_the_constructor_checks_as_from_json_does():
+    with pytest.raises(ValueError, match="context must be true or false"):
+        Protocol(context="false")
+    with pytest.raises(ValueError, match="rate_limit must be"):
+        Protocol(rate_limit=math.nan)
+
+
+BOX = UncertaintySet.from_bounds({"torsomass": (1.0, 5.0), "worldfriction": (0.5, 2.0)})
+
+
+@pytest.mark.parametrize(
+    "protocol",
+    [
+        Protocol(),
+        Protocol(uncertainty="2d", mesh=3, episodes=2, seed=7, endpoint=False, physics="paper"),
+        Protocol(uncertainty=BOX, split=Split.extrapolation(BOX, inner=0.5)),
+        Protocol(split="extrapolation:0.4"),
+        Protocol(disruptors={"obs_noise": (0.0, 0.1)}, context=True, max_episode_steps=50),
+        Protocol(rate_limit=0.1, rate_game="target", dynamic_episodes=3),
+    ],
+)
+def test_every_protocol_reads_back_as_itself(protocol):
+    again = Protocol.from_json(json.loads(json.dumps(protocol.to_json())))
+    assert again == protocol
+    assert again.to_json() == protocol.to_json()
