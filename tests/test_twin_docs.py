@@ -81,3 +81,14 @@ def test_prose_numbers_are_read_from_the_data():
     for task in ("hopper", "walker", "invertedpendulum"):  # "stop early": within 50 steps
         assert all(r[task] == "nan" for s, r in rows.items() if s > 50), task
     assert re.search(r"end Hopper's, Walker2d's and\s+InvertedPendulum's episodes within 50", twin)
+
+
+def test_the_step_floor_is_read_from_the_speed_log():
+    twin = " ".join((DOCS / "twin.md").read_text().split())
+    rate = row("twin_speed.log", "hopper", "32")[2]
+    floor_ms = 32 / float(rate.replace(",", "")) * 1000
+    assert f"at 32 worlds it takes {floor_ms:.1f} ms ({rate} env steps/s" in twin
+    k1 = row("twin_train.log", "td3", "hopper", "1")[3]
+    assert f"({k1} env steps/s against 784 on the same kind of machine)" in twin
+    first = (RECORD.parent / "h100-2026-11-25.md").read_text()
+    assert "| cuda | td3 | 1 | 784 |" in first  # the CPU-physics figure quoted
