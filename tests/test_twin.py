@@ -56,7 +56,11 @@ def test_every_kind_of_every_task(task):
         except ValueError:
             continue
         d = divergence(task, box, worlds=4, steps=10)
-        assert np.nanmax(d.qpos) < QPOS_10, (kind, d.qpos)
+        assert d.qpos[0] < QPOS_1, (kind, d.qpos)
+        # HalfCheetah's contacts amplify float32 rounding fastest (measured: up to 2.7e-4
+        # after ten steps, friction loss; docs/results/twin/check.csv)
+        bound = 1e-3 if task == "halfcheetah" else QPOS_10
+        assert np.nanmax(d.qpos) < bound, (kind, d.qpos)
 
 
 def test_a_twin_without_the_points_is_told_apart():
