@@ -27,23 +27,8 @@ import numpy as np
 
 import rrls  # noqa: F401  (registers the envs)
 from rrls.envs import get_uncertainty_set
+from rrls.twin.env import MODEL_FIELDS as FIELDS
 
-#: MJWarp's batched model fields that rrls's parameter kinds write or that ``mj_setConst``
-#: derives from them; each world's values are copied from a CPU model at that world's point
-FIELDS = (
-    "body_mass",
-    "body_inertia",
-    "body_ipos",
-    "body_subtreemass",
-    "body_invweight0",
-    "geom_friction",
-    "dof_damping",
-    "dof_armature",
-    "dof_frictionloss",
-    "dof_invweight0",
-    "actuator_gear",
-    "actuator_acc0",
-)
 IDS = {"hopper": "rrls/robust-hopper-v0", "halfcheetah": "rrls/robust-halfcheetah-v0"}
 
 

@@ -270,7 +270,7 @@ class WarpTwin(VectorEnv):
                 wp.capture_launch(self._graph)
             else:
                 wp.capture_launch(self._graph)
-        info = {"final_obs": self._out(self.final_obs), "_final_obs": self._out(self.done)}
+        info = {"final_obs": self._out(self.final_obs), "_final_obs": self._out(self.done, bool)}
         return (
             self._out(self.obs),
             self._out(self.reward),

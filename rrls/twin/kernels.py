@@ -71,13 +71,19 @@ def healthy(
         return int(ok)
     if f.health == Z_FINITE:  # ant: a finite state and z in the closed range
         ok = f.z_low <= qpos[w, 2] and qpos[w, 2] <= f.z_high
-        for i in range(nq):
-            if not wp.isfinite(qpos[w, i]):
-                ok = False
-        for j in range(nv):
-            if not wp.isfinite(qvel[w, j]):
-                ok = False
-        return int(ok)
+        return int(ok) * finite(qpos, qvel, w)
+    return 1
+
+
+@wp.func
+def finite(qpos: wp.array2d(dtype=float), qvel: wp.array2d(dtype=float), w: int) -> int:
+    """1 if world ``w``'s qpos and qvel are all finite."""
+    for i in range(qpos.shape[1]):
+        if not wp.isfinite(qpos[w, i]):
+            return 0
+    for j in range(qvel.shape[1]):
+        if not wp.isfinite(qvel[w, j]):
+            return 0
     return 1
 
 
@@ -137,13 +143,7 @@ def finish_step(
     term = int(0)
     r = float(0.0)
     if f.health == PENDULUM:
-        bad = int(0)
-        for i in range(qpos.shape[1]):
-            if not wp.isfinite(qpos[w, i]):
-                bad = 1
-        for j in range(qvel.shape[1]):
-            if not wp.isfinite(qvel[w, j]):
-                bad = 1
+        bad = 1 - finite(qpos, qvel, w)
         if wp.abs(qpos[w, 1]) > 0.2:
             bad = 1
         term = bad
@@ -227,6 +227,7 @@ __all__ = [
     "begin_step",
     "copy_point",
     "finish_step",
+    "finite",
     "healthy",
     "observe",
     "reset_worlds",
