@@ -28,6 +28,10 @@ from typing import Any
 
 import numpy as np
 
+#: the most points a mesh may have: 10**6 points of 5 episodes of 1 000 steps is already
+#: 5 * 10**9 env steps; beyond it an evaluation could not finish, and the arrays alone fill memory
+MAX_MESH_POINTS = 1_000_000
+
 ArrayLike = Sequence[float] | np.ndarray
 Point = Mapping[str, float] | ArrayLike
 
@@ -173,6 +177,12 @@ class UncertaintySet:
         if int(n) != n or n < 1:
             raise ValueError(f"mesh size must be a positive integer, got {n!r}")
         n = int(n)
+        if n**self.dim > MAX_MESH_POINTS:  # refused before any array is made
+            raise ValueError(
+                f"a mesh of {n} per dimension over {self.dim} dimension(s) is {n**self.dim:,} "
+                f"points; at most {MAX_MESH_POINTS:,} (a mesh of "
+                f"{int(MAX_MESH_POINTS ** (1 / max(self.dim, 1)) + 1e-9)} here)"
+            )
         if endpoint:
             axes = [np.linspace(lo, hi, n) for lo, hi in zip(self.low, self.high)]
         else:
@@ -426,4 +436,4 @@ class Split:
         return hash((self.kind, self.box, self.region))
 
 
-__all__ = ["ArrayLike", "Point", "Split", "UncertaintySet"]
+__all__ = ["MAX_MESH_POINTS", "ArrayLike", "Point", "Split", "UncertaintySet"]

@@ -78,3 +78,32 @@ def test_every_protocol_reads_back_as_itself(protocol):
     again = Protocol.from_json(json.loads(json.dumps(protocol.to_json())))
     assert again == protocol
     assert again.to_json() == protocol.to_json()
+
+
+def test_sizes_are_bounded_before_anything_is_allocated():
+    import time
+
+    from rrls.uncertainty import MAX_MESH_POINTS
+
+    start = time.perf_counter()
+    with pytest.raises(ValueError, match=r"100,000,000 points; at most 1,000,000"):
+        Protocol(uncertainty="1d", mesh=100_000_000).plan("hopper")
+    with pytest.raises(ValueError, match=r"at most 1,000,000 \(a mesh of 100 here\)"):
+        Protocol(uncertainty="3d", mesh=101).plan("hopper")
+    with pytest.raises(ValueError, match=r"episodes; at most 100,000,000 per evaluation"):
+        Protocol(uncertainty="1d", mesh=1000, episodes=1_000_000).plan("hopper")
+    assert time.perf_counter() - start < 5  # refused, not computed
+    assert len(Protocol(uncertainty="3d", mesh=100, episodes=1).plan("hopper").points) == (
+        MAX_MESH_POINTS
+    )
+
+
+def test_the_cli_refuses_a_huge_mesh_in_one_line(tmp_path, capsys):
+    from rrls.cli import main
+    from rrls.evaluation.policies import MLPPolicy
+
+    policy = str(MLPPolicy.random(11, 3, hidden=(8,)).save(tmp_path / "p.npz"))
+    argv = ["evaluate", policy, "--task", "hopper", "--uncertainty", "1d", "--mesh", "100000000"]
+    assert main([*argv, "--out", str(tmp_path / "e")]) == 2
+    lines = capsys.readouterr().err.strip().splitlines()
+    assert len(lines) == 1 and "at most 1,000,000" in lines[0], lines

@@ -28,8 +28,10 @@ from rrls.physics import is_paper, physics_label
 from rrls.uncertainty import Split, UncertaintySet
 from rrls.wrappers.tc_rmdp import RATE_GAMES
 
-__all__ = ["Plan", "Protocol", "check_counts"]
+__all__ = ["MAX_EPISODES", "Plan", "Protocol", "check_counts"]
 
+#: the most episodes one evaluation plans (10**8 episodes of 1 000 steps: 10**11 env steps)
+MAX_EPISODES = 100_000_000
 SPLIT_KEYS = ("kind", "names", "low", "high", "region_low", "region_high")
 
 
@@ -238,6 +240,11 @@ class Protocol:
                 self.schedule.points(), _ranged(mesh_box, self.schedule).mesh(self.mesh, endpoint)
             )
         _check_strengths(mesh_box, points)
+        if len(points) * self.episodes > MAX_EPISODES:  # before any per-episode array is made
+            raise ValueError(
+                f"{len(points):,} points x {self.episodes:,} episodes = "
+                f"{len(points) * self.episodes:,} episodes; at most {MAX_EPISODES:,} per evaluation"
+            )
         settings = {
             "physics": physics_label(self.paper),
             "mesh": self.mesh,
