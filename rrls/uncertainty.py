@@ -70,7 +70,11 @@ class UncertaintySet:
                 f"got shapes {low.shape} and {high.shape}"
             )
         if not (np.all(np.isfinite(low)) and np.all(np.isfinite(high))):
-            raise ValueError(f"bounds must be finite, got low={low} high={high}")
+            bad = [n for n, lo, hi in zip(names, low, high) if not np.isfinite([lo, hi]).all()]
+            raise ValueError(
+                f"bounds must be finite: {', '.join(bad)} got "
+                + ", ".join(f"[{lo}, {hi}]" for n, lo, hi in zip(names, low, high) if n in bad)
+            )
         bad = [n for n, lo, hi in zip(names, low, high) if lo > hi]
         if bad:
             raise ValueError(f"low > high for {bad}")

@@ -69,3 +69,11 @@ def test_a_built_in_task_is_never_replaced_nor_unregistered():
         max_episode_steps=hopper.max_episode_steps, paper_env=hopper.paper_id, check=False,
     )  # fmt: skip
     assert again is hopper
+
+
+@pytest.mark.parametrize("bad", [np.nan, np.inf, -np.inf])
+def test_a_non_finite_bound_names_its_parameter(bad):
+    with pytest.raises(ValueError) as got:
+        _register("probenan", (1.0, bad))
+    assert "probenan" not in TASKS
+    assert "bounds must be finite: torsomass got [1.0, " in str(got.value)

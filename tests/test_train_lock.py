@@ -76,3 +76,18 @@ def test_another_thread_of_the_same_process_may_not_take_a_held_lock(tmp_path):
         t.start()
         t.join()
     assert refused and "in use by another running rrls command" in refused[0]
+
+
+def test_a_resume_under_other_settings_names_each_difference(tmp_path, capsys, monkeypatch):
+    out = tmp_path / "run"
+    argv = ["train", "--algo", "td3", "--task", "invertedpendulum", "--steps", "80"]
+    argv += ["--learning-starts", "20", "--eval-every", "0", "--checkpoint-every", "40"]
+    argv += ["--out", str(out)]
+    monkeypatch.setenv("RRLS_STOP_AT", "40")
+    assert main([*argv, "--physics", "paper"]) == 3  # stopped after its first checkpoint
+    monkeypatch.delenv("RRLS_STOP_AT")
+    capsys.readouterr()
+    assert main([*argv, "--resume", "--learning-rate", "0.01"]) == 2
+    line = capsys.readouterr().err.strip().splitlines()[-1]
+    assert "cannot resume" in line
+    assert "physics 'paper' (now 'v5')" in line and "learning_rate 0.0003 (now 0.01)" in line

@@ -238,9 +238,14 @@ class Run:
             k for k in current["hyper"] if saved.get("hyper", {}).get(k) != current["hyper"][k]
         ]
         if diff:
-            raise ValueError(
-                f"cannot resume {self.dir}: it was trained with other {', '.join(sorted(diff))}"
+
+            def value(config: dict[str, Any], key: str) -> Any:
+                return config.get(key, config.get("hyper", {}).get(key))
+
+            what = "; ".join(
+                f"{k} {value(saved, k)!r} (now {value(current, k)!r})" for k in sorted(diff)
             )
+            raise ValueError(f"cannot resume {self.dir}: it was trained with {what}")
 
     def load(self) -> dict[str, Any] | None:
         """The saved state when resuming (checked against this config), else ``None``."""
