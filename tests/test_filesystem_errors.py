@@ -105,3 +105,13 @@ def test_a_report_of_a_read_only_benchmark(tmp_path, readonly, capsys):
     capsys.readouterr()
     assert main(["report", str(readonly / "bench")]) == 2
     assert "read-only" in one_line(capsys)
+
+
+@pytest.mark.parametrize("dry", [True, False])
+def test_benchmark_out_a_regular_file_is_refused_dry_run_too(tmp_path, capsys, dry):
+    pytest.importorskip("torch")
+    out = tmp_path / "file"
+    out.write_text("not a directory")
+    argv = ["benchmark", "--preset", "smoke", "--algos", "td3", "--out", str(out)]
+    assert main(argv + (["--dry-run"] if dry else [])) == 2
+    assert "is a file, not a directory" in one_line(capsys)

@@ -124,8 +124,11 @@ def _benchmark(args: argparse.Namespace) -> int:
             except ValueError as err:
                 return _fail("benchmark", str(err))
 
+    out = Path(args.out)
+    if out.exists() and not out.is_dir():  # the real run refuses it: so does the dry run
+        return _fail("benchmark", f"--out {out} is a file, not a directory: choose another --out")
     if args.dry_run:
-        return _dry_run(Path(args.out), spec, jobs or 0, args.backend, args.pack)
+        return _dry_run(out, spec, jobs or 0, args.backend, args.pack)
     todo, _ = _pending(Path(args.out), spec)
     if not confirmed("benchmark", len(todo), args.yes):
         return 1
