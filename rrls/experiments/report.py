@@ -67,7 +67,6 @@ def make_report(
     from rrls._io import atomic_write_bytes, atomic_write_json
 
     root = Path(root)
-    _check_has_runs(root)
     if reference is not None:
         from rrls.experiments.reference import Reference, check_compatible, load_reference
 
@@ -78,6 +77,7 @@ def make_report(
         if not benchfile.spec_path(root).exists():
             raise ValueError(f"{root} holds no benchmark.json: a reference needs its protocol")
         check_compatible(reference, benchfile.read_spec_json(root))
+    _check_has_runs(root)
     summary = summarise(root, reference)
     if labels:
         summary["labels"] = dict(labels)
