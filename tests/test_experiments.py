@@ -605,3 +605,20 @@ def test_a_benchmark_whose_runs_all_failed_says_so_without_a_report(tmp_path, ca
     assert main(["report", str(out)]) == 2
     lines = capsys.readouterr().err.strip().splitlines()
     assert len(lines) == 1 and "no run has finished (2 failed" in lines[0], lines
+
+
+@needs_torch
+@pytest.mark.parametrize("copied", ["result.json", "eval/episodes"])
+def test_a_file_copied_from_another_run_is_refused_by_name(tmp_path, capsys, copied):
+    import shutil
+
+    out = tmp_path / "bench"
+    assert main([*SMOKE, "--out", str(out), "--algos", "td3", "--seeds", "0-1"]) == 0
+    seed0 = out / "runs" / "td3-invertedpendulum-1d-seed0"
+    seed1 = out / "runs" / "td3-invertedpendulum-1d-seed1"
+    for path in seed1.glob(f"{copied}*"):  # the file and its seal: intact, but not seed 0's
+        shutil.copy2(path, seed0 / path.relative_to(seed1))
+    capsys.readouterr()
+    assert main(["report", str(out)]) == 2
+    line = capsys.readouterr().err.strip().splitlines()[-1]
+    assert "copied from another run" in line and "seed0" in line, line

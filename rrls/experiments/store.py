@@ -18,6 +18,7 @@ always give the same files.
 from __future__ import annotations
 
 import json
+import math
 from pathlib import Path
 from typing import Any
 
@@ -88,6 +89,31 @@ def _curves(run: Path) -> Any:
     return wide.reset_index()
 
 
+def _check_bound(run: Path, result: dict[str, Any], episodes: Any) -> None:
+    """A run's files are its own: ``result.json`` names this directory's run, and the episodes
+    beside it give its scores. A seal proves a file intact, not whose it is: a file copied from
+    another run (intact, sealed) is refused here, by name."""
+    from rrls.evaluation.metrics import point_means, scores_of
+    from rrls.experiments.spec import RunKey
+
+    key = RunKey(str(result["algorithm"]), str(result["task"]), int(result["seed"]))
+    own = key.name(str(result["uncertainty"]))
+    if own != run.name:
+        raise rundir.DamagedFile(
+            f"{run / rundir.RESULT} is the result of run {own}, not of {run.name}: copied from "
+            "another run? Re-run or withdraw this one"
+        )
+    if not len(episodes):
+        return
+    for score, value in scores_of(point_means(episodes)).items():
+        if not math.isclose(value, float(result[score]), rel_tol=1e-9, abs_tol=1e-9):
+            raise rundir.DamagedFile(
+                f"{run / 'eval'}: its episodes give {score} {value:.6g}, but "
+                f"{run / rundir.RESULT} says {float(result[score]):.6g}: a file copied from "
+                "another run? Re-run or withdraw this one"
+            )
+
+
 def build_store(root: str | Path) -> Path:
     """Scan ``root/runs/*/result.json`` and (re)write ``root/results/*``; returns that folder."""
     import pandas as pd
@@ -101,6 +127,7 @@ def build_store(root: str | Path) -> Path:
         result = read_result(run)
         cols = _columns(result)
         episodes = _read_table(run / "eval" / "episodes").rename(columns={"seed": "episode_seed"})
+        _check_bound(run, result, episodes)
         frames["evaluations"].append(episodes.assign(**cols))
         frames["curves"].append(_curves(run).assign(**cols))
         if (run / "dynamic.csv").exists():
