@@ -91,6 +91,3 @@ def normalized_score(v: ArrayLike, v_td3: ArrayLike, v_m2td3: ArrayLike) -> np.n
     if np.any(span == 0):
         raise ValueError("TD3 and M2TD3 references are equal: the normalised score is undefined")
     return (v - v_td3) / span
-
-
-__all__ = ["normalized_score"]
