@@ -117,6 +117,14 @@ def orderings(data: dict[str, dict[str, list[float]]]) -> str:
                 stats[algo] = (sum(values) / len(values), t_interval(values))
         if not stats:
             continue
+        single = [display_name(a) for a in sort_algos(data) if a not in stats]
+        unranked = f" (one seed, not ranked: {', '.join(single)})" if single else ""
+        if len(stats) == 1:
+            only = display_name(next(iter(stats)))
+            lines.append(
+                f"- **{words}**: only {only} has two seeds or more: no ordering yet{unranked}."
+            )
+            continue
         pairs = [
             f"{display_name(a)} above {display_name(b)}"
             for a in stats
@@ -129,7 +137,7 @@ def orderings(data: dict[str, dict[str, list[float]]]) -> str:
         lines.append(
             f"- **{words}**: lowest mean {display_name(low)} ({stats[low][0]:.1f}), highest "
             f"{display_name(high)} ({stats[high][0]:.1f}); non-overlapping 95 % intervals: "
-            f"{resolved}."
+            f"{resolved}{unranked}."
         )
     return "\n".join(lines) + "\n"
 
@@ -262,7 +270,9 @@ def status(folder: Path) -> str:
     total = len(spec["algos"]) * len(spec["tasks"]) * len(spec["seeds"])
     n = sum(len(v) for v in done.values())
     parts = [
-        f"{display_name(a)} seeds {', '.join(map(str, sorted(done[a])))}" for a in sort_algos(done)
+        f"{display_name(a)} seed{'s' if len(done[a]) > 1 else ''} "
+        f"{', '.join(map(str, sorted(done[a])))}"
+        for a in sort_algos(done)
     ]
     missing = [display_name(a) for a in sort_algos(spec["algos"]) if a not in done]
     return (
