@@ -304,20 +304,13 @@ def _check_arguments(
     episodes: Any, batch_size: Any, history: Any, seed: Any, alpha: Any, rate_limit: Any
 ) -> None:
     """The static evaluation's rules, one line naming the argument and what is valid."""
-    from rrls.evaluation.protocol import check_counts
+    from rrls.evaluation.protocol import check_counts, check_rate_limit, check_seed
 
     check_counts(episodes=episodes, batch_size=batch_size, history=history)
-    if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or not 0 <= seed < 2**32:
-        raise ValueError(f"seed must be an integer in [0, 2**32), got {seed!r}")
+    check_seed(seed)
     if isinstance(alpha, bool) or not isinstance(alpha, (int, float)) or not 0 <= alpha <= 1:
         raise ValueError(f"alpha must be a number in [0, 1], got {alpha!r}")
-    if rate_limit is not None and (
-        isinstance(rate_limit, bool)
-        or not isinstance(rate_limit, (int, float))
-        or not np.isfinite(rate_limit)
-        or rate_limit <= 0
-    ):
-        raise ValueError(f"rate_limit must be None or a finite number > 0, got {rate_limit!r}")
+    check_rate_limit(rate_limit)
 
 
 def _actions(out: Any, who: str, n: int) -> np.ndarray:

@@ -28,7 +28,7 @@ from rrls.physics import is_paper, physics_label
 from rrls.uncertainty import Split, UncertaintySet
 from rrls.wrappers.tc_rmdp import RATE_GAMES
 
-__all__ = ["MAX_EPISODES", "Plan", "Protocol", "check_counts"]
+__all__ = ["MAX_EPISODES", "Plan", "Protocol", "check_counts", "check_rate_limit", "check_seed"]
 
 #: the most episodes one evaluation plans (10**8 episodes of 1 000 steps: 10**11 env steps)
 MAX_EPISODES = 100_000_000
@@ -40,6 +40,23 @@ def check_counts(**values: Any) -> None:
     for name, value in values.items():
         if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 1:
             raise ValueError(f"{name} must be an integer >= 1, got {value!r}")
+
+
+def check_seed(seed: Any) -> None:
+    """Refuse a seed that is not an integer in ``[0, 2**32)``."""
+    if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or not 0 <= seed < 2**32:
+        raise ValueError(f"seed must be an integer in [0, 2**32), got {seed!r}")
+
+
+def check_rate_limit(rate: Any) -> None:
+    """Refuse a TC-RMDP rate limit that is neither None nor a finite number > 0."""
+    if rate is not None and (
+        isinstance(rate, bool)
+        or not isinstance(rate, (int, float, np.floating))
+        or not np.isfinite(rate)
+        or rate <= 0
+    ):
+        raise ValueError(f"rate_limit must be None (null) or a finite number > 0, got {rate!r}")
 
 
 class Plan(NamedTuple):
@@ -92,12 +109,7 @@ class Protocol:
         if self.max_episode_steps is not None:
             check_counts(max_episode_steps=self.max_episode_steps)
         seed = self.seed
-        if (
-            isinstance(seed, bool)
-            or not isinstance(seed, (int, np.integer))
-            or not 0 <= seed < 2**32
-        ):
-            raise ValueError(f"seed must be an integer in [0, 2**32), got {seed!r}")
+        check_seed(seed)
         if not isinstance(self.uncertainty, (str, UncertaintySet)):
             raise ValueError(
                 f"uncertainty must be a set's name or an UncertaintySet, got {self.uncertainty!r}"
@@ -111,14 +123,7 @@ class Protocol:
             raise ValueError(f"physics must be v5 or paper, got {self.physics!r}")
         if self.split is not None and not isinstance(self.split, (str, Split)):
             raise ValueError(f"split must be a split's text or a Split, got {self.split!r}")
-        rate = self.rate_limit
-        if rate is not None and (
-            isinstance(rate, bool)
-            or not isinstance(rate, (int, float, np.floating))
-            or not np.isfinite(rate)
-            or rate <= 0
-        ):
-            raise ValueError(f"rate_limit must be null or a finite number > 0, got {rate!r}")
+        check_rate_limit(self.rate_limit)
         if self.rate_game not in RATE_GAMES:
             raise ValueError(
                 f"rate_game must be one of {', '.join(RATE_GAMES)}, got {self.rate_game!r}"
