@@ -26,6 +26,7 @@ import numpy as np
 from rrls.agents.on_twin import train_on_twin
 from rrls.envs import resolve
 from rrls.twin import WarpTwin
+from rrls.twin.check import cpu_env_at
 from rrls.twin.env import default_set
 
 STARTS = 1000
@@ -73,10 +74,7 @@ def sim_to_sim(
         done |= term | trunc
     rows = []
     for w in range(n_points):
-        env = resolved.make_env()
-        env.reset(seed=0)
-        env.set_params(**dict(zip(resolved.box.names, points[w].tolist(), strict=True)))
-        env.set_state(qpos[w].astype(np.float64), qvel[w].astype(np.float64))
+        env = cpu_env_at(resolved, points[w], qpos[w], qvel[w])
         o, ret = env.unwrapped._get_obs(), 0.0
         for _ in range(twin.max_episode_steps):
             o, r, term, _, _ = env.step(policy(o[None])[0])

@@ -8,6 +8,7 @@ Used by the tests (1 and 10 steps, per task and per parameter kind, on warp's CP
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -43,6 +44,16 @@ def kind_set(task: str, kind: str, spread: float = 0.3) -> UncertaintySet:
     return UncertaintySet(tuple(names), low, high, label=f"{task}/{kind}")
 
 
+def cpu_env_at(resolved: Any, point: Any, qpos: Any, qvel: Any, seed: int = 0) -> Any:
+    """A bare CPU env of ``resolved``'s family at ``point`` (over its box's names), put at a
+    twin world's state (float32, widened): the other side of every twin-vs-CPU comparison."""
+    env = resolved.make_env()
+    env.reset(seed=seed)
+    env.set_params(**dict(zip(resolved.box.names, np.asarray(point).tolist(), strict=True)))
+    env.set_state(np.asarray(qpos, np.float64), np.asarray(qvel, np.float64))
+    return env
+
+
 @dataclass(frozen=True)
 class Divergence:
     """Per env step (row) the largest ``|qpos - qpos_cpu|``, ``|qvel - qvel_cpu|`` and
@@ -73,11 +84,7 @@ def divergence(
     qpos, qvel = twin.state()
     cpus = []
     for w in range(worlds):
-        env = resolved.make_env()
-        env.reset(seed=seed)
-        env.set_params(**dict(zip(resolved.box.names, points[w].tolist(), strict=True)))
-        env.set_state(qpos[w].astype(np.float64), qvel[w].astype(np.float64))
-        cpus.append(env)
+        cpus.append(cpu_env_at(resolved, points[w], qpos[w], qvel[w], seed))
     low, high = twin.single_action_space.low, twin.single_action_space.high
     alive = np.ones(worlds, dtype=bool)
     out = {"qpos": [], "qvel": [], "reward": []}
@@ -110,4 +117,4 @@ def divergence(
     )
 
 
-__all__ = ["TWIN_KINDS", "Divergence", "divergence", "kind_set"]
+__all__ = ["TWIN_KINDS", "Divergence", "cpu_env_at", "divergence", "kind_set"]
