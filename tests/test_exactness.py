@@ -12,7 +12,7 @@ import hashlib
 import numpy as np
 import pytest
 
-from rrls.evaluation.exact import ExactLinear, slice_bits
+from rrls.evaluation.exact import ExactLinear, exact_tanh, slice_bits
 from rrls.evaluation.policies import MLPPolicy
 
 pytestmark = pytest.mark.exactness
@@ -76,3 +76,60 @@ def test_exact_linear_refuses_bad_shapes():
         ExactLinear(np.ones(3))
     with pytest.raises(ValueError, match=r"shape \(B, 3\)"):
         ExactLinear(np.ones((3, 2)))(np.ones((2, 4)))
+
+
+def _digest(a: np.ndarray) -> str:
+    return hashlib.sha256(np.ascontiguousarray(a).tobytes()).hexdigest()[:16]
+
+
+# The float64 policy and the range edges, measured on AMD EPYC (AVX2) with numpy X86_V3 and
+# baseline X86_V2, OpenBLAS Haswell, Sandybridge and Nehalem: equal on all. With numpy's own
+# float64 tanh the policy gave c84acf45d33b1d79 (X86_V3) and 90c1d8610906d931 (X86_V2), and the
+# product without its per-line scaling 0041bebbf5086f08 / 763ebac1cd29004c for weights x1e-305
+# (subnormal slice products, rounded differently by fused and unfused kernels): the test can fail.
+GOLDEN_F64 = "26c3b1dc2ef4f015"
+GOLDEN_EDGES = ("b8cbb8685717c2b6", "ea2012f5d174c039", "3d0a85827d528dc6")
+GOLDEN_TANH = "79120c2eb68b5fc9"
+
+
+def test_float64_mlp_policy_is_the_same_bits_on_any_cpu():
+    policy = MLPPolicy.random(17, 6, (256, 256), seed=7, dtype=np.float64)
+    obs = np.random.default_rng(3).normal(scale=3.0, size=(300, 17))
+    actions = policy(obs)
+    assert actions.dtype == np.float64
+    assert _digest(actions) == GOLDEN_F64
+
+
+def test_exact_linear_huge_and_subnormal_lines_are_the_same_bits_on_any_cpu():
+    rng = np.random.default_rng(5)
+    w, x = rng.normal(size=(256, 8)), rng.normal(size=(64, 256))
+    scales = np.array([1e300, 1e-300, 1e-310, 1e-318, 1.0, 2.0**-1074 * 3, 1e-200, 1e200])
+    xs = x * np.repeat(scales, 8)[:, None]
+    edges = (ExactLinear(w)(xs), ExactLinear(w * 1e-305)(x), ExactLinear(w * 1e290)(x * 1e15))
+    assert tuple(_digest(e) for e in edges) == GOLDEN_EDGES
+    # huge lines stay finite and accurate where the product is (x1e300 was NaN before scaling)
+    for out, ref in ((edges[0][:8], xs[:8] @ w), (edges[2], x * 1e15 @ (w * 1e290))):
+        assert np.isfinite(out).all()
+        assert np.allclose(out, ref, rtol=1e-9, atol=0)
+    assert np.allclose(edges[0][8:16], xs[8:16] @ w, rtol=1e-9, atol=0)  # ×1e-300: normal
+    assert np.array_equal(ExactLinear(w)(xs[::-1])[::-1], edges[0])  # order-free there too
+
+
+def test_exact_linear_refuses_non_finite_weights():
+    w = np.ones((3, 2))
+    w[1, 0] = np.nan
+    with pytest.raises(ValueError, match="weights must be finite"):
+        ExactLinear(w)
+
+
+def test_exact_tanh_is_the_same_bits_on_any_cpu_and_within_4_ulp_of_numpy():
+    t = np.random.default_rng(9).normal(scale=4, size=100_000)
+    out = exact_tanh(t)
+    assert _digest(out) == GOLDEN_TANH
+    ulp = np.abs(out - np.tanh(t)) / np.spacing(np.abs(np.tanh(t)))
+    assert ulp.max() <= 4
+    edge = np.array([0.0, -0.0, 5e-324, -1e-300, 25.0, -1e308, np.inf, -np.inf, np.nan])
+    got = exact_tanh(edge)
+    want = np.array([0.0, -0.0, 5e-324, -1e-300, 1.0, -1.0, 1.0, -1.0, np.nan])
+    assert np.array_equal(got, want, equal_nan=True)
+    assert np.array_equal(np.signbit(got[:2]), [False, True])

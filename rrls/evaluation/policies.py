@@ -27,7 +27,7 @@ from typing import Any, Protocol, runtime_checkable
 
 import numpy as np
 
-from rrls.evaluation.exact import ExactLinear
+from rrls.evaluation.exact import ExactLinear, exact_tanh
 from rrls.extras import install_hint
 
 BLOCK = 64  # rows per policy call inside BatchInvariant (invariance measured in tests)
@@ -145,7 +145,7 @@ class MLPPolicy:
             h = (layer(h) + b).astype(self.dtype)
             if i < last:
                 np.maximum(h, 0, out=h)
-        out = np.tanh(h.astype(np.float64)) * self.action_scale + self.action_bias
+        out = exact_tanh(h) * self.action_scale + self.action_bias
         return out.astype(self.dtype)
 
     def __call__(self, obs: np.ndarray) -> np.ndarray:
@@ -194,9 +194,17 @@ class MLPPolicy:
             raise ValueError(
                 f"{path} is not an rrls MLP policy file (an .npz written by rrls): {reason}"
             ) from None
-        return cls(
-            weights, biases, scale, bias, dtype=weights[0].dtype, metadata=header.get("metadata")
-        )
+        try:
+            return cls(
+                weights,
+                biases,
+                scale,
+                bias,
+                dtype=weights[0].dtype,
+                metadata=header.get("metadata"),
+            )
+        except ValueError as err:  # shapes that do not chain, non-finite weights
+            raise ValueError(f"{path} is not a usable rrls MLP policy: {err}") from None
 
     def __repr__(self) -> str:
         sizes = [self.obs_dim] + [w.shape[1] for w in self.weights]
