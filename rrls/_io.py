@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import errno
+import hashlib
 import io
 import json
 import os
@@ -48,6 +49,13 @@ def atomic_write_bytes(path: str | Path, data: bytes) -> Path:
 def json_bytes(obj: Any) -> bytes:
     """How rrls writes JSON files (indented, keys sorted, a final newline)."""
     return (json.dumps(obj, indent=2, sort_keys=True) + "\n").encode()
+
+
+def json_fingerprint(obj: Any) -> str:
+    """16 hex digits of the SHA-256 of ``obj``'s canonical JSON (keys sorted, no spaces): the
+    same fields give the same fingerprint on any machine and in any key order."""
+    text = json.dumps(obj, sort_keys=True, separators=(",", ":"), allow_nan=False)
+    return hashlib.sha256(text.encode()).hexdigest()[:16]
 
 
 def atomic_write_json(path: str | Path, obj: Any) -> Path:

@@ -483,10 +483,10 @@ def _policy_name(policy: str) -> str:
 
 def _warm_up(run_dir: Any) -> int | None:
     """The run's random warm-up (``learning_starts``) as its ``run.json`` records it."""
-    import json
+    from rrls.rundir import read_run_json
 
     try:
-        hyper = json.loads((run_dir / "run.json").read_text()).get("hyperparameters") or {}
+        hyper = read_run_json(run_dir).get("hyperparameters") or {}
         return int(hyper["learning_starts"])
     except (OSError, ValueError, KeyError, TypeError):
         return None

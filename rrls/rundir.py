@@ -33,6 +33,8 @@ from pathlib import Path
 from typing import Any
 
 from rrls._io import atomic_write_bytes
+from rrls.physics import ALIASES
+from rrls.schema import Schema, SchemaError, array, integer, obj, string
 
 CHECKPOINT = "checkpoint.pt"
 POLICY = "policy.npz"
@@ -47,6 +49,28 @@ ERROR = "error.txt"
 RUN_FILES = (CHECKPOINT, POLICY, ADVERSARY, RUN_JSON, SCALARS)
 
 _SEAL = b"\nrrls-sha256:"
+_OPEN = Schema({}, open=True)
+#: ``run.json``: the policy's metadata (open: an algorithm may add its own), the configuration
+#: and hyper-parameters, the run's summary; the fields rrls reads are typed
+RUN_SCHEMA = Schema(
+    {
+        "algorithm": string(required=True),
+        "task": string(),
+        "uncertainty": string(null=True),
+        "seed": integer(0, 2**32 - 1),
+        "steps": integer(0, 10**12, required=True),
+        "episodes": integer(),
+        "obs_dim": integer(1),
+        "act_dim": integer(1),
+        "hidden": array(integer(1), max_items=64),
+        "physics": string(choices=tuple(ALIASES)),
+        "config": obj(_OPEN),
+        "hyperparameters": obj(_OPEN),
+        "provenance": obj(_OPEN),
+        "versions": obj(_OPEN),
+    },
+    open=True,
+)
 
 
 def write_sealed(path: Path, data: bytes) -> None:
@@ -175,14 +199,25 @@ def write_checked_table(path: Path, frame: Any) -> Path:
     return write_checked(path, table_bytes(path, frame))
 
 
-def finished_steps(run_dir: Path) -> int | None:
-    """The steps of the finished run in ``run_dir`` (policy and run.json written), else None."""
+def read_run_json(run_dir: Path) -> dict[str, Any]:
+    """A finished training run's ``run.json``, checked against its schema: a damaged or
+    foreign file is a one-line ``DamagedFile`` naming it (``FileNotFoundError`` if absent)."""
+    path = Path(run_dir) / RUN_JSON
     try:
-        if (run_dir / POLICY).exists():
-            return int(json.loads((run_dir / RUN_JSON).read_text())["steps"])
-    except (OSError, ValueError, KeyError):
-        pass
-    return None
+        return RUN_SCHEMA.check(read_checked_json(path), str(path))
+    except SchemaError as err:
+        raise DamagedFile(f"{err} ({_ADVICE})") from None
+
+
+def finished_steps(run_dir: Path) -> int | None:
+    """The steps of the finished run in ``run_dir`` (policy and a valid run.json), else None:
+    a run whose ``run.json`` is damaged is not finished (it trains again)."""
+    if not (run_dir / POLICY).exists():
+        return None
+    try:
+        return int(read_run_json(run_dir)["steps"])
+    except (OSError, ValueError):
+        return None
 
 
 def remove_run_files(run_dir: Path) -> None:
@@ -246,6 +281,8 @@ __all__ = [
     "read_checked",
     "read_checked_json",
     "read_checked_table",
+    "read_run_json",
+    "RUN_SCHEMA",
     "read_sealed",
     "remove_run_files",
     "remove_temporary_files",

@@ -23,7 +23,6 @@ from typing import Any
 import torch
 
 from rrls import rundir
-from rrls._io import atomic_write_json
 from rrls.agents.config import Interrupted, TrainConfig, benchmark_set
 from rrls.agents.hparams import jsonable
 from rrls.physics import physics_label
@@ -370,7 +369,7 @@ class Run:
         the dynamic evaluation, Table 6) and ``run.json`` (last: it marks the run finished)."""
         for name, policy in policies.items():
             policy.save(self.dir / (rundir.POLICY if name == "policy" else f"{name}.npz"))
-        atomic_write_json(
+        rundir.write_checked_json(
             self.dir / rundir.RUN_JSON,
             {
                 **policies["policy"].metadata,

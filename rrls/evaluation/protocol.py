@@ -187,6 +187,13 @@ class Protocol:
         ]
         return data
 
+    def fingerprint(self) -> str:
+        """16 hex digits naming this protocol's fields (``rrls._io.json_fingerprint``): what a
+        run's ``result.json`` records, so a result copied from another protocol is refused."""
+        from rrls._io import json_fingerprint
+
+        return json_fingerprint(self.to_json())
+
     @classmethod
     def from_json(cls, data: Mapping[str, Any]) -> Protocol:
         """The inverse of ``to_json`` (unknown keys, wrong types and values are refused)."""

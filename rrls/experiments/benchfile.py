@@ -13,11 +13,51 @@ from typing import Any
 
 from rrls import rundir
 from rrls._io import waiting_lock
+from rrls.evaluation.protocol import MAX_EPISODES
 from rrls.experiments.spec import Spec, SpecError
+from rrls.physics import ALIASES
+from rrls.schema import Schema, SchemaError, array, boolean, integer, number, string
+from rrls.seeds import MAX_SEED, MAX_SEEDS
+from rrls.uncertainty import MAX_MESH_POINTS
+from rrls.wrappers.tc_rmdp import OBSERVE, RATE_GAMES
 
 NAME = "benchmark.json"
 #: the lock file beside it (an ``flock``: a killed holder releases it)
 LOCK = ".benchmark.lock"
+
+_STEPS = integer(1, 10**12)
+#: ``benchmark.json``: ``Spec``'s fields as they are stored (every one optional: a field added
+#: after a file was written takes its default)
+SPEC_SCHEMA = Schema(
+    {
+        "algos": array(string(), max_items=1_000),
+        "tasks": array(string(), max_items=1_000),
+        "uncertainty": string(),
+        "seeds": array(integer(0, MAX_SEED), max_items=MAX_SEEDS),
+        "steps": _STEPS,
+        "learning_starts": integer(0, 10**12, null=True),
+        "eval_every": integer(0, 10**12),
+        "eval_episodes": integer(1, MAX_EPISODES),
+        "eval_mesh": integer(0, MAX_MESH_POINTS),
+        "mesh": integer(1, MAX_MESH_POINTS),
+        "endpoint": boolean(null=True),
+        "episodes": integer(1, MAX_EPISODES),
+        "dynamic_episodes": integer(1, MAX_EPISODES),
+        "learning_rate": number(0, low_open=True, null=True),
+        "normalize_omega": boolean(),
+        "hidden": array(integer(1, 1_000_000), max_items=64),
+        "batch_size": integer(1, 10**8, null=True),
+        "checkpoint_every": _STEPS,
+        "eval_seed": integer(0, MAX_SEED),
+        "preset": string(),
+        "device": string(),
+        "physics": string(choices=tuple(ALIASES)),
+        "rate_limit": number(0, low_open=True, null=True),
+        "rate_game": string(choices=RATE_GAMES),
+        "observe": string(choices=OBSERVE),
+        "split": string(null=True),
+    }
+)
 
 
 def spec_path(root: str | Path) -> Path:
@@ -34,9 +74,18 @@ def read_spec(root: str | Path) -> Spec:
     """The stored ``Spec``; a file that is not one is a ``SpecError`` naming it."""
     data = read_spec_json(root)
     try:
+        SPEC_SCHEMA.check(data, str(spec_path(root)))
+    except SchemaError as err:
+        raise SpecError(str(err)) from None
+    try:
         return Spec.from_json(data)
     except (ValueError, TypeError, KeyError, AttributeError) as err:
         raise SpecError(f"{spec_path(root)} is not a benchmark spec ({err})") from None
+
+
+def stored_fingerprints(root: str | Path) -> dict[str, str]:
+    """The stored benchmark's fingerprints (``Spec.fingerprints``), none without a spec."""
+    return read_spec(root).fingerprints() if spec_path(root).exists() else {}
 
 
 def write_spec(root: str | Path, spec: Spec) -> Path:

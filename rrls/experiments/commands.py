@@ -191,6 +191,7 @@ def confirmed(command: str, runs: int, yes: bool) -> bool:
 def _report(args: argparse.Namespace) -> int:
     from pathlib import Path
 
+    from rrls.experiments.benchfile import stored_fingerprints
     from rrls.experiments.report import make_report
     from rrls.experiments.store import build_store
 
@@ -198,7 +199,7 @@ def _report(args: argparse.Namespace) -> int:
     if not (root / "runs").is_dir() and not (root / "results").is_dir():
         return _fail("report", f"{root} is not a benchmark directory (no runs/ or results/)")
     if (root / "runs").is_dir():
-        build_store(root)
+        build_store(root, stored_fingerprints(root))
     from rrls.experiments.reference import ReferenceError, export_reference
 
     labels = {}

@@ -157,6 +157,7 @@ def _group_stages(spec: Spec, runs: list[RunKey], outs: list[Path]) -> dict[int,
                 result.update(_dynamic(spec, run, out))
             # this execution's (a resumed run: since resuming; a group: since the group began)
             result["seconds"] = time.time() - start
+            result["benchmark"] = spec.fingerprints()["benchmark"]
             rundir.write_checked_json(out / rundir.RESULT, result)
             progress[i].write("done", spec.steps)
             # The checkpoint only serves to resume training (its replay buffer is up to ~250 MB

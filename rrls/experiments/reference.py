@@ -34,7 +34,11 @@ from importlib import resources
 from pathlib import Path
 from typing import Any
 
-from rrls.physics import PAPER, V5, physics_label
+from rrls.evaluation.protocol import MAX_EPISODES
+from rrls.physics import ALIASES, PAPER, V5, physics_label
+from rrls.schema import Schema, SchemaError, array, boolean, integer, number, obj, string
+from rrls.seeds import MAX_SEED, MAX_SEEDS
+from rrls.uncertainty import MAX_MESH_POINTS
 
 FORMAT = "rrls-reference"
 VERSION = 1
@@ -175,26 +179,37 @@ def _fail(path: Any, message: str) -> ReferenceError:
     return ReferenceError(f"{path}: not a usable reference file ({message})")
 
 
-def _check_rows(rows: list[dict[str, Any]], path: Any) -> list[dict[str, Any]]:
-    out = []
-    for i, row in enumerate(rows):
-        missing = [
-            k for k in ("task", "uncertainty", "algorithm", "metric", "mean") if k not in row
-        ]
-        if missing:
-            raise _fail(path, f"row {i} lacks {', '.join(missing)}")
-        if row["metric"] not in METRICS:
-            raise _fail(
-                path, f"row {i}: unknown metric {row['metric']!r}; valid: {', '.join(METRICS)}"
-            )
-        try:
-            clean = _clean_row(row)
-        except (TypeError, ValueError) as err:
-            raise _fail(path, f"row {i}: {err}") from None
-        if not math.isfinite(clean["mean"]):
-            raise _fail(path, f"row {i}: mean is {clean['mean']}")
-        out.append(clean)
-    return out
+_ROW_SCHEMA = Schema(
+    {
+        "task": string(required=True),
+        "uncertainty": string(required=True),
+        "algorithm": string(required=True),
+        "metric": string(choices=METRICS, required=True),
+        "mean": number(required=True),
+        "std": number(0, null=True),
+        "n_seeds": integer(1, MAX_SEEDS, null=True),
+        "values": array(number(), max_items=MAX_SEEDS, null=True),
+    }
+)
+_OPEN = Schema({}, open=True)
+#: a reference file (JSON; a CSV's lines are read into the same object first)
+REFERENCE_SCHEMA = Schema(
+    {
+        "format": string(choices=(FORMAT,), required=True),
+        "version": integer(choices=(VERSION,), required=True),
+        "label": string(required=True),
+        "physics": string(choices=tuple(ALIASES), required=True),
+        "mesh": integer(1, MAX_MESH_POINTS, required=True),
+        "episodes": integer(1, MAX_EPISODES, required=True),
+        "endpoint": boolean(),
+        "steps": integer(0, 10**12, null=True),
+        "eval_seed": integer(0, MAX_SEED, null=True),
+        "versions": obj(_OPEN),
+        "notes": string(),
+        "provenance": obj(_OPEN),
+        "rows": array(obj(_ROW_SCHEMA), required=True),
+    }
+)
 
 
 def load_reference(path: str | Path) -> Reference:
@@ -216,102 +231,86 @@ def load_reference(path: str | Path) -> Reference:
             raise _fail(path, f"invalid JSON: {err}") from None
         ref = _from_json(data, path)
     else:
-        ref = _from_csv(path)
+        ref = _from_json(_csv_as_json(path), path)
     ref.path = str(path)
     return ref
 
 
 def _from_json(data: Any, path: Any) -> Reference:
-    if not isinstance(data, dict) or data.get("format") != FORMAT:
-        raise _fail(path, f"'format' is not {FORMAT!r}")
-    if data.get("version") != VERSION:
-        raise _fail(path, f"version {data.get('version')!r}; this rrls reads {VERSION}")
-    missing = [k for k in ("label", "physics", "mesh", "episodes", "rows") if k not in data]
-    if missing:
-        raise _fail(path, f"missing {', '.join(missing)}")
+    """A reference from its JSON object, checked against ``REFERENCE_SCHEMA`` (one line
+    naming the file, the field and the value) and for rows that agree with themselves."""
+    try:
+        REFERENCE_SCHEMA.check(data, str(path))
+    except SchemaError as err:
+        raise ReferenceError(f"{err} (not a usable reference file)") from None
+    rows = [_clean_row(r) for r in data["rows"]]
+    for i, row in enumerate(rows):
+        if row["values"] is not None and row["n_seeds"] not in (None, len(row["values"])):
+            raise _fail(
+                path,
+                f"rows[{i}]: n_seeds is {row['n_seeds']} but it holds {len(row['values'])} values",
+            )
     return Reference(
-        label=str(data["label"]),
-        physics=_physics(data["physics"], path),
-        mesh=int(data["mesh"]),
-        episodes=int(data["episodes"]),
-        endpoint=bool(data.get("endpoint", True)),
-        steps=None if data.get("steps") is None else int(data["steps"]),
-        eval_seed=None if data.get("eval_seed") is None else int(data["eval_seed"]),
+        label=data["label"],
+        physics=physics_label(data["physics"]),
+        mesh=data["mesh"],
+        episodes=data["episodes"],
+        endpoint=data.get("endpoint", True),
+        steps=data.get("steps"),
+        eval_seed=data.get("eval_seed"),
         versions={k: str(v) for k, v in (data.get("versions") or {}).items()},
-        notes=str(data.get("notes", "")),
-        rows=_check_rows(list(data["rows"]), path),
+        notes=data.get("notes", ""),
+        rows=rows,
         provenance=dict(data.get("provenance") or {}),
     )
 
 
-def _from_csv(path: Path) -> Reference:
+def _csv_as_json(path: Path) -> dict[str, Any]:
+    """A CSV reference as the JSON object it stands for: the metadata columns (the same on
+    every line) at the top, each line a row with ``values`` split at ``;``."""
     import pandas as pd
 
     try:
         frame = pd.read_csv(path, keep_default_na=False, na_values=[""], dtype={"values": str})
     except Exception as err:  # noqa: BLE001 - any unreadable table: one line naming it
         raise _fail(path, f"unreadable CSV: {err}") from None
-    need = ["task", "uncertainty", "algorithm", "metric", "mean", "label", "physics"]
-    need += ["mesh", "episodes"]
-    missing = [c for c in need if c not in frame.columns]
-    if missing:
-        raise _fail(path, f"missing columns {', '.join(missing)}")
-    meta: dict[str, Any] = {}
+    data: dict[str, Any] = {"format": FORMAT, "version": VERSION, "versions": {}}
     for col in (*_META, *(f"{k}_version" for k in _VERSION_KEYS)):
         if col not in frame.columns:
             continue
         distinct = frame[col].dropna().unique()
         if len(distinct) > 1:
             raise _fail(path, f"column {col} differs between rows (one protocol per file)")
-        meta[col] = (
-            distinct[0].item()
-            if len(distinct) and hasattr(distinct[0], "item")
-            else (distinct[0] if len(distinct) else None)
-        )
+        if len(distinct):
+            value = distinct[0].item() if hasattr(distinct[0], "item") else distinct[0]
+            if col.endswith("_version"):
+                data["versions"][col.removesuffix("_version")] = str(value)
+            else:
+                data[col] = _csv_int(REFERENCE_SCHEMA, col, value)
     rows = []
-    for rec in frame.to_dict("records"):
-        values = rec.get("values")
-        rec["values"] = (
-            [float(v) for v in str(values).split(";")]
-            if isinstance(values, str) and values
-            else None
-        )
-        rec["std"] = None if _missing(rec.get("std")) else rec.get("std")
-        rec["n_seeds"] = None if _missing(rec.get("n_seeds")) else rec.get("n_seeds")
-        rows.append(rec)
-    return Reference(
-        label=str(meta["label"]),
-        physics=_physics(meta["physics"], path),
-        mesh=int(meta["mesh"]),
-        episodes=int(meta["episodes"]),
-        endpoint=_bool(meta.get("endpoint", True)),
-        steps=None if _missing(meta.get("steps")) else int(meta["steps"]),
-        eval_seed=None if _missing(meta.get("eval_seed")) else int(meta["eval_seed"]),
-        versions={
-            k: str(meta[f"{k}_version"])
-            for k in _VERSION_KEYS
-            if not _missing(meta.get(f"{k}_version"))
-        },
-        rows=_check_rows(rows, path),
-    )
+    row_columns = [c for c in _ROW_SCHEMA.fields if c in frame.columns]
+    for i, rec in enumerate(frame[row_columns].to_dict("records")):
+        row = {k: None if _missing(v) else _csv_int(_ROW_SCHEMA, k, v) for k, v in rec.items()}
+        text = row.get("values")
+        try:
+            row["values"] = [float(v) for v in str(text).split(";")] if text else None
+        except ValueError:
+            raise _fail(path, f"line {i + 2}: values {text!r} are not numbers") from None
+        rows.append(row)
+    data["rows"] = rows
+    return data
 
 
-def _physics(value: Any, path: Any) -> str:
-    """The physics label a file gives (older labels read as today's)."""
-    try:
-        return physics_label(str(value))
-    except ValueError as err:
-        raise ReferenceError(f"{path}: {err}") from None
+def _csv_int(schema: Schema, name: str, value: Any) -> Any:
+    """A CSV column of integers with an empty cell reads as floats: ``10.0`` back to ``10``
+    where the field is an integer (a CSV cannot say which it was)."""
+    if schema.fields[name].kind == "int" and isinstance(value, float) and value.is_integer():
+        return int(value)
+    return value
 
 
 def _missing(value: Any) -> bool:
     return value is None or (isinstance(value, float) and math.isnan(value))
-
-
-def _bool(value: Any) -> bool:
-    if isinstance(value, str):
-        return value.strip().lower() in ("true", "1", "yes")
-    return bool(value) if not _missing(value) else True
 
 
 # --- a benchmark and a reference --------------------------------------------------------------
@@ -418,14 +417,15 @@ def provenance(root: Path, spec: dict[str, Any], algos: list[str]) -> dict[str, 
     preset, budget and hyper-parameters, and every rrls commit, library version, machine and
     device that trained a run (more than one value: the runs were produced in pieces)."""
     from rrls import __version__, rundir
+    from rrls.experiments import store
 
     runs: dict[str, Any] = {}
     for directory in sorted(p for p in (root / "runs").glob("*") if p.is_dir()):
         run: dict[str, Any] = {}
-        for name in (rundir.RESULT, "run.json"):  # run.json (training) has the machine
+        for read in (store.read_result, rundir.read_run_json):  # run.json has the machine
             try:
-                run.update(json.loads((directory / name).read_text()))
-            except (OSError, ValueError):
+                run.update(read(directory))
+            except FileNotFoundError:  # unfinished, or submitted (no training)
                 continue
         if run.get("algorithm") in algos:
             runs[directory.name] = run

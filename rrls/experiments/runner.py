@@ -221,7 +221,7 @@ def benchmark(
         return code
     from rrls.experiments.store import build_store
 
-    build_store(root)
+    build_store(root, spec.fingerprints())
     if report and (finished or len(display.failures) < len(todo)):  # else: nothing to report
         from rrls.experiments.report import make_report
 

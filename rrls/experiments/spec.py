@@ -142,6 +142,18 @@ class Spec:
     def to_json(self) -> dict[str, Any]:
         return {k: list(v) if isinstance(v, tuple) else v for k, v in asdict(self).items()}
 
+    def fingerprints(self) -> dict[str, str]:
+        """What a run's ``result.json`` records of the benchmark it ran in: ``protocol``, its
+        evaluation protocol's fingerprint (every run, submitted ones too), and ``benchmark``,
+        the fingerprint of every field two invocations must agree on (trained runs). Runs of
+        one benchmark produced in pieces on several machines share both."""
+        from rrls._io import json_fingerprint
+
+        return {
+            "protocol": self.evaluation_protocol().fingerprint(),
+            "benchmark": json_fingerprint(self.protocol()),
+        }
+
     @classmethod
     def from_json(cls, data: dict[str, Any]) -> Spec:
         known = {f.name for f in fields(cls)}

@@ -52,6 +52,7 @@ def run_evaluation(
         "seed": seed,
         "steps": trained["steps"],
         "physics": spec.physics,
+        "protocol": spec.fingerprints()["protocol"],
         "worst_case": result.worst_case,
         "average_case": result.average_case,
         # the training's record (torch included) where the policy carries one

@@ -23,25 +23,71 @@ from pathlib import Path
 from typing import Any
 
 from rrls import rundir
+from rrls.physics import ALIASES
+from rrls.schema import Schema, TableSchema, integer, number, obj, string
 
 TABLES = ("evaluations", "curves", "dynamic", "runs")
 KEY = ["algorithm", "task", "uncertainty", "seed"]
+
+_SCORE = number(null=True)  # a split's part without points has no score
+#: ``result.json``: every field a run's result may hold, and what it may hold
+RESULT_SCHEMA = Schema(
+    {
+        "algorithm": string(required=True),
+        "task": string(required=True),
+        "uncertainty": string(required=True),
+        "train_set": string(),
+        "seed": integer(0, 2**32 - 1, required=True),
+        "steps": integer(0, 10**12, required=True),
+        "physics": string(choices=tuple(ALIASES)),
+        "worst_case": number(required=True),
+        "average_case": number(required=True),
+        "split": string(null=True),
+        **{f"{s}_{t}": _SCORE for s in ("worst_case", "average_case") for t in ("id", "ood")},
+        "points_id": integer(),
+        "points_ood": integer(),
+        "dynamic_mean": number(null=True),
+        "dynamic_std": number(null=True),
+        "dynamic_env": string(),
+        "seconds": number(0),
+        "versions": obj(Schema({}, open=True)),
+        "submitted": obj(Schema({}, open=True)),
+        # the run's identity beyond its directory: the fingerprints of the evaluation protocol
+        # and (trained runs) of the benchmark's protocol it ran under
+        "protocol": string(),
+        "benchmark": string(),
+    }
+)
+#: ``eval/episodes`` (one row per episode; the set's parameters and a split's flag beside)
+EPISODES_SCHEMA = TableSchema(
+    {
+        "point": "int",
+        "episode": "int",
+        "seed": "int",
+        "return": "number",
+        "length": "int",
+        "terminated": "bool",
+        "diverged": "bool",
+    }
+)
+#: ``dynamic.csv`` (one row per episode against the adversary)
+DYNAMIC_SCHEMA = TableSchema({"episode": "int", "seed": "int", "return": "number", "length": "int"})
+#: ``scalars.csv`` (training curves, long format)
+SCALARS_SCHEMA = TableSchema({"step": "int", "metric": "str", "value": "number"}, nan=("value",))
 
 
 def write_result(run: str | Path, result: dict[str, Any]) -> Path:
     """Mark ``run`` finished: its ``result.json`` (algorithm, task, uncertainty, seed, steps,
     worst_case, average_case, versions; optional dynamic_*, submitted), written atomically and
     sealed (``rundir.write_checked``)."""
-    missing = [k for k in ("algorithm", "task", "uncertainty", "seed", "steps") if k not in result]
-    missing += [k for k in ("worst_case", "average_case") if k not in result]
-    if missing:
-        raise ValueError(f"a run result needs {', '.join(missing)}")
+    RESULT_SCHEMA.check(result, "a run result")
     return rundir.write_checked_json(Path(run) / rundir.RESULT, result)
 
 
 def read_result(run: str | Path) -> dict[str, Any]:
-    """A finished run's ``result.json``, checked against its seal (damage: one line)."""
-    return rundir.read_checked_json(Path(run) / rundir.RESULT)
+    """A finished run's ``result.json``, checked against its seal and its schema (one line)."""
+    path = Path(run) / rundir.RESULT
+    return RESULT_SCHEMA.check(rundir.read_checked_json(path), str(path))
 
 
 def _parquet() -> bool:
@@ -67,11 +113,13 @@ def _columns(result: dict[str, Any]) -> dict[str, Any]:
     }
 
 
-def _read_table(base: Path) -> Any:
-    """A run's table (Parquet, else CSV), checked against its seal."""
-    if base.with_suffix(".parquet").exists():
-        return rundir.read_checked_table(base.with_suffix(".parquet"))
-    return rundir.read_checked_table(base.with_suffix(".csv"))
+def _read_table(base: Path, schema: TableSchema | None = None) -> Any:
+    """A run's table (Parquet, else CSV), checked against its seal and its header's schema."""
+    path = base.with_suffix(".parquet")
+    if not path.exists():
+        path = base.with_suffix(".csv")
+    frame = rundir.read_checked_table(path)
+    return frame if schema is None else schema.check(frame, str(path))
 
 
 def _curves(run: Path) -> Any:
@@ -81,7 +129,7 @@ def _curves(run: Path) -> Any:
     path = run / rundir.SCALARS
     if not path.exists():
         return pd.DataFrame({"step": []})
-    long = rundir.read_checked_table(path)
+    long = SCALARS_SCHEMA.check(rundir.read_checked_table(path), str(path))
     long["metric"] = long["metric"].str.replace("/", "_", regex=False)
     long["metric"] = long["metric"].str.removeprefix("charts_")
     wide = long.pivot_table(index="step", columns="metric", values="value", aggfunc="last")
@@ -89,10 +137,14 @@ def _curves(run: Path) -> Any:
     return wide.reset_index()
 
 
-def _check_bound(run: Path, result: dict[str, Any], episodes: Any) -> None:
-    """A run's files are its own: ``result.json`` names this directory's run, and the episodes
-    beside it give its scores. A seal proves a file intact, not whose it is: a file copied from
-    another run (intact, sealed) is refused here, by name."""
+def _check_bound(
+    run: Path, result: dict[str, Any], episodes: Any, expected: dict[str, str]
+) -> None:
+    """A run's files are its own: ``result.json`` names this directory's run and the protocol
+    fingerprints of this benchmark (``expected``: ``protocol``, ``benchmark``; a result written
+    before fingerprints has none to compare), and the episodes beside it give its scores. A
+    seal proves a file intact, not whose it is: a file copied from another run, benchmark or
+    protocol (intact, sealed) is refused here, by name."""
     from rrls.evaluation.metrics import point_means, scores_of
     from rrls.experiments.spec import RunKey
 
@@ -103,6 +155,14 @@ def _check_bound(run: Path, result: dict[str, Any], episodes: Any) -> None:
             f"{run / rundir.RESULT} is the result of run {own}, not of {run.name}: copied from "
             "another run? Re-run or withdraw this one"
         )
+    for field, what in (("protocol", "evaluation protocol"), ("benchmark", "benchmark protocol")):
+        theirs = result.get(field)
+        if theirs is not None and field in expected and theirs != expected[field]:
+            raise rundir.DamagedFile(
+                f"{run / rundir.RESULT} was evaluated under another {what} (fingerprint "
+                f"{theirs}, this benchmark's {expected[field]}): copied from another benchmark? "
+                "Re-run or withdraw this one"
+            )
     if not len(episodes):
         return
     for score, value in scores_of(point_means(episodes)).items():
@@ -114,24 +174,29 @@ def _check_bound(run: Path, result: dict[str, Any], episodes: Any) -> None:
             )
 
 
-def build_store(root: str | Path) -> Path:
-    """Scan ``root/runs/*/result.json`` and (re)write ``root/results/*``; returns that folder."""
+def build_store(root: str | Path, expected: dict[str, str] | None = None) -> Path:
+    """Scan ``root/runs/*/result.json`` and (re)write ``root/results/*``; returns that folder.
+    ``expected``: the benchmark's fingerprints (``protocol``: its evaluation protocol's,
+    ``benchmark``: its protocol's), which every run's result must carry when it has them."""
     import pandas as pd
 
     from rrls._io import atomic_write_table
 
     root = Path(root)
+    expected = expected or {}
     frames: dict[str, list[Any]] = {name: [] for name in TABLES}
     for done in sorted((root / "runs").glob("*/result.json")):
         run = done.parent
         result = read_result(run)
         cols = _columns(result)
-        episodes = _read_table(run / "eval" / "episodes").rename(columns={"seed": "episode_seed"})
-        _check_bound(run, result, episodes)
+        episodes = _read_table(run / "eval" / "episodes", EPISODES_SCHEMA)
+        episodes = episodes.rename(columns={"seed": "episode_seed"})
+        _check_bound(run, result, episodes, expected)
         frames["evaluations"].append(episodes.assign(**cols))
         frames["curves"].append(_curves(run).assign(**cols))
         if (run / "dynamic.csv").exists():
-            dynamic = rundir.read_checked_table(run / "dynamic.csv")
+            path = run / "dynamic.csv"
+            dynamic = DYNAMIC_SCHEMA.check(rundir.read_checked_table(path), str(path))
             dynamic = dynamic.rename(columns={"seed": "episode_seed"})
             frames["dynamic"].append(dynamic.assign(**cols))
         frames["runs"].append(
