@@ -1,0 +1,242 @@
+"""Every file rrls reads is checked against its one schema: for each field of each format, the
+hostile values a field of its kind can meet (wrong types, NaN, infinities, out-of-range
+numbers, unknown choices, unknown keys) are refused in one line naming the file, the field and
+what is valid; what rrls writes reads back."""
+
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import fields
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from rrls import rundir
+from rrls.experiments import benchfile, store
+from rrls.experiments.reference import (
+    REFERENCE_SCHEMA,
+    ReferenceError,
+    load_reference,
+)
+from rrls.experiments.spec import PRESETS, Spec, SpecError
+from rrls.schema import Field, Schema, SchemaError, TableSchema, integer, number, string
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def hostile(spec: Field) -> list[Any]:
+    """Values a field of this kind must refuse."""
+    out: list[Any] = [{"an": "object"}] if spec.kind != "object" else ["text", 3, [1]]
+    if spec.kind in ("int", "number"):
+        out += ["7", True, math.nan, math.inf, -math.inf]
+        if spec.kind == "int":
+            out += [2.5, 1e400 if False else 2.0**70]
+        if spec.low is not None:
+            out.append(spec.low - 1 if spec.kind == "int" else spec.low - 1.5)
+        if spec.high is not None:
+            out.append(spec.high + 1)
+    elif spec.kind == "bool":
+        out += ["false", "no", 0, 1]
+    elif spec.kind == "str":
+        out += [5, True, ["a"]]
+    elif spec.kind == "list":
+        out += ["text", 3]
+        if spec.items is not None:
+            out += [[bad] for bad in hostile(spec.items)[:3]]
+    if spec.choices is not None:
+        out.append("bogus")
+    if not spec.null:
+        out.append(None)
+    return [v for v in out if not (spec.kind == "object" and isinstance(v, dict))]
+
+
+def cases(schema: Schema) -> list[tuple[str, Any]]:
+    return [
+        (name, bad)
+        for name, spec in schema.fields.items()
+        if spec.kind not in ("any",)
+        for bad in hostile(spec)
+    ]
+
+
+def one_line(err: BaseException, *words: str) -> None:
+    text = str(err)
+    assert "\n" not in text and "Traceback" not in text
+    for word in words:
+        assert word in text, (word, text)
+
+
+# --- the validator itself -------------------------------------------------------------------
+def test_the_validator_names_file_field_value_and_what_is_valid():
+    schema = Schema({"mesh": integer(1, 10), "rows": Field("list", items=number())})
+    with pytest.raises(SchemaError) as err:
+        schema.check({"mesh": 11}, "F.json")
+    one_line(err.value, "F.json", "'mesh'", "11", "in [1, 10]")
+    with pytest.raises(SchemaError) as err:
+        schema.check({"rows": [1.0, math.nan]}, "F.json")
+    one_line(err.value, "'rows[1]'", "nan", "finite")
+    with pytest.raises(SchemaError) as err:
+        schema.check({"mesh": 2, "mesh2": 3}, "F.json")
+    one_line(err.value, "unknown field 'mesh2'", "valid fields: mesh, rows")
+    with pytest.raises(SchemaError, match="is missing"):
+        Schema({"a": string(required=True)}).check({}, "F.json")
+    for bad in ([], "", 3, None):
+        with pytest.raises(SchemaError, match="an object of fields"):
+            schema.check(bad, "F.json")
+    # numpy scalars (a CSV's cells) are the values they hold
+    assert schema.check({"mesh": np.int64(3)}, "F") == {"mesh": np.int64(3)}
+
+
+def test_table_headers_are_checked():
+    table = TableSchema({"point": "int", "return": "number", "terminated": "bool"})
+    good = pd.DataFrame({"point": [0], "return": [1.5], "terminated": [False], "extra": ["x"]})
+    assert table.check(good, "T") is good
+    for column, value in (("point", 1.5), ("return", "x"), ("return", np.inf), ("terminated", 1)):
+        bad = good.assign(**{column: [value]})
+        with pytest.raises(SchemaError) as err:
+            table.check(bad, "T.csv")
+        one_line(err.value, "T.csv", repr(column))
+    with pytest.raises(SchemaError, match="'point' is missing"):
+        table.check(good.drop(columns="point"), "T.csv")
+
+
+# --- benchmark.json -------------------------------------------------------------------------
+def test_the_spec_schema_declares_every_spec_field():
+    assert set(benchfile.SPEC_SCHEMA.fields) == {f.name for f in fields(Spec)}
+    for name, preset in PRESETS.items():  # every preset writes a file that reads back
+        spec = Spec(**{**preset, "preset": name})
+        benchfile.SPEC_SCHEMA.check(spec.to_json(), name)
+
+
+@pytest.mark.parametrize(("field", "bad"), cases(benchfile.SPEC_SCHEMA))
+def test_a_hostile_benchmark_json_is_refused_by_field(tmp_path, field, bad):
+    data = Spec(**PRESETS["smoke"]).to_json()
+    data[field] = bad
+    rundir.write_checked_json(benchfile.spec_path(tmp_path), data)
+    with pytest.raises(SpecError) as err:
+        benchfile.read_spec(tmp_path)
+    one_line(err.value, "benchmark.json", f"'{field}")
+
+
+def test_a_benchmark_json_with_an_unknown_field_is_refused(tmp_path):
+    data = {**Spec(**PRESETS["smoke"]).to_json(), "physic": "v5"}
+    rundir.write_checked_json(benchfile.spec_path(tmp_path), data)
+    with pytest.raises(SpecError, match="unknown field 'physic'"):
+        benchfile.read_spec(tmp_path)
+
+
+# --- result.json ----------------------------------------------------------------------------
+RESULT = {
+    "algorithm": "td3",
+    "task": "hopper",
+    "uncertainty": "3d",
+    "seed": 0,
+    "steps": 100,
+    "worst_case": 1.0,
+    "average_case": 2.0,
+}
+
+
+@pytest.mark.parametrize(("field", "bad"), cases(store.RESULT_SCHEMA))
+def test_a_hostile_result_json_is_refused_by_field(tmp_path, field, bad):
+    rundir.write_checked_json(tmp_path / rundir.RESULT, {**RESULT, field: bad})
+    with pytest.raises(SchemaError) as err:
+        store.read_result(tmp_path)
+    one_line(err.value, "result.json", f"'{field}")
+    with pytest.raises(SchemaError):  # and nothing writes one
+        store.write_result(tmp_path / "other", {**RESULT, field: bad})
+
+
+def test_every_shipped_result_and_run_file_matches_its_schema():
+    runs = sorted((ROOT / "docs/results").glob("*/runs/*"))
+    assert len(runs) >= 18  # the hopper and halfcheetah pages
+    for run in runs:
+        if (run / rundir.RESULT).exists():
+            store.read_result(run)
+        if (run / rundir.RUN_JSON).exists():
+            rundir.read_run_json(run)
+
+
+# --- run.json -------------------------------------------------------------------------------
+@pytest.mark.parametrize(
+    ("field", "bad"), [c for c in cases(rundir.RUN_SCHEMA) if c[0] in ("steps", "algorithm")]
+)
+def test_a_hostile_run_json_is_a_damaged_run(tmp_path, field, bad):
+    good = json.loads((ROOT / "docs/results/hopper/runs/td3-hopper-3d-seed0/run.json").read_text())
+    rundir.write_checked_json(tmp_path / rundir.RUN_JSON, {**good, field: bad})
+    (tmp_path / rundir.POLICY).write_bytes(b"")
+    with pytest.raises(rundir.DamagedFile) as err:
+        rundir.read_run_json(tmp_path)
+    one_line(err.value, "run.json", f"'{field}")
+    assert rundir.finished_steps(tmp_path) is None  # not a finished run: it trains again
+
+
+# --- reference files ------------------------------------------------------------------------
+def _reference() -> dict[str, Any]:
+    return json.loads((ROOT / "rrls/experiments/hopper_reference.json").read_text())
+
+
+@pytest.mark.parametrize(("field", "bad"), cases(REFERENCE_SCHEMA))
+def test_a_hostile_reference_is_refused_by_field(tmp_path, field, bad):
+    path = tmp_path / "ref.json"
+    path.write_text(json.dumps({**_reference(), field: bad}))
+    with pytest.raises(ReferenceError) as err:
+        load_reference(path)
+    one_line(err.value, str(path), f"'{field}")
+
+
+@pytest.mark.parametrize(
+    ("field", "bad"),
+    [("mean", math.nan), ("mean", "x"), ("std", -1.0), ("n_seeds", 1e400), ("n_seeds", 0)]
+    + [("metric", "best_case"), ("values", [1.0, math.inf]), ("task", None), ("values", "1;2")],
+)
+def test_a_hostile_reference_row_is_refused(tmp_path, field, bad):
+    data = _reference()
+    data["rows"][3][field] = bad
+    path = tmp_path / "ref.json"
+    path.write_text(json.dumps(data))
+    with pytest.raises(ReferenceError) as err:
+        load_reference(path)
+    one_line(err.value, f"rows[3].{field}")
+
+
+def test_a_reference_row_whose_seeds_and_values_disagree_is_refused(tmp_path):
+    data = _reference()
+    row = next(r for r in data["rows"] if r.get("values"))
+    row["n_seeds"] = len(row["values"]) + 1
+    path = tmp_path / "ref.json"
+    path.write_text(json.dumps(data))
+    with pytest.raises(ReferenceError, match="n_seeds"):
+        load_reference(path)
+
+
+def test_a_csv_reference_reads_as_its_json_and_is_checked_the_same(tmp_path):
+    ref = load_reference("hopper")
+    csv = ref.save(tmp_path / "ref.csv")
+    back = load_reference(csv)
+    assert back.rows == ref.rows and back.mesh == ref.mesh and back.endpoint == ref.endpoint
+    frame = pd.read_csv(csv)
+    for column, value in (("mesh", 2.9), ("mean", "x"), ("metric", "best"), ("physics", "v9")):
+        frame.assign(**{column: value}).to_csv(tmp_path / "bad.csv", index=False)
+        with pytest.raises(ReferenceError) as err:
+            load_reference(tmp_path / "bad.csv")
+        one_line(err.value, "bad.csv", column)
+
+
+# --- runs bound to their benchmark's protocol ----------------------------------------------
+def test_a_protocol_fingerprint_names_its_fields():
+    spec = Spec(**PRESETS["smoke"])
+    a = spec.fingerprints()
+    assert a == Spec.from_json(json.loads(json.dumps(spec.to_json()))).fingerprints()
+    assert set(a) == {"protocol", "benchmark"} and all(len(v) == 16 for v in a.values())
+    # the grid and the labels may change within one benchmark; the protocol may not
+    from dataclasses import replace
+
+    assert replace(spec, seeds=(0, 1, 2), device="cuda").fingerprints() == a
+    assert replace(spec, mesh=3).fingerprints()["protocol"] != a["protocol"]
+    assert replace(spec, steps=400).fingerprints()["benchmark"] != a["benchmark"]
+    assert replace(spec, steps=400).fingerprints()["protocol"] == a["protocol"]
