@@ -52,6 +52,9 @@ RESULT_SCHEMA = Schema(
         "seconds": number(0),
         "versions": obj(Schema({}, open=True)),
         "submitted": obj(Schema({}, open=True)),
+        # a run re-evaluated under a newer protocol that trained with other settings than the
+        # stored benchmark's (benchmarks/reevaluate.py --keep-training): the ones that differ
+        "trained_otherwise": obj(Schema({}, open=True)),
         # the run's identity beyond its directory: the fingerprints of the evaluation protocol
         # and (trained runs) of the benchmark's protocol it ran under
         "protocol": string(),
