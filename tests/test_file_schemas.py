@@ -240,3 +240,56 @@ def test_a_protocol_fingerprint_names_its_fields():
     assert replace(spec, mesh=3).fingerprints()["protocol"] != a["protocol"]
     assert replace(spec, steps=400).fingerprints()["benchmark"] != a["benchmark"]
     assert replace(spec, steps=400).fingerprints()["protocol"] == a["protocol"]
+
+
+def _benchmark_with_one_run(root: Path, result: dict[str, Any]) -> Path:
+    spec = Spec(
+        **{**PRESETS["smoke"], "algos": ("td3",), "tasks": ("hopper",), "uncertainty": "3d"}
+    )
+    benchfile.write_spec(root, spec)
+    run = root / "runs" / "td3-hopper-3d-seed0"
+    (run / "eval").mkdir(parents=True)
+    episodes = pd.DataFrame(
+        {
+            "point": [0, 1],
+            "episode": [0, 0],
+            "seed": [1, 2],
+            "return": [1.0, 3.0],
+            "length": [10, 10],
+            "terminated": [False, False],
+            "diverged": [False, False],
+        }
+    )
+    rundir.write_checked_table(run / "eval" / "episodes.csv", episodes)
+    store.write_result(run, {**RESULT, "steps": spec.steps, **result})
+    return run
+
+
+def test_a_result_from_another_protocol_is_refused_by_the_store_and_the_report(tmp_path):
+    import subprocess
+    import sys
+
+    spec = Spec(
+        **{**PRESETS["smoke"], "algos": ("td3",), "tasks": ("hopper",), "uncertainty": "3d"}
+    )
+    own = spec.fingerprints()
+    _benchmark_with_one_run(tmp_path / "a", own)
+    store.build_store(tmp_path / "a", own)  # its own: accepted
+    _benchmark_with_one_run(tmp_path / "b", {**own, "protocol": "0123456789abcdef"})
+    with pytest.raises(rundir.DamagedFile) as err:
+        store.build_store(tmp_path / "b", own)
+    one_line(err.value, "td3-hopper-3d-seed0", "another evaluation protocol", "0123456789abcdef")
+    _benchmark_with_one_run(tmp_path / "c", {**own, "benchmark": "fedcba9876543210"})
+    with pytest.raises(rundir.DamagedFile, match="another benchmark protocol"):
+        store.build_store(tmp_path / "c", own)
+    # a result written before fingerprints existed has none to compare: read as it is
+    _benchmark_with_one_run(tmp_path / "d", {})
+    store.build_store(tmp_path / "d", own)
+    done = subprocess.run(
+        [sys.executable, "-m", "rrls", "report", str(tmp_path / "b"), "--no-plots"],
+        capture_output=True,
+        text=True,
+    )
+    assert done.returncode == 2, done.stderr
+    assert "Traceback" not in done.stderr and "another evaluation protocol" in done.stderr
+    assert len(done.stderr.strip().splitlines()) == 1
