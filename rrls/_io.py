@@ -162,6 +162,9 @@ class DirectoryLock:
 def resource_error(err: BaseException) -> str:
     """A filesystem or memory error in words: what failed, on which file, and what to do."""
     if isinstance(err, MemoryError):
+        said = str(err).strip()  # a check made before allocating says what and how much
+        if said and "\n" not in said and len(said) < 300:
+            return f"out of memory: {said}"
         return "out of memory: choose smaller sizes (--mesh, --episodes, --workers, --seeds)"
     name = getattr(err, "filename", None)
     what = getattr(err, "strerror", None) or str(err) or type(err).__name__

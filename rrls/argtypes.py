@@ -33,6 +33,16 @@ def nonnegative_int(text: str) -> int:
     return value
 
 
+def worker_count(text: str) -> int:
+    """argparse ``type=``: worker processes, 0 to ``MAX_WORKERS`` (0: in this process)."""
+    from rrls.evaluation.protocol import MAX_WORKERS
+
+    value = nonnegative_int(text)
+    if value > MAX_WORKERS:
+        raise argparse.ArgumentTypeError(f"must be at most {MAX_WORKERS}, got {text}")
+    return value
+
+
 #: the most steps any count may say (1e12: ~30 000 years of one env at 1 000 steps/s)
 MAX_STEPS = 10**12
 #: suffixes a step count may carry: 100k, 1.5M, 2g

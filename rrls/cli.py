@@ -6,7 +6,8 @@ import argparse
 import sys
 from typing import Any
 
-from rrls.argtypes import nonnegative_int, positive_int, seed_value, set_name, step_count, task_key
+from rrls import argtypes
+from rrls.argtypes import positive_int, seed_value, set_name, step_count, task_key
 from rrls.extras import install_hint
 
 #: what a command may raise for bad input: reported as ``rrls <command>: <message>``, exit 2
@@ -140,10 +141,10 @@ def build_parser(with_train: bool = True) -> argparse.ArgumentParser:
     )
     ev.add_argument(
         "--workers",
-        type=nonnegative_int,
+        type=argtypes.worker_count,
         default=None,
-        help="worker processes; 0: in this process (default: the number of cores; results do "
-        "not depend on it)",
+        help="worker processes, at most 1024; 0: in this process (default: the number of "
+        "cores; results do not depend on it)",
     )
     ev.add_argument(
         "--batch-size",

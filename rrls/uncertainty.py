@@ -170,6 +170,21 @@ class UncertaintySet:
             return self.to_dict(rng.uniform(self.low, self.high))
         return rng.uniform(self.low, self.high, size=(n, self.dim))
 
+    def mesh_size(self, n: int) -> int:
+        """The number of points of a mesh of ``n`` per dimension (about ``n ** dim``: the
+        paper's ``np.arange`` may add one per axis), refused above ``MAX_MESH_POINTS`` before
+        any array is made (one line with the largest ``n`` allowed here)."""
+        if isinstance(n, bool) or int(n) != n or n < 1:
+            raise ValueError(f"mesh size must be a positive integer, got {n!r}")
+        n = int(n)
+        if n**self.dim > MAX_MESH_POINTS:
+            raise ValueError(
+                f"a mesh of {n} per dimension over {self.dim} dimension(s) is {n**self.dim:,} "
+                f"points; at most {MAX_MESH_POINTS:,} (a mesh of "
+                f"{int(MAX_MESH_POINTS ** (1 / max(self.dim, 1)) + 1e-9)} here)"
+            )
+        return n**self.dim
+
     def mesh(self, n: int, endpoint: bool = True) -> np.ndarray:
         """The ``n ** dim`` points of a uniform grid, shape ``(n ** dim, dim)``.
 
@@ -178,15 +193,7 @@ class UncertaintySet:
         with ``step = (high - low) / n``), which never reaches the upper bound. The first
         parameter varies slowest (``itertools.product`` order).
         """
-        if int(n) != n or n < 1:
-            raise ValueError(f"mesh size must be a positive integer, got {n!r}")
-        n = int(n)
-        if n**self.dim > MAX_MESH_POINTS:  # refused before any array is made
-            raise ValueError(
-                f"a mesh of {n} per dimension over {self.dim} dimension(s) is {n**self.dim:,} "
-                f"points; at most {MAX_MESH_POINTS:,} (a mesh of "
-                f"{int(MAX_MESH_POINTS ** (1 / max(self.dim, 1)) + 1e-9)} here)"
-            )
+        n = self.mesh_size(n) and int(n)
         if endpoint:
             axes = [np.linspace(lo, hi, n) for lo, hi in zip(self.low, self.high)]
         else:

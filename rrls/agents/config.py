@@ -8,7 +8,7 @@ from typing import Any
 
 import numpy as np
 
-from rrls.agents.hparams import hp, jsonable
+from rrls.agents.hparams import check_limits, hp, jsonable, most_threads
 from rrls.agents.lookup import algorithm
 from rrls.algorithms import ENTRY_POINTS, built_in
 from rrls.physics import is_paper, physics_label
@@ -49,7 +49,8 @@ class TrainConfig:
     threads: int | None = hp(
         None,
         "torch threads (default: the cores other processes leave idle, re-checked every few "
-        "seconds, so runs sharing a machine never oversubscribe it)",
+        "seconds, so runs sharing a machine never oversubscribe it; at most 4 per core)",
+        most=most_threads,
     )
     cuda_graphs: bool = hp(
         True,
@@ -70,11 +71,14 @@ class TrainConfig:
         None,
         "processes stepping the envs of runs trained together (0: this process; default: "
         "0 on a CPU, on a GPU one per 4 envs of a group of 16 or more)",
+        most=1024,
     )
     eval_every: int = hp(50_000, "evaluate every N steps (0: never)")
-    eval_episodes: int = hp(5, "episodes per point of the periodic evaluation")
+    eval_episodes: int = hp(5, "episodes per point of the periodic evaluation", most=10_000)
     eval_mesh: int = hp(
-        0, "periodic evaluation also over a mesh of N points per dimension (0: nominal only)"
+        0,
+        "periodic evaluation also over a mesh of N points per dimension (0: nominal only)",
+        most=1_000,
     )
     checkpoint_every: int = hp(
         50_000, "checkpoint every N steps (an episode in progress is replayed on resume)"
@@ -137,6 +141,7 @@ class TrainConfig:
         for name, ok in checks.items():
             if not ok:
                 raise ValueError(f"{name} out of range: {getattr(self, name)}")
+        check_limits(self)
         import torch
 
         try:

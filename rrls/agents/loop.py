@@ -28,6 +28,7 @@ from rrls._io import DirectoryLock
 from rrls.agents import graphs
 from rrls.agents.config import Diverged, TrainConfig
 from rrls.agents.envs import env_factory, make_envs
+from rrls.agents.hparams import check_memory
 from rrls.agents.learner import check_runs_first, run_slice, stack_runs
 from rrls.agents.lookup import Algorithm, algorithm, hyperparameters
 from rrls.agents.run import Run
@@ -170,11 +171,39 @@ def _train_together(hyper, runs, states, on_episode, threads) -> None:
     algo = algorithm(first.algo)
     make = env_factory(algo, first, hyper)
     template = make()  # spaces and metadata; the group's envs may live in worker processes
+    check_group_memory(hyper, template, len(runs), first.steps - runs[0].step)
     envs = make_envs(make, len(runs), env_workers(first, len(runs)))
     try:
         _collect(algo, hyper, runs, states, on_episode, threads, template, envs)
     finally:
         envs.close()
+
+
+def check_group_memory(hyper: Any, env: Any, group: int, steps: int) -> None:
+    """Refuse, before the learner allocates them, replay buffers and networks that cannot fit
+    in this machine's memory (float32 transitions of ``min(buffer_size, steps)`` rows per run;
+    each network with its target, gradient and two Adam moments)."""
+    size = {k: int(np.prod(s.shape)) for k, s in _spaces(env).items()}
+    obs, act = size.get("obs", 0), size.get("act", 0)
+    rows = min(int(getattr(hyper, "buffer_size", 0) or 0), max(steps, 0))
+    replay = rows * (2 * obs + act + 2) * 4
+    hidden = list(getattr(hyper, "hidden", ()) or ())
+    params = 0
+    for sizes in ([obs, *hidden, act], [obs + act, *hidden, 1], [obs + act, *hidden, 1]):
+        params += sum(a * b + b for a, b in zip(sizes[:-1], sizes[1:]))
+    check_memory(
+        group * (replay + 5 * 4 * params),
+        f"{group} run(s) with {rows:,} replay transitions and {hidden} networks each",
+        "lower --buffer-size or --hidden, or train fewer runs together",
+    )
+
+
+def _spaces(env: Any) -> dict[str, Any]:
+    out = {}
+    for key, space in (("obs", env.observation_space), ("act", env.action_space)):
+        if getattr(space, "shape", None) is not None:
+            out[key] = space
+    return out
 
 
 def env_workers(config: TrainConfig, group: int) -> int:

@@ -63,7 +63,9 @@ class Config(TD3Config):
         "uniformly random steps before learning starts (the authors' start_steps = 1e5: "
         "SuReLI/TCRMDP src/main_m2td3.py:16, akimotolab/M2TD3's configs)",
     )
-    hatomega_number: int = hp(5, "candidate worst-case parameters ω̂")
+    hatomega_number: int = hp(
+        5, "candidate worst-case parameters ω̂ (each scored every update)", most=10_000
+    )
     hatomega_learning_rate: float = hp(3e-4, "Adam step size of the ω̂ (the table's own rate)")
     hatomega_parameter_distance: float = hp(0.1, "restart a ω̂ this close (L1) to another")
     minimum_probability: float = hp(0.05, "restart a ω̂ whose probability falls below this")

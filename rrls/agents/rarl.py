@@ -69,7 +69,7 @@ class Config(TD3Config):
         "phases of --phase-steps env steps: protagonist, then adversary, ...)",
         choices=list(SCHEDULES),
     )
-    phase_steps: int = hp(4000, "--schedule alternating: env steps per phase")
+    phase_steps: int = hp(4000, "--schedule alternating: env steps per phase", most=10**12)
     rate_limit: float | None = hp(
         None,
         "TC-RMDP's time-constrained adversary: each step it moves every parameter by at most "
@@ -89,7 +89,9 @@ class Config(TD3Config):
         "states and actions too) or oracle (the state and the parameters in [0, 1])",
         choices=list(OBSERVE),
     )
-    history: int | None = hp(None, "--observe stacked: states and actions kept (default 1)")
+    history: int | None = hp(
+        None, "--observe stacked: states and actions kept (default 1)", most=10_000
+    )
     omniscient: bool | None = hp(
         None,
         "TC-RMDP's adversary also observes the protagonist's action of the step (default: on, "

@@ -22,7 +22,7 @@ import torch
 
 from rrls.agents.envs import task_env
 from rrls.agents.graphs import Update, adam, descend, load_optimizer
-from rrls.agents.hparams import hp
+from rrls.agents.hparams import MAX_BATCH, MAX_BUFFER, MAX_LAYERS, MAX_WIDTH, check_limits, hp
 from rrls.agents.learner import Learner as _Learner
 from rrls.agents.nets import Actor, Critic, NumpyActor, deterministic, polyak, to_mlp_policy
 from rrls.agents.replay import ReplayBuffer, transition_fields
@@ -42,12 +42,19 @@ class Config:
     exploration_noise: float = hp(0.1, "Gaussian exploration noise (times the action scale)")
     learning_starts: int = hp(warmup("td3"), "uniformly random steps before learning starts")
     policy_frequency: int = hp(2, "critic updates per actor update (TD3's delay)")
-    batch_size: int = hp(256, "replay batch size")
-    buffer_size: int = hp(1_000_000, "replay capacity (transitions)")
-    hidden: tuple[int, ...] = hp((256, 256), "hidden layer sizes of actors and critics")
+    batch_size: int = hp(256, "replay batch size", most=MAX_BATCH)
+    buffer_size: int = hp(1_000_000, "replay capacity (transitions)", most=MAX_BUFFER)
+    hidden: tuple[int, ...] = hp(
+        (256, 256), "hidden layer sizes of actors and critics", most=MAX_WIDTH
+    )
 
     def __post_init__(self) -> None:
         self.hidden = tuple(int(h) for h in self.hidden)
+        if len(self.hidden) > MAX_LAYERS:
+            raise ValueError(
+                f"hidden must have at most {MAX_LAYERS} layers, got {len(self.hidden)}"
+            )
+        check_limits(self)
         for name in ("learning_rate", "tau", "policy_frequency", "batch_size", "buffer_size"):
             value = getattr(self, name)
             if not (np.isfinite(value) and value > 0):

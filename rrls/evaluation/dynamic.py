@@ -304,9 +304,19 @@ def _check_arguments(
     episodes: Any, batch_size: Any, history: Any, seed: Any, alpha: Any, rate_limit: Any
 ) -> None:
     """The static evaluation's rules, one line naming the argument and what is valid."""
-    from rrls.evaluation.protocol import check_counts, check_rate_limit, check_seed
+    from rrls.evaluation.protocol import (
+        check_counts,
+        check_episodes,
+        check_rate_limit,
+        check_seed,
+        check_sizes,
+    )
 
-    check_counts(episodes=episodes, batch_size=batch_size, history=history)
+    check_counts(episodes=episodes, history=history)
+    check_episodes(1, episodes)
+    check_sizes(batch_size=batch_size)
+    if history > 10_000:
+        raise ValueError(f"history must be at most 10,000, got {history}")
     check_seed(seed)
     if isinstance(alpha, bool) or not isinstance(alpha, (int, float)) or not 0 <= alpha <= 1:
         raise ValueError(f"alpha must be a number in [0, 1], got {alpha!r}")

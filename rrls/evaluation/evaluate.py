@@ -23,7 +23,7 @@ from rrls.deprecation import renamed_keywords
 from rrls.evaluation import engine, evaldir, lanes
 from rrls.evaluation.chunks import CHUNK
 from rrls.evaluation.prepare import policy_record, prepare_policy
-from rrls.evaluation.protocol import Protocol, check_counts
+from rrls.evaluation.protocol import Protocol, check_counts, check_sizes
 from rrls.evaluation.result import EvaluationResult
 from rrls.physics import physics_label
 from rrls.provenance import versions
@@ -128,10 +128,7 @@ def evaluate(
     plan = protocol.plan(task, view)
     if workers == 0:  # 0: in this process, as every rrls command reads it (= one worker)
         workers = 1
-    if workers is not None:
-        check_counts(workers=workers)
-    if batch_size is not None:
-        check_counts(batch_size=batch_size)
+    check_sizes(workers=workers, batch_size=batch_size)
     spec = rollout_spec(plan, protocol)
     try:  # the engine's env cache lives only as long as this evaluation
         return _evaluate(

@@ -28,7 +28,18 @@ from rrls.physics import is_paper, physics_label
 from rrls.uncertainty import Split, UncertaintySet
 from rrls.wrappers.tc_rmdp import RATE_GAMES
 
-__all__ = ["MAX_EPISODES", "Plan", "Protocol", "check_counts", "check_rate_limit", "check_seed"]
+__all__ = [
+    "MAX_EPISODES",
+    "MAX_LANES",
+    "MAX_WORKERS",
+    "Plan",
+    "Protocol",
+    "check_counts",
+    "check_episodes",
+    "check_rate_limit",
+    "check_seed",
+    "check_sizes",
+]
 
 #: the most episodes one evaluation plans (10**8 episodes of 1 000 steps: 10**11 env steps)
 MAX_EPISODES = 100_000_000
@@ -40,6 +51,34 @@ def check_counts(**values: Any) -> None:
     for name, value in values.items():
         if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 1:
             raise ValueError(f"{name} must be an integer >= 1, got {value!r}")
+
+
+def check_episodes(points: int, episodes: int) -> None:
+    """Refuse an evaluation of more than ``MAX_EPISODES`` episodes (one line with the sum)."""
+    if points * episodes > MAX_EPISODES:
+        raise ValueError(
+            f"{points:,} points x {episodes:,} episodes = {points * episodes:,} episodes; at "
+            f"most {MAX_EPISODES:,} per evaluation"
+        )
+
+
+#: worker processes and live episodes per worker an evaluation may ask for (results depend on
+#: neither: more than this only costs processes and memory)
+MAX_WORKERS = 1024
+MAX_LANES = 1_000_000
+
+
+def check_sizes(workers: Any = None, batch_size: Any = None) -> None:
+    """Refuse worker counts and batch sizes below 1 or above their limits, naming them."""
+    for name, value, most in (
+        ("workers", workers, MAX_WORKERS),
+        ("batch_size", batch_size, MAX_LANES),
+    ):
+        if value is None:
+            continue
+        check_counts(**{name: value})
+        if value > most:
+            raise ValueError(f"{name} must be at most {most:,}, got {value}")
 
 
 def check_seed(seed: Any) -> None:
@@ -252,11 +291,7 @@ class Protocol:
                 self.schedule.points(), _ranged(mesh_box, self.schedule).mesh(self.mesh, endpoint)
             )
         _check_strengths(mesh_box, points)
-        if len(points) * self.episodes > MAX_EPISODES:  # before any per-episode array is made
-            raise ValueError(
-                f"{len(points):,} points x {self.episodes:,} episodes = "
-                f"{len(points) * self.episodes:,} episodes; at most {MAX_EPISODES:,} per evaluation"
-            )
+        check_episodes(len(points), self.episodes)  # before any per-episode array is made
         settings = {
             "physics": physics_label(self.paper),
             "mesh": self.mesh,

@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import argparse
 
-from rrls.argtypes import seed_value, step_count
+from rrls.argtypes import seed_value, step_count, worker_count
 from rrls.deprecation import DeprecatedOption
 from rrls.experiments.reference import SHIPPED
 from rrls.experiments.spec import ALGOS, BUILT_IN, PAPER_TASKS, PRESETS
@@ -136,7 +136,7 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:
     )
     b.add_argument(
         "--workers",
-        type=int,
+        type=worker_count,
         metavar="N",
         help="worker processes: runs in parallel, >= 1 (each run has its own process: 0, 'in "
         "this process' elsewhere, does not apply; default: the number of cores; Ray: the "
@@ -272,7 +272,7 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:
     )
     s.add_argument(
         "--workers",
-        type=int,
+        type=worker_count,
         metavar="N",
         help="worker processes: the evaluation's; 0: in this process (default: the number of "
         "cores)",

@@ -12,7 +12,7 @@ from dataclasses import asdict, dataclass, fields
 from typing import Any
 
 from rrls.algorithms import built_in, paper_five, warmup
-from rrls.evaluation.protocol import Protocol
+from rrls.evaluation.protocol import Protocol, check_episodes
 from rrls.physics import V5, is_paper, physics_label
 
 ALGOS = paper_five()  # the paper's five (the presets' default)
@@ -372,6 +372,14 @@ def validate(spec: Spec) -> None:
                 get_uncertainty_set(key, name)
             except ValueError as err:
                 raise SpecError(str(err)) from None
+        try:  # the final evaluation's size, refused now rather than after the training
+            box = get_uncertainty_set(key, spec.uncertainty)
+            check_episodes(box.mesh_size(spec.mesh), spec.episodes)
+            check_episodes(1, spec.dynamic_episodes)
+            if spec.eval_mesh:
+                check_episodes(box.mesh_size(spec.eval_mesh), spec.eval_episodes)
+        except ValueError as err:
+            raise SpecError(f"{key}: {err}") from None
     for name in ("steps", "mesh", "episodes", "dynamic_episodes", "eval_episodes"):
         if getattr(spec, name) < 1:
             raise SpecError(f"--{name.replace('_', '-')} must be >= 1, got {getattr(spec, name)}")
