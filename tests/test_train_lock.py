@@ -91,3 +91,23 @@ def test_a_resume_under_other_settings_names_each_difference(tmp_path, capsys, m
     line = capsys.readouterr().err.strip().splitlines()[-1]
     assert "cannot resume" in line
     assert "physics 'paper' (now 'v5')" in line and "learning_rate 0.0003 (now 0.01)" in line
+
+
+def test_a_report_waits_for_another_report_of_the_same_benchmark(tmp_path, capsys):
+    """``rrls report`` rebuilds results/ and report/: a second one (or a benchmark ending)
+    waits for the first instead of mixing the files."""
+    import threading
+
+    from rrls.cli import main
+    from rrls.experiments import benchfile
+
+    (tmp_path / "runs").mkdir()
+    codes: list[int] = []
+    with benchfile.reporting(tmp_path):
+        other = threading.Thread(target=lambda: codes.append(main(["report", str(tmp_path)])))
+        other.start()
+        other.join(timeout=1.5)
+        assert other.is_alive() and not codes  # waiting for the lock
+    other.join(timeout=60)
+    assert codes and codes[0] == 2  # then ran: this benchmark has no finished run
+    assert "no run" in capsys.readouterr().err

@@ -101,6 +101,18 @@ def locked(root: str | Path) -> Iterator[None]:
         yield
 
 
+#: the lock of the store and the report (``results/``, ``report/``): rebuilt by ``rrls
+#: benchmark`` at its end and by ``rrls report``, one command at a time
+REPORT_LOCK = ".report.lock"
+
+
+@contextmanager
+def reporting(root: str | Path) -> Iterator[None]:
+    """Hold the store's and report's lock (waiting for another report to finish)."""
+    with waiting_lock(Path(root) / REPORT_LOCK):
+        yield
+
+
 def reconcile(out: Path, spec: Spec) -> Spec:
     """The spec to store in ``out``: ``spec`` itself, or the union with the stored one.
 

@@ -191,17 +191,14 @@ def confirmed(command: str, runs: int, yes: bool) -> bool:
 def _report(args: argparse.Namespace) -> int:
     from pathlib import Path
 
-    from rrls.experiments.benchfile import stored_fingerprints
+    from rrls.experiments.benchfile import reporting, stored_fingerprints
+    from rrls.experiments.reference import ReferenceError, export_reference
     from rrls.experiments.report import make_report
     from rrls.experiments.store import build_store
 
     root = Path(args.dir)
     if not (root / "runs").is_dir() and not (root / "results").is_dir():
         return _fail("report", f"{root} is not a benchmark directory (no runs/ or results/)")
-    if (root / "runs").is_dir():
-        build_store(root, stored_fingerprints(root))
-    from rrls.experiments.reference import ReferenceError, export_reference
-
     labels = {}
     for item in args.rename or []:
         name, sep, text = item.partition("=")
@@ -211,12 +208,15 @@ def _report(args: argparse.Namespace) -> int:
             )
         labels[name.strip()] = text.strip()
     try:
-        path = make_report(
-            root, plots=not args.no_plots, reference=args.reference, labels=labels or None
-        )
-        exported = None
-        if args.export_reference:
-            exported = export_reference(root, args.export_reference, label=args.label)
+        with reporting(root):  # one store and report at a time (a benchmark ending, too)
+            if (root / "runs").is_dir():
+                build_store(root, stored_fingerprints(root))
+            path = make_report(
+                root, plots=not args.no_plots, reference=args.reference, labels=labels or None
+            )
+            exported = None
+            if args.export_reference:
+                exported = export_reference(root, args.export_reference, label=args.label)
     except ReferenceError as err:
         return _fail("report", str(err))
     print(_table(root))

@@ -221,12 +221,13 @@ def benchmark(
         return code
     from rrls.experiments.store import build_store
 
-    build_store(root, spec.fingerprints())
-    if report and (finished or len(display.failures) < len(todo)):  # else: nothing to report
-        from rrls.experiments.report import make_report
+    with benchfile.reporting(root):  # a concurrent `rrls report` waits
+        build_store(root, spec.fingerprints())
+        if report and (finished or len(display.failures) < len(todo)):  # else: nothing
+            from rrls.experiments.report import make_report
 
-        path = make_report(root)
-        print(f"report: {path}", file=stream)
+            path = make_report(root)
+            print(f"report: {path}", file=stream)
     if display.failures:
         print(f"{len(display.failures)} run(s) failed:", file=stream)
         for key, detail in sorted(display.failures.items()):
