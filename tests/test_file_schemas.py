@@ -16,6 +16,7 @@ import pandas as pd
 import pytest
 
 from rrls import rundir
+from rrls.evaluation import EvaluationResult, evaldir
 from rrls.experiments import benchfile, store
 from rrls.experiments.reference import (
     REFERENCE_SCHEMA,
@@ -293,3 +294,35 @@ def test_a_result_from_another_protocol_is_refused_by_the_store_and_the_report(t
     assert done.returncode == 2, done.stderr
     assert "Traceback" not in done.stderr and "another evaluation protocol" in done.stderr
     assert len(done.stderr.strip().splitlines()) == 1
+
+
+# --- an evaluation's summary.json and a run's progress.json ---------------------------------
+_EVAL = ROOT / "docs/results/halfcheetah/runs/td3-halfcheetah-3d-seed0/eval"
+
+
+@pytest.mark.parametrize(("field", "bad"), cases(evaldir.SUMMARY_SCHEMA))
+def test_a_hostile_evaluation_summary_is_refused_by_field(tmp_path, field, bad):
+    import shutil
+
+    shutil.copytree(_EVAL, tmp_path / "eval")
+    summary = json.loads((_EVAL / "summary.json").read_text())
+    rundir.write_checked_json(tmp_path / "eval" / "summary.json", {**summary, field: bad})
+    with pytest.raises(SchemaError) as err:
+        EvaluationResult.load(tmp_path / "eval")
+    one_line(err.value, "summary.json", f"'{field}")
+
+
+def test_the_shipped_evaluation_reads_back():
+    assert EvaluationResult.load(_EVAL).worst_case == pytest.approx(94.45003996871871)
+
+
+@pytest.mark.parametrize(
+    "content", ["[]", '"x"', '{"phase": "train", "step": -1}', '{"phase": 3}', '{"sps": NaN}']
+)
+def test_a_hostile_progress_file_shows_nothing(tmp_path, content):
+    from rrls.experiments.pipeline import read_progress
+
+    (tmp_path / rundir.PROGRESS).write_text(content)
+    assert read_progress(tmp_path) is None
+    (tmp_path / rundir.PROGRESS).write_text('{"phase": "train", "step": 5, "total": 9}')
+    assert read_progress(tmp_path)["step"] == 5

@@ -16,19 +16,56 @@ from pathlib import Path
 from typing import Any
 
 from rrls._io import DirectoryLock, atomic_write_json
-from rrls.physics import physics_label
+from rrls.physics import ALIASES, physics_label
 from rrls.rundir import (
     read_checked_json,
     read_checked_table,
     write_checked_json,
     write_checked_table,
 )
+from rrls.schema import Schema, TableSchema, boolean, integer, number, obj, string
 
 __all__ = ["ARGUMENTS", "SUMMARY", "opened", "read", "table_name", "write"]
 
 ARGUMENTS = "evaluation.json"
 SUMMARY = "summary.json"
 CHUNKS = "chunks"
+
+#: ``summary.json``: the fields rrls reads are typed; the rest (the protocol's settings, the
+#: policy's record) is open, as each protocol and policy adds its own
+SUMMARY_SCHEMA = Schema(
+    {
+        "worst_case": number(required=True),
+        "average_case": number(required=True),
+        "points": integer(1, required=True),
+        "episodes": integer(1),
+        "episodes_total": integer(1),
+        "mesh": integer(1),
+        "seed": integer(0, 2**32 - 1),
+        "physics": string(choices=tuple(ALIASES)),
+        "task": string(),
+        "env": string(),
+        "diverged": integer(0),
+        "endpoint": boolean(null=True),
+        "max_episode_steps": integer(1),
+        "uncertainty": obj(Schema({}, open=True)),
+        "worst_point": obj(Schema({}, open=True), null=True),
+        "versions": obj(Schema({}, open=True)),
+    },
+    open=True,
+)
+#: the episode table's header (one row per episode; the set's parameters beside)
+EPISODES_SCHEMA = TableSchema(
+    {
+        "point": "int",
+        "episode": "int",
+        "seed": "int",
+        "return": "number",
+        "length": "int",
+        "terminated": "bool",
+        "diverged": "bool",
+    }
+)
 
 
 def table_name() -> str:
@@ -77,7 +114,7 @@ def read(out_dir: str | Path) -> tuple[dict[str, Any], Any]:
     summary_path = out_dir / SUMMARY
     if not summary_path.exists():
         raise FileNotFoundError(f"{out_dir} holds no summary.json: not an rrls evaluation")
-    summary = read_checked_json(summary_path)
+    summary = SUMMARY_SCHEMA.check(read_checked_json(summary_path), str(summary_path))
     table = out_dir / "episodes.parquet"
     if not table.exists():
         table = out_dir / "episodes.csv"
@@ -85,4 +122,4 @@ def read(out_dir: str | Path) -> tuple[dict[str, Any], Any]:
         episodes = read_checked_table(table)  # a damaged table: one line naming it
     except FileNotFoundError:
         raise FileNotFoundError(f"{out_dir} holds no episodes table") from None
-    return summary, episodes
+    return summary, EPISODES_SCHEMA.check(episodes, str(table))

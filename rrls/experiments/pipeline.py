@@ -28,11 +28,12 @@ from pathlib import Path
 from typing import Any
 
 from rrls import rundir
-from rrls._io import DirectoryLock
+from rrls._io import DirectoryLock, atomic_write_json
 from rrls._proc import THREAD_ENV
 from rrls.algorithms import plays_adversary
 from rrls.experiments.spec import RunKey, Spec
 from rrls.experiments.stages import run_dynamic, run_evaluation
+from rrls.schema import Schema, integer, number, string
 
 
 def run_dir(root: Path, spec: Spec, key: RunKey) -> Path:
@@ -253,14 +254,26 @@ class ProgressFile:
             "sps": self._sps,
             "pid": os.getpid(),
         }
-        tmp = self.path.with_suffix(".tmp")
-        tmp.write_text(json.dumps(data))
-        os.replace(tmp, self.path)
+        atomic_write_json(self.path, data)
+
+
+#: ``progress.json``: what the driver's display reads of a running run
+PROGRESS_SCHEMA = Schema(
+    {
+        "phase": string(choices=("train", "evaluate", "dynamic", "done")),
+        "step": integer(0),
+        "total": integer(0),
+        "sps": number(0),
+        "pid": integer(0),
+    }
+)
 
 
 def read_progress(path: Path) -> dict[str, Any] | None:
+    """A run's progress, or None where there is none (yet) or it is not one: the display
+    shows nothing for it rather than numbers it cannot trust."""
     try:
-        return json.loads((path / rundir.PROGRESS).read_text())
+        return PROGRESS_SCHEMA.check(json.loads((path / rundir.PROGRESS).read_text()), "")
     except (OSError, ValueError):
         return None
 

@@ -23,6 +23,7 @@ from pathlib import Path
 from typing import Any
 
 from rrls import rundir
+from rrls.evaluation.evaldir import EPISODES_SCHEMA
 from rrls.physics import ALIASES
 from rrls.schema import Schema, TableSchema, integer, number, obj, string
 
@@ -59,18 +60,6 @@ RESULT_SCHEMA = Schema(
         # and (trained runs) of the benchmark's protocol it ran under
         "protocol": string(),
         "benchmark": string(),
-    }
-)
-#: ``eval/episodes`` (one row per episode; the set's parameters and a split's flag beside)
-EPISODES_SCHEMA = TableSchema(
-    {
-        "point": "int",
-        "episode": "int",
-        "seed": "int",
-        "return": "number",
-        "length": "int",
-        "terminated": "bool",
-        "diverged": "bool",
     }
 )
 #: ``dynamic.csv`` (one row per episode against the adversary)
