@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import shlex
 import sys
 from typing import Any
 
@@ -463,7 +464,7 @@ def _train(args: argparse.Namespace) -> int:
     run_dir = run_dirs[0]
     print(
         f"trained {config.algo} on {config.task}/{config.uncertainty}: {run_dir}/policy.npz "
-        f"(evaluate with: rrls evaluate {run_dir})"
+        f"(evaluate with: rrls evaluate {shlex.quote(str(run_dir))})"
     )
     if (run_dir / "adversary.npz").exists():
         print(f"against its own adversary (paper Table 6): rrls evaluate-dynamic {run_dir}")

@@ -78,3 +78,15 @@ def test_evaluate_default_folders_are_per_policy(tmp_path, monkeypatch):
         "pol0-invertedpendulum-1d-mesh2-ep1-seed0",
         "pol1-invertedpendulum-1d-mesh2-ep1-seed0",
     ]
+
+
+def test_suggested_commands_quote_paths_with_spaces(tmp_path, capsys):
+    """A command rrls prints for the user to run works when pasted: paths are shell-quoted."""
+    import shlex
+
+    out = tmp_path / "my runs" / "td3 seed0"
+    argv = ["train", "--algo", "td3", "--task", "invertedpendulum", "--steps", "200"]
+    assert main([*argv, "--out", str(out)]) == 0
+    printed = capsys.readouterr().out
+    line = printed[printed.index("rrls evaluate") :].split(")")[0]
+    assert shlex.split(line) == ["rrls", "evaluate", str(out)]

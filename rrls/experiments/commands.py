@@ -7,6 +7,7 @@ Bad specifications end with one line on stderr and exit status 2, before any run
 from __future__ import annotations
 
 import argparse
+import shlex
 import sys
 from typing import Any
 
@@ -224,7 +225,8 @@ def _report(args: argparse.Namespace) -> int:
     if exported is not None:
         print(
             f"reference: {args.export_reference} ({exported.label!r}: "
-            f"{len(exported.rows)} cells; `rrls report DIR --reference {args.export_reference}`)"
+            f"{len(exported.rows)} cells; `rrls report DIR --reference "
+            f"{shlex.quote(str(args.export_reference))}`)"
         )
     return 0
 
@@ -295,7 +297,7 @@ def _withdraw(args: argparse.Namespace) -> int:
     except SubmitError as err:
         return _fail("withdraw", str(err))
     print("withdrawn: " + ", ".join(names))
-    print(f"report: rrls report {args.bench_dir}")
+    print(f"report: rrls report {shlex.quote(str(args.bench_dir))}")
     return 0
 
 
@@ -342,5 +344,5 @@ def _submit(args: argparse.Namespace) -> int:
         + (f", against its adversary {r['dynamic_mean']:,.2f}" if "dynamic_mean" in r else "")
     )
     print(f"run: {done.run_dir}")
-    print(f"report: rrls report {args.bench_dir}")
+    print(f"report: rrls report {shlex.quote(str(args.bench_dir))}")
     return 0

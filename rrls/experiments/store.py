@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import json
 import math
+import shlex
 from pathlib import Path
 from typing import Any
 
@@ -233,6 +234,6 @@ def load_store(root: str | Path) -> dict[str, Any]:
     if not any((results / f"runs{s}").exists() for s in (".parquet", ".csv")):
         raise FileNotFoundError(
             f"{root} holds no result store (results/runs.parquet or .csv): run `rrls benchmark "
-            f"--out {root}` first"
+            f"--out {shlex.quote(str(root))}` first"
         )
     return {name: _read_table(results / name) for name in TABLES}

@@ -27,6 +27,7 @@ from __future__ import annotations
 
 import os
 import re
+import shlex
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -131,8 +132,8 @@ def load_spec(bench_dir: str | Path) -> Spec:
     if not exists:
         raise SubmitError(
             f"{bench_dir} is not a benchmark directory (no benchmark.json): create one with "
-            f"`rrls benchmark --out {bench_dir} ...`, or pass --preset to `rrls submit` to "
-            "start an empty one with that preset's protocol"
+            f"`rrls benchmark --out {shlex.quote(str(bench_dir))} ...`, or pass --preset to "
+            "`rrls submit` to start an empty one with that preset's protocol"
         )
     try:
         return benchfile.read_spec(bench_dir)
@@ -457,8 +458,8 @@ def _check_new_task(root: Path, spec: Spec, key: str, add_task: bool) -> None:
     if spec.algos:  # a benchmark with baselines: only its tasks compare
         raise SubmitError(
             f"task {key!r} is not in the benchmark {root} (its tasks: "
-            f"{', '.join(spec.tasks)}); add it with `rrls benchmark --out {root} --tasks "
-            f"{','.join((*spec.tasks, key))} ...`"
+            f"{', '.join(spec.tasks)}); add it with `rrls benchmark --out "
+            f"{shlex.quote(str(root))} --tasks {','.join((*spec.tasks, key))} ...`"
         )
     if not add_task:
         raise SubmitError(
