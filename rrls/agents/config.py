@@ -6,11 +6,10 @@ from __future__ import annotations
 from dataclasses import asdict, dataclass, field
 from typing import Any
 
-import numpy as np
-
 from rrls.agents.hparams import check_limits, hp, jsonable, most_threads
 from rrls.agents.lookup import algorithm
 from rrls.algorithms import ENTRY_POINTS, built_in
+from rrls.envs import training_split
 from rrls.physics import is_paper, physics_label
 from rrls.tasks import benchmark_set
 
@@ -179,27 +178,6 @@ class TrainConfig:
         region = Split.parse(box, self.split).region
         label = f"{box.label} {self.split} (training part)"
         return UncertaintySet(region.names, region.low, region.high, None, label, box.family)
-
-
-def training_split(task: str, uncertainty: str, text: str) -> str:
-    """``text`` checked as a split of the set rrls can train on, in its canonical form
-    (``extrapolation:0.5``): interpolation's training part (the set minus an interior box) is
-    not a box, which M2TD3's and RARL's searches need, so training refuses it."""
-    from rrls.envs import get_uncertainty_set
-    from rrls.uncertainty import Split
-
-    box = get_uncertainty_set(task, uncertainty)
-    if box.dim == 0:
-        raise ValueError(f"split {text!r}: the set {uncertainty!r} of {task!r} is empty")
-    split = Split.parse(box, text)
-    if split.kind != "extrapolation":
-        raise ValueError(
-            f"split {text!r}: training takes extrapolation[:F] (an inner box); interpolation's "
-            "training part is not a box (evaluate(..., split=Split.interpolation(...)) and "
-            "DomainRandomization(randomize_fn=split.sample_train) serve it by hand)"
-        )
-    width = (split.region.high - split.region.low) / (box.high - box.low)
-    return f"extrapolation:{float(np.round(width.max(), 6)):g}"
 
 
 class Interrupted(Exception):

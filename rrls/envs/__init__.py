@@ -304,7 +304,28 @@ def env_class(task: str, uncertainty: str | UncertaintySet = "3d") -> type:
     return resolve(task, uncertainty).env_class
 
 
+def training_split(task: str, uncertainty: str, text: str) -> str:
+    """``text`` checked as a split of the set rrls can train on, in its canonical form
+    (``extrapolation:0.5``): interpolation's training part (the set minus an interior box) is
+    not a box, which M2TD3's and RARL's searches need, so training refuses it."""
+    from rrls.uncertainty import Split
+
+    box = get_uncertainty_set(task, uncertainty)
+    if box.dim == 0:
+        raise ValueError(f"split {text!r}: the set {uncertainty!r} of {task!r} is empty")
+    split = Split.parse(box, text)
+    if split.kind != "extrapolation":
+        raise ValueError(
+            f"split {text!r}: training takes extrapolation[:F] (an inner box); interpolation's "
+            "training part is not a box (evaluate(..., split=Split.interpolation(...)) and "
+            "DomainRandomization(randomize_fn=split.sample_train) serve it by hand)"
+        )
+    width = (split.region.high - split.region.low) / (box.high - box.low)
+    return f"extrapolation:{float(round(float(width.max()), 6)):g}"
+
+
 __all__ = [
+    "training_split",
     "AntParamsBound",
     "ForceAnt",
     "ForceHalfCheetah",

@@ -324,7 +324,7 @@ def make_spec(preset: str = "paper", **overrides: Any) -> Spec:
         raise SpecError(str(err)) from None
     values["tasks"] = tuple(dict.fromkeys(_task_key(t) for t in values["tasks"]))
     if values.get("split"):  # canonical (extrapolation:0.5), so two spellings are one protocol
-        from rrls.agents.config import training_split
+        from rrls.envs import training_split
 
         try:
             values["split"] = training_split(
@@ -391,7 +391,7 @@ def validate(spec: Spec) -> None:
     if spec.checkpoint_every < 1:
         raise SpecError("checkpoint_every must be >= 1")
     if spec.split:
-        from rrls.agents.config import training_split
+        from rrls.envs import training_split
 
         for task in spec.tasks:
             try:
