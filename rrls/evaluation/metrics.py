@@ -22,7 +22,9 @@ __all__ = [
     "REDUCTIONS",
     "SCORES",
     "SPLIT_SCORES",
+    "normalization_span",
     "normalized_score",
+    "normalized_std",
     "point_means",
     "run_scores",
     "scores_of",
@@ -86,8 +88,23 @@ def normalized_score(v: ArrayLike, v_td3: ArrayLike, v_m2td3: ArrayLike) -> np.n
     >>> normalized_score(19.78, -123.64, 2322.73).round(2)  # DR's worst case on Ant (Table 4)
     np.float64(0.06)
     """
-    v, v_td3, v_m2td3 = (np.asarray(x, dtype=np.float64) for x in (v, v_td3, v_m2td3))
-    span = np.abs(v_m2td3 - v_td3)
+    v, v_td3 = np.asarray(v, dtype=np.float64), np.asarray(v_td3, dtype=np.float64)
+    return (v - v_td3) / normalization_span(v_td3, v_m2td3)
+
+
+def normalized_std(std: float, v_td3: float, v_m2td3: float) -> float:
+    """A standard deviation in normalised units (the score is an affine map of the return)."""
+    return float(std / normalization_span(v_td3, v_m2td3))
+
+
+def normalization_span(v_td3: ArrayLike, v_m2td3: ArrayLike) -> np.ndarray | np.float64:
+    """``|v_m2td3 - v_td3|``, refused (one line) where it is 0 or not finite: the normalised
+    score is then undefined."""
+    span = np.abs(np.asarray(v_m2td3, dtype=np.float64) - np.asarray(v_td3, dtype=np.float64))
     if np.any(span == 0):
         raise ValueError("TD3 and M2TD3 references are equal: the normalised score is undefined")
-    return (v - v_td3) / span
+    if not np.all(np.isfinite(span)):
+        raise ValueError(
+            "TD3 and M2TD3 references are not finite: the normalised score is undefined"
+        )
+    return span

@@ -114,11 +114,7 @@ def per_seed_scores(evaluations: Any) -> Any:
 
 def normalise(v: np.ndarray, v_td3: float, v_m2td3: float) -> np.ndarray:
     """Paper §5: ``(v - v_TD3) / |v_M2TD3 - v_TD3|`` with v_TD3, v_M2TD3 the seed means
-    (``rrls.evaluation.metrics.normalized_score``); refused when the span is not finite."""
-    if not np.isfinite(abs(v_m2td3 - v_td3)):
-        raise ValueError(
-            "TD3 and M2TD3 references are not finite: the normalised score is undefined"
-        )
+    (``rrls.evaluation.metrics.normalized_score``); refused when the span is 0 or not finite."""
     return np.asarray(normalized_score(np.asarray(v, dtype=float), v_td3, v_m2td3), dtype=float)
 
 

@@ -20,7 +20,13 @@ from typing import Any
 
 import numpy as np
 
-from rrls.evaluation.metrics import SCORES, SPLIT_SCORES, split_run_scores
+from rrls.evaluation.metrics import (
+    SCORES,
+    SPLIT_SCORES,
+    normalized_score,
+    normalized_std,
+    split_run_scores,
+)
 from rrls.experiments import stats
 from rrls.experiments.caveats import check_normaliser
 from rrls.experiments.names import sort_algos
@@ -314,9 +320,10 @@ def _row_cell(row: dict[str, Any], norm: dict[str, Any] | None, rng: Any) -> dic
     mean, std = float(row["mean"]), None if row.get("std") is None else float(row["std"])
     values = np.asarray(row.get("values") or [], dtype=float)
     if norm is not None:
-        span = abs(norm["m2td3"] - norm["td3"])
-        mean, std = (mean - norm["td3"]) / span, None if std is None else std / span
-        values = stats.normalise(values, norm["td3"], norm["m2td3"]) if len(values) else values
+        td3, m2td3 = norm["td3"], norm["m2td3"]
+        mean = float(normalized_score(mean, td3, m2td3))
+        std = None if std is None else normalized_std(std, td3, m2td3)
+        values = stats.normalise(values, td3, m2td3) if len(values) else values
     described = stats.describe(values, rng) if len(values) else {}
     n = row.get("n_seeds") or len(values) or None
     return {
