@@ -115,3 +115,70 @@ def test_benchmark_out_a_regular_file_is_refused_dry_run_too(tmp_path, capsys, d
     argv = ["benchmark", "--preset", "smoke", "--algos", "td3", "--out", str(out)]
     assert main(argv + (["--dry-run"] if dry else [])) == 2
     assert "is a file, not a directory" in one_line(capsys)
+
+
+@pytest.fixture(scope="module")
+def smoke_bench(tmp_path_factory) -> Path:
+    """A finished one-run benchmark with one submitted policy (made once for the module)."""
+    pytest.importorskip("torch")
+    root = tmp_path_factory.mktemp("fs") / "bench"
+    assert main(["benchmark", "--preset", "smoke", "--algos", "td3", "--out", str(root)]) == 0
+    policy = MLPPolicy.random(4, 1, hidden=(8,), seed=1).save(root.parent / "mine.npz")
+    argv = ["submit", str(root), str(policy), "--algo", "mine", "--task", "invertedpendulum"]
+    assert main([*argv, "--seed", "0"]) == 0
+    return root
+
+
+def _copy_onto(fs: Path, bench: Path, remount: str | None) -> Path:
+    """``bench`` copied onto the mounted ``fs`` (8 MiB), then remounted with ``remount``."""
+    subprocess.run(["umount", str(fs)], check=True)
+    _mount(fs, "size=8m")
+    shutil.copytree(bench, fs / "bench")
+    if remount:
+        subprocess.run(["mount", "-o", f"remount,{remount}", str(fs)], check=True)
+    return fs / "bench"
+
+
+def _fill(fs: Path) -> None:
+    """Leave (almost) nothing free on ``fs``."""
+    with open(fs / "filler", "wb") as f:
+        try:
+            while True:
+                f.write(b"x" * 65536)
+        except OSError:
+            pass
+
+
+COMMANDS = {
+    "report": lambda b: ["report", str(b), "--no-plots"],
+    "export-reference": lambda b: ["report", str(b), "--no-plots", "--export-reference",
+                                   str(b / "ref.json")],
+    "submit": lambda b: ["submit", str(b), str(b.parent / "p.npz"), "--algo", "other", "--task",
+                         "invertedpendulum", "--seed", "0"],
+    "withdraw": lambda b: ["withdraw", str(b), "--algo", "mine"],
+    "evaluate-run": lambda b: ["evaluate", str(b / "runs" / "td3-invertedpendulum-1d-seed0"),
+                               "--mesh", "2", "--episodes", "1", "--workers", "0", "--out",
+                               str(b / "again")],
+}  # fmt: skip
+
+
+@pytest.mark.parametrize("command", sorted(COMMANDS))
+@pytest.mark.parametrize("where", ["read-only", "full"])
+def test_every_command_on_a_read_only_or_full_file_system(
+    smoke_bench, readonly, command, where, capsys
+):
+    bench = _copy_onto(readonly, smoke_bench, "ro" if where == "read-only" else None)
+    if where == "full":
+        MLPPolicy.random(4, 1, hidden=(8,), seed=2).save(readonly / "p.npz")
+        _fill(readonly)
+    else:
+        subprocess.run(["mount", "-o", "remount,rw", str(readonly)], check=True)
+        MLPPolicy.random(4, 1, hidden=(8,), seed=2).save(readonly / "p.npz")
+        subprocess.run(["mount", "-o", "remount,ro", str(readonly)], check=True)
+    capsys.readouterr()
+    code = main(COMMANDS[command](bench))
+    if code == 0 and where == "full":
+        pytest.skip("what the command writes fitted in what was left")
+    assert code == 2
+    line = one_line(capsys)
+    assert ("read-only" if where == "read-only" else "disk is full") in line, line

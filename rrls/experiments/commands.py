@@ -333,9 +333,6 @@ def _submit(args: argparse.Namespace) -> int:
         )
     except (SubmitError, PolicyError) as err:
         return _fail("submit", str(err))
-    except OSError as err:  # the file system refuses a path (a name too long, no space, ...)
-        where = f" ({str(err.filename)[:80]})" if err.filename else ""
-        return _fail("submit", f"{err.strerror or err}{where}")
     r = done.result
     what = "submitted" if done.evaluated else "already submitted (same policy; nothing to do)"
     print(

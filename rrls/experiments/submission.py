@@ -407,6 +407,9 @@ def submit(
         if adv is not None:
             game = game or "adversarial"
             result.update(run_dynamic(spec, key, adapted, adv, game, alpha, staging))
+    except (OSError, MemoryError):  # the disk or memory: said as every command says it
+        discard(staging, made)
+        raise
     except Exception as err:  # noqa: BLE001 - the submitter's code raised mid-evaluation
         discard(staging, made)
         raise SubmitError(
