@@ -107,3 +107,17 @@ def test_the_cli_refuses_a_huge_mesh_in_one_line(tmp_path, capsys):
     assert main([*argv, "--out", str(tmp_path / "e")]) == 2
     lines = capsys.readouterr().err.strip().splitlines()
     assert len(lines) == 1 and "at most 1,000,000" in lines[0], lines
+
+
+@pytest.mark.parametrize(
+    "keyword",
+    [{"mesh": 3}, {"episodes": 2}, {"seed": 1}, {"endpoint": False}, {"paper": True},
+     {"context": True}, {"max_episode_steps": 50}, {"disruptors": {"obsnoise": 0.1}},
+     {"uncertainty": "1d"}],
+)  # fmt: skip
+def test_evaluate_refuses_a_protocol_and_its_fields_together(keyword):
+    from rrls.evaluation import MLPPolicy, evaluate
+
+    policy = MLPPolicy.random(4, 1, (8,), seed=0)
+    with pytest.raises(ValueError, match=f"protocol= and {next(iter(keyword))}"):
+        evaluate(policy, "invertedpendulum", protocol=Protocol("1d", mesh=2, episodes=1), **keyword)

@@ -97,7 +97,8 @@ def evaluate(
 
     ``protocol``: a :class:`~rrls.evaluation.Protocol` holding all of the above (the set, mesh,
     episodes, seed, physics, split, disruptors, schedule, context), as a benchmark stores it; the
-    keyword arguments build one for interactive use and are ignored when it is given.
+    keyword arguments build one for interactive use, and giving both is an error (one line
+    naming the keywords).
 
     Rows stay equal to the one-episode loop on the same wrapper stack
     (``env.set_params(**point); env.reset(seed=seed)``).
@@ -122,6 +123,26 @@ def evaluate(
         )
     elif not isinstance(protocol, Protocol):
         raise TypeError(f"protocol must be an rrls.evaluation.Protocol, got {protocol!r}")
+    else:  # a protocol holds every field: one given beside it would be ignored, so refuse it
+        given = {
+            "uncertainty": uncertainty != "3d",
+            "mesh": mesh != 10,
+            "episodes": episodes != 5,
+            "seed": seed != 0,
+            "endpoint": endpoint is not None,
+            "max_episode_steps": max_episode_steps is not None,
+            "disruptors": bool(disruptors),
+            "schedule": schedule is not None,
+            "context": context is not False,
+            "split": split is not None,
+            "paper": paper is not False,
+        }
+        both = [name for name, differs in given.items() if differs]
+        if both:
+            raise ValueError(
+                f"evaluate got protocol= and {', '.join(both)}: give the protocol alone (with "
+                f"protocol.replace({both[0]}=...) for another value) or the keywords alone"
+            )
     policy = as_policy(policy)
     if view is None:
         view = policy_view(policy)
