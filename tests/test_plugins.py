@@ -62,3 +62,17 @@ def test_a_module_learner_in_the_benchmark_and_its_report(tmp_path, examples):
     assert benchmark(tmp_path, spec, 2, report=True) == 0
     summary = json.loads((tmp_path / "report" / "summary.json").read_text())
     assert {"td3", "ddpg:Learner"} <= set(next(iter(summary["results"].values())))
+
+
+def test_a_plugin_registered_after_import_is_named_by_its_row():
+    """Display names are read from the table at use, not a snapshot taken at import."""
+    from rrls.algorithms import ALGORITHMS, AlgorithmInfo, register_algorithm
+    from rrls.experiments import names, tables
+
+    assert names.display_name("late_algo") == "late_algo"
+    register_algorithm(AlgorithmInfo("late_algo", "Late-Algo", "mypkg.late:Learner"))
+    try:
+        assert names.display_name("late_algo") == "Late-Algo"
+        assert tables.label({"labels": {}}, "late_algo").startswith("Late-Algo")
+    finally:
+        del ALGORITHMS["late_algo"]

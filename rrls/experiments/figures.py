@@ -18,7 +18,7 @@ import numpy as np
 from rrls.evaluation.metrics import SCORES
 from rrls.experiments import profiles, stats
 from rrls.experiments.figstyle import PANEL, colours, markers, pyplot, save
-from rrls.experiments.names import NAMES
+from rrls.experiments.names import display_name
 from rrls.experiments.summary import Scores
 from rrls.experiments.tables import Row, table_rows
 
@@ -197,7 +197,7 @@ def plot_poi(summary: dict[str, Any], scores: Scores, path: Path) -> tuple[str, 
         if pair["ci95"]:
             ax.plot(pair["ci95"], [yi, yi], color=colour[pair["x"]], lw=5, alpha=0.45)
         ax.plot([pair["value"]], [yi], "|", color=colour[pair["x"]], ms=12, mew=2)
-    names = [f"{NAMES.get(p['x'], p['x'])} > {NAMES.get(p['y'], p['y'])}" for p in pairs]
+    names = [f"{display_name(p['x'])} > {display_name(p['y'])}" for p in pairs]
     ax.set_yticks(y, names)
     ax.set_xlim(0, 1)
     ax.axvline(0.5, color="grey", lw=0.6, ls=":")

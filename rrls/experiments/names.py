@@ -3,12 +3,13 @@ read this; neither imports the other for it)."""
 
 from __future__ import annotations
 
-from rrls.algorithms import ALGORITHMS, sort_algos
+from rrls.algorithms import ALGORITHMS, display_name, sort_algos
 
 #: the built-in algorithms in the paper's row order, then SAC's (``rrls.algorithms``: the table)
 ORDER = tuple(sort_algos(ALGORITHMS))
-#: their display names (a registered plug-in's row: ``rrls.algorithms.display_name``)
-NAMES = {a.name: a.display for a in ALGORITHMS.values()}
+#: display names are read from the table at use (``display_name``): a plug-in registered after
+#: this module was imported is named by its row too
+__all__ = ["ORDER", "PAPER_TASK_NAMES", "display_name", "sort_algos", "task_name"]
 #: the paper's column headings where they differ from the registered class-name stem
 PAPER_TASK_NAMES = {"humanoidstandup": "HumanoidStandup", "walker": "Walker"}
 

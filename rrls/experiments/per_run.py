@@ -9,7 +9,7 @@ from __future__ import annotations
 
 from typing import Any
 
-from rrls.experiments.names import NAMES
+from rrls.experiments.names import display_name
 from rrls.experiments.stats import per_seed_scores
 
 __all__ = ["per_run_table", "per_run_lines"]
@@ -57,7 +57,7 @@ def per_run_lines(table: Any, order: list[str]) -> list[str]:
         nominal = row.final_nominal_return
         nominal = "–" if pd.isna(nominal) else f"{nominal:.1f}"
         lines.append(
-            f"| {row.task} | {NAMES.get(row.algorithm, row.algorithm)} | {row.seed} | {nominal} "
+            f"| {row.task} | {display_name(row.algorithm)} | {row.seed} | {nominal} "
             f"| {row.worst_case:.1f} | {row.average_case:.1f} |"
         )
     return [*lines, ""]

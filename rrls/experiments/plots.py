@@ -16,7 +16,7 @@ from rrls.evaluation.result_plot import cell_edges, outline_box
 from rrls.experiments import stats
 from rrls.experiments.figstyle import PANEL, RC, colours, pyplot, save
 from rrls.experiments.figures import aggregate_figures
-from rrls.experiments.names import NAMES, sort_algos, task_name
+from rrls.experiments.names import display_name, sort_algos, task_name
 
 BINS = 50
 #: the fewest seeds a shaded band is drawn from (fewer: the seeds as thin lines)
@@ -25,7 +25,7 @@ MIN_BAND_SEEDS = 3
 
 def _algo_label(algo: str, names: dict[str, str] | None = None) -> str:
     """An algorithm's name in a figure: the report's (``--rename``, submitted marks) if given."""
-    return (names or {}).get(algo) or NAMES.get(algo, algo)
+    return (names or {}).get(algo) or display_name(algo)
 
 
 def _binned(curves: Any, metric: str, steps: int) -> tuple[np.ndarray, dict[tuple, np.ndarray]]:

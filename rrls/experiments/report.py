@@ -39,7 +39,7 @@ from rrls.experiments.caveats import (
     unstable_normalisation,
 )
 from rrls.experiments.cells import fmt, pm
-from rrls.experiments.names import NAMES, ORDER
+from rrls.experiments.names import ORDER, display_name
 from rrls.experiments.summary import summarise
 from rrls.experiments.tables import label, md_table, terminal_table, write_tables
 
@@ -158,7 +158,7 @@ def _split_table(summary: dict[str, Any]) -> list[str]:
     ]
     for task, algo, cell in cells:
         row = " | ".join(pm(cell[m]) for m in SPLIT_SCORES)
-        lines.append(f"| {task} | {NAMES.get(algo, algo)} | {row} |")
+        lines.append(f"| {task} | {display_name(algo)} | {row} |")
     return [*lines, ""]
 
 

@@ -11,7 +11,7 @@ from __future__ import annotations
 from dataclasses import asdict, dataclass, fields
 from typing import Any
 
-from rrls.algorithms import built_in, paper_five, warmup
+from rrls.algorithms import built_in, paper_five, plays_adversary, warmup
 from rrls.evaluation.protocol import Protocol, check_episodes
 from rrls.physics import V5, is_paper, physics_label
 
@@ -470,7 +470,7 @@ def estimate(spec: Spec, jobs: int, max_episode_steps: int = 1000) -> dict[str, 
         n_periodic = spec.steps // spec.eval_every if spec.eval_every else 0
         periodic = n_periodic * (spec.eval_episodes + spec.eval_mesh**dims)
         final = spec.mesh**dims * spec.episodes
-        dynamic = spec.dynamic_episodes if key.algo in ("rarl", "nrmdp") else 0
+        dynamic = spec.dynamic_episodes if plays_adversary(key.algo) else 0
         evals += (
             (periodic + final + dynamic) * max_episode_steps * (1 / env_sps + POLICY_S_PER_STEP)
         )

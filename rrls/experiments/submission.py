@@ -36,7 +36,6 @@ from typing import Any
 import numpy as np
 
 from rrls.algorithms import ALGORITHMS, plugin_entry_points
-from rrls.experiments.names import NAMES
 from rrls.experiments.spec import BUILT_IN, RunKey, Spec, SpecError
 from rrls.experiments.stages import run_dynamic, run_evaluation
 from rrls.experiments.submitted import discard, install, jsonable
@@ -46,7 +45,15 @@ from rrls.physics import is_paper
 #: names, and "paper" (the paper's published numbers in the report); installed plug-ins'
 #: names are reserved too (``reserved_names``)
 RESERVED = tuple(
-    dict.fromkeys([*BUILT_IN, *(n.lower() for n in NAMES.values()), "pr-mdp", "prmdp", "paper"])
+    dict.fromkeys(
+        [
+            *BUILT_IN,
+            *(a.display.lower() for a in ALGORITHMS.values() if a.name in BUILT_IN),
+            "pr-mdp",
+            "prmdp",
+            "paper",
+        ]
+    )
 )
 _NAME = re.compile(r"^[A-Za-z][A-Za-z0-9_.+-]{0,39}$")
 _NAME_RULE = "a letter, then up to 39 letters, digits or _ . + -"

@@ -20,6 +20,7 @@ from typing import Any
 
 import numpy as np
 
+from rrls.algorithms import plays_adversary
 from rrls.evaluation.metrics import (
     SCORES,
     SPLIT_SCORES,
@@ -34,7 +35,6 @@ from rrls.experiments.names import sort_algos
 __all__ = ["CONVENTIONS", "Scores", "reference_name", "summarise"]
 
 #: algorithms evaluated against their own adversary (paper Table 6)
-ADVERSARIAL = ("rarl", "nrmdp")
 
 CONVENTIONS = {
     "worst_case": "per run: min over mesh points of the mean return over the point's "
@@ -209,7 +209,7 @@ def cells(
                     if len(x) and ref is not None
                     else None
                 )
-            if algo in ADVERSARIAL or algo in dyn_algos:
+            if plays_adversary(algo) or algo in dyn_algos:
                 values, episodes = scores.dynamic_values(task, algo)
                 cell["dynamic"] = stats.describe(values, stats.rng_for(task, algo, "d"))
                 cell["dynamic"]["episodes"] = episodes

@@ -20,6 +20,7 @@ from typing import Any
 
 import numpy as np
 
+from rrls.algorithms import plays_adversary
 from rrls.experiments.caveats import (
     BUDGET,
     BUDGET_TEX,
@@ -30,7 +31,7 @@ from rrls.experiments.caveats import (
     is_unstable,
 )
 from rrls.experiments.cells import ci, pm, tex_ci, tex_pm
-from rrls.experiments.names import NAMES, sort_algos, task_name
+from rrls.experiments.names import display_name, sort_algos, task_name
 
 __all__ = [
     "TABLES",
@@ -66,7 +67,7 @@ def label(summary: dict[str, Any], algo: str) -> str:
     renamed = (summary.get("labels") or {}).get(algo)
     if renamed:
         return renamed
-    name = NAMES.get(algo, algo)
+    name = display_name(algo)
     if any(s["algorithm"] == algo for s in summary.get("submitted") or []):
         return f"{name} (submitted)" + (BUDGET if budget_differs(summary, algo) else "")
     return name
@@ -89,7 +90,7 @@ def table_rows(summary: dict[str, Any], name: str) -> list[Row]:
         (label(summary, a), a, "results")
         for a in summary["algorithms"]
         if name != "dynamic"
-        or a in ("rarl", "nrmdp")
+        or plays_adversary(a)
         or any("dynamic" in summary["results"][t].get(a, {}) for t in summary["tasks"])
     ]
     ref = summary.get("reference") or {}
@@ -99,7 +100,7 @@ def table_rows(summary: dict[str, Any], name: str) -> list[Row]:
     renamed = summary.get("labels") or {}
     theirs = [
         (
-            renamed.get(f"{a}@{ref.get('name')}") or f"{NAMES.get(a, a)} (ref. {ref.get('name')})",
+            renamed.get(f"{a}@{ref.get('name')}") or f"{display_name(a)} (ref. {ref.get('name')})",
             a,
             "reference_results",
         )
