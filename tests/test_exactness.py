@@ -115,11 +115,12 @@ def test_exact_linear_huge_and_subnormal_lines_are_the_same_bits_on_any_cpu():
     assert np.array_equal(ExactLinear(w)(xs[::-1])[::-1], edges[0])  # order-free there too
 
 
-def test_exact_linear_refuses_non_finite_weights():
-    w = np.ones((3, 2))
-    w[1, 0] = np.nan
-    with pytest.raises(ValueError, match="weights must be finite"):
-        ExactLinear(w)
+def test_a_policy_file_with_non_finite_weights_is_refused(tmp_path):
+    policy = MLPPolicy.random(3, 2, (4,), seed=0)
+    policy.weights[0][1, 0] = np.nan
+    policy.save(tmp_path / "p.npz")
+    with pytest.raises(ValueError, match="NaN or inf"):
+        MLPPolicy.load(tmp_path / "p.npz")
 
 
 def test_exact_tanh_is_the_same_bits_on_any_cpu_and_within_4_ulp_of_numpy():

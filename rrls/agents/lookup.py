@@ -29,13 +29,24 @@ class Algorithm(NamedTuple):
     Learner: type
 
 
+#: algorithms loaded and checked in this process, by (name, learner): each once
+_LOADED: dict[tuple[str, str], Algorithm] = {}
+
+
 def algorithm(name: str) -> Algorithm:
-    """The algorithm ``name``: built-in, an entry point, or ``package.module:Learner``."""
+    """The algorithm ``name``: built-in, an entry point, or ``package.module:Learner``; loaded
+    and checked once per process (a failure is not remembered: it is raised again)."""
     info = algorithm_info(name)
     if info is None:
         valid = ", ".join(dict.fromkeys([*built_in(), *plugin_entry_points()]))
         raise ValueError(f"unknown algorithm {name!r}; valid: {valid}, or package.module:Learner")
-    target = info.learner
+    key = (name, info.learner)
+    if key not in _LOADED:
+        _LOADED[key] = _load(name, info.learner)
+    return _LOADED[key]
+
+
+def _load(name: str, target: str) -> Algorithm:
     module_name, _, attr = target.partition(":")
     try:
         module = importlib.import_module(module_name)

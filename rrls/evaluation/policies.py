@@ -185,6 +185,9 @@ class MLPPolicy:
                 weights = [f[f"w{i}"] for i in range(n)]
                 biases = [f[f"b{i}"] for i in range(n)]
                 scale, bias = f["action_scale"], f["action_bias"]
+                for name, a in zip(("weights", "biases"), (weights, biases)):
+                    if not all(np.isfinite(x).all() for x in a):
+                        raise ValueError(f"its {name} hold NaN or inf (a diverged training?)")
         except FileNotFoundError:
             raise
         except Exception as err:  # noqa: BLE001 - any unreadable content: one clear message
@@ -203,7 +206,7 @@ class MLPPolicy:
                 dtype=weights[0].dtype,
                 metadata=header.get("metadata"),
             )
-        except ValueError as err:  # shapes that do not chain, non-finite weights
+        except ValueError as err:  # shapes that do not chain
             raise ValueError(f"{path} is not a usable rrls MLP policy: {err}") from None
 
     def __repr__(self) -> str:
