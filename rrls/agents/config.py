@@ -12,6 +12,7 @@ from rrls.algorithms import ENTRY_POINTS, built_in
 from rrls.envs import training_split
 from rrls.physics import is_paper, physics_label
 from rrls.tasks import benchmark_set
+from rrls.twin.tasks import check_twin
 
 __all__ = ["Diverged", "Interrupted", "TrainConfig", "benchmark_set", "training_split"]
 
@@ -91,6 +92,13 @@ class TrainConfig:
         "envs, the original code's parameter writes; the paper's six tasks)",
         choices=["v5", "paper"],
     )
+    simulator: str = hp(
+        "mujoco",
+        "what steps the training envs: mujoco (CPU MuJoCo, the reference) or warp (the task's "
+        "MuJoCo Warp twin on --device, run k on world k: rrls.twin; needs the warp extra). "
+        "Evaluations stay on CPU MuJoCo either way",
+        choices=["mujoco", "warp"],
+    )
     track: bool = hp(False, "also log to Weights & Biases (needs wandb installed)")
     wandb_project: str = hp("rrls", "the W&B project of --track")
     progress: bool | None = None  # progress bar (None: when stderr is a terminal)
@@ -120,6 +128,10 @@ class TrainConfig:
                 f"task {task.key!r} has no paper physics; valid with --physics paper: "
                 + ", ".join(k for k, t in TASKS.items() if t.paper_id is not None)
             )
+        if self.simulator not in SIMULATORS:
+            raise ValueError(f"simulator {self.simulator!r}; valid: {', '.join(SIMULATORS)}")
+        if self.simulator == "warp":
+            check_twin(self.algo, task.key, self.physics)
         if self.out is None:
             paper = "-paper" if is_paper(self.physics) else ""
             split = "-" + self.split.replace(":", "") if self.split else ""
@@ -162,6 +174,7 @@ class TrainConfig:
             "seed": self.seed,
             "max_episode_steps": self.max_episode_steps,
             "physics": self.physics,
+            **({"simulator": self.simulator} if self.simulator != "mujoco" else {}),
             "hyper": jsonable(asdict(hyper)),
         }
 
@@ -178,6 +191,10 @@ class TrainConfig:
         region = Split.parse(box, self.split).region
         label = f"{box.label} {self.split} (training part)"
         return UncertaintySet(region.names, region.low, region.high, None, label, box.family)
+
+
+#: what may step a run's training envs (``--simulator``)
+SIMULATORS = ("mujoco", "warp")
 
 
 class Interrupted(Exception):

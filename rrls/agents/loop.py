@@ -172,7 +172,12 @@ def _train_together(hyper, runs, states, on_episode, threads) -> None:
     make = env_factory(algo, first, hyper)
     template = make()  # spaces and metadata; the group's envs may live in worker processes
     check_group_memory(hyper, template, len(runs), first.steps - runs[0].step)
-    envs = make_envs(make, len(runs), env_workers(first, len(runs)))
+    if first.simulator == "warp":  # the task's MuJoCo Warp twin: run k on world k
+        from rrls.agents.twin_envs import TwinEnvs
+
+        envs: Any = TwinEnvs(make, len(runs), first.task, first.training_set(), first.device)
+    else:
+        envs = make_envs(make, len(runs), env_workers(first, len(runs)))
     try:
         _collect(algo, hyper, runs, states, on_episode, threads, template, envs)
     finally:
@@ -278,6 +283,11 @@ def _collect(
         if state is None:
             options = learner.episode_options(k, 0)
             obs, episode = _begin(envs, k, seeds[k].integer("env"), options)
+        elif not getattr(envs, "replays", True):  # the twin: start that episode again
+            set_rng_state(warmup[k], state["warmup"])
+            saved = state["episode"]
+            envs.set_rng_state(k, saved["env_rng"])
+            obs, episode = _begin(envs, k, saved["seed"], json.loads(saved["options"]))
         else:  # restore the loop's generator, then replay the episode in progress
             set_rng_state(warmup[k], state["warmup"])
             obs, episode = _replay(envs, k, state["episode"], run.checkpoint_path)

@@ -6,9 +6,10 @@ run keeps the paper's protocol of one env per run: its world resets on its own, 
 draws a new point of the set at every episode (from the twin's pool). The policies it returns
 are evaluated where rrls evaluates everything, on CPU MuJoCo.
 
-What this loop does not do yet, and ``rrls train`` does: checkpoints and resume, run
-directories, TensorBoard, periodic evaluations; the adversarial games (RARL, NR-MDP: an
-adversary acting every step) and M2TD3 (a point chosen per episode by the learner) are refused.
+A lean loop for measuring the twin's throughput; ``rrls train --simulator warp`` (the training
+loop of every run, with ``rrls.agents.twin_envs``) adds checkpoints and resume, run
+directories, TensorBoard, periodic evaluations and M2TD3. The adversarial games (RARL, NR-MDP:
+an adversary acting every step) are refused by both.
 Observations and actions cross to the host once per step (``K`` rows each), where the learners'
 seeded exploration draws live.
 """
@@ -25,13 +26,14 @@ import torch
 from rrls.agents.lookup import algorithm
 from rrls.agents.seeds import NumpyGenerators, RunSeeds
 from rrls.algorithms import warmup
+from rrls.twin.tasks import NOT_ON_TWIN
 
 #: algorithm -> does its world draw a new point of the set at every episode (DR)
 ON_TWIN: dict[str, bool] = {"td3": False, "sac": False, "dr": True, "sacdr": True}
-NOT_ON_TWIN: dict[str, str] = {
-    "rarl": "its adversary's forces act at every step (not wired to the twin yet)",
-    "nrmdp": "its adversary's actions mix into every step (not wired to the twin yet)",
-    "m2td3": "it picks each episode's point itself (not wired to the twin yet)",
+#: what this library loop refuses beyond them: ``rrls train --simulator warp`` trains it (the
+#: CPU env of each run takes the learner's point at every reset and the world copies it)
+LOOP_ONLY: dict[str, str] = {
+    "m2td3": "it picks each episode's point itself: train it with rrls train --simulator warp",
 }
 
 
@@ -68,8 +70,9 @@ def train_on_twin(
     ``on_progress(step, returns)`` every ``progress_every`` steps."""
     from rrls.twin import WarpTwin
 
-    if algo in NOT_ON_TWIN:
-        raise ValueError(f"{algo} does not train on the Warp twin: {NOT_ON_TWIN[algo]}")
+    refused = {**NOT_ON_TWIN, **LOOP_ONLY}
+    if algo in refused:
+        raise ValueError(f"{algo} does not train on the Warp twin here: {refused[algo]}")
     if algo not in ON_TWIN:
         raise ValueError(f"algo={algo!r}; on the Warp twin: {', '.join(ON_TWIN)}")
     if not seeds:
@@ -125,4 +128,4 @@ def train_on_twin(
     return TwinTraining(policies, returns, steps, wall)
 
 
-__all__ = ["NOT_ON_TWIN", "ON_TWIN", "TwinTraining", "train_on_twin"]
+__all__ = ["LOOP_ONLY", "NOT_ON_TWIN", "ON_TWIN", "TwinTraining", "train_on_twin"]

@@ -351,6 +351,8 @@ class Run:
             "uncertainty": self.config.uncertainty,
             **({"split": self.config.split} if self.config.split else {}),
             "physics": self.config.physics,
+            # what stepped the training envs (the evaluations' physics is ``physics``, on CPU)
+            **({"simulator": self.config.simulator} if self.config.simulator != "mujoco" else {}),
             "obs_dim": env.observation_space.shape[0],
             "hidden": list(getattr(self.hyper, "hidden", ())),
             "seed": self.config.seed,

@@ -81,6 +81,12 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:
         "evaluation; recorded as given in benchmark.json",
     )
     b.add_argument(
+        "--simulator",
+        choices=["mujoco", "warp"],
+        help="what steps the training envs: mujoco (default: CPU MuJoCo) or warp (each task's "
+        "MuJoCo Warp twin on --device, the warp extra); evaluations stay on CPU MuJoCo",
+    )
+    b.add_argument(
         "--rate-limit",
         type=float,
         metavar="L",

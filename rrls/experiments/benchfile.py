@@ -56,6 +56,7 @@ SPEC_SCHEMA = Schema(
         "rate_game": string(choices=RATE_GAMES),
         "observe": string(choices=OBSERVE),
         "split": string(null=True),
+        "simulator": string(choices=("mujoco", "warp")),
     }
 )
 

@@ -73,6 +73,7 @@ def _spec_from(args: argparse.Namespace) -> tuple:
         episodes=args.episodes,
         device=args.device,
         physics=getattr(args, "physics", None),
+        simulator=getattr(args, "simulator", None),
         rate_limit=getattr(args, "rate_limit", None),
         observe=getattr(args, "observe", None),
         split=getattr(args, "split", None),

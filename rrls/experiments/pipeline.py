@@ -197,6 +197,7 @@ def _train(spec: Spec, runs: list[RunKey], outs: list[Path], progress: list[Prog
             checkpoint_every=spec.checkpoint_every,
             threads=1,
             physics=spec.physics,
+            simulator=spec.simulator,
             progress=False,
             hyper=spec.hyperparameters(run.algo),
         )

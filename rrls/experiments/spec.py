@@ -74,6 +74,9 @@ class Spec:
     #: a train/test split of the set (``extrapolation:F``): every run trains on the inner box,
     #: the evaluation covers the whole set and the report gives in/out of distribution apart
     split: str | None = None
+    #: what steps the training envs: ``mujoco`` (CPU MuJoCo) or ``warp`` (the task's MuJoCo
+    #: Warp twin on ``device``); every evaluation stays on CPU MuJoCo
+    simulator: str = "mujoco"
 
     def runs(self) -> list[RunKey]:
         """Every (algorithm, task, seed) of the grid, in a stable order: seed by seed, so that a
@@ -136,8 +139,12 @@ class Spec:
         return min(steps, self.steps)
 
     def protocol(self) -> dict[str, Any]:
-        """The fields two invocations over one directory must agree on."""
-        return {k: v for k, v in self.to_json().items() if k not in GRID + LABELS}
+        """The fields two invocations over one directory must agree on (``simulator`` only
+        when it is not CPU MuJoCo: a benchmark.json written before it reads as the same)."""
+        out = {k: v for k, v in self.to_json().items() if k not in GRID + LABELS}
+        if out.get("simulator") == "mujoco":
+            del out["simulator"]
+        return out
 
     def to_json(self) -> dict[str, Any]:
         return {k: list(v) if isinstance(v, tuple) else v for k, v in asdict(self).items()}
@@ -409,6 +416,17 @@ def validate(spec: Spec) -> None:
         raise SpecError(f"rate_game must be one of {', '.join(RATE_GAMES)}, got {spec.rate_game!r}")
     if spec.observe not in OBSERVE:
         raise SpecError(f"--observe must be one of {', '.join(OBSERVE)}, got {spec.observe!r}")
+    if spec.simulator not in ("mujoco", "warp"):
+        raise SpecError(f"--simulator must be mujoco or warp, got {spec.simulator!r}")
+    if spec.simulator == "warp":
+        from rrls.twin.tasks import check_twin
+
+        for algo in spec.algos:
+            for task in spec.tasks:
+                try:
+                    check_twin(algo, _task_key(task), spec.physics)
+                except ValueError as err:
+                    raise SpecError(str(err)) from None
     if spec.observe != "vanilla" and (spec.rate_limit is None or spec.rate_game != "tc"):
         raise SpecError(
             f"--observe {spec.observe} is a protagonist of TC-RMDP's game: add --rate-limit R"

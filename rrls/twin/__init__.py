@@ -2,7 +2,8 @@
 
 Needs the ``warp`` extra (``warp-lang`` and ``mujoco-warp``; in the checkout:
 ``python3 -m pip install -c constraints.txt ".[warp]"``);
-importing this package imports warp. Evaluation stays on CPU MuJoCo. See :class:`WarpTwin`.
+importing this package does not import warp (making a ``WarpTwin`` does). Evaluation stays on
+CPU MuJoCo. See :class:`WarpTwin`; ``rrls train --simulator warp`` trains on it.
 """
 
 from __future__ import annotations

@@ -215,6 +215,7 @@ class WarpTwin(VectorEnv):
             targets["xfrc_applied"] = self.d.xfrc_applied
             host = self._host_fields(self.pool_points)
             self.fields = [(_floats(targets[f], n), wp.array(host[f], dtype=float)) for f in host]
+            self.field_names = list(host)  # the order of ``fields``
             for view, pool in self.fields:
                 if view.shape[1] != pool.shape[1]:
                     raise RuntimeError(f"field sizes differ: {view.shape} vs {pool.shape}")
@@ -380,6 +381,37 @@ class WarpTwin(VectorEnv):
         """Put every world at a state (the episode's step count is kept)."""
         self.d.qpos.assign(np.asarray(qpos, dtype=np.float32))
         self.d.qvel.assign(np.asarray(qvel, dtype=np.float32))
+
+    def put_world(self, w: int, env: Any) -> None:
+        """World ``w`` becomes a copy of CPU env ``env`` as it stands: its model fields at its
+        point (the derived constants included), its applied forces, its ``(qpos, qvel)``, a
+        fresh step count and solver warm start. What ``rrls train --simulator warp`` does at
+        every episode's start, after resetting the CPU env with the run's seed and options, so
+        a twin episode begins where the CPU env's would, at the point its learner chose."""
+        wp = self._wp
+        if not 0 <= w < self.num_envs:
+            raise ValueError(f"world {w} out of range; this twin has {self.num_envs}")
+        model, data = env.unwrapped.model, env.unwrapped.data
+        host = {f: getattr(model, f) for f in MODEL_FIELDS}
+        host["timestep"] = np.array([model.opt.timestep])
+        host["gravity"] = np.array(model.opt.gravity)
+        host["xfrc_applied"] = np.array(data.xfrc_applied)
+        with wp.ScopedDevice(self.device):
+            mask = np.zeros(self.num_envs, dtype=np.int32)
+            mask[w] = 1
+            self._mjw.reset_data(self.m, self.d, reset=wp.array(mask, dtype=int))
+            for (view, _), name in zip(self.fields, self.field_names):
+                row = np.asarray(host[name], dtype=np.float32).ravel()
+                width = view.shape[1]
+                wp.copy(view, wp.array(row, dtype=float), dest_offset=w * width, count=width)
+            for target, value in ((self.d.qpos, data.qpos), (self.d.qvel, data.qvel)):
+                row = np.asarray(value, dtype=np.float32)
+                wp.copy(
+                    target, wp.array(row, dtype=float), dest_offset=w * len(row), count=len(row)
+                )
+            steps = self.steps.numpy()
+            steps[w] = 0
+            self.steps.assign(steps)
 
     def close(self, **kwargs: Any) -> None:
         self.cpu.close()

@@ -114,7 +114,36 @@ def constants(env: Any, task: TwinTask) -> Constants:
     )
 
 
+#: algorithms no twin path trains, and why (``rrls train --simulator warp`` refuses them)
+NOT_ON_TWIN: dict[str, str] = {
+    "rarl": "its adversary's forces act at every step (not wired to the twin yet)",
+    "nrmdp": "its adversary's actions mix into every step (not wired to the twin yet)",
+}
+
+
+def check_twin(algo: str, task: str, physics: str) -> None:
+    """Refuse, in one line saying why, a run the Warp twin cannot train."""
+    from rrls.physics import is_paper
+
+    if algo in NOT_ON_TWIN:
+        raise ValueError(
+            f"--simulator warp: {algo} does not train on the twin: {NOT_ON_TWIN[algo]}"
+        )
+    if task in REFUSED:
+        raise ValueError(f"--simulator warp: no twin for {task!r}: {REFUSED[task]}")
+    if task not in TWIN_TASKS:
+        raise ValueError(
+            f"--simulator warp: no twin for {task!r}; tasks with one: {', '.join(TWIN_TASKS)}"
+        )
+    if is_paper(physics):
+        raise ValueError(
+            "--simulator warp trains on rrls's v5 physics; --physics paper is CPU only"
+        )
+
+
 __all__ = [
+    "NOT_ON_TWIN",
+    "check_twin",
     "DIVERGES",
     "NO_TERMINATION",
     "PENDULUM",

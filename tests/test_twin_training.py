@@ -1,0 +1,110 @@
+"""``rrls train --simulator warp`` on warp's CPU device: the training loop of every run with its
+envs on the twin (run k on world k), each episode begun on the run's CPU env and copied to its
+world, the run's files saying what trained it, resume, and the refusals."""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+from rrls.twin.tasks import check_twin
+
+TRAIN = ["train", "--task", "hopper", "--simulator", "warp", "--device", "cpu"]
+TRAIN += ["--learning-starts", "100", "--checkpoint-every", "100", "--eval-every", "100"]
+
+
+def test_what_the_twin_cannot_train_is_refused_saying_why():
+    for args, words in (
+        (("rarl", "hopper", "v5"), "adversary's forces"),
+        (("nrmdp", "hopper", "v5"), "adversary's actions"),
+        (("td3", "humanoidstandup", "v5"), "PGS"),
+        (("td3", "reacher", "v5"), "tasks with one"),
+        (("td3", "hopper", "paper"), "--physics paper is CPU only"),
+    ):
+        with pytest.raises(ValueError, match=words):
+            check_twin(*args)
+    for algo in ("td3", "dr", "m2td3", "sac", "sacdr"):
+        check_twin(algo, "hopper", "v5")
+
+
+def test_a_benchmark_on_the_twin_is_another_protocol_and_a_cpu_one_is_unchanged():
+    from dataclasses import replace
+
+    from rrls.experiments.spec import PRESETS, Spec
+
+    cpu = Spec(**PRESETS["smoke"])
+    assert "simulator" not in cpu.protocol()  # benchmark.json files written before: the same
+    twin = replace(cpu, simulator="warp")
+    assert twin.protocol()["simulator"] == "warp"
+    assert twin.fingerprints()["benchmark"] != cpu.fingerprints()["benchmark"]
+    assert twin.fingerprints()["protocol"] == cpu.fingerprints()["protocol"]  # same evaluation
+
+
+pytest.importorskip("warp")
+pytest.importorskip("mujoco_warp")
+pytest.importorskip("torch")
+
+
+@pytest.mark.warp
+def test_an_episode_begins_on_the_runs_cpu_env_and_its_world_copies_it():
+    from rrls.agents.twin_envs import TwinEnvs
+    from rrls.envs import resolve
+
+    make = resolve("hopper", "3d").make_env  # M2TD3's kind of env: the point comes in options
+    envs = TwinEnvs(make, 2, "hopper", "3d", "cpu")
+    try:
+        point = {"torsomass": 5.0, "worldfriction": 0.5, "thighmass": 2.0}
+        _, obs = envs.begin(1, 7, point)
+        cpu = make()
+        want, _ = cpu.reset(seed=7, options=point)
+        assert np.array_equal(obs, want)  # the CPU env's own first observation
+        mass = envs.twin.m.body_mass.numpy()[1]
+        assert np.allclose(mass, cpu.unwrapped.model.body_mass, rtol=1e-6)
+        _, obs0 = envs.begin(0, 3, None)
+        action = np.full(3, 0.3, dtype=np.float32)
+        stepped = envs.step([np.zeros(3, np.float32), action])
+        after, *_ = cpu.step(action)
+        assert np.abs(stepped[1][0] - after).max() < 1e-5  # float32 world vs float64 CPU
+    finally:
+        envs.close()
+
+
+def _rrls(*args: str, env: dict | None = None) -> subprocess.CompletedProcess:
+    return subprocess.run(
+        [sys.executable, "-m", "rrls", *args],
+        capture_output=True,
+        text=True,
+        env={**os.environ, **(env or {})},
+        timeout=900,
+    )
+
+
+@pytest.mark.warp
+def test_rrls_train_on_the_twin_writes_runs_that_say_so_and_resume(tmp_path):
+    out = tmp_path / "twin"
+    done = _rrls(*TRAIN, "--algo", "dr", "--seeds", "0-1", "--steps", "200", "--out", str(out))
+    assert done.returncode == 0, done.stderr[-1500:]
+    for k in (0, 1):
+        run = json.loads((out / f"seed{k}" / "run.json").read_text())
+        assert run["simulator"] == "warp" and run["config"]["simulator"] == "warp"
+        assert run["physics"] == "v5" and run["steps"] == 200
+        scalars = (out / f"seed{k}" / "scalars.csv").read_text()
+        assert "charts/episode_return" in scalars and "eval/" in scalars  # evaluated on CPU
+    # killed after its first checkpoint, then resumed: it finishes with the steps it was given
+    one = tmp_path / "one"
+    argv = [*TRAIN, "--algo", "m2td3", "--seed", "0", "--steps", "200", "--out", str(one)]
+    stopped = _rrls(*argv, env={"RRLS_STOP_AT": "100"})
+    assert stopped.returncode != 0 or "RRLS_STOP_AT" in stopped.stderr + stopped.stdout
+    assert not (one / "run.json").exists()
+    resumed = _rrls(*argv, "--resume")
+    assert resumed.returncode == 0, resumed.stderr[-1500:]
+    assert json.loads((one / "run.json").read_text())["steps"] == 200
+    # the policy evaluates where everything does, on CPU MuJoCo
+    ev = _rrls("evaluate", str(one), "--mesh", "2", "--episodes", "1", "--workers", "0",
+               "--out", str(tmp_path / "ev"))  # fmt: skip
+    assert ev.returncode == 0, ev.stderr[-1500:]
