@@ -56,10 +56,17 @@ def speed(task: str, k: int, window: int, device: str) -> float:
 def sim_to_sim(
     task: str, steps: int, starts: int, n_points: int, device: str, out: Path
 ) -> list[tuple]:
+    """Train one TD3 run on the twin (the library loop), then ``both_physics`` at its points."""
     hyper = {"learning_starts": starts}
     result = train_on_twin("td3", task, seeds=(0,), steps=steps, device=device, hyper=hyper)
     policy = result.policies[0]
     policy.save(out / f"td3-{task}-twin-{steps}.npz")
+    return both_physics(policy, task, n_points, device)
+
+
+def both_physics(policy: object, task: str, n_points: int, device: str) -> list[tuple]:
+    """``policy``'s return, one episode per point of ``n_points`` drawn from the task's largest
+    set (seeded), on the twin and on CPU MuJoCo from the same first state (the twin's reset)."""
     resolved = resolve(task, default_set(task))
     rng = np.random.default_rng(1)
     points = np.asarray(resolved.box.sample(rng, n_points)).reshape(n_points, -1)
@@ -85,6 +92,22 @@ def sim_to_sim(
     return rows
 
 
+def _print_rows(rows: list[tuple], names: list[str], out: Path) -> None:
+    import csv
+
+    print("| point | return on CPU MuJoCo | return on the twin | twin / CPU |")
+    print("|---|---|---|---|")
+    with open(out / "sim_to_sim.csv", "w", newline="") as f:
+        writer = csv.writer(f)
+        writer.writerow([*names, "cpu_return", "twin_return"])
+        for point, cpu, tw in rows:
+            ratio = tw / cpu if cpu else float("nan")
+            print(
+                f"| {', '.join(f'{x:.2f}' for x in point)} | {cpu:.1f} | {tw:.1f} | {ratio:.2f} |"
+            )
+            writer.writerow([*point, cpu, tw])
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("out", type=Path)
@@ -95,9 +118,24 @@ def main() -> None:
     parser.add_argument("--train-steps", type=int, default=60_000)
     parser.add_argument("--points", type=int, default=10)
     parser.add_argument("--starts", type=int, default=5000, help="sim-to-sim run's warm-up")
+    parser.add_argument(
+        "--policy",
+        type=Path,
+        help="an `rrls train --simulator warp` run directory: its policy's sim-to-sim check "
+        "alone (no speed rows, no training here)",
+    )
     args = parser.parse_args()
     warnings.simplefilter("ignore")
     args.out.mkdir(parents=True, exist_ok=True)
+    if args.policy is not None:
+        from rrls.evaluation import load_policy
+
+        policy = load_policy(args.policy / "policy.npz")
+        task = policy.metadata["task"]
+        print(f"sim-to-sim: {args.policy} ({policy.metadata.get('simulator', 'mujoco')}-trained)")
+        rows = both_physics(policy, task, args.points, args.device)
+        _print_rows(rows, list(resolve(task, default_set(task)).box.names), args.out)
+        return
     print("| algo | task | K | aggregated env steps/s | per run |")
     print("|---|---|---|---|---|")
     for k in args.ks:
@@ -113,13 +151,8 @@ def main() -> None:
             f"(learning_starts {args.starts}) "
             f"({time.perf_counter() - start:.0f} s with the evaluation)"
         )
-        print("| point | return on CPU MuJoCo | return on the twin | twin / CPU |")
-        print("|---|---|---|---|")
-        for point, cpu, tw in rows:
-            ratio = tw / cpu if cpu else float("nan")
-            print(
-                f"| {', '.join(f'{x:.2f}' for x in point)} | {cpu:.1f} | {tw:.1f} | {ratio:.2f} |"
-            )
+        names = list(resolve(args.task, default_set(args.task)).box.names)
+        _print_rows(rows, names, args.out)
 
 
 if __name__ == "__main__":
