@@ -119,7 +119,7 @@ def test_evaluation_leaves_no_cached_envs_behind():
     from rrls.evaluation import MLPPolicy, engine, evaluate, lanes
 
     evaluate(MLPPolicy.random(4, 1, (8,)), "invertedpendulum", "1d", mesh=2, episodes=1)
-    assert lanes._ENV_CACHE == {}
+    assert lanes._cache() == {}
     assert not hasattr(engine, "_WORKER") and not hasattr(engine, "spec_for")
     assert "env_kwargs" not in lanes.RolloutSpec.__dataclass_fields__
 
@@ -274,3 +274,26 @@ def test_probabilistic_action_robust_info_has_the_original_keys():
     np.testing.assert_array_equal(info["agent action"], agent)
     np.testing.assert_array_equal(info["adversarial action"], adversary)
     np.testing.assert_allclose(info["executed_action"], 0.8 * np.ones(3), rtol=1e-6)
+
+
+def test_an_evaluation_in_another_thread_keeps_its_envs():
+    """Each thread has its own env cache: one evaluation ending does not close another's."""
+    import threading
+
+    import numpy as np
+
+    from rrls.evaluation import MLPPolicy, evaluate, lanes
+
+    spec = lanes.RolloutSpec("invertedpendulum", "robust", (), np.zeros((1, 0)), np.zeros((1, 1)))
+    mine = lanes.make_rollout_envs(spec, 2)
+    other = threading.Thread(
+        target=lambda: evaluate(
+            MLPPolicy.random(4, 1, (8,)), "invertedpendulum", "1d", mesh=2, episodes=1, workers=1
+        )
+    )
+    other.start()
+    other.join(120)
+    assert lanes.make_rollout_envs(spec, 2) == mine  # this thread's envs, not rebuilt
+    mine[0].reset(seed=0)  # and not closed
+    lanes.clear_env_cache()
+    assert lanes._cache() == {}

@@ -9,6 +9,7 @@ runs once per step on all live lanes; a finished lane takes the next episode.
 
 from __future__ import annotations
 
+import threading
 from collections.abc import Callable, Iterator
 from contextlib import closing, contextmanager
 from dataclasses import dataclass
@@ -74,8 +75,15 @@ def episode_seeds(seed: int, n_points: int, episodes: int) -> np.ndarray:
 
 
 #: envs per (task, family, stack), reused within one evaluation (building is slower than
-#: resetting); ``evaluate`` and ``search_worst_case`` empty it when they return
-_ENV_CACHE: dict[tuple[str, str, Any, bool], list[Any]] = {}
+#: resetting); ``evaluate`` and ``search_worst_case`` empty it when they return. One cache per
+#: thread: an evaluation running in another thread neither shares nor loses its envs.
+_LOCAL = threading.local()
+
+
+def _cache() -> dict[tuple[str, str, Any, bool], list[Any]]:
+    if not hasattr(_LOCAL, "envs"):
+        _LOCAL.envs = {}
+    return _LOCAL.envs
 
 
 def make_rollout_envs(spec: RolloutSpec, n: int) -> list[Any]:
@@ -83,7 +91,7 @@ def make_rollout_envs(spec: RolloutSpec, n: int) -> list[Any]:
     every lane is reset before use."""
     from rrls.envs import FAMILY_ENVS, paper_class
 
-    envs = _ENV_CACHE.setdefault((spec.task, spec.kind, spec.stack, spec.paper), [])
+    envs = _cache().setdefault((spec.task, spec.kind, spec.stack, spec.paper), [])
     cls = FAMILY_ENVS[spec.kind][spec.task]
     if spec.paper:
         cls = paper_class(cls)
@@ -93,11 +101,13 @@ def make_rollout_envs(spec: RolloutSpec, n: int) -> list[Any]:
 
 
 def clear_env_cache() -> None:
-    """Close and forget the cached envs (no state survives from one evaluation to the next)."""
-    for envs in _ENV_CACHE.values():
+    """Close and forget this thread's cached envs (no state survives from one evaluation to
+    the next)."""
+    cache = _cache()
+    for envs in cache.values():
         for env in envs:
             env.close()
-    _ENV_CACHE.clear()
+    cache.clear()
 
 
 Finished = list[tuple[int, float, int, bool, bool]]  # (row, return, length, terminated, diverged)
