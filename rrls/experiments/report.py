@@ -186,6 +186,12 @@ def _markdown(
                 "- **Reduced budget: not the paper's protocol** (5 M steps, 10 seeds, the 3D "
                 "sets of five tasks). Numbers are not comparable with the paper's."
             )
+        if spec.get("simulator", "mujoco") != "mujoco":
+            lines.append(
+                f"- trained on the **{spec['simulator']}** simulator (the tasks' MuJoCo Warp "
+                "twins, float32), evaluated on CPU MuJoCo: each run is another draw of its "
+                "algorithm than a CPU-trained one"
+            )
     if summary.get("versions"):
         lines.append(
             "- versions: " + ", ".join(f"{k} {'/'.join(v)}" for k, v in summary["versions"].items())
