@@ -139,6 +139,13 @@ def check_twin(algo: str, task: str, physics: str) -> None:
         raise ValueError(
             "--simulator warp trains on rrls's v5 physics; --physics paper is CPU only"
         )
+    import importlib.util
+
+    missing = [m for m in ("warp", "mujoco_warp") if importlib.util.find_spec(m) is None]
+    if missing:
+        from rrls.extras import install_hint
+
+        raise ValueError(f"--simulator warp needs {', '.join(missing)}: {install_hint('warp')}")
 
 
 __all__ = [
