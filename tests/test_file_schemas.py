@@ -17,6 +17,7 @@ import pytest
 
 from rrls import rundir
 from rrls.evaluation import EvaluationResult, evaldir
+from rrls.evaluation.policies import HEADER_SCHEMA
 from rrls.experiments import benchfile, store
 from rrls.experiments.reference import (
     REFERENCE_SCHEMA,
@@ -326,3 +327,18 @@ def test_a_hostile_progress_file_shows_nothing(tmp_path, content):
     assert read_progress(tmp_path) is None
     (tmp_path / rundir.PROGRESS).write_text('{"phase": "train", "step": 5, "total": 9}')
     assert read_progress(tmp_path)["step"] == 5
+
+
+# --- a policy file's header -----------------------------------------------------------------
+@pytest.mark.parametrize(("field", "bad"), cases(HEADER_SCHEMA))
+def test_a_hostile_policy_header_is_refused_by_field(tmp_path, field, bad):
+    from rrls.evaluation.policies import MLPPolicy
+
+    MLPPolicy.random(4, 1, (8,), seed=0).save(tmp_path / "p.npz")
+    arrays = dict(np.load(tmp_path / "p.npz"))
+    header = {**json.loads(bytes(arrays["header"]).decode()), field: bad}
+    arrays["header"] = np.frombuffer(json.dumps(header).encode(), dtype=np.uint8)
+    np.savez(tmp_path / "bad.npz", **arrays)
+    with pytest.raises(ValueError) as err:
+        MLPPolicy.load(tmp_path / "bad.npz")
+    one_line(err.value, "bad.npz", f"'{field}")

@@ -29,6 +29,7 @@ import numpy as np
 
 from rrls.evaluation.exact import ExactLinear, exact_tanh
 from rrls.extras import install_hint
+from rrls.schema import Schema, integer, obj, string
 
 BLOCK = 64  # rows per policy call inside BatchInvariant (invariance measured in tests)
 
@@ -69,6 +70,17 @@ class BatchInvariant:
 
     def __repr__(self) -> str:
         return f"BatchInvariant({self.policy!r}, block={self.block})"
+
+
+#: an ``MLPPolicy`` file's JSON header
+HEADER_SCHEMA = Schema(
+    {
+        "format": string(choices=("rrls-mlp",), required=True),
+        "version": integer(1, 1, required=True),
+        "layers": integer(1, 64, required=True),
+        "metadata": obj(Schema({}, open=True), null=True),
+    }
+)
 
 
 class MLPPolicy:
@@ -178,10 +190,8 @@ class MLPPolicy:
             with np.load(path, allow_pickle=False) as f:
                 if not hasattr(f, "files") or "header" not in f:
                     raise ValueError("no header")
-                header = json.loads(bytes(f["header"]).decode())
-                if header.get("format") != "rrls-mlp":
-                    raise ValueError(f"unknown policy format {header.get('format')!r}")
-                n = int(header["layers"])
+                header = HEADER_SCHEMA.check(json.loads(bytes(f["header"]).decode()), "header")
+                n = header["layers"]
                 weights = [f[f"w{i}"] for i in range(n)]
                 biases = [f[f"b{i}"] for i in range(n)]
                 scale, bias = f["action_scale"], f["action_bias"]
