@@ -11,7 +11,9 @@ reference at the largest budget that fits, in ~35 minutes, writing only small fi
 3. the Warp twin (``--no-twin`` skips it; needs the ``warp`` extra): MuJoCo Warp's physics
    alone and the twin's whole step at 32 to 8 192 worlds, the per-task, per-kind check against
    CPU MuJoCo, K = 1, 32, 128 TD3 runs trained on it and a sim-to-sim check of one trained
-   policy -> ``warp_speed.log``, ``twin_speed.log``, ``twin_check/``, ``twin_train/``;
+   policy, and ``rrls train --simulator warp`` at K = 1, 32, 128 (TD3, M2TD3) against the CPU
+   path -> ``warp_speed.log``, ``twin_speed.log``, ``twin_check/``, ``twin_train/``,
+   ``twin_loop_speed.md``;
 4. two short probes of the five baselines' groups trained at once (5 seeds of Hopper 3D each, as
    ``rrls benchmark --device cuda`` packs them) give seconds per learning step; with the
    evaluation's upper bound (every episode at full length, on all the machine's cores), the
@@ -154,6 +156,9 @@ def twin_steps(book: Book, args: argparse.Namespace, py: str) -> None:
         train += ["--ks", "1", "--window", "5", "--train-steps", "30", "--starts", "10"]
         train += ["--points", "1"]
     book.step("training on the twin", train, args.out / "twin_train.log", 900)
+    loop = [py, "benchmarks/twin_loop_speed.py", "--device", d]
+    loop += ["--ks", "1", "--steps", "30", "--starts", "10", "--algos", "td3"] if tiny else []
+    book.step("rrls train --simulator warp", loop, args.out / "twin_loop_speed.md", 900)
 
 
 def main(argv: list[str] | None = None) -> int:
