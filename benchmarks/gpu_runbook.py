@@ -157,7 +157,7 @@ def twin_steps(book: Book, args: argparse.Namespace, py: str) -> None:
         train += ["--points", "1"]
     book.step("training on the twin", train, args.out / "twin_train.log", 900)
     loop = [py, "benchmarks/twin_loop_speed.py", "--device", d]
-    loop += ["--ks", "1", "--steps", "30", "--starts", "10", "--algos", "td3"] if tiny else []
+    loop += ["--ks", "1", "--steps", "100", "--starts", "20", "--algos", "td3"] if tiny else []
     book.step("rrls train --simulator warp", loop, args.out / "twin_loop_speed.md", 900)
 
 

@@ -3,7 +3,7 @@ training loop itself (checkpoints off, periodic evaluations off) on the Warp twi
 same command on CPU MuJoCo, for TD3 and M2TD3.
 
     python3 benchmarks/twin_loop_speed.py --device cuda --ks 1 32 128 --steps 3000
-    python3 benchmarks/twin_loop_speed.py --device cpu --ks 1 --steps 40 --starts 20   # dry
+    python3 benchmarks/twin_loop_speed.py --device cpu --ks 1 --steps 100 --starts 20  # dry
 
 Each cell is one ``rrls train`` process; its rate is the runs' last logged
 ``charts/steps_per_second`` (the loop's own clock over the steps after the warm-up and the first
