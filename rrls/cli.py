@@ -347,8 +347,7 @@ def _split_rows(result: Any, split: str | None) -> list[tuple[str, str]]:
 def _evaluate(args: argparse.Namespace) -> int:
     from pathlib import Path
 
-    from rrls.evaluation import evaluate, load_policy
-    from rrls.physics import is_paper
+    from rrls.evaluation import Protocol, evaluate, load_policy
     from rrls.tasks import get_task
 
     policy = load_policy(args.policy)
@@ -359,46 +358,37 @@ def _evaluate(args: argparse.Namespace) -> int:
     task = get_task(task).key
     if meta.get("task") not in (None, task):
         raise UsageError(f"the policy was trained on {meta['task']!r}, not on --task {task!r}")
-    uncertainty = args.uncertainty or _default_set(task, meta)
-    if args.physics is None:  # the physics a run directory's policy was trained on
-        args.physics = "paper" if is_paper(meta.get("physics")) else "v5"
-    split_text = args.split or (
-        meta.get("split") if uncertainty == meta.get("uncertainty") else None
+    protocol = Protocol.for_policy(
+        meta,
+        task,
+        uncertainty=args.uncertainty,
+        mesh=args.mesh,
+        episodes=args.episodes,
+        seed=args.seed,
+        physics=args.physics,
+        endpoint=False if args.no_endpoint else None,
+        split=args.split,
     )
-    split = None
-    if split_text:
-        from rrls.envs import get_uncertainty_set
-        from rrls.uncertainty import Split
-
-        try:
-            split = Split.parse(get_uncertainty_set(task, uncertainty), split_text)
-        except ValueError as err:
-            raise UsageError(str(err)) from None
+    uncertainty, physics, split_text = protocol.uncertainty, protocol.physics, protocol.split
     out = Path(
         args.out
         or f"evaluations/{_policy_name(args.policy)}-{task}-{uncertainty}-mesh{args.mesh}"
         f"-ep{args.episodes}-seed{args.seed}"
-        + ("-paper" if args.physics == "paper" else "")
+        + ("-paper" if physics == "paper" else "")
     )
     result = evaluate(
         policy,
         task,
-        uncertainty,
-        mesh=args.mesh,
-        episodes=args.episodes,
-        seed=args.seed,
+        protocol=protocol,
         workers=args.workers,
-        endpoint=False if args.no_endpoint else None,
         out_dir=out,
-        paper=args.physics == "paper",
         batch_size=args.batch_size,
-        split=split,
         progress=True,
     )
     summary = result.summary()
     worst = ", ".join(f"{k}={v:.4g}" for k, v in result.worst_point.items()) or "nominal model"
     rows = [
-        ("task / set", f"{result.task} / {uncertainty} ({args.physics} physics)"),
+        ("task / set", f"{result.task} / {uncertainty} ({physics} physics)"),
         (
             "mesh",
             f"{len(result.per_point)} points ({args.mesh} per dimension) "
@@ -418,17 +408,6 @@ def _evaluate(args: argparse.Namespace) -> int:
 
         print(f"{'plot':<{width}}  {plot_result(out)}")
     return 0
-
-
-def _default_set(task: str, meta: dict) -> str:
-    """The set the policy was trained on, else the task's benchmark set (one rule:
-    ``rrls.tasks.benchmark_set``, as training's)."""
-    from rrls.tasks import benchmark_set, get_task
-
-    trained = meta.get("uncertainty")
-    if isinstance(trained, str) and trained.lower() in (*get_task(task).sets, "nominal"):
-        return trained.lower()
-    return benchmark_set(task)
 
 
 def _train(args: argparse.Namespace) -> int:

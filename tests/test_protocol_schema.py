@@ -121,3 +121,17 @@ def test_evaluate_refuses_a_protocol_and_its_fields_together(keyword):
     policy = MLPPolicy.random(4, 1, (8,), seed=0)
     with pytest.raises(ValueError, match=f"protocol= and {next(iter(keyword))}"):
         evaluate(policy, "invertedpendulum", protocol=Protocol("1d", mesh=2, episodes=1), **keyword)
+
+
+def test_a_policys_default_protocol_comes_from_one_constructor():
+    """``Protocol.for_policy``: the set and physics it trained on, its split on its own set; any
+    given field overrides; a set the task lacks falls back to the task's benchmark set."""
+    meta = {"uncertainty": "2d", "physics": "paper-v4", "split": "extrapolation:0.5"}
+    own = Protocol.for_policy(meta, "hopper")
+    assert (own.uncertainty, own.physics, own.split) == ("2d", "paper", "extrapolation:0.5")
+    other = Protocol.for_policy(meta, "hopper", uncertainty="3d", mesh=3, physics="v5")
+    assert (other.uncertainty, other.split, other.mesh, other.physics) == ("3d", None, 3, "v5")
+    assert Protocol.for_policy({}, "invertedpendulum").uncertainty == "2d"
+    assert Protocol.for_policy({"uncertainty": "9d"}, "hopper").uncertainty == "3d"
+    with pytest.raises(ValueError, match="not protocol fields: workers"):
+        Protocol.for_policy({}, "hopper", workers=2)

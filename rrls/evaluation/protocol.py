@@ -226,6 +226,29 @@ class Protocol:
         ]
         return data
 
+    @classmethod
+    def for_policy(cls, metadata: Mapping[str, Any] | None, task: str, **given: Any) -> Protocol:
+        """The protocol a policy is evaluated under by default: the set it was trained on (if
+        ``task`` has it; else the task's benchmark set), its physics, its split when the set is
+        its own; every field in ``given`` that is not None (``uncertainty``, ``mesh``,
+        ``physics``, ``split``...) overrides. What ``rrls evaluate POLICY`` runs."""
+        from rrls.tasks import benchmark_set, get_task
+
+        meta = dict(metadata or {})
+        fields = {k: v for k, v in given.items() if v is not None}
+        unknown = sorted(set(fields) - set(cls.__dataclass_fields__))
+        if unknown:
+            raise ValueError(f"not protocol fields: {', '.join(unknown)}")
+        spec = get_task(task)
+        trained = meta.get("uncertainty")
+        own = isinstance(trained, str) and trained.lower() in (*spec.sets, "nominal")
+        fields.setdefault("uncertainty", trained.lower() if own else benchmark_set(spec.key))
+        if "physics" not in fields:
+            fields["physics"] = physics_label(is_paper(meta.get("physics")))
+        if "split" not in fields and fields["uncertainty"] == meta.get("uncertainty"):
+            fields["split"] = meta.get("split") or None
+        return cls(**fields)
+
     def fingerprint(self) -> str:
         """16 hex digits naming this protocol's fields (``rrls._io.json_fingerprint``): what a
         run's ``result.json`` records, so a result copied from another protocol is refused."""
