@@ -239,9 +239,10 @@ def paper_comparison(folder: Path) -> str:
             cells += [_cell(data[algo][metric]), f"{mean:.1f} ± {std:.1f}"]
         lines.append(f"| {display_name(algo)} | " + " | ".join(cells) + " |")
     lines.append("")
+    few = [a for a in sort_algos(data) if len(data[a]["worst_case"]) < 2]
     for metric, table in tables.items():
         verdicts: dict[str, list[str]] = {"reproduced": [], "contradicted": [], "unresolved": []}
-        algos = sort_algos(data)
+        algos = [a for a in sort_algos(data) if a not in few]  # an interval needs two seeds
         ci = {a: t_interval(data[a][metric]) for a in algos}
         for i, a in enumerate(algos):
             for b in algos[i + 1 :]:
@@ -257,6 +258,9 @@ def paper_comparison(folder: Path) -> str:
             f"{k} ({len(v)}): {', '.join(v) if v else 'none'}" for k, v in verdicts.items()
         )
         lines.append(f"- **{METRICS[metric]}**, the paper's orderings here: {text}.")
+    if few:
+        names = ", ".join(display_name(a) for a in few)
+        lines.append(f"- not judged yet (fewer than two seeds, no interval): {names}.")
     return "\n".join(lines) + "\n"
 
 
