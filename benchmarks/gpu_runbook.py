@@ -195,7 +195,8 @@ def main(argv: list[str] | None = None) -> int:
         book.write(f"## done: {len(book.failed)} step(s) failed {book.failed}\n")
         return 1 if book.failed else 0
 
-    from rrls.experiments.spec import estimate, make_spec
+    from rrls.experiments.cpu_estimate import estimate
+    from rrls.experiments.spec import make_spec
 
     menu = TINY_MENU if args.tiny else MENU
     with tempfile.TemporaryDirectory(prefix="rrls-runbook-") as tmp:

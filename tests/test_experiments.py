@@ -21,18 +21,16 @@ import pytest
 from rrls.cli import main
 from rrls.experiments import stats
 from rrls.experiments.benchfile import reconcile
-from rrls.experiments.report import make_report, paper_results, summarise
-from rrls.experiments.runner import Display, plan
-from rrls.experiments.spec import (
+from rrls.experiments.cpu_estimate import (
     RANDOM_STEPS_PER_S,
     REPORT_S,
     STARTUP_S,
     TRAIN_STEPS_PER_S,
-    Spec,
-    SpecError,
     estimate,
-    make_spec,
 )
+from rrls.experiments.report import make_report, paper_results, summarise
+from rrls.experiments.runner import Display, plan
+from rrls.experiments.spec import Spec, SpecError, make_spec
 
 needs_torch = pytest.mark.skipif(
     importlib.util.find_spec("torch") is None, reason="training needs torch (rrls[train])"

@@ -45,7 +45,8 @@ def run(args: argparse.Namespace) -> int:
 
 
 def _spec_from(args: argparse.Namespace) -> tuple:
-    from rrls.experiments.spec import default_jobs, make_spec
+    from rrls.experiments.cpu_estimate import default_jobs
+    from rrls.experiments.spec import make_spec
 
     if args.preset not in PRESETS:
         raise SpecError(f"unknown preset {args.preset!r}; valid: {', '.join(PRESETS)}")
@@ -248,7 +249,8 @@ def _quickstart(args: argparse.Namespace) -> int:
     import shutil
     from pathlib import Path
 
-    from rrls.experiments.spec import default_jobs, make_spec
+    from rrls.experiments.cpu_estimate import default_jobs
+    from rrls.experiments.spec import make_spec
 
     try:
         import torch  # noqa: F401

@@ -20,7 +20,8 @@ from __future__ import annotations
 
 from typing import Any
 
-from rrls.experiments.spec import REPORT_S, STARTUP_S, Spec, estimate
+from rrls.experiments.cpu_estimate import REPORT_S, STARTUP_S, estimate
+from rrls.experiments.spec import Spec
 
 __all__ = ["GPU_RECORD", "GPU_STEPS_PER_S", "describe", "gpu_estimate"]
 
@@ -77,7 +78,7 @@ def gpu_estimate(spec: Spec, pack: int, cpu_cores: int = 16) -> dict[str, Any]:
 
 def describe(spec: Spec, pack: int) -> str:
     """The dry run's estimate line for ``--device cuda``."""
-    from rrls.experiments.spec import format_duration
+    from rrls.experiments.cpu_estimate import format_duration
 
     est = gpu_estimate(spec, pack)
     how = (

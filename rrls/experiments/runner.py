@@ -11,8 +11,9 @@ from typing import Any, TextIO
 from rrls import rundir
 from rrls.experiments.backends import run_local, run_ray
 from rrls.experiments.benchfile import reconcile
+from rrls.experiments.cpu_estimate import estimate, format_duration
 from rrls.experiments.pipeline import default_pack, groups, read_progress, run_dir
-from rrls.experiments.spec import RunKey, Spec, estimate, format_duration
+from rrls.experiments.spec import RunKey, Spec
 
 
 class Display:

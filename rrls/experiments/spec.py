@@ -11,7 +11,7 @@ from __future__ import annotations
 from dataclasses import asdict, dataclass, fields
 from typing import Any
 
-from rrls.algorithms import built_in, paper_five, plays_adversary, warmup
+from rrls.algorithms import built_in, paper_five, warmup
 from rrls.evaluation.protocol import Protocol, check_episodes
 from rrls.physics import V5, is_paper, physics_label
 
@@ -431,96 +431,3 @@ def validate(spec: Spec) -> None:
         raise SpecError(
             f"--observe {spec.observe} is a protagonist of TC-RMDP's game: add --rate-limit R"
         )
-
-
-# --- compute estimate ------------------------------------------------------------------------
-# Training: learning steps per CPU-second of one single-threaded Hopper run, measured in CPU time
-# (robust to a machine shared with other work) by `python3 benchmarks/calibrate.py td3 m2td3
-# sac`: CPU seconds of `rrls train --threads 1` for 3 000 steps (1 000 random) minus those of
-# 1 000 random steps. Measured on the 2-core development machine, quiet, 2026-11-24 (under
-# load the same script gave 77 / 85 / 47: CPU time grows with cache contention).
-# DR trains TD3's learner, SAC-DR SAC's; RARL and NR-MDP (not measured) are taken as TD3's.
-# Env steps/s of each task's `env.step`: the evaluation's cost, policy calls excluded.
-TRAIN_STEPS_PER_S = {
-    "td3": 94.0,
-    "dr": 94.0,
-    "m2td3": 103.0,
-    "rarl": 94.0,
-    "nrmdp": 94.0,
-    "sac": 57.0,
-    "sacdr": 57.0,
-}
-#: the share of a 256-256 learning step that does not scale with the network (dispatch, autograd
-#: nodes, the optimiser's loop, the env step): a step of hidden sizes h costs ``share + (1 -
-#: share) * work(h) / work(256-256)`` of a 256-256 one (``size_factor``; calibrated on the
-#: quick preset's 64-64 runs against the 256-256 rates above)
-FIXED_SHARE = 0.25
-RANDOM_STEPS_PER_S = 2_000.0  # warm-up steps (random actions, no update): env, buffer, logging
-STARTUP_S = 8.0  # per run: a fresh process importing torch, building envs (4-6 s alone, ~8 s
-# with a second run starting beside it: the quick preset's 15 runs, 2 at a time, 2026-11-24)
-#: seconds per evaluation step spent in the policy (rrls's exact-order MLP at the lockstep
-#: batches an evaluation runs: ~20-60 us a row), on top of the env's own step
-POLICY_S_PER_STEP = 30e-6
-REPORT_S = 45.0  # once per benchmark: the store, the report and its figures
-ENV_STEPS_PER_S = {
-    "ant": 3_600.0,
-    "halfcheetah": 21_800.0,
-    "hopper": 5_600.0,
-    "humanoidstandup": 2_100.0,
-    "invertedpendulum": 34_000.0,
-    "walker": 6_000.0,
-}
-
-
-def estimate(spec: Spec, jobs: int, max_episode_steps: int = 1000) -> dict[str, float]:
-    """Seconds of compute (one core) and wall time with ``jobs`` parallel runs — an estimate
-    from measured speeds (±30 %; evaluation episodes counted at full length: an upper bound)."""
-    from rrls.envs import get_uncertainty_set
-
-    train = evals = 0.0
-    for key in spec.runs():
-        rate = TRAIN_STEPS_PER_S.get(key.algo, TRAIN_STEPS_PER_S["td3"]) / size_factor(spec.hidden)
-        random_steps = spec.warmup(key.algo)
-        train += STARTUP_S + random_steps / RANDOM_STEPS_PER_S
-        train += (spec.steps - random_steps) / rate
-        dims = len(get_uncertainty_set(key.task, spec.uncertainty).names)
-        env_sps = ENV_STEPS_PER_S.get(key.task, 5_000.0)
-        n_periodic = spec.steps // spec.eval_every if spec.eval_every else 0
-        periodic = n_periodic * (spec.eval_episodes + spec.eval_mesh**dims)
-        final = spec.mesh**dims * spec.episodes
-        dynamic = spec.dynamic_episodes if plays_adversary(key.algo) else 0
-        evals += (
-            (periodic + final + dynamic) * max_episode_steps * (1 / env_sps + POLICY_S_PER_STEP)
-        )
-    runs = len(spec.runs())
-    total = train + evals
-    # whole runs are scheduled, ``jobs`` at a time: ceil(runs / jobs) rounds of a mean run (the
-    # last round may leave cores idle), then the report
-    rounds = -(-runs // max(1, min(jobs, runs))) if runs else 0
-    wall = rounds * (total / runs if runs else 0.0) + REPORT_S
-    return {"runs": runs, "train_s": train, "eval_s": evals, "cpu_s": total, "wall_s": wall}
-
-
-def size_factor(hidden: tuple[int, ...]) -> float:
-    """A learning step's cost at ``hidden`` relative to the paper's 256-256 (``FIXED_SHARE``)."""
-
-    def work(h: tuple[int, ...]) -> int:  # hidden products, plus ~32 inputs and outputs
-        return sum(a * b for a, b in zip(h[:-1], h[1:])) + 32 * (h[0] + h[-1]) if h else 64
-
-    return FIXED_SHARE + (1 - FIXED_SHARE) * work(tuple(hidden)) / work((256, 256))
-
-
-def default_jobs() -> int:
-    from rrls._proc import cores
-
-    return cores()
-
-
-def format_duration(seconds: float) -> str:
-    if seconds < 120:
-        return f"{seconds:.0f} s"
-    if seconds < 7200:
-        return f"{seconds / 60:.0f} min"
-    if seconds < 3 * 86400:
-        return f"{seconds / 3600:.1f} h"
-    return f"{seconds / 86400:.1f} days"
