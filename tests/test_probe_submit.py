@@ -15,7 +15,8 @@ import pytest
 from rrls.cli import main
 from rrls.evaluation import BatchInvariant
 from rrls.experiments import submission
-from rrls.experiments.submission import MAX_SEED, SubmitError, create_benchmark, submit
+from rrls.experiments.submission import SubmitError, create_benchmark, submit
+from rrls.seeds import MAX_SEED
 
 pytest.importorskip("scipy")
 

@@ -58,9 +58,6 @@ RESERVED = tuple(
 _NAME = re.compile(r"^[A-Za-z][A-Za-z0-9_.+-]{0,39}$")
 _NAME_RULE = "a letter, then up to 39 letters, digits or _ . + -"
 GAMES = ("adversarial", "nr", "pr")
-#: the largest seed: numpy's SeedSequence takes any, but the result store keeps 64-bit integers
-#: and rrls seeds its runs with 32-bit ones
-MAX_SEED = 2**32 - 1
 
 
 class SubmitError(ValueError):
@@ -113,8 +110,9 @@ def check_name(name: str) -> str:
 
 
 def check_seed(seed: Any) -> int:
-    """``seed`` as an int if it is one in ``0..MAX_SEED``, else ``SubmitError`` (one line)."""
-    from rrls.seeds import seed_message
+    """``seed`` as an int if it is one in ``0..MAX_SEED`` (``rrls.seeds``: the runs' 32-bit
+    seeds), else ``SubmitError`` (one line)."""
+    from rrls.seeds import MAX_SEED, seed_message
 
     if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)):
         raise SubmitError(f"--seed: {seed_message(repr(seed))}")
@@ -209,7 +207,7 @@ def check_shapes(
 ) -> None:
     """Refuse (``SubmitError``, one line naming both shapes) a policy that does not map the
     task's observations to its actions — before any episode runs."""
-    from rrls.evaluation.policies import policy_shapes
+    from rrls.evaluation.sources import policy_shapes
 
     declared = policy_shapes(policy)
     expected = (
@@ -244,7 +242,8 @@ def _first_line(err: BaseException) -> str:
 def _load(what: str, obj: Any) -> tuple[dict[str, Any], Any]:
     """``obj``'s source record and adapted policy; whatever loading raises (a module raising
     on import included) is a one-line ``SubmitError``."""
-    from rrls.evaluation.policies import as_policy, policy_source
+    from rrls.evaluation.policies import as_policy
+    from rrls.evaluation.sources import policy_source
 
     prefix = "" if what == "policy" else f"--{what}: "
     try:
