@@ -28,9 +28,9 @@ import types
 from typing import Any
 
 from rrls.deprecation import warn_deprecated
-from rrls.evaluation.evaluate import evaluate
 from rrls.evaluation.mesh import EvaluationSet, generate_evaluation_set
 from rrls.evaluation.result import EvaluationResult
+from rrls.evaluation.static import evaluate
 
 #: constant suffix -> (task key, set name), as named by the original code
 _CONSTANTS = {

@@ -12,7 +12,7 @@ torch = pytest.importorskip("torch")
 
 from rrls.agents import TrainConfig, hyperparameters, train  # noqa: E402
 from rrls.agents.m2td3 import Candidates  # noqa: E402
-from rrls.agents.seeds import NumpyGenerators, RunSeeds  # noqa: E402
+from rrls.agents.streams import NumpyGenerators, RunSeeds  # noqa: E402
 from rrls.agents.td3 import TD3, TD3Config  # noqa: E402
 from rrls.cli import main  # noqa: E402
 

@@ -9,7 +9,7 @@ import pytest
 torch = pytest.importorskip("torch")
 
 from rrls.agents import TrainConfig, algorithm, hyperparameters  # noqa: E402
-from rrls.agents.seeds import RunSeeds  # noqa: E402
+from rrls.agents.streams import RunSeeds  # noqa: E402
 
 
 def _rarl(schedule: str):

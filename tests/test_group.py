@@ -25,7 +25,7 @@ torch = pytest.importorskip("torch")
 
 from rrls.agents import Interrupted, TrainConfig, train  # noqa: E402
 from rrls.agents.loop import train_group  # noqa: E402
-from rrls.agents.seeds import RunSeeds  # noqa: E402
+from rrls.agents.streams import RunSeeds  # noqa: E402
 
 ALGOS = ["td3", "dr", "rarl", "nrmdp", "m2td3", "sac", "sacdr"]
 TOL = 1e-5  # |alone - in a group| per parameter, after each update (measured: 0.0)

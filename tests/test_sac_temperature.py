@@ -23,7 +23,7 @@ class _Spaces:
 @pytest.mark.parametrize("algo", ["sac", "sacdr"])
 def test_autotuned_temperature_starts_at_one_and_a_fixed_one_at_entropy_coef(algo):
     from rrls.agents import algorithm
-    from rrls.agents.seeds import RunSeeds
+    from rrls.agents.streams import RunSeeds
 
     module = algorithm(algo)
     seeds = [RunSeeds(0), RunSeeds(1)]

@@ -151,7 +151,7 @@ def test_no_two_runs_and_no_two_purposes_share_a_stream():
     # words of every (seed, purpose) stream are distinct, numpy and torch alike; the old scheme
     # (seeds s, s+1, s+2 for init, noise, replay) gave run s's noise run s+1's init stream
     pytest.importorskip("torch")
-    from rrls.agents.seeds import PURPOSES, RunSeeds
+    from rrls.agents.streams import PURPOSES, RunSeeds
 
     purposes = [*PURPOSES, "adversary.init", "adversary.noise", "adversary.replay"]
     numpy_words, torch_words, env_seeds = set(), set(), set()
@@ -183,7 +183,7 @@ def test_a_runs_generators_all_come_from_its_seed(tmp_path):
     # the same seed gives the same numbers; seeds s and s+1 share none of their draws
     torch = pytest.importorskip("torch")
     from rrls.agents import td3
-    from rrls.agents.seeds import RunSeeds
+    from rrls.agents.streams import RunSeeds
 
     env = td3.make_env("invertedpendulum", "2d", td3.Config(hidden=(4,)))
 

@@ -11,7 +11,7 @@ torch = pytest.importorskip("torch")
 F = torch.nn.functional
 
 from rrls.agents.envs import task_env  # noqa: E402
-from rrls.agents.seeds import RunSeeds  # noqa: E402
+from rrls.agents.streams import RunSeeds  # noqa: E402
 from rrls.agents.td3 import Config, Learner  # noqa: E402
 
 

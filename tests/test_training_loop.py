@@ -12,7 +12,7 @@ from conftest import stopping_at
 torch = pytest.importorskip("torch")
 
 from rrls.agents import TrainConfig, hyperparameters, train  # noqa: E402
-from rrls.agents.seeds import RunSeeds  # noqa: E402
+from rrls.agents.streams import RunSeeds  # noqa: E402
 from rrls.cli import main  # noqa: E402
 
 SMALL = ["--hidden", "16", "16", "--batch-size", "32", "--learning-starts", "100"]

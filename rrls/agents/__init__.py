@@ -26,7 +26,7 @@ from rrls.agents.nets import (
     to_mlp_policy,
 )
 from rrls.agents.replay import ReplayBuffer, transition_fields
-from rrls.agents.seeds import Generators, NumpyGenerators, RunSeeds
+from rrls.agents.streams import Generators, NumpyGenerators, RunSeeds
 from rrls.algorithms import built_in
 
 ALGOS = built_in()  # the built-in algorithms' names (rrls.algorithms.ALGORITHMS is the table)

@@ -15,7 +15,7 @@ from typing import Any
 
 import numpy as np
 
-from rrls.agents.seeds import rng_state, set_rng_state
+from rrls.agents.streams import rng_state, set_rng_state
 from rrls.physics import is_paper
 
 

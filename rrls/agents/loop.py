@@ -8,7 +8,7 @@ periodic evaluation, checkpoints (each run's slice of the learner's state, taken
 ``checkpoint_every`` steps, mid-episode: the episode in progress is replayed on resume, so the
 resumed run continues bit for bit), logs and the export of the final policies.
 
-Every generator of a run is a child of ``SeedSequence(seed)`` (``rrls.agents.seeds``): the
+Every generator of a run is a child of ``SeedSequence(seed)`` (``rrls.agents.streams``): the
 loop's ``"env"`` (first reset) and ``"warmup"`` streams, the learner's own.
 """
 
@@ -32,7 +32,7 @@ from rrls.agents.hparams import check_memory
 from rrls.agents.learner import check_runs_first, run_slice, stack_runs
 from rrls.agents.lookup import Algorithm, algorithm, hyperparameters
 from rrls.agents.run import Run
-from rrls.agents.seeds import RunSeeds, rng_state, set_rng_state
+from rrls.agents.streams import RunSeeds, rng_state, set_rng_state
 from rrls.agents.threads import process_settings
 
 

@@ -38,7 +38,7 @@ from rrls.agents.envs import task_env
 from rrls.agents.graphs import Update, adam, load_optimizer
 from rrls.agents.hparams import hp
 from rrls.agents.nets import Actor, NumpyActor, deterministic, polyak, to_mlp_policy
-from rrls.agents.seeds import Generators, RunSeeds
+from rrls.agents.streams import Generators, RunSeeds
 from rrls.agents.td3 import Learner as TD3Learner
 from rrls.agents.td3 import TD3Config, cat
 

@@ -24,7 +24,7 @@ import numpy as np
 import torch
 
 from rrls.agents.lookup import algorithm
-from rrls.agents.seeds import NumpyGenerators, RunSeeds
+from rrls.agents.streams import NumpyGenerators, RunSeeds
 from rrls.algorithms import warmup
 from rrls.twin.tasks import NOT_ON_TWIN
 

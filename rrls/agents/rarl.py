@@ -51,7 +51,7 @@ from rrls.agents.hparams import hp
 from rrls.agents.learner import Learner as _Learner
 from rrls.agents.nets import to_mlp_policy
 from rrls.agents.replay import ReplayBuffer, transition_fields
-from rrls.agents.seeds import NumpyGenerators, RunSeeds
+from rrls.agents.streams import NumpyGenerators, RunSeeds
 from rrls.agents.td3 import TD3, TD3Config
 from rrls.wrappers.tc_rmdp import OBSERVE, RATE_GAMES
 

@@ -17,7 +17,7 @@ import math
 import numpy as np
 import torch
 
-from rrls.agents.seeds import Generators, RunSeeds
+from rrls.agents.streams import Generators, RunSeeds
 
 __all__ = [
     "ReplayBuffer",

@@ -129,9 +129,9 @@ class PeriodicEvaluation:
 
     def _plan(self, policy: Any) -> dict[str, Any]:
         from rrls.envs import resolve
-        from rrls.evaluation.evaluate import Evaluator
         from rrls.evaluation.protocol import Protocol
         from rrls.evaluation.stack import policy_view
+        from rrls.evaluation.static import Evaluator
 
         config, view = self.config, policy_view(policy)
         physics = config.physics

@@ -32,7 +32,7 @@ from rrls.agents.hparams import MAX_BATCH, MAX_BUFFER, MAX_LAYERS, MAX_WIDTH, ch
 from rrls.agents.learner import Learner as _Learner
 from rrls.agents.nets import Critic, GaussianActor, polyak, to_mlp_policy
 from rrls.agents.replay import ReplayBuffer, transition_fields
-from rrls.agents.seeds import Generators, NumpyGenerators, RunSeeds
+from rrls.agents.streams import Generators, NumpyGenerators, RunSeeds
 from rrls.algorithms import warmup
 
 

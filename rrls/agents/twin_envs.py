@@ -21,7 +21,7 @@ from typing import Any
 
 import numpy as np
 
-from rrls.agents.seeds import rng_state, set_rng_state
+from rrls.agents.streams import rng_state, set_rng_state
 
 #: the largest episode the twin counts to: the loop truncates, the twin never does
 _NO_LIMIT = 2**30

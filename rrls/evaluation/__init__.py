@@ -6,7 +6,6 @@ from rrls.evaluation.dynamic import (
     evaluate_run_dynamic,
     make_dynamic_env,
 )
-from rrls.evaluation.evaluate import evaluate
 from rrls.evaluation.lanes import PolicyError
 from rrls.evaluation.mesh import (
     EvaluationSet,
@@ -28,6 +27,7 @@ from rrls.evaluation.protocol import Protocol
 from rrls.evaluation.result import EvaluationResult
 from rrls.evaluation.result_plot import plot_result
 from rrls.evaluation.search import WorstCaseSearch, search_worst_case
+from rrls.evaluation.static import evaluate
 
 __all__ = [
     "BatchInvariant",

@@ -95,10 +95,10 @@ def _search(
     import pandas as pd
     from scipy.optimize import differential_evolution
 
-    from rrls.evaluation.evaluate import rollout_table
     from rrls.evaluation.policies import as_policy
     from rrls.evaluation.prepare import prepare_policy
     from rrls.evaluation.stack import EnvStack, policy_view
+    from rrls.evaluation.static import rollout_table
 
     key, box, kind = resolved.task, resolved.box, resolved.family
     policy = as_policy(policy)
