@@ -17,6 +17,7 @@ the twin's reset state of that world.
 from __future__ import annotations
 
 import argparse
+import csv
 import time
 import warnings
 from pathlib import Path
@@ -92,19 +93,35 @@ def both_physics(policy: object, task: str, n_points: int, device: str) -> list[
     return rows
 
 
-def _print_rows(rows: list[tuple], names: list[str], out: Path) -> None:
-    import csv
+def markdown(names: list[str], rows: list[tuple]) -> str:
+    """The sim-to-sim table in markdown (what the docs show, generated from the CSV)."""
+    lines = [
+        f"| {', '.join(names)} | return on CPU MuJoCo | return on the twin | twin / CPU |",
+        "|---|---|---|---|",
+    ]
+    for point, cpu, tw in rows:
+        ratio = tw / cpu if cpu else float("nan")
+        shown = ", ".join(f"{x:.2f}" for x in point)
+        lines.append(f"| {shown} | {cpu:.1f} | {tw:.1f} | {ratio:.2f} |")
+    return "\n".join(lines) + "\n"
 
-    print("| point | return on CPU MuJoCo | return on the twin | twin / CPU |")
-    print("|---|---|---|---|")
+
+def markdown_from_csv(path: Path) -> str:
+    """``markdown`` of a ``sim_to_sim.csv`` this script wrote."""
+    with open(path, newline="") as f:
+        reader = csv.reader(f)
+        header = next(reader)
+        names = header[:-2]
+        rows = [([float(x) for x in r[:-2]], float(r[-2]), float(r[-1])) for r in reader]
+    return markdown(names, rows)
+
+
+def _print_rows(rows: list[tuple], names: list[str], out: Path) -> None:
+    print(markdown(names, rows), end="")
     with open(out / "sim_to_sim.csv", "w", newline="") as f:
         writer = csv.writer(f)
         writer.writerow([*names, "cpu_return", "twin_return"])
         for point, cpu, tw in rows:
-            ratio = tw / cpu if cpu else float("nan")
-            print(
-                f"| {', '.join(f'{x:.2f}' for x in point)} | {cpu:.1f} | {tw:.1f} | {ratio:.2f} |"
-            )
             writer.writerow([*point, cpu, tw])
 
 

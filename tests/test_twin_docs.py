@@ -92,3 +92,29 @@ def test_the_step_floor_is_read_from_the_speed_log():
     assert f"({k1} env steps/s against 784 on the same kind of machine)" in twin
     first = (RECORD.parent / "h100-2026-11-25.md").read_text()
     assert "| cuda | td3 | 1 | 784 |" in first  # the CPU-physics figure quoted
+
+
+def test_the_sim_to_sim_tables_and_numbers_are_the_csvs():
+    spec = importlib.util.spec_from_file_location("twin_train", ROOT / "benchmarks/twin_train.py")
+    module = importlib.util.module_from_spec(spec)
+    sys.modules["twin_train"] = module
+    spec.loader.exec_module(module)
+    folder = DOCS / "results" / "twin" / "sim_to_sim"
+    twin = (DOCS / "twin.md").read_text()
+    ratios = {}
+    for task in ("invertedpendulum", "halfcheetah"):
+        assert module.markdown_from_csv(folder / f"{task}.csv") in twin, task
+        with (folder / f"{task}.csv").open() as f:
+            rows = list(csv.DictReader(f))
+        ratios[task] = [float(r["twin_return"]) / float(r["cpu_return"]) for r in rows]
+    prose = " ".join(twin.split())
+    ip, hc = (
+        sum(abs(r - 1) <= 0.01 for r in ratios[t]) for t in ("invertedpendulum", "halfcheetah")
+    )
+    assert f"within 1 % at {ip} of 8 InvertedPendulum points and {hc} of 8 HalfCheetah" in prose
+    assert f"up to {max(ratios['halfcheetah']):.2f}× on one point" in prose
+    with (folder / "td3-invertedpendulum-warp" / "scalars.csv").open() as f:
+        last = [r for r in csv.DictReader(f) if r["metric"] == "eval/nominal_return"][-1]
+    assert f"nominal return {float(last['value']):.1f} of 1 000" in prose
+    run = (folder / "td3-invertedpendulum-warp" / "run.json").read_text()
+    assert '"simulator": "warp"' in run
