@@ -21,8 +21,8 @@ largest entry into [0.5, 1)), so no slice product overflows or underflows, whate
 rows ×1e300 or of subnormals give the same bits on every kernel (an underflowing product is
 where a kernel's fused multiply-add would round otherwise); the result is scaled back with
 one rounding (``ldexp``), so it is ±inf only where the product itself leaves float64's range.
-Entries below 2**-512 of their line's largest count as zero (far below the ``2**(-2 beta)``
-dropped anyway). A NaN or inf in a row gives a NaN row.
+What lies below ``2**(-512 - beta)`` of a line's largest entry counts as zero (far below the
+``2**(-2 beta)`` dropped anyway). A NaN or inf in a row gives a NaN row.
 
 Cost: three float64 GEMMs instead of one float32 GEMM, plus a few elementwise passes.
 
@@ -46,13 +46,15 @@ from __future__ import annotations
 
 import math
 import threading
+from typing import Any
 
 import numpy as np
 
 __all__ = ["ExactLinear", "exact_tanh", "slice_bits"]
 
-#: entries below this fraction of their line's largest count as zero (see the module's *Range*)
-TINY = 2.0**-512
+#: the second slice's grid is never finer than ``2**(LOWEST - beta)`` of its line's largest
+#: entry: what lies below counts as zero (see the module's *Range*)
+LOWEST = -512
 _LN2_HI = 6.93147180369123816490e-01  # ln 2 split as in fdlibm: k * _LN2_HI is exact
 _LN2_LO = 1.90821492927058770002e-10
 _INV_LN2 = 1.44269504088896338700e00
@@ -69,9 +71,10 @@ def exact_tanh(x: np.ndarray) -> np.ndarray:
     k = np.rint(y * _INV_LN2)
     r = (y - k * _LN2_HI) - k * _LN2_LO
     p = np.full_like(r, _EXPM1[-1])
-    for c in _EXPM1[-2::-1]:
-        p = c + r * p
-    p = r * p
+    for c in _EXPM1[-2::-1]:  # Horner, in place: p = c + r * p
+        np.multiply(p, r, out=p)
+        np.add(p, c, out=p)
+    np.multiply(p, r, out=p)
     ki = k.astype(np.int64)
     e = np.ldexp(p, ki) + (np.ldexp(1.0, ki) - 1.0)  # expm1(y) = 2**k expm1(r) + 2**k - 1
     out = np.copysign(e / (e + 2.0), x)
@@ -86,27 +89,57 @@ def slice_bits(k: int) -> int:
     return (53 - int(np.ceil(np.log2(k)))) // 2 if k > 1 else 26
 
 
+def _slice(rest: np.ndarray, e: Any, beta: int, part: np.ndarray) -> None:
+    """``part`` = ``rest`` rounded to a multiple of ``2**(e - beta)``; ``rest -= part`` (exact:
+    ``part`` is ``rest`` rounded to a coarser grid)."""
+    # adding 1.5 * 2**(52 + e - beta) rounds to a multiple of 2**(e - beta), exactly once
+    sigma = np.ldexp(1.5, 52 + e - beta)
+    np.add(rest, sigma, out=part)
+    np.subtract(part, sigma, out=part)
+    np.subtract(rest, part, out=rest)
+
+
 def _split_into(rest: np.ndarray, axis: int, beta: int, hi: np.ndarray, lo: np.ndarray) -> None:
-    """Cut ``rest`` (float64, overwritten) into ``hi + lo + rest``: ``hi`` and ``lo`` hold
-    ``beta`` bits each on the grid of their own largest entry along ``axis``."""
-    for part in (hi, lo):
-        np.abs(rest, out=part)
-        # 2**e > max|rest| (frexp: m * 2**e, 0.5 <= m < 1); an all-zero line keeps e = 0
-        e = np.frexp(part.max(axis=axis, keepdims=True))[1]
-        # adding 1.5 * 2**(52 + e - beta) rounds to a multiple of 2**(e - beta), exactly once
-        sigma = np.ldexp(1.5, 52 + e - beta)
-        np.add(rest, sigma, out=part)
-        np.subtract(part, sigma, out=part)
-        np.subtract(rest, part, out=rest)  # exact: part is rest rounded to a coarser grid
+    """Cut a normalised ``rest`` (``_normalise``: each line's largest entry in [0.5, 1); float64,
+    overwritten) into ``hi + lo + rest``, ``beta`` bits each: ``hi`` on the grid ``2**-beta``,
+    ``lo`` on the grid of the largest entry left, never finer than ``2**(LOWEST - beta)`` (so
+    the rounding constant stays a normal number)."""
+    _slice(rest, 0, beta, hi)
+    np.abs(rest, out=lo)
+    e = np.frexp(lo.max(axis=axis, keepdims=True))[1]  # an all-zero line keeps e = 0
+    np.maximum(e, LOWEST, out=e)
+    _slice(rest, e, beta, lo)
 
 
-def _normalise(a: np.ndarray, axis: int) -> np.ndarray:
+def _normalise(a: np.ndarray, axis: int, largest: np.ndarray | None = None) -> np.ndarray:
     """Scale ``a`` (float64, in place) by a power of two per line along ``axis``, its largest
-    entry into [0.5, 1), and zero what lies below ``TINY`` of it; returns the exponents."""
-    e = np.frexp(np.abs(a).max(axis=axis, keepdims=True))[1]  # an all-zero line keeps e = 0
-    np.ldexp(a, -e, out=a)
-    a[np.abs(a) < TINY] = 0.0
+    entry (``largest``, if known) into [0.5, 1); returns the exponents."""
+    if largest is None:
+        largest = np.abs(a).max(axis=axis, keepdims=True)
+    e = np.frexp(largest)[1]  # an all-zero line keeps e = 0
+    _times_power_of_two(a, -e)
     return e
+
+
+def _times_power_of_two(a: np.ndarray, e: np.ndarray) -> None:
+    """``a *= 2**e`` in place (``e`` broadcast over ``a``), rounded once, as ``np.ldexp``: by
+    multiplying with the exact factor ``2**e`` where that factor is a normal number (a
+    multiplication is ~20x faster than ``ldexp``), else by ``ldexp`` itself."""
+    if e.size and -1022 <= int(e.min()) and int(e.max()) <= 1023:
+        np.multiply(a, np.ldexp(1.0, e), out=a)
+    else:
+        np.ldexp(a, e, out=a)
+
+
+def _rescale(out: np.ndarray, e_row: np.ndarray, e_col: np.ndarray) -> None:
+    """``out *= 2**(e_row + e_col)``, rounded once (as ``np.ldexp``): through the exact factor
+    ``2**e_row * 2**e_col`` where every power involved is a normal number, else ``ldexp``."""
+    low, high = int(e_row.min() + e_col.min()), int(e_row.max() + e_col.max())
+    bounds = (low, high, int(e_row.min()), int(e_row.max()), int(e_col.min()), int(e_col.max()))
+    if all(-1022 <= b <= 1023 for b in bounds):
+        np.multiply(out, np.ldexp(1.0, e_row) * np.ldexp(1.0, e_col), out=out)
+    else:
+        np.ldexp(out, e_row + e_col, out=out)
 
 
 class ExactLinear:
@@ -155,16 +188,18 @@ class ExactLinear:
         rest, hi, lo, p = self._buffers(len(x))
         np.copyto(rest, x)
         with np.errstate(invalid="ignore", over="ignore"):
-            bad = ~np.isfinite(np.abs(rest, out=hi).max(axis=1))
+            largest = np.abs(rest, out=hi).max(axis=1, keepdims=True)
+            bad = ~np.isfinite(largest[:, 0])
             if bad.any():  # a NaN or inf input gives a NaN row, as a plain product would
                 rest[bad] = 0.0
-            e_row = _normalise(rest, 1)
+                largest[bad] = 0.0
+            e_row = _normalise(rest, 1, largest)
             _split_into(rest, 1, self.beta, hi, lo)
             np.matmul(hi, self.w_both, out=p)  # each product exact, whatever the kernel
             out = p[:, :n] + p[:, n:]
             np.matmul(lo, self.w_hi, out=p[:, :n])
             out += p[:, :n]  # lo @ w_lo (below 2**(-2 beta) of the line's scale): dropped
-            np.ldexp(out, e_row + self.e_col, out=out)  # back to scale: one rounding
+            _rescale(out, e_row, self.e_col)  # back to scale: one rounding
         if bad.any():
             out[bad] = np.nan
         return out
