@@ -77,8 +77,13 @@ def dynamic(folder: Path, reference: str | None) -> dict[str, str]:
     if path.exists():
         with open(path, newline="") as f:
             for row in csv.DictReader(f):
-                mean, std = float(row["mean"]), float(row["std"])
-                cells[row["algorithm"]] = f"{mean:.1f} ± {std:.1f} (std)"
+                if not row["mean"]:  # no run of it yet
+                    continue
+                mean, n = float(row["mean"]), int(row.get("n_seeds") or 0)
+                if n < 2:  # one seed: its value alone (a std of one value says nothing)
+                    cells[row["algorithm"]] = f"{mean:.1f}"
+                else:
+                    cells[row["algorithm"]] = f"{mean:.1f} ± {float(row['std']):.1f} (std)"
     return cells
 
 
