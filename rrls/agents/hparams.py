@@ -43,11 +43,17 @@ def hp(
 
 
 def check_limits(config: Any) -> None:
-    """Refuse, in one line naming the field, a value above its declared ``most``."""
+    """Refuse, in one line naming the field, a value above its declared ``most`` (each entry
+    of a tuple), or a tuple longer than its ``most_items``."""
     for f in fields(config):
         most = f.metadata.get("most")
         value = getattr(config, f.name)
-        if most is None or value is None:
+        if value is None:
+            continue
+        items = f.metadata.get("most_items")
+        if items is not None and len(value) > items:
+            raise ValueError(f"{f.name} must have at most {items} entries, got {len(value)}")
+        if most is None:
             continue
         limit = most() if callable(most) else most
         values = value if isinstance(value, (tuple, list)) else (value,)

@@ -54,15 +54,14 @@ class Config:
     batch_size: int = hp(256, "replay batch size", most=MAX_BATCH)
     buffer_size: int = hp(1_000_000, "replay capacity (transitions)", most=MAX_BUFFER)
     hidden: tuple[int, ...] = hp(
-        (256, 256), "hidden layer sizes of actors and critics", most=MAX_WIDTH
+        (256, 256),
+        "hidden layer sizes of actors and critics",
+        most=MAX_WIDTH,
+        most_items=MAX_LAYERS,
     )
 
     def __post_init__(self) -> None:
         self.hidden = tuple(int(h) for h in self.hidden)
-        if len(self.hidden) > MAX_LAYERS:
-            raise ValueError(
-                f"hidden must have at most {MAX_LAYERS} layers, got {len(self.hidden)}"
-            )
         check_limits(self)
         for name in (
             "policy_lr",
