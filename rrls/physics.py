@@ -21,6 +21,9 @@ from typing import Any
 V5 = "v5"
 PAPER = "paper"
 LABELS = (V5, PAPER)
+#: what may step a run's training envs (``--simulator``): CPU MuJoCo, the reference, or the
+#: task's MuJoCo Warp twin (``rrls.twin``); every evaluation runs on CPU MuJoCo either way
+SIMULATORS = ("mujoco", "warp")
 #: what ``--physics`` and older files say -> the label
 ALIASES = {V5: V5, "rrls": V5, "rrls-v5": V5, PAPER: PAPER, "v4": PAPER, "paper-v4": PAPER}
 
@@ -43,4 +46,4 @@ def is_paper(value: Any) -> bool:
     return physics_label(value) == PAPER
 
 
-__all__ = ["ALIASES", "is_paper", "LABELS", "PAPER", "physics_label", "V5"]
+__all__ = ["ALIASES", "is_paper", "LABELS", "PAPER", "physics_label", "SIMULATORS", "V5"]

@@ -35,6 +35,7 @@ from typing import Any
 from rrls._io import atomic_write_bytes
 from rrls.physics import ALIASES
 from rrls.schema import Schema, SchemaError, array, integer, obj, string
+from rrls.seeds import MAX_SEED
 
 CHECKPOINT = "checkpoint.pt"
 POLICY = "policy.npz"
@@ -57,7 +58,7 @@ RUN_SCHEMA = Schema(
         "algorithm": string(required=True),
         "task": string(),
         "uncertainty": string(null=True),
-        "seed": integer(0, 2**32 - 1),
+        "seed": integer(0, MAX_SEED),
         "steps": integer(0, 10**12, required=True),
         "episodes": integer(),
         "obs_dim": integer(1),

@@ -10,7 +10,7 @@ from rrls.agents.hparams import check_limits, hp, jsonable, most_threads
 from rrls.agents.lookup import algorithm
 from rrls.algorithms import ENTRY_POINTS, built_in
 from rrls.envs import training_split
-from rrls.physics import is_paper, physics_label
+from rrls.physics import SIMULATORS, is_paper, physics_label
 from rrls.tasks import benchmark_set
 from rrls.twin.tasks import check_twin
 
@@ -97,7 +97,7 @@ class TrainConfig:
         "what steps the training envs: mujoco (CPU MuJoCo, the reference) or warp (the task's "
         "MuJoCo Warp twin on --device, run k on world k: rrls.twin; needs the warp extra). "
         "Evaluations stay on CPU MuJoCo either way",
-        choices=["mujoco", "warp"],
+        choices=list(SIMULATORS),
     )
     track: bool = hp(False, "also log to Weights & Biases (needs wandb installed)")
     wandb_project: str = hp("rrls", "the W&B project of --track")
@@ -191,10 +191,6 @@ class TrainConfig:
         region = Split.parse(box, self.split).region
         label = f"{box.label} {self.split} (training part)"
         return UncertaintySet(region.names, region.low, region.high, None, label, box.family)
-
-
-#: what may step a run's training envs (``--simulator``)
-SIMULATORS = ("mujoco", "warp")
 
 
 class Interrupted(Exception):

@@ -53,7 +53,7 @@ from rrls.agents.nets import to_mlp_policy
 from rrls.agents.replay import ReplayBuffer, transition_fields
 from rrls.agents.streams import NumpyGenerators, RunSeeds
 from rrls.agents.td3 import TD3, TD3Config
-from rrls.wrappers.tc_rmdp import OBSERVE, RATE_GAMES
+from rrls.wrappers.tc_rmdp import MAX_HISTORY, OBSERVE, RATE_GAMES
 
 SCHEDULES = ("simultaneous", "alternating")
 
@@ -90,7 +90,7 @@ class Config(TD3Config):
         choices=list(OBSERVE),
     )
     history: int | None = hp(
-        None, "--observe stacked: states and actions kept (default 1)", most=10_000
+        None, "--observe stacked: states and actions kept (default 1)", most=MAX_HISTORY
     )
     omniscient: bool | None = hp(
         None,

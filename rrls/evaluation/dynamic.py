@@ -311,12 +311,13 @@ def _check_arguments(
         check_seed,
         check_sizes,
     )
+    from rrls.wrappers.tc_rmdp import MAX_HISTORY
 
     check_counts(episodes=episodes, history=history)
     check_episodes(1, episodes)
     check_sizes(batch_size=batch_size)
-    if history > 10_000:
-        raise ValueError(f"history must be at most 10,000, got {history}")
+    if history > MAX_HISTORY:
+        raise ValueError(f"history must be at most {MAX_HISTORY:,}, got {history}")
     check_seed(seed)
     if isinstance(alpha, bool) or not isinstance(alpha, (int, float)) or not 0 <= alpha <= 1:
         raise ValueError(f"alpha must be a number in [0, 1], got {alpha!r}")

@@ -24,6 +24,7 @@ from rrls.rundir import (
     write_checked_table,
 )
 from rrls.schema import Schema, TableSchema, boolean, integer, number, obj, string
+from rrls.seeds import MAX_SEED
 
 __all__ = ["ARGUMENTS", "SUMMARY", "opened", "read", "table_name", "write"]
 
@@ -41,7 +42,7 @@ SUMMARY_SCHEMA = Schema(
         "episodes": integer(1),
         "episodes_total": integer(1),
         "mesh": integer(1),
-        "seed": integer(0, 2**32 - 1),
+        "seed": integer(0, MAX_SEED),
         "physics": string(choices=tuple(ALIASES)),
         "task": string(),
         "env": string(),

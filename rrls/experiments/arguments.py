@@ -10,6 +10,7 @@ from rrls.argtypes import seed_value, step_count, worker_count
 from rrls.deprecation import DeprecatedOption
 from rrls.experiments.reference import SHIPPED
 from rrls.experiments.spec import ALGOS, BUILT_IN, PAPER_TASKS, PRESETS
+from rrls.physics import SIMULATORS
 from rrls.seeds import EXAMPLES
 
 #: more runs than this, started from a terminal without --yes, ask first
@@ -82,7 +83,7 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:
     )
     b.add_argument(
         "--simulator",
-        choices=["mujoco", "warp"],
+        choices=list(SIMULATORS),
         help="what steps the training envs: mujoco (default: CPU MuJoCo) or warp (each task's "
         "MuJoCo Warp twin on --device, the warp extra); evaluations stay on CPU MuJoCo",
     )

@@ -15,7 +15,7 @@ from rrls import rundir
 from rrls._io import waiting_lock
 from rrls.evaluation.protocol import MAX_EPISODES
 from rrls.experiments.spec import Spec, SpecError
-from rrls.physics import ALIASES
+from rrls.physics import ALIASES, SIMULATORS
 from rrls.schema import Schema, SchemaError, array, boolean, integer, number, string
 from rrls.seeds import MAX_SEED, MAX_SEEDS
 from rrls.uncertainty import MAX_MESH_POINTS
@@ -56,7 +56,7 @@ SPEC_SCHEMA = Schema(
         "rate_game": string(choices=RATE_GAMES),
         "observe": string(choices=OBSERVE),
         "split": string(null=True),
-        "simulator": string(choices=("mujoco", "warp")),
+        "simulator": string(choices=SIMULATORS),
     }
 )
 

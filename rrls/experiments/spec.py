@@ -13,7 +13,7 @@ from typing import Any
 
 from rrls.algorithms import built_in, paper_five, warmup
 from rrls.evaluation.protocol import Protocol, check_episodes
-from rrls.physics import V5, is_paper, physics_label
+from rrls.physics import SIMULATORS, V5, is_paper, physics_label
 
 ALGOS = paper_five()  # the paper's five (the presets' default)
 # every built-in algorithm (rrls.algorithms, the table); plug-ins are accepted by name (entry
@@ -416,8 +416,8 @@ def validate(spec: Spec) -> None:
         raise SpecError(f"rate_game must be one of {', '.join(RATE_GAMES)}, got {spec.rate_game!r}")
     if spec.observe not in OBSERVE:
         raise SpecError(f"--observe must be one of {', '.join(OBSERVE)}, got {spec.observe!r}")
-    if spec.simulator not in ("mujoco", "warp"):
-        raise SpecError(f"--simulator must be mujoco or warp, got {spec.simulator!r}")
+    if spec.simulator not in SIMULATORS:
+        raise SpecError(f"--simulator must be {' or '.join(SIMULATORS)}, got {spec.simulator!r}")
     if spec.simulator == "warp":
         from rrls.twin.tasks import check_twin
 

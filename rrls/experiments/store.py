@@ -27,6 +27,7 @@ from rrls import rundir
 from rrls.evaluation.evaldir import EPISODES_SCHEMA
 from rrls.physics import ALIASES
 from rrls.schema import Schema, TableSchema, integer, number, obj, string
+from rrls.seeds import MAX_SEED
 
 TABLES = ("evaluations", "curves", "dynamic", "runs")
 KEY = ["algorithm", "task", "uncertainty", "seed"]
@@ -39,7 +40,7 @@ RESULT_SCHEMA = Schema(
         "task": string(required=True),
         "uncertainty": string(required=True),
         "train_set": string(),
-        "seed": integer(0, 2**32 - 1, required=True),
+        "seed": integer(0, MAX_SEED, required=True),
         "steps": integer(0, 10**12, required=True),
         "physics": string(choices=tuple(ALIASES)),
         "worst_case": number(required=True),

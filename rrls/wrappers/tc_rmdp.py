@@ -35,6 +35,8 @@ from rrls.wrappers.access import ParamsForwarding
 
 #: the protagonist variants of the TC-RMDP paper (§5: Vanilla, Stacked, Oracle)
 OBSERVE = ("vanilla", "stacked", "oracle")
+#: the most states (and actions) a Stacked protagonist may keep: its observation grows with it
+MAX_HISTORY = 10_000
 #: the rate-limited games: ``tc`` (the authors', default), ``target`` (rrls's earlier one)
 RATE_GAMES = ("tc", "target")
 
@@ -76,6 +78,8 @@ class View:
         h = self.history
         if isinstance(h, bool) or not isinstance(h, (int, np.integer)) or h < 1:
             raise ValueError(f"history must be an integer >= 1 (states kept), got {h!r}")
+        if h > MAX_HISTORY:
+            raise ValueError(f"history must be at most {MAX_HISTORY:,} (states kept), got {h!r}")
         if self.observe == "oracle" and (self.box is None or self.box.dim == 0):
             raise ValueError("observe='oracle' needs the uncertainty set whose ψ it shows")
 
@@ -191,6 +195,7 @@ class ProtagonistObservation(ParamsForwarding, gym.utils.RecordConstructorArgs):
 
 
 __all__ = [
+    "MAX_HISTORY",
     "OBSERVE",
     "ProtagonistObservation",
     "RATE_GAMES",
