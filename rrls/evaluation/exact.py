@@ -121,25 +121,19 @@ def _normalise(a: np.ndarray, axis: int, largest: np.ndarray | None = None) -> n
     return e
 
 
-def _times_power_of_two(a: np.ndarray, e: np.ndarray) -> None:
-    """``a *= 2**e`` in place (``e`` broadcast over ``a``), rounded once, as ``np.ldexp``: by
-    multiplying with the exact factor ``2**e`` where that factor is a normal number (a
-    multiplication is ~20x faster than ``ldexp``), else by ``ldexp`` itself."""
-    if e.size and -1022 <= int(e.min()) and int(e.max()) <= 1023:
-        np.multiply(a, np.ldexp(1.0, e), out=a)
+def _times_power_of_two(a: np.ndarray, *exponents: np.ndarray) -> None:
+    """``a *= 2**sum(exponents)`` in place (broadcast), rounded once, as ``np.ldexp``: by
+    multiplying with the exact factor ``2**e1 * 2**e2 ...`` where every power involved and
+    their product are normal numbers (a multiplication is ~20x faster than ``ldexp``), else by
+    ``ldexp`` itself."""
+    lows, highs = [int(e.min()) for e in exponents], [int(e.max()) for e in exponents]
+    if all(-1022 <= b <= 1023 for b in (*lows, *highs, sum(lows), sum(highs))):
+        factor = np.ldexp(1.0, exponents[0])
+        for e in exponents[1:]:
+            factor = factor * np.ldexp(1.0, e)
+        np.multiply(a, factor, out=a)
     else:
-        np.ldexp(a, e, out=a)
-
-
-def _rescale(out: np.ndarray, e_row: np.ndarray, e_col: np.ndarray) -> None:
-    """``out *= 2**(e_row + e_col)``, rounded once (as ``np.ldexp``): through the exact factor
-    ``2**e_row * 2**e_col`` where every power involved is a normal number, else ``ldexp``."""
-    low, high = int(e_row.min() + e_col.min()), int(e_row.max() + e_col.max())
-    bounds = (low, high, int(e_row.min()), int(e_row.max()), int(e_col.min()), int(e_col.max()))
-    if all(-1022 <= b <= 1023 for b in bounds):
-        np.multiply(out, np.ldexp(1.0, e_row) * np.ldexp(1.0, e_col), out=out)
-    else:
-        np.ldexp(out, e_row + e_col, out=out)
+        np.ldexp(a, sum(exponents[1:], exponents[0]), out=a)
 
 
 class ExactLinear:
@@ -199,7 +193,7 @@ class ExactLinear:
             out = p[:, :n] + p[:, n:]
             np.matmul(lo, self.w_hi, out=p[:, :n])
             out += p[:, :n]  # lo @ w_lo (below 2**(-2 beta) of the line's scale): dropped
-            _rescale(out, e_row, self.e_col)  # back to scale: one rounding
+            _times_power_of_two(out, e_row, self.e_col)  # back to scale: one rounding
         if bad.any():
             out[bad] = np.nan
         return out
