@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import csv
 import importlib.util
+import json
 import re
 import sys
 from pathlib import Path
@@ -116,5 +117,10 @@ def test_the_sim_to_sim_tables_and_numbers_are_the_csvs():
     with (folder / "td3-invertedpendulum-warp" / "scalars.csv").open() as f:
         last = [r for r in csv.DictReader(f) if r["metric"] == "eval/nominal_return"][-1]
     assert f"nominal return {float(last['value']):.1f} of 1 000" in prose
-    run = (folder / "td3-invertedpendulum-warp" / "run.json").read_text()
-    assert '"simulator": "warp"' in run
+    run = json.loads((folder / "td3-invertedpendulum-warp" / "run.json").read_text())
+    assert run["simulator"] == "warp"
+    assert (
+        f"--steps {run['steps']} " in prose
+        and f"at {run['steps']:,} steps".replace(",", " ") in prose
+    )
+    assert len(ratios["invertedpendulum"]) == len(ratios["halfcheetah"]) == 8  # "8 points"
