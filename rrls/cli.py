@@ -207,6 +207,18 @@ def build_parser(with_train: bool = True) -> argparse.ArgumentParser:
     ed.add_argument(
         "--seed", type=seed_value, default=0, help="seed of the episodes' resets (default 0)"
     )
+    ed.add_argument(
+        "--workers",
+        type=argtypes.worker_count,
+        default=1,
+        help="worker processes, at most 1024; 0: in this process (default 1; results do not "
+        "depend on it)",
+    )
+    ed.add_argument(
+        "--out",
+        default=None,
+        help="keep finished episodes in this directory; the same command again resumes",
+    )
 
     quick = sub.add_parser(
         "quickstart",
@@ -476,7 +488,9 @@ def _warm_up(run_dir: Any) -> int | None:
 def _evaluate_dynamic(args: argparse.Namespace) -> int:
     from rrls.evaluation import evaluate_run_dynamic
 
-    result = evaluate_run_dynamic(args.run_dir, episodes=args.episodes, seed=args.seed)
+    result = evaluate_run_dynamic(
+        args.run_dir, episodes=args.episodes, seed=args.seed, workers=args.workers, out_dir=args.out
+    )
     print(f"{result.env_id}: {result.mean:.2f} ± {result.std:.2f} over {args.episodes} episodes")
     return 0
 

@@ -378,7 +378,9 @@ def test_dynamic_evaluation_names_the_policy_that_returns_non_numbers():
     words = lambda o: np.full((len(o), 2), "push")  # noqa: E731
     with pytest.raises(PolicyError, match="the adversary returned <U4 values"):
         evaluate_dynamic(still, words, "invertedpendulum", "adversarial", "rarl", episodes=1)
-    with pytest.raises(PolicyError, match="the protagonist returned shape \\(1,\\) for 1"):
+    with pytest.raises(
+        PolicyError, match="the protagonist returned actions of shape \\(1,\\) for 1"
+    ):
         evaluate_dynamic(lambda o: np.zeros(1), still, "invertedpendulum", "nr", episodes=1)
 
 

@@ -1,12 +1,14 @@
 """Dynamic evaluation (paper Table 6): a protagonist against a trained adversary, step by step.
 
-The adversary acts every step — choosing the physical parameters (``DynamicAdversarial``, over a
-parameter set or the RARL force set) or perturbing the action (``ProbabilisticActionRobust``,
-NR-MDP/PR-MDP). Episodes run in lockstep (both policies called once per step on the batch);
-each episode ``e`` starts from ``reset(seed=seeds[e])``, so a row equals the one-episode loop
-``env.reset(seed=seed)`` then ``env.step((protagonist(obs[None])[0], adversary(obs[None])[0]))``
-on ``make_dynamic_env(...)`` (in the TC-RMDP game each player on its part of ``obs``,
-``env.views``, the omniscient adversary also on the protagonist's action).
+The adversary acts every step (:mod:`rrls.evaluation.games`: the parameter game, the RARL
+force game, NR-/PR-MDP's action game). Episodes run on the same engine as the static
+evaluation (:mod:`rrls.evaluation.engine`) as two-player lanes: both policies called once per
+step on the batch, workers, resume from ``out_dir``, the ``terminated``/``diverged`` columns and
+divergence handling of the static evaluation. Episode ``e`` starts from ``reset(seed=seeds[e])``,
+so a row equals the one-episode loop ``env.reset(seed=seed)`` then
+``env.step((protagonist(obs[None])[0], adversary(obs[None])[0]))`` on ``make_dynamic_env(...)``
+(in the TC-RMDP game each player on its part of ``obs``, ``env.views``, the omniscient adversary
+also on the protagonist's action), whatever the worker count or batch size.
 """
 
 from __future__ import annotations
@@ -17,7 +19,8 @@ from typing import Any
 
 import numpy as np
 
-from rrls.physics import PAPER, is_paper
+from rrls.evaluation.games import Game, TwoPlayers, dynamic_env_id, make_dynamic_env
+from rrls.physics import is_paper
 
 
 @dataclass
@@ -42,104 +45,6 @@ class DynamicResult:
         )
 
 
-def dynamic_env_id(task: str, game: str = "adversarial", uncertainty: str = "3d") -> str:
-    """The registered id of ``task``'s two-player game.
-
-    ``game="adversarial"`` with ``uncertainty`` in ``1d/2d/3d`` (parameters) or ``rarl`` (forces);
-    ``game="nr"`` / ``"pr"``: the action-robust game (NR-MDP / PR-MDP).
-    """
-    from rrls.envs import resolve
-
-    if game == "adversarial":
-        if not isinstance(uncertainty, str):
-            raise ValueError("the registered adversarial games take a set name (1d, 2d, 3d, rarl)")
-        resolved = resolve(task, uncertainty)
-        if resolved.is_nominal:
-            raise ValueError("the nominal model has no parameters for an adversary to play")
-        name = "forces" if resolved.family == "force" else resolved.name
-        return f"rrls/robust-{resolved.task}-adversarial-{name}-v0"
-    key = resolve(task, "nominal").task
-    if game in ("nr", "pr"):
-        return f"rrls/probabilistic-action-robust-{key}-v0"
-    raise ValueError(f"unknown game {game!r}; valid: adversarial, nr, pr")
-
-
-def make_dynamic_env(
-    task: str,
-    game: str = "adversarial",
-    uncertainty: str | Any = "3d",
-    alpha: float = 0.1,
-    rate_limit: float | None = None,
-    context: bool = False,
-    paper: bool = False,
-    *,
-    rate_game: str = "tc",
-    observe: str = "vanilla",
-    history: int = 1,
-) -> Any:
-    """The two-player env: the registered id, or ``ProbabilisticActionRobust`` with ``alpha``.
-
-    For the parameter game, ``rate_limit=r`` is TC-RMDP's game as its authors play it
-    (``DynamicAdversarial``, ``rate_game="tc"``): the adversary moves ψ by ``a · r`` per step
-    in raw units, episodes start uniformly in the box, the flat observation holds the
-    protagonist's view (``observe``: vanilla, stacked with ``history``, oracle) then the
-    adversary's ``[ψ01, s]`` (``env.views``). ``rate_game="target"``: rrls's earlier game
-    (``r`` in normalised units towards a target point). ``context=True`` appends the
-    parameters in force, normalised to ``[-1, 1]``, to the shared observation of the other
-    parameter games (in the TC game the Oracle protagonist is ``observe="oracle"``);
-    ``uncertainty`` may then also be an ``UncertaintySet``. This is the env both training
-    (RARL ``--rate-limit``) and :func:`evaluate_dynamic` play. ``paper=True``: the paper's
-    physics.
-
-    >>> env = make_dynamic_env("hopper", uncertainty="2d", rate_limit=0.01, observe="oracle")
-    >>> env.observation_space.shape, env.get_wrapper_attr("views")
-    ((26,), ((0, 13), (13, 26)))
-    """
-    import gymnasium as gym
-
-    kw = {"paper": True} if paper else {}
-    tc = rate_limit is not None and rate_game == "tc"
-    if game != "adversarial" and (rate_limit is not None or context or observe != "vanilla"):
-        raise ValueError(
-            "rate_limit, observe and context apply to the parameter game (game='adversarial')"
-        )
-    if tc and context:
-        raise ValueError(
-            "context=True is not part of the TC-RMDP game: its Oracle protagonist is "
-            "observe='oracle' (ψ in [0, 1]); the adversary always sees ψ"
-        )
-    if game == "adversarial" and (
-        rate_limit is not None
-        or context
-        or observe != "vanilla"
-        or not isinstance(uncertainty, str)
-    ):
-        from rrls.envs import resolve
-        from rrls.wrappers import ContextObservation, DynamicAdversarial
-
-        resolved = resolve(task, uncertainty)
-        if resolved.is_nominal:
-            raise ValueError("the nominal model has no parameters for an adversary to play")
-        base = gym.make(f"rrls/{resolved.family}-{resolved.task}-v0", **kw)
-        env = DynamicAdversarial(
-            base,
-            resolved.box,
-            rate_limit=rate_limit,
-            rate_game=rate_game,
-            observe=observe,
-            history=history,
-        )
-        return ContextObservation(env, resolved.box) if context else env
-    env_id = dynamic_env_id(task, game, uncertainty)
-    if game == "adversarial":
-        return gym.make(env_id, **kw)
-    from rrls.tasks import get_task
-    from rrls.wrappers import ProbabilisticActionRobust
-
-    base = gym.make(f"rrls/robust-{get_task(task).key}-v0", **kw)
-    return ProbabilisticActionRobust(base, alpha, game)
-
-
 def evaluate_dynamic(
     protagonist: Any,
     adversary: Any,
@@ -158,6 +63,10 @@ def evaluate_dynamic(
     observe: str = "vanilla",
     history: int = 1,
     omniscient: bool = True,
+    protocol: Any = None,
+    workers: int | None = 1,
+    out_dir: str | Path | None = None,
+    progress: bool | None = None,
 ) -> DynamicResult:
     """Mean ± std return of ``protagonist`` while ``adversary`` plays the game every step.
 
@@ -168,80 +77,163 @@ def evaluate_dynamic(
     observation, and an ``omniscient`` adversary (the authors' default) also the protagonist's
     action of the step: ``adversary([ψ01, s, a])``. ``paper=True``: on the paper's physics
     (``env_id`` then ends in ``[paper]``).
+
+    ``protocol``: a :class:`~rrls.evaluation.Protocol` giving the set, ``dynamic_episodes``, the
+    seed, the physics, ``context`` and (for the parameter game) the rate-limited game, as a
+    benchmark stores them; the keywords build one for interactive use and giving both is an
+    error. ``game``, ``alpha``, ``observe``, ``history`` and ``omniscient`` describe the players,
+    not the protocol. ``workers`` (processes; ``None``: every core) and ``batch_size`` (live
+    episodes per worker) change no number; with ``out_dir``, finished chunks are kept there and
+    a re-run with the same arguments resumes; ``dynamic.csv`` holds the episodes at the end.
     """
+    from rrls.evaluation.protocol import Protocol, check_sizes
+    from rrls.physics import physics_label
+
+    rate_game_of = game == "adversarial"  # a protocol's rate limit is the parameter game's
+    if protocol is None:
+        rate_game_of = True  # a rate limit given for another game is refused by name
+        _check_arguments(episodes, batch_size, history, seed, alpha, rate_limit)
+        protocol = Protocol(
+            uncertainty,
+            episodes=1,
+            seed=seed,
+            physics=physics_label(bool(paper)),
+            context=bool(context),
+            dynamic_episodes=episodes,
+            rate_limit=rate_limit,
+            rate_game=rate_game,
+        )
+    elif not isinstance(protocol, Protocol):
+        raise TypeError(f"protocol must be an rrls.evaluation.Protocol, got {protocol!r}")
+    else:
+        given = {
+            "uncertainty": uncertainty != "3d",
+            "episodes": episodes != 10,
+            "seed": seed != 0,
+            "rate_limit": rate_limit is not None,
+            "context": context is not False,
+            "paper": paper is not False,
+            "rate_game": rate_game != "tc",
+        }
+        both = [name for name, differs in given.items() if differs]
+        if both:
+            raise ValueError(
+                f"evaluate_dynamic got protocol= and {', '.join(both)}: give the protocol alone "
+                "or the keywords alone"
+            )
+        _check_arguments(protocol.dynamic_episodes, batch_size, history, 0, alpha, None)
+    if workers == 0:  # 0: in this process, as every rrls command reads it
+        workers = 1
+    check_sizes(workers=workers)
+    spec = Game(
+        task,
+        game,
+        protocol.uncertainty,
+        float(alpha),
+        protocol.rate_limit if rate_game_of else None,
+        protocol.context,
+        protocol.paper,
+        rate_game=protocol.rate_game,
+        observe=observe,
+        history=history,
+        omniscient=bool(omniscient),
+    )
+    try:  # the engine's env cache lives only as long as this evaluation
+        return _evaluate(
+            protagonist, adversary, spec, protocol, batch_size, workers, out_dir, progress
+        )
+    finally:
+        from rrls.evaluation.lanes import clear_env_cache
+
+        clear_env_cache()
+
+
+def _evaluate(
+    protagonist: Any,
+    adversary: Any,
+    game: Game,
+    protocol: Any,
+    batch_size: int,
+    workers: int | None,
+    out_dir: str | Path | None,
+    progress: bool | None,
+) -> DynamicResult:
+    import warnings
+
+    from rrls.evaluation import engine, evaldir
+    from rrls.evaluation.chunks import CHUNK
+    from rrls.evaluation.lanes import RolloutSpec, episode_seeds, make_rollout_envs
+    from rrls.evaluation.policies import as_policy, policy_fingerprint
+    from rrls.evaluation.prepared import PreparedPolicy
+
+    episodes = protocol.dynamic_episodes
+    seeds = episode_seeds(protocol.seed, 1, episodes)
+    env = game.make_env()  # the game's checks (a nominal set, context in the TC game) first
+    env.close()
+    spec = RolloutSpec(
+        game.task, "game", (), np.zeros((1, 0)), seeds, _episode_steps(env), game=game
+    )
+    env = make_rollout_envs(spec, 1)[0]
+    players = TwoPlayers(
+        protagonist if isinstance(protagonist, PreparedPolicy) else as_policy(protagonist),
+        as_policy(adversary),
+        game,
+        env.get_wrapper_attr("views") if game.tc else None,
+    )
+    lanes = max(1, min(batch_size, episodes))
+    if out_dir is None:
+        cols = engine.run(spec, players, workers, lanes, progress=progress)
+    else:
+        config = {
+            "dynamic": game.env_id,
+            "alpha": game.alpha,
+            "episodes": episodes,
+            "seed": protocol.seed,
+            "chunk": CHUNK,
+            **_fingerprints(players, env, policy_fingerprint),
+        }
+        with evaldir.opened(out_dir, config) as chunk_dir:
+            cols = engine.run(spec, players, workers, lanes, chunk_dir=chunk_dir, progress=progress)
+            frame = _frame(seeds, cols)
+            evaldir.write_dynamic(out_dir, frame)
+    frame = _frame(seeds, cols)
+    n_diverged = int(frame["diverged"].sum())
+    if n_diverged:
+        warnings.warn(
+            f"{n_diverged} episode(s) diverged (MuJoCo instability); they are kept with the "
+            "return reached before the divergence and flagged in the 'diverged' column",
+            stacklevel=4,
+        )
+    return DynamicResult(game.env_id, frame)
+
+
+def _frame(seeds: np.ndarray, cols: dict[str, np.ndarray]) -> Any:
     import pandas as pd
 
-    from rrls.evaluation.lanes import episode_seeds
-    from rrls.evaluation.policies import as_policy
+    n = seeds.shape[1]
+    return pd.DataFrame({"episode": np.arange(n), "seed": seeds[0].astype(np.int64), **cols})
 
-    _check_arguments(episodes, batch_size, history, seed, alpha, rate_limit)
-    tc = game == "adversarial" and rate_limit is not None and rate_game == "tc"
-    extras = {
-        "rate_limit": rate_limit,
-        "context": context,
-        "rate_game": rate_game,
-        "observe": observe,
-        "history": history,
+
+def _episode_steps(env: Any) -> int:
+    """The game's episode length: its registered time limit (the task's)."""
+    spec = env.spec
+    if spec is None or spec.max_episode_steps is None:  # pragma: no cover - every game is made
+        raise ValueError("the game's env has no time limit")
+    return int(spec.max_episode_steps)
+
+
+def _fingerprints(players: TwoPlayers, env: Any, fingerprint: Any) -> dict[str, str]:
+    """Both players' fingerprints on probes of their input widths (a resume with another
+    protagonist or adversary is refused)."""
+    width = range(env.observation_space.shape[0])
+    p_dim = len(width[players.p0 : players.p1])
+    a_dim = len(width[players.a0 : players.a1])
+    if players.omniscient:
+        a_dim += env.action_space[0].shape[0]
+    return {
+        "protagonist_fingerprint": fingerprint(players.protagonist, p_dim),
+        "adversary_fingerprint": fingerprint(players.adversary, a_dim),
     }
-    if rate_limit is None and not context and observe == "vanilla" and isinstance(uncertainty, str):
-        env_id = dynamic_env_id(task, game, uncertainty)
-    elif tc:
-        shown = f"stacked, history={history}" if observe == "stacked" else observe
-        env_id = (
-            f"{task}-adversarial ({uncertainty}, rate_limit={rate_limit}, rate_game=tc, "
-            f"observe={shown}, omniscient={bool(omniscient)})"
-        )
-    else:
-        target = "" if rate_limit is None else ", rate_game=target"
-        env_id = (
-            f"{task}-adversarial ({uncertainty}, rate_limit={rate_limit}{target}, "
-            f"context={context})"
-        )
-    if paper:
-        env_id += f" [{PAPER}]"
-    extras["paper"] = paper
-    protagonist, adversary = as_policy(protagonist), as_policy(adversary)
-    seeds = episode_seeds(seed, 1, episodes)[0]
-    n_lanes = max(1, min(batch_size, episodes))
-    envs = [make_dynamic_env(task, game, uncertainty, alpha, **extras) for _ in range(n_lanes)]
-    (p0, p1), (a0, a1) = envs[0].get_wrapper_attr("views") if tc else ((0, None), (0, None))
-    returns, lengths = np.zeros(episodes), np.zeros(episodes, dtype=np.int64)
-    queue = iter(range(episodes))
-    lane_ep = np.full(n_lanes, -1)
-    obs: list[np.ndarray | None] = [None] * n_lanes
-
-    def start(lane: int) -> None:
-        e = next(queue, -1)
-        lane_ep[lane] = e
-        if e >= 0:
-            obs[lane], _ = envs[lane].reset(seed=int(seeds[e]))
-
-    for lane in range(n_lanes):
-        start(lane)
-    while (lane_ep >= 0).any():
-        live = np.flatnonzero(lane_ep >= 0)
-        batch = np.stack([obs[lane] for lane in live])
-        agent = _actions(protagonist(batch[:, p0:p1]), "protagonist", len(live))
-        seen = batch[:, a0:a1]
-        if tc and omniscient:  # the authors' omniscient adversary (trainer.py:407-414)
-            seen = np.concatenate([seen, agent], axis=1)
-        adv = _actions(adversary(seen), "adversary", len(live))
-        for j, lane in enumerate(live):
-            e = lane_ep[lane]
-            obs[lane], reward, terminated, truncated, _ = envs[lane].step((agent[j], adv[j]))
-            returns[e] += reward
-            lengths[e] += 1
-            if terminated or truncated:
-                start(lane)
-    frame = pd.DataFrame(
-        {
-            "episode": np.arange(episodes),
-            "seed": seeds.astype(np.int64),
-            "return": returns,
-            "length": lengths,
-        }
-    )
-    return DynamicResult(env_id, frame)
 
 
 def game_options(meta: dict[str, Any]) -> dict[str, Any]:
@@ -263,7 +255,14 @@ def game_options(meta: dict[str, Any]) -> dict[str, Any]:
 
 
 def evaluate_run_dynamic(
-    run_dir: str | Path, episodes: int = 10, seed: int = 0, batch_size: int = 64
+    run_dir: str | Path,
+    episodes: int = 10,
+    seed: int = 0,
+    batch_size: int = 64,
+    *,
+    workers: int | None = 1,
+    out_dir: str | Path | None = None,
+    progress: bool | None = None,
 ) -> DynamicResult:
     """Paper Table 6 for one training run: its protagonist against its own final adversary.
 
@@ -271,7 +270,8 @@ def evaluate_run_dynamic(
     ``adversary.npz``, whose metadata name the task, the game and the set (or alpha) it played,
     and, for a rate-limited adversary (TC-RMDP), ``rate_limit``, ``rate_game``, ``observe``,
     ``history`` and ``omniscient`` (:func:`game_options`), and its ``physics``: it is evaluated
-    in the game it was trained in.
+    in the game it was trained in. ``workers``, ``out_dir``, ``progress``: as
+    :func:`evaluate_dynamic`.
     """
     from rrls.evaluation.policies import MLPPolicy
 
@@ -297,6 +297,9 @@ def evaluate_run_dynamic(
         batch_size=batch_size,
         paper=is_paper(meta.get("physics")),
         **game_options(meta),
+        workers=workers,
+        out_dir=out_dir,
+        progress=progress,
     )
 
 
@@ -322,20 +325,6 @@ def _check_arguments(
     if isinstance(alpha, bool) or not isinstance(alpha, (int, float)) or not 0 <= alpha <= 1:
         raise ValueError(f"alpha must be a number in [0, 1], got {alpha!r}")
     check_rate_limit(rate_limit)
-
-
-def _actions(out: Any, who: str, n: int) -> np.ndarray:
-    """A policy's batch of actions, or a ``PolicyError`` naming which policy misbehaved."""
-    from rrls.evaluation.lanes import PolicyError
-
-    actions = np.asarray(out)
-    if actions.dtype.kind not in "biuf":
-        raise PolicyError(f"the {who} returned {actions.dtype} values; actions must be numbers")
-    if actions.ndim != 2 or len(actions) != n:
-        raise PolicyError(f"the {who} returned shape {actions.shape} for {n} observations")
-    if not np.isfinite(actions).all():
-        raise PolicyError(f"the {who} returned non-finite actions (NaN or inf)")
-    return actions
 
 
 __all__ = [

@@ -6,6 +6,8 @@ format, like ``rrls.rundir`` for runs::
     DIR/chunks/000003.npz   finished blocks of episodes (``rrls.evaluation.chunks``)
     DIR/summary.json        worst/average case, the protocol, versions (sealed)
     DIR/episodes.parquet    one row per (point, episode) (``.csv`` without pyarrow; sealed)
+    DIR/dynamic.csv         a dynamic evaluation's episodes (``evaluate_dynamic``; sealed), also
+                            what a benchmark's RARL / NR-MDP run holds
 """
 
 from __future__ import annotations
@@ -26,9 +28,19 @@ from rrls.rundir import (
 from rrls.schema import Schema, TableSchema, boolean, integer, number, obj, string
 from rrls.seeds import MAX_SEED
 
-__all__ = ["ARGUMENTS", "SUMMARY", "opened", "read", "table_name", "write"]
+__all__ = [
+    "ARGUMENTS",
+    "DYNAMIC",
+    "SUMMARY",
+    "write_dynamic",
+    "opened",
+    "read",
+    "table_name",
+    "write",
+]
 
 ARGUMENTS = "evaluation.json"
+DYNAMIC = "dynamic.csv"
 SUMMARY = "summary.json"
 CHUNKS = "chunks"
 
@@ -68,6 +80,10 @@ EPISODES_SCHEMA = TableSchema(
     }
 )
 
+#: ``dynamic.csv``: one row per episode against the adversary (``terminated``/``diverged`` beside
+#: in files written since dynamic evaluation runs on the engine)
+DYNAMIC_SCHEMA = TableSchema({"episode": "int", "seed": "int", "return": "number", "length": "int"})
+
 
 def table_name() -> str:
     """``episodes.parquet``, or ``episodes.csv`` where pyarrow is not installed."""
@@ -106,6 +122,13 @@ def write(out_dir: str | Path, summary: dict[str, Any], episodes: Any) -> Path:
     write_checked_table(out_dir / table_name(), episodes)
     write_checked_json(out_dir / SUMMARY, summary)
     return out_dir
+
+
+def write_dynamic(out_dir: str | Path, episodes: Any) -> Path:
+    """Write a dynamic evaluation's episode table, sealed."""
+    path = Path(out_dir) / DYNAMIC
+    write_checked_table(path, episodes)
+    return path
 
 
 def read(out_dir: str | Path) -> tuple[dict[str, Any], Any]:

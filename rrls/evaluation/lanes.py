@@ -47,6 +47,24 @@ class RolloutSpec:
     max_episode_steps: int = 1000
     stack: Any = None  # an EnvStack (disruptors, schedule, context) around each bare env
     paper: bool = False  # the paper's physics (the original's envs and writes)
+    #: a two-player game (``rrls.evaluation.games.Game``): every lane plays it, the policy is a
+    #: ``TwoPlayers`` (dynamic evaluation); ``names``/``points`` are then empty
+    game: Any = None
+
+    @classmethod
+    def from_plan(cls, plan: Any, protocol: Any) -> RolloutSpec:
+        """What the engine rolls out for a planned protocol (``Protocol.plan``): every point ×
+        its episodes' seeds."""
+        return cls(
+            plan.resolved.task,
+            plan.resolved.family,
+            plan.mesh_box.names,
+            plan.points,
+            episode_seeds(protocol.seed, len(plan.points), protocol.episodes),
+            plan.max_episode_steps,
+            None if plan.stack.empty else plan.stack,
+            paper=plan.paper,
+        )
 
     @property
     def n_episodes(self) -> int:
@@ -58,6 +76,8 @@ class RolloutSpec:
 
     def describe(self, r: int) -> str:
         p, e = self.row(r)
+        if self.game is not None:
+            return f"episode {e} (seed {int(self.seeds[p, e])})"
         point = {n: float(v) for n, v in zip(self.names, self.points[p])}
         return f"mesh point {p} {point}, episode {e} (seed {int(self.seeds[p, e])})"
 
@@ -80,7 +100,7 @@ def episode_seeds(seed: int, n_points: int, episodes: int) -> np.ndarray:
 _LOCAL = threading.local()
 
 
-def _cache() -> dict[tuple[str, str, Any, bool], list[Any]]:
+def _cache() -> dict[tuple[str, str, Any, bool, Any], list[Any]]:
     if not hasattr(_LOCAL, "envs"):
         _LOCAL.envs = {}
     return _LOCAL.envs
@@ -91,7 +111,11 @@ def make_rollout_envs(spec: RolloutSpec, n: int) -> list[Any]:
     every lane is reset before use."""
     from rrls.envs import FAMILY_ENVS, paper_class
 
-    envs = _cache().setdefault((spec.task, spec.kind, spec.stack, spec.paper), [])
+    envs = _cache().setdefault((spec.task, spec.kind, spec.stack, spec.paper, spec.game), [])
+    if spec.game is not None:
+        while len(envs) < n:
+            envs.append(spec.game.make_env())
+        return envs[:n]
     cls = FAMILY_ENVS[spec.kind][spec.task]
     if spec.paper:
         cls = paper_class(cls)
@@ -136,7 +160,8 @@ def run_rows(
     n_lanes = max(1, lanes)
     envs = make_rollout_envs(spec, n_lanes)
     stepper = make_stepper(envs, spec.task, fast=fast, threads=threads)
-    act_dim = envs[0].action_space.shape[0]
+    space = envs[0].action_space  # a game's: (protagonist's box, adversary's box)
+    act_dim = tuple(s.shape[0] for s in space) if spec.game is not None else space.shape[0]
     obs_dim = envs[0].observation_space.shape[0]
 
     obs = np.zeros((n_lanes, obs_dim))
@@ -148,7 +173,8 @@ def run_rows(
         lane_row[lane] = row
         p, e = spec.row(row)
         env = envs[lane]
-        env.reset_params()
+        if spec.game is None:  # a game's adversary sets the parameters itself
+            env.reset_params()
         if spec.names:
             env.set_params(**dict(zip(spec.names, spec.points[p].tolist())))
         obs[lane], _ = env.reset(seed=int(spec.seeds[p, e]))
@@ -208,12 +234,19 @@ def _loop(
     lane_row: np.ndarray,
     returns: np.ndarray,
     lengths: np.ndarray,
-    act_dim: int,
+    act_dim: Any,
 ) -> None:
     while (lane_row >= 0).any():
         live = np.flatnonzero(lane_row >= 0)
-        actions = np.asarray(policy(obs[live]))
-        _check_actions(actions, live, lane_row, lengths, spec, act_dim)
+        if spec.game is None:
+            actions = np.asarray(policy(obs[live]))
+            _check_actions(actions, live, lane_row, lengths, spec, act_dim)
+        else:  # two players: the protagonist, then the adversary (which may see its actions)
+            agent = np.asarray(policy.protagonist_actions(obs[live]))
+            _check_actions(agent, live, lane_row, lengths, spec, act_dim[0], "the protagonist")
+            adv = np.asarray(policy.adversary_actions(obs[live], agent))
+            _check_actions(adv, live, lane_row, lengths, spec, act_dim[1], "the adversary")
+            actions = _Joint(agent, adv)
         new_obs, rewards, terminated, diverged = stepper.step(live, actions)
         obs[live] = new_obs
         # a diverged step is not counted: the row keeps the return and length reached before it
@@ -239,6 +272,17 @@ def _loop(
             on_step(int(spec.max_episode_steps - lengths.max()) if busy.all() else 0)
 
 
+class _Joint:
+    """Both players' actions of one step, row ``j`` as the pair a game's ``env.step`` takes
+    (each player's array keeps its own dtype)."""
+
+    def __init__(self, agent: np.ndarray, adversary: np.ndarray) -> None:
+        self.agent, self.adversary = agent, adversary
+
+    def __getitem__(self, j: int) -> tuple[np.ndarray, np.ndarray]:
+        return self.agent[j], self.adversary[j]
+
+
 def _check_actions(
     actions: np.ndarray,
     live: np.ndarray,
@@ -246,17 +290,18 @@ def _check_actions(
     lengths: np.ndarray,
     spec: RolloutSpec,
     act_dim: int,
+    who: str = "policy",
 ) -> None:
     if actions.dtype.kind not in "biuf":
         r = int(lane_row[live[0]])
         raise PolicyError(
-            f"policy returned {actions.dtype} values; actions must be real numbers — at "
+            f"{who} returned {actions.dtype} values; actions must be real numbers — at "
             f"{spec.describe(r)}, step {lengths[live[0]]}"
         )
     if actions.shape != (len(live), act_dim):
         r = int(lane_row[live[0]])
         raise PolicyError(
-            f"policy returned actions of shape {actions.shape} for {len(live)} observations; "
+            f"{who} returned actions of shape {actions.shape} for {len(live)} observations; "
             f"expected ({len(live)}, {act_dim}) — at {spec.describe(r)}, step {lengths[live[0]]}"
         )
     bad = ~np.isfinite(actions).all(axis=1)
@@ -264,6 +309,6 @@ def _check_actions(
         j = int(np.flatnonzero(bad)[0])
         r = int(lane_row[live[j]])
         raise PolicyError(
-            f"policy returned non-finite actions {actions[j].tolist()} at {spec.describe(r)}, "
+            f"{who} returned non-finite actions {actions[j].tolist()} at {spec.describe(r)}, "
             f"step {lengths[live[j]]}"
         )

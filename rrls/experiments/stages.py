@@ -8,7 +8,6 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any
 
-from rrls.evaluation.protocol import Protocol
 from rrls.experiments.spec import Spec
 
 __all__ = ["run_dynamic", "run_evaluation"]
@@ -34,7 +33,7 @@ def run_evaluation(
     result = evaluate(
         policy,
         task,
-        protocol=spec.evaluation_protocol(),
+        protocol=spec.protocol,
         workers=workers,
         out_dir=out / "eval",
         progress=progress,
@@ -66,38 +65,29 @@ def run_dynamic(
     """The dynamic evaluation (paper Table 6): ``policy`` against ``adversary`` in ``game``
     (``adversarial``: RARL's; ``nr``/``pr``: NR-/PR-MDP's with ``alpha``), under the protocol's
     rate-limited game if it has one; writes ``out/dynamic.csv``."""
-    from rrls.evaluation import evaluate_dynamic
-    from rrls.rundir import write_checked_table
+    from rrls.evaluation import evaldir, evaluate_dynamic
 
-    protocol = spec.evaluation_protocol()
     result = evaluate_dynamic(
         policy,
         adversary,
         task,
         game=game,
-        uncertainty=protocol.uncertainty,
-        episodes=protocol.dynamic_episodes,
-        seed=protocol.seed,
         alpha=0.1 if alpha is None else float(alpha),
-        paper=protocol.paper,
-        **_rate_game(protocol, game, policy, adversary),
+        protocol=spec.protocol,
+        **_players(policy, adversary),
     )
-    write_checked_table(out / "dynamic.csv", result.episodes)
+    evaldir.write_dynamic(out, result.episodes)
     return {"dynamic_mean": result.mean, "dynamic_std": result.std, "dynamic_env": result.env_id}
 
 
-def _rate_game(protocol: Protocol, game: str, policy: Any, adversary: Any) -> dict[str, Any]:
-    """The benchmark's rate-limited game for ``evaluate_dynamic``: TC-RMDP's (or rrls's earlier
-    target game), the protagonist's view and the adversary's omniscience as their files say."""
+def _players(policy: Any, adversary: Any) -> dict[str, Any]:
+    """What the players' files say of a rate-limited game (TC-RMDP): the protagonist's view and
+    the adversary's omniscience; the protocol gives the game itself."""
     from rrls.evaluation.stack import policy_view
 
-    if game != "adversarial" or protocol.rate_limit is None:
-        return {"rate_limit": None}
     view = policy_view(policy)
     meta = getattr(adversary, "metadata", None) or {}
     return {
-        "rate_limit": protocol.rate_limit,
-        "rate_game": protocol.rate_game,
         "observe": "vanilla" if view is None else view.observe,
         "history": 1 if view is None else view.history,
         "omniscient": bool(meta.get("omniscient", True)),

@@ -24,7 +24,8 @@ from pathlib import Path
 from typing import Any
 
 from rrls import rundir
-from rrls.evaluation.evaldir import EPISODES_SCHEMA
+from rrls.evaluation import evaldir
+from rrls.evaluation.evaldir import DYNAMIC_SCHEMA, EPISODES_SCHEMA
 from rrls.physics import ALIASES
 from rrls.schema import Schema, TableSchema, integer, number, obj, string
 from rrls.seeds import MAX_SEED
@@ -64,8 +65,6 @@ RESULT_SCHEMA = Schema(
         "benchmark": string(),
     }
 )
-#: ``dynamic.csv`` (one row per episode against the adversary)
-DYNAMIC_SCHEMA = TableSchema({"episode": "int", "seed": "int", "return": "number", "length": "int"})
 #: ``scalars.csv`` (training curves, long format)
 SCALARS_SCHEMA = TableSchema({"step": "int", "metric": "str", "value": "number"}, nan=("value",))
 
@@ -188,8 +187,8 @@ def build_store(root: str | Path, expected: dict[str, str] | None = None) -> Pat
         _check_bound(run, result, episodes, expected)
         frames["evaluations"].append(episodes.assign(**cols))
         frames["curves"].append(_curves(run).assign(**cols))
-        if (run / "dynamic.csv").exists():
-            path = run / "dynamic.csv"
+        if (run / evaldir.DYNAMIC).exists():
+            path = run / evaldir.DYNAMIC
             dynamic = DYNAMIC_SCHEMA.check(rundir.read_checked_table(path), str(path))
             dynamic = dynamic.rename(columns={"seed": "episode_seed"})
             frames["dynamic"].append(dynamic.assign(**cols))
