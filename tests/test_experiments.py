@@ -534,10 +534,12 @@ def test_a_split_benchmark_trains_inside_and_reports_in_and_out_of_distribution(
 
 def test_benchmark_split_is_canonical_and_refuses_interpolation():
     assert make_spec("smoke", split="extrapolation").split == "extrapolation:0.5"
-    assert make_spec("smoke", split="extrapolation:0.3").protocol()["split"] == "extrapolation:0.3"
-    assert make_spec("smoke").split_of("invertedpendulum") is None
-    split = make_spec("smoke", split="extrapolation").split_of("invertedpendulum")
-    assert split.kind == "extrapolation" and split.region.dim == 1
+    fields = make_spec("smoke", split="extrapolation:0.3").binding_fields()
+    assert fields["split"] == "extrapolation:0.3"
+    assert make_spec("smoke").protocol.plan("invertedpendulum").in_distribution is None
+    protocol = make_spec("smoke", split="extrapolation").protocol.replace(mesh=5)
+    plan = protocol.plan("invertedpendulum")
+    assert plan.in_distribution.any() and not plan.in_distribution.all()  # in and out of it
     with pytest.raises(SpecError, match="interpolation's training part is not a box"):
         make_spec("smoke", split="interpolation")
     with pytest.raises(SpecError, match="kind must be one of interpolation, extrapolation"):

@@ -85,7 +85,7 @@ def test_presets_that_claim_the_papers_mesh_evaluate_on_np_arange(preset):
     from rrls.experiments.spec import make_spec
 
     spec = make_spec(preset, tasks="halfcheetah")
-    plan = spec.evaluation_protocol().plan("halfcheetah")
+    plan = spec.protocol.plan("halfcheetah")
     box = get_uncertainty_set("halfcheetah", spec.uncertainty)
     axes = [np.arange(lo, hi, (hi - lo) / spec.mesh) for lo, hi in zip(box.low, box.high)]
     expected = np.stack(np.meshgrid(*axes, indexing="ij"), -1).reshape(-1, len(axes))

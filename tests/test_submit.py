@@ -325,7 +325,7 @@ def test_damaged_reference_is_named(tmp_path):
 
 def test_create_benchmark_has_the_presets_protocol(tmp_path):
     spec = create_benchmark(tmp_path / "b", "quick", ("invertedpendulum",))
-    assert spec.algos == () and spec.protocol() == make_spec("quick").protocol()
+    assert spec.algos == () and spec.binding_fields() == make_spec("quick").binding_fields()
 
 
 def test_shipped_hopper_reference_fits_the_hopper_preset(tmp_path):

@@ -44,9 +44,9 @@ def test_a_benchmark_on_the_twin_is_another_protocol_and_a_cpu_one_is_unchanged(
     from rrls.experiments.spec import PRESETS, Spec
 
     cpu = Spec(**PRESETS["smoke"])
-    assert "simulator" not in cpu.protocol()  # benchmark.json files written before: the same
+    assert "simulator" not in cpu.binding_fields()  # benchmark.json files written before: the same
     twin = replace(cpu, simulator="warp")
-    assert twin.protocol()["simulator"] == "warp"
+    assert twin.binding_fields()["simulator"] == "warp"
     assert twin.fingerprints()["benchmark"] != cpu.fingerprints()["benchmark"]
     assert twin.fingerprints()["protocol"] == cpu.fingerprints()["protocol"]  # same evaluation
 

@@ -23,6 +23,7 @@ from rrls.evaluation.policies import (
     as_policy,
     load_policy,
 )
+from rrls.evaluation.prepared import PreparedPolicy, prepare
 from rrls.evaluation.protocol import Protocol
 from rrls.evaluation.result import EvaluationResult
 from rrls.evaluation.result_plot import plot_result
@@ -37,11 +38,13 @@ __all__ = [
     "evaluate_run_dynamic",
     "make_dynamic_env",
     "plot_result",
+    "prepare",
     "search_worst_case",
     "EvaluationResult",
     "EvaluationSet",
     "MLPPolicy",
     "PolicyError",
+    "PreparedPolicy",
     "Protocol",
     "SB3Policy",
     "TorchPolicy",

@@ -1,35 +1,95 @@
 """One place a policy is made ready for an evaluation: adapted (``as_policy``), checked against
-the task's spaces and training task, probed for batch invariance and fingerprinted — once."""
+the task's spaces and training task, probed for batch invariance and fingerprinted — once.
+
+``prepare(policy, task, protocol)`` does it at the door and returns a :class:`PreparedPolicy`
+that ``evaluate``, ``evaluate_dynamic``, ``search_worst_case`` and the benchmark's stages take
+as it is (a submitted policy is prepared once, then evaluated on the mesh and against its
+adversary without being adapted, checked or probed again).
+
+>>> import numpy as np
+>>> from rrls.evaluation import Protocol, evaluate, prepare
+>>> ready = prepare(lambda obs: np.zeros((len(obs), 1)), "invertedpendulum", Protocol("1d"))
+>>> ready.obs_dim, ready.act_dim, len(ready.fingerprint)
+(4, 1, 16)
+>>> evaluate(ready, "invertedpendulum", "1d", mesh=2, episodes=1, workers=1).worst_case > 0
+True
+"""
 
 from __future__ import annotations
 
 import warnings
 from collections.abc import Callable
-from typing import Any, NamedTuple
+from typing import Any
 
 import numpy as np
 
-from rrls.evaluation.lanes import PolicyError, make_rollout_envs
+from rrls.evaluation.lanes import PolicyError, RolloutSpec, make_rollout_envs
 from rrls.evaluation.policies import as_policy, is_batch_invariant, policy_fingerprint
 
-__all__ = ["PreparedPolicy", "policy_record", "prepare_policy"]
+__all__ = ["PreparedPolicy", "policy_record", "prepare", "prepare_policy"]
 
 
-class PreparedPolicy(NamedTuple):
-    policy: Callable[[np.ndarray], Any]  # the adapted policy the engine calls
-    obs_dim: int
-    fingerprint: str  # its actions on fixed probes, hashed: a resume with another is refused
+class PreparedPolicy:
+    """A policy adapted, checked, probed and fingerprinted for one task's observations: the
+    engine calls it as the policy itself; ``metadata`` is the policy's (its view, its record)."""
+
+    def __init__(
+        self,
+        policy: Callable[[np.ndarray], Any],
+        task: str,
+        obs_dim: int,
+        act_dim: int,
+        fingerprint: str,
+    ) -> None:
+        self.policy, self.task = policy, task
+        self.obs_dim, self.act_dim = obs_dim, act_dim
+        self.fingerprint = fingerprint  # actions on fixed probes, hashed: guards resumes
+        self.metadata = getattr(policy, "metadata", None)
+
+    def __call__(self, obs: np.ndarray) -> Any:
+        return self.policy(obs)
+
+    def __repr__(self) -> str:
+        return (
+            f"PreparedPolicy({self.task}: {self.obs_dim} -> {self.act_dim}, "
+            f"fingerprint {self.fingerprint})"
+        )
+
+
+def prepare(policy: Any, task: str, protocol: Any = None, view: Any = None) -> PreparedPolicy:
+    """``policy`` made ready for evaluations of ``task`` under ``protocol`` (default: the
+    policy's own, ``Protocol.for_policy``) once: adapted, checked (one-line errors), probed for
+    batch invariance (a warning if its actions depend on the batch) and fingerprinted.
+    ``view``: a TC-RMDP protagonist's view (default: the one its metadata records)."""
+    from rrls.evaluation.protocol import Protocol
+    from rrls.evaluation.stack import policy_view
+
+    if isinstance(policy, PreparedPolicy):
+        return policy
+    policy = as_policy(policy)
+    if protocol is None:
+        protocol = Protocol.for_policy(getattr(policy, "metadata", None), task)
+    plan = protocol.plan(task, policy_view(policy) if view is None else view)
+    return prepare_policy(policy, RolloutSpec.from_plan(plan, protocol), stacklevel=3)
 
 
 def prepare_policy(policy: Any, spec: Any, stacklevel: int = 3) -> PreparedPolicy:
-    """Adapt ``policy`` and check it against ``spec``'s task (a policy trained on another task,
-    wrong shapes, non-numbers: one-line errors before any episode); warn once if its actions
-    depend on the batch (then results may differ in the last bits from a one-episode loop)."""
-    policy = as_policy(policy)
+    """Check an adapted ``policy`` (``as_policy``'s) against ``spec``'s task (a policy trained
+    on another task, wrong shapes, non-numbers: one-line errors before any episode); warn once
+    if its actions
+    depend on the batch (then results may differ in the last bits from a one-episode loop).
+    A policy already prepared for these observations is returned as it is."""
+    obs_dim, act_dim = _dims(spec)
+    if isinstance(policy, PreparedPolicy):
+        if (policy.task, policy.obs_dim, policy.act_dim) == (spec.task, obs_dim, act_dim):
+            return policy
+        raise ValueError(
+            f"the policy was prepared for {policy.task} ({policy.obs_dim} -> {policy.act_dim}), "
+            f"not for this evaluation's {spec.task} ({obs_dim} -> {act_dim}); prepare it again"
+        )
     trained_on = (getattr(policy, "metadata", None) or {}).get("task")
     if trained_on is not None and trained_on != spec.task:
         raise ValueError(f"the policy was trained on {trained_on!r}, not on task {spec.task!r}")
-    obs_dim, act_dim = _dims(spec)
     _check_policy(policy, obs_dim, act_dim)
     if not is_batch_invariant(policy, obs_dim):
         warnings.warn(
@@ -38,7 +98,8 @@ def prepare_policy(policy: Any, spec: Any, stacklevel: int = 3) -> PreparedPolic
             "rrls.evaluation.BatchInvariant(policy) for exact equality",
             stacklevel=stacklevel,
         )
-    return PreparedPolicy(policy, obs_dim, policy_fingerprint(policy, obs_dim))
+    fingerprint = policy_fingerprint(policy, obs_dim)
+    return PreparedPolicy(policy, spec.task, obs_dim, act_dim, fingerprint)
 
 
 def policy_record(policy: Any) -> dict[str, Any]:

@@ -56,6 +56,8 @@ def search_worst_case(
     workers: int | None = None,
     popsize: int | None = None,
     max_episode_steps: int | None = None,
+    *,
+    protocol: Any = None,
 ) -> WorstCaseSearch:
     """Search ``uncertainty``'s box for the parameters minimising ``policy``'s mean return.
 
@@ -63,55 +65,84 @@ def search_worst_case(
     seeds). The population (``popsize`` points, default ``max(8, 5 * dim)``) is evaluated in one
     engine call per generation. Returns the worst point, its return and the trace.
     ``max_episode_steps`` defaults to the task's episode length (1000 for the paper's tasks).
-    """
-    from rrls.envs import resolve
-    from rrls.tasks import get_task
 
-    resolved = resolve(task, uncertainty)
-    if max_episode_steps is None:
-        max_episode_steps = get_task(resolved.task).max_episode_steps
-    if resolved.is_nominal:
-        raise ValueError("the nominal model has no parameters to search over")
-    if budget < 2 or episodes < 1:
-        raise ValueError(f"budget must be >= 2 and episodes >= 1, got {budget}, {episodes}")
-    try:
-        return _search(
-            policy, resolved, budget, episodes, seed, workers, popsize, max_episode_steps
+    ``protocol``: a :class:`~rrls.evaluation.Protocol` giving the set (the box searched: every
+    axis its mesh would have, disruptor ranges included), ``episodes``, the seed, the physics,
+    fixed disruptors and context, as ``evaluate`` reads it; the keywords build one for
+    interactive use and giving both is an error. A schedule family is not searched.
+    """
+    from rrls.evaluation.protocol import Protocol, check_counts
+
+    if protocol is None:
+        check_counts(episodes=episodes)
+        protocol = Protocol(
+            uncertainty, episodes=episodes, seed=seed, max_episode_steps=max_episode_steps
         )
+    elif not isinstance(protocol, Protocol):
+        raise TypeError(f"protocol must be an rrls.evaluation.Protocol, got {protocol!r}")
+    else:
+        given = {
+            "uncertainty": uncertainty != "3d",
+            "episodes": episodes != 1,
+            "seed": seed != 0,
+            "max_episode_steps": max_episode_steps is not None,
+        }
+        both = [name for name, differs in given.items() if differs]
+        if both:
+            raise ValueError(
+                f"search_worst_case got protocol= and {', '.join(both)}: give the protocol "
+                "alone or the keywords alone"
+            )
+    if protocol.schedule is not None:
+        raise ValueError("search_worst_case searches parameter boxes, not schedule families")
+    if budget < 2:
+        raise ValueError(f"budget must be >= 2, got {budget}")
+    try:
+        return _search(policy, task, protocol, budget, workers, popsize)
     finally:
         lanes.clear_env_cache()
 
 
 def _search(
     policy: Any,
-    resolved: Any,
+    task: str,
+    protocol: Any,
     budget: int,
-    episodes: int,
-    seed: int,
     workers: int | None,
     popsize: int | None,
-    max_episode_steps: int,
 ) -> WorstCaseSearch:
     import pandas as pd
     from scipy.optimize import differential_evolution
 
     from rrls.evaluation.policies import as_policy
-    from rrls.evaluation.prepare import prepare_policy
-    from rrls.evaluation.stack import EnvStack, policy_view
+    from rrls.evaluation.prepared import PreparedPolicy, prepare_policy
+    from rrls.evaluation.stack import policy_view
     from rrls.evaluation.static import rollout_table
 
-    key, box, kind = resolved.task, resolved.box, resolved.family
-    policy = as_policy(policy)
-    view = policy_view(policy)  # a TC-RMDP Stacked/Oracle protagonist sees what it trained on
-    stack = None if view is None else EnvStack(view=view)
+    if not isinstance(policy, PreparedPolicy):  # prepared at the door: adapted already
+        policy = as_policy(policy)
+    # a TC-RMDP Stacked/Oracle protagonist sees what it trained on
+    plan = protocol.plan(task, policy_view(policy))
+    if plan.mesh_box.dim == 0:
+        raise ValueError("the nominal model has no parameters to search over")
+    key, kind, box = plan.resolved.task, plan.resolved.family, plan.mesh_box
+    stack = None if plan.stack.empty else plan.stack
+    episodes, max_episode_steps = protocol.episodes, plan.max_episode_steps
     dim = box.dim
     size = int(popsize or max(8, 5 * dim))
     size = min(size, budget)
-    common = lanes.episode_seeds(seed, 1, episodes)  # the same seeds for every candidate
+    common = lanes.episode_seeds(protocol.seed, 1, episodes)  # the same for every candidate
     probe = lanes.RolloutSpec(
-        key, kind, box.names, box.nominal[None], common, max_episode_steps, stack
+        key,
+        kind,
+        box.names,
+        (box.low if box.nominal is None else box.nominal)[None],
+        common,
+        max_episode_steps,
+        stack,
+        plan.paper,
     )
-    policy = prepare_policy(policy, probe).policy
+    policy = prepare_policy(policy, probe)
     records: list[dict[str, Any]] = []
 
     def objective(x: np.ndarray) -> np.ndarray:
@@ -121,7 +152,9 @@ def _search(
         run = box.clip(points[: max(0, left)])
         if len(run):
             seeds = np.repeat(common, len(run), axis=0)
-            spec = lanes.RolloutSpec(key, kind, box.names, run, seeds, max_episode_steps, stack)
+            spec = lanes.RolloutSpec(
+                key, kind, box.names, run, seeds, max_episode_steps, stack, plan.paper
+            )
             table = rollout_table(spec, policy, workers)
             means = table.groupby("point")["return"].mean().to_numpy()
             generation = len(records) and records[-1]["generation"] + 1
@@ -132,7 +165,7 @@ def _search(
             values[: len(run)] = means
         return values
 
-    rng = np.random.default_rng(seed)
+    rng = np.random.default_rng(protocol.seed)
     # Search a box 10 % wider on each side and clip candidates into the set: worst cases often
     # lie on a face or a corner, which differential evolution alone almost never reaches.
     margin = 0.1 * (box.high - box.low)

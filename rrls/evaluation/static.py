@@ -22,7 +22,7 @@ import numpy as np
 from rrls.deprecation import renamed_keywords
 from rrls.evaluation import engine, evaldir, lanes
 from rrls.evaluation.chunks import CHUNK
-from rrls.evaluation.prepare import policy_record, prepare_policy
+from rrls.evaluation.prepared import PreparedPolicy, policy_record, prepare_policy
 from rrls.evaluation.protocol import Protocol, check_counts, check_sizes
 from rrls.evaluation.result import EvaluationResult
 from rrls.physics import physics_label
@@ -68,7 +68,8 @@ def evaluate(
     """Evaluate ``policy`` over a uniform mesh of ``task``'s uncertainty set (paper §4).
 
     ``policy``: a callable ``obs[B, obs_dim] -> actions[B, act_dim]``, a torch actor, a
-    Stable-Baselines3 model, or a saved policy path. ``uncertainty``: ``"1d"``, ``"2d"``, ``"3d"``,
+    Stable-Baselines3 model, a saved policy path, or a policy prepared once for several
+    evaluations (:func:`~rrls.evaluation.prepare`). ``uncertainty``: ``"1d"``, ``"2d"``, ``"3d"``,
     ``"rarl"`` (forces), ``"nominal"`` (the unmodified model) or an ``UncertaintySet``.
     ``workers`` defaults to every core; results do not depend on it nor on ``batch_size`` (live
     episodes per worker). With ``out_dir``, finished chunks are kept there and a re-run with the
@@ -143,14 +144,15 @@ def evaluate(
                 f"evaluate got protocol= and {', '.join(both)}: give the protocol alone (with "
                 f"protocol.replace({both[0]}=...) for another value) or the keywords alone"
             )
-    policy = as_policy(policy)
+    if not isinstance(policy, PreparedPolicy):  # prepared at the door: adapted already
+        policy = as_policy(policy)
     if view is None:
         view = policy_view(policy)
     plan = protocol.plan(task, view)
     if workers == 0:  # 0: in this process, as every rrls command reads it (= one worker)
         workers = 1
     check_sizes(workers=workers, batch_size=batch_size)
-    spec = rollout_spec(plan, protocol)
+    spec = lanes.RolloutSpec.from_plan(plan, protocol)
     try:  # the engine's env cache lives only as long as this evaluation
         return _evaluate(
             policy,
@@ -182,7 +184,8 @@ def _evaluate(
 ) -> EvaluationResult:
     key, kind = resolved.task, resolved.family
     box = None if mesh_box.dim == 0 else mesh_box
-    policy, _, fingerprint = prepare_policy(policy, spec, stacklevel=4)
+    policy = prepare_policy(policy, spec, stacklevel=4)
+    fingerprint = policy.fingerprint
 
     config = {
         "uncertainty": _box_json(box),
@@ -249,21 +252,6 @@ def rollout_table(
     return pd.DataFrame(table)
 
 
-def rollout_spec(plan: Any, protocol: Protocol) -> Any:
-    """What the engine rolls out for a planned protocol: every point × its episodes' seeds."""
-    seeds = lanes.episode_seeds(protocol.seed, len(plan.points), protocol.episodes)
-    return lanes.RolloutSpec(
-        plan.resolved.task,
-        plan.resolved.family,
-        plan.mesh_box.names,
-        plan.points,
-        seeds,
-        plan.max_episode_steps,
-        None if plan.stack.empty else plan.stack,
-        paper=plan.paper,
-    )
-
-
 class Evaluator:
     """A protocol planned once for a task and run for many policies: training's periodic
     evaluation. ``evaluate()`` checks, fingerprints and records each policy and rebuilds its
@@ -274,7 +262,7 @@ class Evaluator:
 
     def __init__(self, task: str, protocol: Protocol, view: Any = None) -> None:
         self.plan = protocol.plan(task, view)
-        self.spec = rollout_spec(self.plan, protocol)
+        self.spec = lanes.RolloutSpec.from_plan(self.plan, protocol)
 
     def __call__(self, policy: Callable[[np.ndarray], Any]) -> EvaluationResult:
         """``policy``'s rows on one worker (``policy``: batch-invariant, e.g. ``MLPPolicy``)."""

@@ -122,7 +122,7 @@ def reconcile(out: Path, spec: Spec) -> Spec:
     if not spec_path(out).exists():
         return spec
     stored = read_spec(out)  # damaged / not a spec: one line naming the file
-    old, new = stored.protocol(), spec.protocol()
+    old, new = stored.binding_fields(), spec.binding_fields()
     diff = [k for k in sorted(set(old) | set(new)) if old.get(k) != new.get(k)]
     if diff:
         detail = "; ".join(f"{k}: {old.get(k)!r} there, {new.get(k)!r} now" for k in diff)

@@ -9,6 +9,7 @@ tasks, seeds) may grow: the stored spec becomes the union and only the new runs 
 from __future__ import annotations
 
 from dataclasses import asdict, dataclass, fields
+from functools import cached_property
 from typing import Any
 
 from rrls.algorithms import built_in, paper_five, warmup
@@ -88,19 +89,11 @@ class Spec:
         baseline on the 3D set; RARL's adversary then picks the parameters every step)."""
         return self.uncertainty
 
-    def split_of(self, task: str) -> Any:
-        """The evaluation's ``rrls.uncertainty.Split`` of ``task``'s set, None without one."""
-        if not self.split:
-            return None
-        from rrls.envs import get_uncertainty_set
-        from rrls.uncertainty import Split
-
-        return Split.parse(get_uncertainty_set(task, self.uncertainty), self.split)
-
-    def evaluation_protocol(self) -> Protocol:
-        """The final evaluation's protocol: what every run and submitted policy of this
-        benchmark is evaluated under (the mesh, the dynamic evaluation's episodes, the rate-
-        limited game)."""
+    @cached_property
+    def protocol(self) -> Protocol:
+        """The final evaluation's protocol, built once: what every run and submitted policy of
+        this benchmark is evaluated under (the mesh, the dynamic evaluation's episodes, the
+        rate-limited game); ``benchmark.json`` stores its fields flat beside the grid's."""
         return Protocol(
             self.uncertainty,
             mesh=self.mesh,
@@ -138,7 +131,7 @@ class Spec:
         steps = warmup(algo) if self.learning_starts is None else self.learning_starts
         return min(steps, self.steps)
 
-    def protocol(self) -> dict[str, Any]:
+    def binding_fields(self) -> dict[str, Any]:
         """The fields two invocations over one directory must agree on (``simulator`` only
         when it is not CPU MuJoCo: a benchmark.json written before it reads as the same)."""
         out = {k: v for k, v in self.to_json().items() if k not in GRID + LABELS}
@@ -157,8 +150,8 @@ class Spec:
         from rrls._io import json_fingerprint
 
         return {
-            "protocol": self.evaluation_protocol().fingerprint(),
-            "benchmark": json_fingerprint(self.protocol()),
+            "protocol": self.protocol.fingerprint(),
+            "benchmark": json_fingerprint(self.binding_fields()),
         }
 
     @classmethod

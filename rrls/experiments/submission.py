@@ -348,7 +348,7 @@ def submit(
     """
     from dataclasses import replace
 
-    from rrls.evaluation.policies import policy_fingerprint
+    from rrls.evaluation.prepared import prepare
     from rrls.evaluation.stack import policy_view
     from rrls.experiments import benchfile
     from rrls.tasks import get_task
@@ -395,7 +395,16 @@ def submit(
         check_shapes(adv, adv_obs, adv_act, f"adversary ({game} game)", key)
         adv_identity = _identity(adv, adv_obs[0], "adversary")
     identity = _identity(adapted, seen[0])
-    fingerprint = policy_fingerprint(adapted, seen[0])
+    # prepared once, here: the mesh evaluation and the dynamic one take it as it is
+    try:
+        adapted = prepare(adapted, key, spec.protocol)
+    except (OSError, MemoryError):
+        raise
+    except Exception as err:  # noqa: BLE001 - the submitter's code
+        raise SubmitError(
+            f"the evaluation failed ({_first_line(err)}); nothing was submitted"
+        ) from None
+    fingerprint = adapted.fingerprint
 
     final = root / "runs" / RunKey(algo, key, seed).name(spec.uncertainty)
     done = _existing(final, identity, fingerprint, adv_identity, overwrite)
@@ -492,7 +501,7 @@ def _record_task(root: Path, spec: Spec, key: str) -> None:
         benchfile.write_spec(root, spec)
         return
     stored = load_spec(root)
-    if stored.protocol() != spec.protocol():
+    if stored.binding_fields() != spec.binding_fields():
         raise SubmitError(
             f"{benchfile.spec_path(root)} changed during the evaluation (another protocol); "
             "nothing was submitted: submit again"
