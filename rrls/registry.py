@@ -35,7 +35,7 @@ from __future__ import annotations
 
 import re
 import warnings
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -188,6 +188,21 @@ _KEY = re.compile(r"[a-z][a-z0-9]*\Z")
 _SET = re.compile(r"[a-z0-9][a-z0-9_]*\Z")
 
 
+#: called with a task's key whenever it is registered, replaced or unregistered (``rrls.envs``
+#: keeps its ``Robust<Task>``/``Force<Task>`` attributes in step with the table)
+_LISTENERS: list[Callable[[str], None]] = []
+
+
+def on_change(listener: Callable[[str], None]) -> None:
+    """Call ``listener(key)`` after every change of the task table."""
+    _LISTENERS.append(listener)
+
+
+def _changed(key: str) -> None:
+    for listener in _LISTENERS:
+        listener(key)
+
+
 def register_task(
     key: str,
     env: str | type,
@@ -274,6 +289,7 @@ def register_task(
     for alias in spec.aliases:
         TASK_ALIASES[alias] = spec.key
     register_ids(spec, replace=existing is not None)
+    _changed(spec.key)
     return spec
 
 
@@ -500,6 +516,7 @@ def unregister_task(key: str) -> None:
     del TASKS[spec.key]
     for alias in [a for a, k in TASK_ALIASES.items() if k == spec.key]:
         del TASK_ALIASES[alias]
+    _changed(spec.key)
 
 
 __all__ = [

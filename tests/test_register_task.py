@@ -192,9 +192,32 @@ def test_replace_rebuilds_classes_and_ids():
         "replaceme", "Hopper-v5", replace=True, **{**spec, "sets": {"1d": {"torsomass": (1, 2)}}}
     )
     assert ROBUST_ENVS["replaceme"] is not first
+    from rrls import envs
+
+    assert envs.RobustReplaceMe is ROBUST_ENVS["replaceme"]  # the module follows the table
+    assert pickle.loads(pickle.dumps(envs.RobustReplaceMe)) is envs.RobustReplaceMe
+    assert envs.ReplaceMeParamsBound.ONE_DIM.value == {"torsomass": [1, 2]}
     gym.make("rrls/robust-replaceme-domain-randomization-1d-v0").reset(seed=0)
     registry.unregister_task("replaceme")
     assert "rrls/robust-replaceme-v0" not in gym.registry and "replaceme" not in TASKS
+    assert not hasattr(envs, "RobustReplaceMe")
+
+
+def test_the_built_in_env_classes_are_class_statements():
+    import inspect
+
+    from rrls import envs
+    from rrls.envs.classes import BUILT_IN
+    from rrls.envs.paper import paper_specs
+
+    assert len(BUILT_IN) == 2 * len(registry.BUILTIN_TASKS) + 2 * 6  # + the paper's six twins
+    for (key, kind, paper), cls in BUILT_IN.items():
+        assert inspect.getsource(cls).splitlines()[1].startswith(f"class {cls.__name__}(")
+        assert getattr(envs, cls.__name__) is cls and cls.task is TASKS[key]
+        task = TASKS[key]
+        declared = task.params if kind == "robust" else task.forces
+        assert cls.paper is paper
+        assert cls.param_specs == (paper_specs(task, kind) if paper else declared)
 
 
 def test_built_in_tables_match_the_compiled_models():

@@ -4,7 +4,8 @@
 further kind of its task table (friction, centre of mass, joints, gears, gravity, timestep);
 ``Force<Task>`` exposes ``<body>force_x/_y/_z`` external forces. Both are the Gymnasium v5 env
 with a ``set_params``/``get_params`` interface on top (see :mod:`rrls.envs.base`); the classes
-are built from the task declarations (:func:`rrls.register_task`) on first use.
+are class statements filled in from the task declarations (:mod:`rrls.envs.classes`; a task
+registered later, :func:`rrls.register_task`, gets its classes made the same way).
 ``Robust<Task>(paper=True)`` builds ``PaperRobust<Task>``: the paper's physics (the v5 env the
 original code built and its writes, :mod:`rrls.envs.paper`) for the paper's six tasks.
 
@@ -27,58 +28,50 @@ from typing import Any
 import numpy as np
 
 from rrls.envs.base import ModifiedParamsMixin
-from rrls.envs.paper import paper_specs
+from rrls.envs.classes import (
+    BUILT_IN,
+    ForceAnt,
+    ForceHalfCheetah,
+    ForceHopper,
+    ForceHumanoidStandUp,
+    ForceInvertedPendulum,
+    ForceWalker2d,
+    RobustAnt,
+    RobustHalfCheetah,
+    RobustHopper,
+    RobustHumanoidStandUp,
+    RobustInvertedPendulum,
+    RobustWalker2d,
+    class_attributes,
+    class_name,
+)
 from rrls.params import check_bounds
+from rrls.registry import on_change
 from rrls.tasks import TASKS, TaskSpec, get_task
 from rrls.uncertainty import UncertaintySet
 
 _SET_NAMES = {"1d": "ONE_DIM", "2d": "TWO_DIM", "3d": "THREE_DIM", "rarl": "RARL"}
 
-#: (task key, family, paper) -> (the declaration it was built from, the class); rebuilt when a
-#: task is re-registered with ``replace=True``
+#: (task key, family, paper) -> (the declaration it was built from, the class) of tasks
+#: registered beyond the built-in ones; rebuilt when a task is re-registered with ``replace=True``
 _CLASSES: dict[tuple[str, str, bool], tuple[TaskSpec, type]] = {}
 
 
 def _env_class(task: TaskSpec, kind: str, paper: bool = False) -> type:
-    """``Robust<Task>`` (kind "robust") or ``Force<Task>`` (kind "force"), built once per task;
-    ``paper``: ``PaperRobust<Task>``/``PaperForce<Task>`` on the paper's physics (the original's
-    v5 env and writes: :mod:`rrls.envs.paper`), what ``Robust<Task>(paper=True)`` builds."""
+    """``Robust<Task>`` (kind "robust") or ``Force<Task>`` (kind "force"); ``paper``: its twin
+    on the paper's physics. A built-in task's is its class statement (:mod:`rrls.envs.classes`);
+    a registered task's is made once from the same attributes."""
+    statement = BUILT_IN.get((task.key, kind, paper))
+    if statement is not None and statement.task is task:
+        return statement
     cached = _CLASSES.get((task.key, kind, paper))
     if cached is not None and cached[0] is task:
         return cached[1]
-    if paper:
-        specs = paper_specs(task, kind)
-    else:
-        specs = task.params if kind == "robust" else task.forces
-    name = f"{'Paper' if paper else ''}{kind.capitalize()}{task.name}"
-    what = "physical parameters" if kind == "robust" else "external forces (world frame, N)"
-    masses = [s.name for s in specs if s.field in ("body_mass", "xfrc_applied")]
-    first = masses[-1] if masses else specs[-1].name if specs else None
-    example = (
-        f"""
-    >>> from rrls.envs import {name}
-    >>> env = {name}({first}=1.5)
-    >>> obs, info = env.reset(seed=0)
-    >>> info["{first}"]
-    1.5
-    >>> env.set_params({first}=0.5)
-    >>> env.get_params()["{first}"]
-    0.5
-    """
-        if task.key in _DOCTESTED and first and not paper
-        else ""
-    )
-    base = task.base_class(paper)
-    built_on = task.paper_id if paper else task.v5_id or base.__name__
-    doc = f"""Gymnasium's ``{built_on}`` whose {what} can be read and changed.
-
-    Parameters: {", ".join(s.name for s in specs)}.
-    {example}"""
-    attrs: dict[str, Any] = {"task": task, "param_specs": specs, "__doc__": doc}
-    attrs.update(__module__=__name__, paper=paper)
+    name = class_name(task, kind, paper)
+    attrs = {**class_attributes(task, kind, paper), "__module__": __name__}
     if task.paper_id is not None and not paper:
         attrs["paper_twin"] = staticmethod(functools.partial(_paper_twin, task.key, kind))
-    cls = type(name, (ModifiedParamsMixin, base), attrs)
+    cls = type(name, (ModifiedParamsMixin, task.base_class(paper)), attrs)
     cls.__qualname__ = name
     _CLASSES[(task.key, kind, paper)] = (task, cls)
     return cls
@@ -101,25 +94,22 @@ def paper_class(cls: type) -> type:
     return twin()
 
 
-#: the tasks whose class docstrings carry a doctest (the paper's six: one example per kind)
-_DOCTESTED = ("ant", "halfcheetah", "hopper", "humanoidstandup", "invertedpendulum", "walker")
-
-
 def _bounds_enum(task: TaskSpec) -> type[Enum]:
     members = {
         _SET_NAMES.get(k, k.upper()): {n: [lo, hi] for n, (lo, hi) in bounds.items()}
         for k, bounds in task.sets.items()
     }
-    enum = Enum(f"{task.name.replace('StandUp', 'Standup')}ParamsBound", members)
+    enum = Enum(_enum_name(task), members)
     enum.__module__ = __name__
     return enum
 
 
-_ENUMS: dict[str, tuple[TaskSpec, type[Enum]]] = {}
+def _enum_name(task: TaskSpec) -> str:
+    return f"{task.name.replace('StandUp', 'Standup')}ParamsBound"
 
 
 class _Classes(Mapping):
-    """``{task key: env class}`` of one family over every registered task (built on demand)."""
+    """``{task key: env class}`` of one family over every registered task."""
 
     def __init__(self, kind: str) -> None:
         self.kind = kind
@@ -142,44 +132,39 @@ class _Classes(Mapping):
 ROBUST_ENVS: Mapping[str, type] = _Classes("robust")
 FORCE_ENVS: Mapping[str, type] = _Classes("force")
 
-RobustAnt = ROBUST_ENVS["ant"]
-RobustHalfCheetah = ROBUST_ENVS["halfcheetah"]
-RobustHopper = ROBUST_ENVS["hopper"]
-RobustHumanoidStandUp = ROBUST_ENVS["humanoidstandup"]
-RobustInvertedPendulum = ROBUST_ENVS["invertedpendulum"]
-RobustWalker2d = ROBUST_ENVS["walker"]
-
-ForceAnt = FORCE_ENVS["ant"]
-ForceHalfCheetah = FORCE_ENVS["halfcheetah"]
-ForceHopper = FORCE_ENVS["hopper"]
-ForceHumanoidStandUp = FORCE_ENVS["humanoidstandup"]
-ForceInvertedPendulum = FORCE_ENVS["invertedpendulum"]
-ForceWalker2d = FORCE_ENVS["walker"]
-
-AntParamsBound = _bounds_enum(TASKS["ant"])
-HalfCheetahParamsBound = _bounds_enum(TASKS["halfcheetah"])
-HopperParamsBound = _bounds_enum(TASKS["hopper"])
-HumanoidStandupParamsBound = _bounds_enum(TASKS["humanoidstandup"])
-InvertedPendulumParamsBound = _bounds_enum(TASKS["invertedpendulum"])
-Walker2dParamsBound = _bounds_enum(TASKS["walker"])
+#: the names :func:`_publish` made attributes of this module, per task key
+_PUBLISHED: dict[str, list[str]] = {}
 
 
-def __getattr__(name: str) -> Any:
-    """``Robust<Name>``, ``Force<Name>`` and ``<Name>ParamsBound`` of any registered task (so
-    classes of tasks registered later import, pickle and unpickle by name like the built-ins)."""
-    for task in list(TASKS.values()):
-        if name == f"Robust{task.name}":
-            return ROBUST_ENVS[task.key]
-        if name == f"Force{task.name}" and task.forces:
-            return FORCE_ENVS[task.key]
-        if name in (f"PaperRobust{task.name}", f"PaperForce{task.name}") and task.paper_id:
-            return _env_class(task, "robust" if "Robust" in name else "force", paper=True)
-        if name == f"{task.name}ParamsBound".replace("StandUp", "Standup"):
-            cached = _ENUMS.get(task.key)
-            if cached is None or cached[0] is not task:
-                _ENUMS[task.key] = cached = (task, _bounds_enum(task))
-            return cached[1]
-    raise AttributeError(f"module 'rrls.envs' has no attribute {name!r}")
+def _publish(key: str) -> None:
+    """Keep this module's ``Robust<Task>``, ``Force<Task>``, ``Paper...`` and
+    ``<Task>ParamsBound`` attributes in step with the task table (registered by
+    ``rrls.registry.on_change``), so a task registered later imports, pickles and unpickles its
+    classes by name like the built-ins."""
+    space = globals()
+    for name in _PUBLISHED.pop(key, []):
+        space.pop(name, None)
+    task = TASKS.get(key)
+    if task is None:
+        return
+    classes = [_env_class(task, "robust")]
+    if task.forces:
+        classes.append(_env_class(task, "force"))
+    if task.paper_id is not None:
+        classes += [
+            _env_class(task, k, paper=True)
+            for k in ("robust", "force")
+            if k != "force" or task.forces
+        ]
+    enum = _bounds_enum(task)
+    named = {cls.__name__: cls for cls in classes} | {enum.__name__: enum}
+    space.update(named)
+    _PUBLISHED[key] = list(named)
+
+
+for _key in list(TASKS):
+    _publish(_key)
+on_change(_publish)
 
 
 FAMILY_ENVS: dict[str, Mapping[str, type]] = {"robust": ROBUST_ENVS, "force": FORCE_ENVS}
