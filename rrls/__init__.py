@@ -13,8 +13,8 @@ submodules load on first use.
 2.0
 
 Through a wrapper that hides ``set_params`` (any Gymnasium wrapper): ``rrls.set_params(env,
-torsomass=2.0)`` (:mod:`rrls.interface`). ``rrls.evaluate(policy, "hopper")`` evaluates a
-policy's worst and average case (:func:`rrls.evaluation.evaluate`).
+torsomass=2.0)`` (:mod:`rrls.interface`). ``rrls.evaluation.evaluate(policy, "hopper")``
+evaluates a policy's worst and average case.
 """
 
 from __future__ import annotations

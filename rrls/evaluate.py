@@ -1,9 +1,9 @@
-"""``rrls.evaluate``: call it to evaluate a policy; import from it the original RRLS names.
+"""``rrls.evaluate``: the original RRLS module path, kept for its names (deprecated).
 
-``rrls.evaluate(policy, "hopper")`` (and ``from rrls import evaluate``) is
-:func:`rrls.evaluation.evaluate` (also ``rrls.evaluate.evaluate``): this module is callable,
-because the original package's module path ``rrls.evaluate`` must stay while the obvious call
-must work.
+Evaluate a policy with :func:`rrls.evaluation.evaluate` (also ``rrls.evaluate.evaluate``).
+Calling the module itself, ``rrls.evaluate(policy, "hopper")``, still works but is deprecated
+(a ``DeprecationWarning``): a module made callable is machinery nobody reading the code expects,
+and the original path must stay a module for the names below.
 
 The original module's ``EVALUATION_ROBUST_*`` constants still import, with a
 ``DeprecationWarning`` (use :func:`rrls.evaluation.default_evaluation_set`). The original built
@@ -68,9 +68,13 @@ def __getattr__(name: str) -> EvaluationSet:
 
 
 class _CallableModule(types.ModuleType):
-    """The module, callable as :func:`rrls.evaluation.evaluate` (same signature and doc)."""
+    """The module, callable as :func:`rrls.evaluation.evaluate` (deprecated: call that)."""
 
     def __call__(self, *args: Any, **kwargs: Any) -> EvaluationResult:
+        warn_deprecated(
+            "calling the module rrls.evaluate is deprecated; use rrls.evaluation.evaluate "
+            "(the same function)"
+        )
         return evaluate(*args, **kwargs)
 
 

@@ -27,24 +27,28 @@ def _still(obs: np.ndarray) -> np.ndarray:
 KW = dict(mesh=2, episodes=1, workers=1, max_episode_steps=20)
 
 
-# -- rrls.evaluate: the function, and the original module path --------------------------
-def test_from_rrls_import_evaluate_is_the_evaluation_function():
+# -- rrls.evaluate: the original module path; calling it is deprecated --------------------
+def test_calling_the_module_rrls_evaluate_warns_and_evaluates():
     from rrls import evaluate
     from rrls.evaluation import evaluate as function
 
-    got = evaluate(_still, "invertedpendulum", "1d", **KW)
     want = function(_still, "invertedpendulum", "1d", **KW)
+    with pytest.warns(DeprecationWarning, match="use rrls.evaluation.evaluate"):
+        got = evaluate(_still, "invertedpendulum", "1d", **KW)
     assert got.worst_case == want.worst_case and len(got.per_point) == 2
-    assert rrls.evaluate(_still, "invertedpendulum", "1d", **KW).average_case == want.average_case
+    with pytest.warns(DeprecationWarning):
+        assert rrls.evaluate(_still, "invertedpendulum", "1d", **KW).average_case == (
+            want.average_case
+        )
     assert inspect.signature(evaluate) == inspect.signature(function)  # what help/IDEs show
     assert rrls.evaluate.evaluate is function
 
 
-def test_evaluate_callable_in_a_fresh_interpreter():
+def test_the_evaluation_function_in_a_fresh_interpreter_warns_nothing():
     code = (
-        "import numpy as np, rrls\n"
-        "r = rrls.evaluate(lambda o: np.zeros((len(o), 1)), 'invertedpendulum', '1d', mesh=2,"
-        " episodes=1, workers=1, max_episode_steps=5)\n"
+        "import numpy as np, rrls, rrls.evaluation\n"
+        "r = rrls.evaluation.evaluate(lambda o: np.zeros((len(o), 1)), 'invertedpendulum', '1d',"
+        " mesh=2, episodes=1, workers=1, max_episode_steps=5)\n"
         "assert len(r.per_point) == 2\n"
         "from rrls.evaluate import generate_evaluation_set\n"
     )
