@@ -1,4 +1,5 @@
-"""The training rates of `rrls benchmark`'s estimate (`cpu_estimate.TRAIN_STEPS_PER_S`).
+"""The training rates of `rrls benchmark`'s estimate (each algorithm's row in
+`rrls/algorithms.py`: `cpu_steps_per_s`).
 
 Single-thread training rate per algorithm, in CPU time (robust to a loaded machine):
 CPU seconds of `rrls train --threads 1` for 3 000 steps (1 000 random) minus for 1 000 random

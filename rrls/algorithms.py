@@ -4,21 +4,27 @@ importing training code).
 
 A row says what the rest of rrls needs to know about an algorithm without loading it: its
 display name, whether it is one of the paper's five baselines, whether it trains an adversary
-(then the benchmark also plays it against its own adversary: the dynamic evaluation), whether it
-trains over the uncertainty set, and where its ``Learner`` lives. ``rrls.agents.algorithm(name)``
-loads it. Plug-ins add rows with ``register_algorithm`` (an installed entry point of group
-``rrls.algorithms`` is found without a row; it then reads as its own name).
+(then the benchmark also plays it against its own adversary: the dynamic evaluation), how it
+meets the uncertainty set (which decides where it can train: the Warp twin), the benchmark
+options its ``Config`` takes, its measured training speeds (the benchmark's estimates), and
+where its ``Learner`` lives. Nothing else in rrls names an algorithm.
+``rrls.agents.algorithm(name)`` loads it. Plug-ins add rows with ``register_algorithm`` (an
+installed entry point of group ``rrls.algorithms`` is found without a row; it then reads as its
+own name).
 """
 
 from __future__ import annotations
 
-from collections.abc import Iterable
+from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass
 from typing import Any
 
 __all__ = [
     "ALGORITHMS",
     "ENTRY_POINTS",
+    "SET_USES",
+    "TD3_CPU",
+    "TD3_GPU",
     "AlgorithmInfo",
     "algorithm_info",
     "built_in",
@@ -33,6 +39,21 @@ __all__ = [
 
 #: the entry point group of installed learner plug-ins (value ``package.module:Learner``)
 ENTRY_POINTS = "rrls.algorithms"
+#: how a run meets the uncertainty set: only the nominal model; a uniformly drawn point per
+#: episode (domain randomization); a point the learner chooses per episode (M2TD3); an
+#: adversary moving the parameters at every step (RARL)
+SET_USES = ("nominal", "random", "chosen", "adversary")
+#: learning steps per CPU-second of one single-threaded Hopper run, measured in CPU time (robust
+#: to a machine shared with other work) by ``python3 benchmarks/calibrate.py td3 m2td3 sac``:
+#: CPU seconds of ``rrls train --threads 1`` for 3 000 steps (1 000 random) minus those of 1 000
+#: random steps, on the 2-core development machine, quiet, 2026-11-24 (under load: 77 / 85 /
+#: 47, CPU time grows with cache contention). DR trains TD3's learner, SAC-DR SAC's; RARL and
+#: NR-MDP (not measured) are taken as TD3's, as is a row that gives none.
+TD3_CPU = 94.0
+SAC_CPU = 57.0
+#: TD3's aggregated env steps/s of K runs trained together on one H100, ``(K, rate)``
+#: (docs/results/gpu/h100-2026-11-25.md): the estimate of a row that gives none
+TD3_GPU = ((1, 784.0), (8, 2_300.0), (32, 4_189.0))
 
 
 @dataclass(frozen=True)
@@ -44,7 +65,14 @@ class AlgorithmInfo:
     learner: str
     paper: bool = False  # one of the paper's five baselines (its default grid)
     adversary: bool = False  # trains an adversary: the benchmark's dynamic evaluation plays it
-    needs_set: bool = False  # trains over the uncertainty set (not only on the nominal task)
+    set_use: str = "nominal"  # how a run meets the uncertainty set (SET_USES)
+    #: the benchmark options (``Spec`` fields) its ``Config`` takes beyond the shared ones, as
+    #: ``Config`` keywords: ``options(spec) -> {field: value}``
+    options: Callable[[Any], dict[str, Any]] | None = None
+    cpu_steps_per_s: float = TD3_CPU  # see TD3_CPU
+    #: aggregated env steps/s of K runs trained together on one H100, ``(K, rate)`` pairs
+    #: measured (docs/results/gpu/h100-2026-11-25.md); empty: estimated as TD3's
+    gpu_steps_per_s: tuple[tuple[int, float], ...] = ()
     #: random warm-up steps of its reference hyper-parameters (its ``Config`` default and what
     #: a preset that claims the paper's hyper-parameters gives it)
     learning_starts: int = 25_000
@@ -53,10 +81,37 @@ class AlgorithmInfo:
     def __post_init__(self) -> None:
         if not self.name or self.name != self.name.strip():
             raise ValueError(f"algorithm name {self.name!r}: a non-empty word")
+        if self.set_use not in SET_USES:
+            raise ValueError(
+                f"algorithm {self.name!r}: set_use {self.set_use!r}; valid: {', '.join(SET_USES)}"
+            )
         if self.learner.count(":") != 1:
             raise ValueError(
                 f"algorithm {self.name!r}: learner {self.learner!r} must be package.module:Class"
             )
+
+    @property
+    def needs_set(self) -> bool:
+        """Trains over the uncertainty set (not only on the nominal model)."""
+        return self.set_use != "nominal"
+
+    def gpu_rate(self) -> Mapping[int, float]:
+        """``{K: aggregated env steps/s}`` measured on one H100 (empty: none)."""
+        return dict(self.gpu_steps_per_s)
+
+
+def _m2td3_options(spec: Any) -> dict[str, Any]:
+    return {"normalize_omega": spec.normalize_omega}
+
+
+def _rarl_options(spec: Any) -> dict[str, Any]:
+    """TC-RMDP's rate-limited game when the benchmark plays one (RARL's adversary)."""
+    if spec.rate_limit is None:
+        return {}
+    options = {"rate_limit": spec.rate_limit, "rate_game": spec.rate_game}
+    if spec.observe != "vanilla":
+        options["observe"] = spec.observe
+    return options
 
 
 def _row(name: str, display: str, row: int, **flags: Any) -> AlgorithmInfo:
@@ -67,15 +122,38 @@ def _row(name: str, display: str, row: int, **flags: Any) -> AlgorithmInfo:
 ALGORITHMS: dict[str, AlgorithmInfo] = {
     a.name: a
     for a in (
-        _row("td3", "TD3", 0, paper=True),
-        _row("dr", "DR", 1, paper=True, needs_set=True),
-        _row("rarl", "RARL", 3, paper=True, adversary=True, needs_set=True),
-        _row("nrmdp", "NR-MDP", 4, paper=True, adversary=True),
+        _row(
+            "td3", "TD3", 0, paper=True, gpu_steps_per_s=((1, 784.0), (8, 2_300.0), (32, 4_189.0))
+        ),
+        _row("dr", "DR", 1, paper=True, set_use="random"),
+        _row(
+            "rarl",
+            "RARL",
+            3,
+            paper=True,
+            adversary=True,
+            set_use="adversary",
+            options=_rarl_options,
+        ),
+        _row("nrmdp", "NR-MDP", 4, paper=True, adversary=True),  # its adversary acts on actions
         # the M2TD3 authors' start_steps = 1e5 (akimotolab/M2TD3's configs; SuReLI/TCRMDP
         # src/main_m2td3.py:16, the RRLS authors' port)
-        _row("m2td3", "M2TD3", 2, paper=True, needs_set=True, learning_starts=100_000),
-        _row("sac", "SAC", 5, learning_starts=5_000),  # CleanRL's sac_continuous_action.py
-        _row("sacdr", "SAC-DR", 6, needs_set=True, learning_starts=5_000),
+        _row(
+            "m2td3",
+            "M2TD3",
+            2,
+            paper=True,
+            set_use="chosen",
+            learning_starts=100_000,
+            options=_m2td3_options,
+            cpu_steps_per_s=103.0,
+            gpu_steps_per_s=((1, 435.0), (8, 1_172.0), (32, 2_200.0)),
+        ),
+        # CleanRL's sac_continuous_action.py
+        _row("sac", "SAC", 5, learning_starts=5_000, cpu_steps_per_s=SAC_CPU),
+        _row(
+            "sacdr", "SAC-DR", 6, set_use="random", learning_starts=5_000, cpu_steps_per_s=SAC_CPU
+        ),
     )
 }
 _BUILT_IN = tuple(ALGORITHMS)

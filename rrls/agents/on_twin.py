@@ -25,16 +25,23 @@ import torch
 
 from rrls.agents.lookup import algorithm
 from rrls.agents.streams import NumpyGenerators, RunSeeds
-from rrls.algorithms import warmup
-from rrls.twin.tasks import NOT_ON_TWIN
+from rrls.algorithms import algorithm_info, warmup
+from rrls.twin.tasks import not_on_twin
 
-#: algorithm -> does its world draw a new point of the set at every episode (DR)
-ON_TWIN: dict[str, bool] = {"td3": False, "sac": False, "dr": True, "sacdr": True}
-#: what this library loop refuses beyond them: ``rrls train --simulator warp`` trains it (the
-#: CPU env of each run takes the learner's point at every reset and the world copies it)
-LOOP_ONLY: dict[str, str] = {
-    "m2td3": "it picks each episode's point itself: train it with rrls train --simulator warp",
-}
+
+def twin_refusal(algo: str) -> str | None:
+    """Why this library loop does not train ``algo`` (its row's ``set_use``), or None: an
+    adversary acting every step (no twin path), a learner choosing each episode's point
+    (``rrls train --simulator warp`` trains it: the CPU env of each run takes the learner's point
+    at every reset and the world copies it), a name without a row."""
+    info = algorithm_info(algo)
+    if info is None:
+        return "no algorithm of that name"
+    if not_on_twin(algo) is not None:
+        return not_on_twin(algo)
+    if info.set_use == "chosen":
+        return "it picks each episode's point itself: train it with rrls train --simulator warp"
+    return None
 
 
 @dataclass
@@ -70,11 +77,9 @@ def train_on_twin(
     ``on_progress(step, returns)`` every ``progress_every`` steps."""
     from rrls.twin import WarpTwin
 
-    refused = {**NOT_ON_TWIN, **LOOP_ONLY}
-    if algo in refused:
-        raise ValueError(f"{algo} does not train on the Warp twin here: {refused[algo]}")
-    if algo not in ON_TWIN:
-        raise ValueError(f"algo={algo!r}; on the Warp twin: {', '.join(ON_TWIN)}")
+    why = twin_refusal(algo)
+    if why is not None:
+        raise ValueError(f"{algo} does not train on the Warp twin here: {why}")
     if not seeds:
         raise ValueError("seeds: give at least one")
     info = algorithm(algo)
@@ -84,7 +89,7 @@ def train_on_twin(
         task,
         len(seeds),
         uncertainty,
-        domain_randomization=ON_TWIN[algo],
+        domain_randomization=algorithm_info(algo).set_use == "random",
         seed=[s.integer("env") for s in run_seeds],
         device=device,
         **(twin_options or {}),
@@ -128,4 +133,4 @@ def train_on_twin(
     return TwinTraining(policies, returns, steps, wall)
 
 
-__all__ = ["LOOP_ONLY", "NOT_ON_TWIN", "ON_TWIN", "TwinTraining", "train_on_twin"]
+__all__ = ["TwinTraining", "train_on_twin", "twin_refusal"]

@@ -5,7 +5,7 @@ project's machines, then the wall time with ``jobs`` runs at a time. Its GPU cou
 
 from __future__ import annotations
 
-from rrls.algorithms import plays_adversary
+from rrls.algorithms import TD3_CPU, algorithm_info, plays_adversary
 from rrls.experiments.spec import Spec
 
 __all__ = [
@@ -13,29 +13,15 @@ __all__ = [
     "RANDOM_STEPS_PER_S",
     "REPORT_S",
     "STARTUP_S",
-    "TRAIN_STEPS_PER_S",
     "default_jobs",
     "estimate",
     "format_duration",
     "size_factor",
 ]
 
-# Training: learning steps per CPU-second of one single-threaded Hopper run, measured in CPU time
-# (robust to a machine shared with other work) by `python3 benchmarks/calibrate.py td3 m2td3
-# sac`: CPU seconds of `rrls train --threads 1` for 3 000 steps (1 000 random) minus those of
-# 1 000 random steps. Measured on the 2-core development machine, quiet, 2026-11-24 (under
-# load the same script gave 77 / 85 / 47: CPU time grows with cache contention).
-# DR trains TD3's learner, SAC-DR SAC's; RARL and NR-MDP (not measured) are taken as TD3's.
+# Training: learning steps per CPU-second of one single-threaded Hopper run: each algorithm's
+# row (``rrls.algorithms.AlgorithmInfo.cpu_steps_per_s``, measured by benchmarks/calibrate.py).
 # Env steps/s of each task's `env.step`: the evaluation's cost, policy calls excluded.
-TRAIN_STEPS_PER_S = {
-    "td3": 94.0,
-    "dr": 94.0,
-    "m2td3": 103.0,
-    "rarl": 94.0,
-    "nrmdp": 94.0,
-    "sac": 57.0,
-    "sacdr": 57.0,
-}
 #: the share of a 256-256 learning step that does not scale with the network (dispatch, autograd
 #: nodes, the optimiser's loop, the env step): a step of hidden sizes h costs ``share + (1 -
 #: share) * work(h) / work(256-256)`` of a 256-256 one (``size_factor``; calibrated on the
@@ -65,7 +51,8 @@ def estimate(spec: Spec, jobs: int, max_episode_steps: int = 1000) -> dict[str, 
 
     train = evals = 0.0
     for key in spec.runs():
-        rate = TRAIN_STEPS_PER_S.get(key.algo, TRAIN_STEPS_PER_S["td3"]) / size_factor(spec.hidden)
+        info = algorithm_info(key.algo)
+        rate = (info.cpu_steps_per_s if info else TD3_CPU) / size_factor(spec.hidden)
         random_steps = spec.warmup(key.algo)
         train += STARTUP_S + random_steps / RANDOM_STEPS_PER_S
         train += (spec.steps - random_steps) / rate

@@ -23,21 +23,21 @@ from typing import Any
 from rrls.experiments.cpu_estimate import REPORT_S, STARTUP_S, estimate
 from rrls.experiments.spec import Spec
 
-__all__ = ["GPU_RECORD", "GPU_STEPS_PER_S", "describe", "gpu_estimate"]
+__all__ = ["GPU_RECORD", "describe", "gpu_estimate"]
 
 #: where the figures come from
 GPU_RECORD = "docs/results/gpu/h100-2026-11-25.md"
-#: aggregated env steps/s of one process training K runs together on one H100 (measured)
-GPU_STEPS_PER_S: dict[str, dict[int, float]] = {
-    "td3": {1: 784.0, 8: 2_300.0, 32: 4_189.0},
-    "m2td3": {1: 435.0, 8: 1_172.0, 32: 2_200.0},
-}
 
 
 def _rate(algo: str, k: int) -> tuple[float, bool]:
-    """Aggregated env steps/s of a group of ``k`` runs of ``algo``, and whether measured."""
-    table = GPU_STEPS_PER_S.get(algo, GPU_STEPS_PER_S["td3"])
-    measured = algo in GPU_STEPS_PER_S and k in table
+    """Aggregated env steps/s of a group of ``k`` runs of ``algo``, and whether measured (its
+    row's ``gpu_steps_per_s``, measured on one H100; a row without them: TD3's)."""
+    from rrls.algorithms import TD3_GPU, algorithm_info
+
+    info = algorithm_info(algo)
+    own = info.gpu_rate() if info is not None else {}
+    table = own or dict(TD3_GPU)
+    measured = bool(own) and k in table
     ks = sorted(table)
     if k in table:
         return table[k], measured

@@ -12,7 +12,7 @@ from dataclasses import asdict, dataclass, fields
 from functools import cached_property
 from typing import Any
 
-from rrls.algorithms import built_in, paper_five, warmup
+from rrls.algorithms import ALGORITHMS, algorithm_info, built_in, paper_five, warmup
 from rrls.evaluation.protocol import Protocol, check_episodes
 from rrls.physics import SIMULATORS, V5, is_paper, physics_label
 
@@ -117,13 +117,9 @@ class Spec:
             hyper["learning_rate"] = self.learning_rate
         if self.batch_size is not None:
             hyper["batch_size"] = self.batch_size
-        if algo == "m2td3":
-            hyper["normalize_omega"] = self.normalize_omega
-        if algo == "rarl" and self.rate_limit is not None:
-            hyper["rate_limit"] = self.rate_limit
-            hyper["rate_game"] = self.rate_game
-            if self.observe != "vanilla":
-                hyper["observe"] = self.observe
+        info = algorithm_info(algo)
+        if info is not None and info.options is not None:  # its own options (its row says)
+            hyper.update(info.options(self))
         return hyper
 
     def warmup(self, algo: str) -> int:
@@ -401,8 +397,12 @@ def validate(spec: Spec) -> None:
     if spec.rate_limit is not None:
         if not (isinstance(spec.rate_limit, (int, float)) and 0 < spec.rate_limit < float("inf")):
             raise SpecError(f"--rate-limit must be a finite number > 0, got {spec.rate_limit!r}")
-        if "rarl" not in spec.algos:
-            raise SpecError("--rate-limit applies to RARL's adversary: add rarl to --algos")
+        movers = [a.name for a in ALGORITHMS.values() if a.set_use == "adversary"]
+        if not set(movers) & set(spec.algos):
+            raise SpecError(
+                "--rate-limit applies to an adversary moving the parameters: add "
+                f"{' or '.join(movers)} to --algos"
+            )
     from rrls.wrappers.tc_rmdp import OBSERVE, RATE_GAMES
 
     if spec.rate_game not in RATE_GAMES:

@@ -114,21 +114,24 @@ def constants(env: Any, task: TwinTask) -> Constants:
     )
 
 
-#: algorithms no twin path trains, and why (``rrls train --simulator warp`` refuses them)
-NOT_ON_TWIN: dict[str, str] = {
-    "rarl": "its adversary's forces act at every step (not wired to the twin yet)",
-    "nrmdp": "its adversary's actions mix into every step (not wired to the twin yet)",
-}
+def not_on_twin(algo: str) -> str | None:
+    """Why no twin path trains ``algo`` (its row says it trains an adversary acting at every
+    step, which the twin's loop does not wire), or None."""
+    from rrls.algorithms import algorithm_info
+
+    info = algorithm_info(algo)
+    if info is not None and info.adversary:
+        return "its adversary acts at every step (not wired to the twin yet)"
+    return None
 
 
 def check_twin(algo: str, task: str, physics: str) -> None:
     """Refuse, in one line saying why, a run the Warp twin cannot train."""
     from rrls.physics import is_paper
 
-    if algo in NOT_ON_TWIN:
-        raise ValueError(
-            f"--simulator warp: {algo} does not train on the twin: {NOT_ON_TWIN[algo]}"
-        )
+    why = not_on_twin(algo)
+    if why is not None:
+        raise ValueError(f"--simulator warp: {algo} does not train on the twin: {why}")
     if task in REFUSED:
         raise ValueError(f"--simulator warp: no twin for {task!r}: {REFUSED[task]}")
     if task not in TWIN_TASKS:
@@ -149,7 +152,7 @@ def check_twin(algo: str, task: str, physics: str) -> None:
 
 
 __all__ = [
-    "NOT_ON_TWIN",
+    "not_on_twin",
     "check_twin",
     "DIVERGES",
     "NO_TERMINATION",
