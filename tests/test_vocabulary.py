@@ -95,7 +95,7 @@ def test_bad_benchmark_seeds_are_one_line(tmp_path, capsys, seeds, needle):
 
 def test_train_seeds_are_the_same_grammar():
     pytest.importorskip("torch")
-    from rrls.agents.options import configs_from_args
+    from rrls.cli.train_options import configs_from_args
 
     parser = build_parser(with_train=True)
     base = ["train", "--algo", "td3", "--task", "hopper"]
@@ -105,7 +105,7 @@ def test_train_seeds_are_the_same_grammar():
 
 
 def test_quickstart_takes_seeds_and_its_old_first_seed_flag_warns(capsys):
-    from rrls.experiments.commands import quickstart_seeds
+    from rrls.cli.quickstart_command import quickstart_seeds
 
     parser = build_parser(with_train=False)
     assert quickstart_seeds(parser.parse_args(["quickstart", "--seeds", "4-6"])) == [4, 5, 6]
@@ -212,7 +212,7 @@ def test_a_large_grid_asks_from_a_terminal_and_nothing_starts_on_no(tmp_path, mo
 
 
 def test_confirmation_never_blocks_a_script_or_ci(monkeypatch):
-    from rrls.experiments.commands import CONFIRM_ABOVE, confirmed
+    from rrls.cli.benchmark_options import CONFIRM_ABOVE, confirmed
 
     def refuse(prompt: str) -> str:
         raise AssertionError("asked")

@@ -4,6 +4,9 @@ Run options come from ``TrainConfig``; hyper-parameters from every algorithm's `
 (``--learning-rate``, ``--alpha``, ``--phase-steps``, ...). A hyper-parameter option defaults to
 "the algorithm's own value" and its help lists those values; giving one that the chosen
 algorithm does not have is refused, naming the algorithms that have it.
+
+It imports the algorithms' dataclasses, hence torch: ``rrls.cli.app`` adds these options only for
+``rrls train``, so that ``rrls --help`` and the other commands run without torch.
 """
 
 from __future__ import annotations
@@ -202,3 +205,12 @@ def config_from_args(args: argparse.Namespace) -> tuple[TrainConfig, bool]:
         if f.name not in ("progress", "hyper") and getattr(args, f.name, None) is not None
     }
     return TrainConfig(**run, hyper=hyper), bool(args.resume)
+
+
+__all__ = [
+    "STEP_OPTIONS",
+    "add_train_arguments",
+    "config_from_args",
+    "configs_from_args",
+    "hyperparameter_table",
+]

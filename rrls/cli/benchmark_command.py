@@ -1,20 +1,31 @@
-"""The options of ``rrls benchmark``, ``rrls report`` and ``rrls submit`` (what they do:
-:mod:`rrls.experiments.commands`). Ranges are checked by the spec, so that errors are one line with
-exit status 2."""
+"""``rrls benchmark``: train, evaluate and report a grid of runs (the library's
+:func:`rrls.experiments.runner.benchmark`), or print what it would do (``--dry-run``). Its
+options and what it does live here; what it shares with ``quickstart`` and ``report`` is in
+:mod:`rrls.cli.benchmark_options`. Ranges are checked by the spec, so that errors are one line
+with exit status 2."""
 
 from __future__ import annotations
 
 import argparse
+from typing import Any
 
-from rrls.argtypes import seed_value, step_count, worker_count
+from rrls.argtypes import step_count, worker_count
+from rrls.cli.benchmark_options import (
+    CONFIRM_ABOVE,
+    confirmed,
+    guarded,
+    pending,
+    results_table,
+    spec_from,
+)
+from rrls.cli.parsing import fail
 from rrls.deprecation import DeprecatedOption
-from rrls.experiments.reference import SHIPPED
 from rrls.experiments.spec import ALGOS, BUILT_IN, PAPER_TASKS, PRESETS
+from rrls.extras import install_hint
 from rrls.physics import SIMULATORS
 from rrls.seeds import EXAMPLES
 
-#: more runs than this, started from a terminal without --yes, ask first
-CONFIRM_ABOVE = 50
+NAME = "benchmark"
 
 
 def _plugins() -> str:
@@ -25,9 +36,8 @@ def _plugins() -> str:
     return f"({', '.join(names)}) " if names else ""
 
 
-def add_parsers(sub: argparse._SubParsersAction) -> None:
-    """Register ``benchmark`` and ``report`` on the ``rrls`` sub-command parser (ranges are
-    checked by the spec, so that errors are one line with exit status 2)."""
+def add_parser(sub: argparse._SubParsersAction) -> argparse.ArgumentParser:
+    """Register ``rrls benchmark`` on the ``rrls`` sub-command parser."""
     from rrls.tasks import TASKS  # every registered task, plug-ins' included (loaded by main)
 
     b = sub.add_parser(
@@ -185,121 +195,72 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:
         help=f"start without asking: from a terminal, more than {CONFIRM_ABOVE} runs to start "
         "ask for confirmation first (never asked without a terminal, or with CI set)",
     )
-
-    r = sub.add_parser(
-        "report",
-        help="regenerate a benchmark's report (summary.json, report.md, tables, figures)",
-        description="Rebuild DIR/results from the run directories and write DIR/report: "
-        "summary.json, report.md, tables/*.tex (booktabs) and *.csv, figures.",
-    )
-    r.add_argument("dir", help="a `rrls benchmark --out` directory")
-    r.add_argument("--no-plots", action="store_true", help="skip the figures")
-    r.add_argument(
-        "--reference",
-        metavar="FILE",
-        help=f"reference results (.json/.csv, or a shipped name: {', '.join(SHIPPED)}) normalising"
-        " the tasks without their own TD3 and M2TD3 runs; refused if measured under another"
-        " protocol (physics, set, mesh, episodes)",
-    )
-    r.add_argument(
-        "--export-reference",
-        metavar="FILE",
-        help="also write this benchmark's results (every algorithm, per-seed values) as a "
-        "reference file (.json, or .csv) another lab can pass to --reference",
-    )
-    r.add_argument("--label", help="--export-reference: the reference's label")
-    r.add_argument(
-        "--rename",
-        action="append",
-        metavar="NAME=TEXT",
-        help="show algorithm NAME's row as TEXT in every table and figure (NAME@REF: the "
-        "reference REF's row, e.g. td3@quick='TD3, rrls quick'); repeatable",
-    )
-
-    s = sub.add_parser(
-        "submit",
-        help="evaluate a policy trained elsewhere under a benchmark's protocol and add it as an "
-        "algorithm (then `rrls report DIR` shows it beside the baselines)",
-        description="Evaluate POLICY exactly as BENCH_DIR evaluates its own runs (same set, mesh, "
-        "episodes and episode seeds; with --adversary also the dynamic evaluation) and store it "
-        "as run (--algo, --task, --seed). POLICY: an rrls .npz, an `rrls train` run directory, a "
-        "Stable-Baselines3 .zip or module:attribute naming a callable obs[B, d] -> act[B, k] (or "
-        "an nn.Module / SB3 model). WARNING: an SB3 zip (cloudpickle) and module:attribute "
-        "(import) run code from the file or module: submit only what you trust; rrls's own "
-        ".npz and run directories are read without unpickling.",
-    )
-    s.add_argument("bench_dir", metavar="BENCH_DIR", help="a `rrls benchmark --out` directory")
-    s.add_argument("policy", metavar="POLICY", help=".npz, run directory, SB3 .zip or mod:attr")
-    s.add_argument("--algo", required=True, metavar="NAME", help="the algorithm's name in reports")
-    s.add_argument(
-        "--task",
-        required=True,
-        metavar="TASK",
-        help="one of the benchmark's tasks (another one only with --add-task)",
-    )
-    s.add_argument("--seed", required=True, type=seed_value, metavar="S", help="the policy's seed")
-    s.add_argument(
-        "--steps",
-        type=step_count,
-        metavar="N",
-        help="the training budget you declare (env steps: 30000, 1e4, 100k; default: what the "
-        "policy records, else not stated); the report prints it beside the benchmark's",
-    )
-    s.add_argument(
-        "--budget",
-        action="append",
-        metavar="KEY=VALUE",
-        help="anything else about the training budget (e.g. 'gpu hours=3'); repeatable",
-    )
-    s.add_argument(
-        "--add-task",
-        action="store_true",
-        help="a submissions-only benchmark: add --task to its tasks on purpose (a benchmark "
-        "with baselines never grows here: `rrls benchmark --tasks` trains them)",
-    )
-
-    s.add_argument(
-        "--adversary", metavar="ADV_POLICY", help="also play this adversary (Table 6), same kinds"
-    )
-    s.add_argument(
-        "--game",
-        metavar="{adversarial,nr,pr}",
-        help="the adversary's game: adversarial (picks the set's parameters; default unless an "
-        "rrls adversary file records another), nr or pr (action-robust)",
-    )
-    s.add_argument("--alpha", type=float, help="nr/pr: the adversary's probability (default 0.1)")
-    s.add_argument(
-        "--overwrite", action="store_true", help="replace a submission made with another policy"
-    )
-    s.add_argument(
-        "--preset",
-        metavar="{" + ",".join(PRESETS) + "}",
-        help="BENCH_DIR holds no benchmark yet: start one (no baselines) with this preset's "
-        "protocol; compare with `rrls report BENCH_DIR --reference FILE`",
-    )
-    s.add_argument(
-        "--workers",
-        type=worker_count,
-        metavar="N",
-        help="worker processes: the evaluation's; 0: in this process (default: the number of "
-        "cores)",
-    )
-    add_withdraw(sub)
+    return b
 
 
-def add_withdraw(sub: argparse._SubParsersAction) -> None:
-    """``rrls withdraw``: take submissions out of a benchmark."""
-    w = sub.add_parser(
-        "withdraw",
-        help="take an algorithm's submissions out of a benchmark (undoes `rrls submit`)",
-        description="Remove the submitted runs of --algo (all, or those of --task / --seed) "
-        "from BENCH_DIR; a task left without runs leaves a submissions-only benchmark's task "
-        "list, so later reports stay complete. The benchmark's own runs are never removed.",
+def run(args: argparse.Namespace) -> int:
+    """Run (or, with --dry-run, plan) the benchmark; a bad spec is one line, exit status 2."""
+    return guarded(args, _benchmark)
+
+
+def _benchmark(args: argparse.Namespace) -> int:
+    spec, jobs = spec_from(args)
+    if args.backend == "ray":
+        try:
+            import ray  # noqa: F401
+        except ImportError:
+            return fail("benchmark", f"--backend ray needs Ray: {install_hint('ray')}")
+    try:
+        import torch  # noqa: F401
+    except ImportError:
+        return fail("benchmark", f"training needs torch: {install_hint('train')}")
+    from pathlib import Path
+
+    from rrls.agents import algorithm
+
+    for name in spec.algos:  # a plug-in that is no learner: one line now, not in a worker
+        if name not in BUILT_IN:
+            try:
+                algorithm(name)
+            except ValueError as err:
+                return fail("benchmark", str(err))
+
+    out = Path(args.out)
+    if out.exists() and not out.is_dir():  # the real run refuses it: so does the dry run
+        return fail("benchmark", f"--out {out} is a file, not a directory: choose another --out")
+    if args.dry_run:
+        return _dry_run(out, spec, jobs or 0, args.backend, args.pack)
+    todo, _ = pending(Path(args.out), spec)
+    if not confirmed("benchmark", len(todo), args.yes):
+        return 1
+
+    from rrls.experiments.runner import benchmark
+
+    code = benchmark(args.out, spec, jobs or 0, args.backend, args.ray_address, pack=args.pack)
+    if code in (0, 1) and (Path(args.out) / "report" / "summary.json").exists():
+        print(results_table(args.out))
+    return code
+
+
+def _dry_run(root: Any, spec: Any, jobs: int, backend: str, pack: int | None) -> int:
+    """What ``rrls benchmark`` would do in ``root``, without doing any of it."""
+    from rrls.experiments.benchfile import reconcile
+    from rrls.experiments.pipeline import default_pack, groups
+    from rrls.experiments.runner import plan
+
+    spec, (todo, finished) = reconcile(root, spec), pending(root, spec)
+    pack = default_pack(spec, pack)
+    print(plan(root, spec, len(todo), finished, jobs, backend, pack))
+    print(f"\nruns to start, in order ({len(todo)}):")
+    for i, group in enumerate(groups(todo, pack), 1):
+        names = ", ".join(key.name(spec.uncertainty) for key in group)
+        print(f"  {i:>4}. {names}")
+    print(
+        f"\nlayout: {root}/benchmark.json (the protocol), {root}/runs/<run>/ (policy.npz, "
+        f"run.json, result.json, scalars.csv, eval/), {root}/results/ (the store), "
+        f"{root}/report/ (report.md, tables/, figures/)\n(dry run: nothing written)"
     )
-    w.add_argument("bench_dir", metavar="BENCH_DIR", help="a benchmark directory")
-    w.add_argument("--algo", required=True, metavar="NAME", help="the submitted algorithm")
-    w.add_argument("--task", metavar="TASK", help="only its runs on this task")
-    w.add_argument("--seed", type=seed_value, metavar="S", help="only its runs of this seed")
+    return 0
 
 
-__all__ = ["CONFIRM_ABOVE", "add_parsers", "add_withdraw"]
+__all__ = ["NAME", "add_parser", "run"]

@@ -1,0 +1,57 @@
+"""``rrls evaluate-dynamic``: a two-player run's protagonist against its own trained adversary
+(paper Table 6; the library's :func:`rrls.evaluation.evaluate_run_dynamic`). Named
+``dynamic_command`` because :mod:`rrls.evaluation.dynamic` is the engine behind it."""
+
+from __future__ import annotations
+
+import argparse
+
+from rrls import argtypes
+from rrls.argtypes import positive_int, seed_value
+
+NAME = "evaluate-dynamic"
+
+
+def add_parser(sub: argparse._SubParsersAction) -> argparse.ArgumentParser:
+    """Register ``rrls evaluate-dynamic`` on the ``rrls`` sub-command parser."""
+    ed = sub.add_parser(
+        "evaluate-dynamic",
+        help="a RARL / NR-MDP run's policy against its own trained adversary (paper Table 6)",
+        description="Play a two-player run's final protagonist (policy.npz) against its own final "
+        "adversary (adversary.npz) for --episodes episodes, in the game the run trained in "
+        "(RARL's, TC-RMDP's rate-limited one, or NR-MDP's action mixing): the paper's Table 6.",
+    )
+    ed.add_argument("run_dir", help="an `rrls train` run directory holding adversary.npz")
+    ed.add_argument(
+        "--episodes", type=positive_int, default=10, help="episodes (default 10, the paper's)"
+    )
+    ed.add_argument(
+        "--seed", type=seed_value, default=0, help="seed of the episodes' resets (default 0)"
+    )
+    ed.add_argument(
+        "--workers",
+        type=argtypes.worker_count,
+        default=1,
+        help="worker processes, at most 1024; 0: in this process (default 1; results do not "
+        "depend on it)",
+    )
+    ed.add_argument(
+        "--out",
+        default=None,
+        help="keep finished episodes in this directory; the same command again resumes",
+    )
+    return ed
+
+
+def run(args: argparse.Namespace) -> int:
+    """Play the episodes, then print the mean return and its spread."""
+    from rrls.evaluation import evaluate_run_dynamic
+
+    result = evaluate_run_dynamic(
+        args.run_dir, episodes=args.episodes, seed=args.seed, workers=args.workers, out_dir=args.out
+    )
+    print(f"{result.env_id}: {result.mean:.2f} ± {result.std:.2f} over {args.episodes} episodes")
+    return 0
+
+
+__all__ = ["NAME", "add_parser", "run"]

@@ -1,0 +1,62 @@
+"""What every ``rrls`` command shares: the parser without abbreviations, the one-line errors
+(``UsageError``, ``USAGE_ERRORS``, ``unknown_option``, ``fail``) and the task list of the help
+texts. Kept apart so that each command module can use them without importing the others."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from typing import Any
+
+#: what a command may raise for bad input: reported as ``rrls <command>: <message>``, exit 2
+USAGE_ERRORS = (ValueError, FileNotFoundError, FileExistsError, NotADirectoryError)
+
+
+class Parser(argparse.ArgumentParser):
+    """``argparse`` without abbreviations: ``--learning-start`` must not silently mean
+    ``--learning-starts`` (a typo would train with a value nobody chose). Subcommands inherit
+    it; ``subcommands`` maps each name to its parser, for ``unknown_option``."""
+
+    subcommands: dict[str, argparse.ArgumentParser]
+
+    def __init__(self, *args: Any, **kwargs: Any) -> None:
+        kwargs.setdefault("allow_abbrev", False)
+        super().__init__(*args, **kwargs)
+
+    def error(self, message: str) -> Any:
+        """One line, exit status 2 (argparse's usage block is what ``--help`` is for)."""
+        self.exit(2, f"{self.prog}: error: {message}\n")
+
+
+def unknown_option(parser: argparse.ArgumentParser, command: str, extras: list[str]) -> str:
+    """One line for options ``rrls COMMAND`` does not know, with the closest valid flag."""
+    import difflib
+    import re
+
+    flag = extras[0].split("=", 1)[0]
+    if not flag.startswith("-"):
+        return f"rrls {command}: error: unexpected argument {flag!r}; see rrls {command} --help"
+    options = sorted(set(re.findall(r"--[\w-]+", parser.format_help())))
+    close = difflib.get_close_matches(flag, options, n=1, cutoff=0.75)
+    hint = f" (did you mean {close[0]}?)" if close else ""
+    return f"rrls {command}: error: unknown option {flag}{hint}; see rrls {command} --help"
+
+
+class UsageError(ValueError):
+    """Bad command-line input found after parsing (reported on one line, exit status 2)."""
+
+
+def fail(command: str, message: str) -> int:
+    """``rrls COMMAND: error: MESSAGE`` on stderr; the exit status 2 to return."""
+    print(f"rrls {command}: error: {message}", file=sys.stderr)
+    return 2
+
+
+def task_keys() -> list[str]:
+    """Every registered task (the plug-ins' too, once ``main`` has loaded them)."""
+    from rrls.tasks import TASKS
+
+    return list(TASKS)
+
+
+__all__ = ["USAGE_ERRORS", "Parser", "UsageError", "fail", "task_keys", "unknown_option"]

@@ -1,0 +1,98 @@
+"""``rrls report``: rebuild a benchmark's result store and write its report (the library's
+:func:`rrls.experiments.report.make_report`). Named ``report_command`` because
+:mod:`rrls.experiments.report` is the report itself."""
+
+from __future__ import annotations
+
+import argparse
+import shlex
+
+from rrls.cli.benchmark_options import guarded, results_table
+from rrls.cli.parsing import fail
+from rrls.experiments.reference import SHIPPED
+
+NAME = "report"
+
+
+def add_parser(sub: argparse._SubParsersAction) -> argparse.ArgumentParser:
+    """Register ``rrls report`` on the ``rrls`` sub-command parser."""
+    r = sub.add_parser(
+        "report",
+        help="regenerate a benchmark's report (summary.json, report.md, tables, figures)",
+        description="Rebuild DIR/results from the run directories and write DIR/report: "
+        "summary.json, report.md, tables/*.tex (booktabs) and *.csv, figures.",
+    )
+    r.add_argument("dir", help="a `rrls benchmark --out` directory")
+    r.add_argument("--no-plots", action="store_true", help="skip the figures")
+    r.add_argument(
+        "--reference",
+        metavar="FILE",
+        help=f"reference results (.json/.csv, or a shipped name: {', '.join(SHIPPED)}) normalising"
+        " the tasks without their own TD3 and M2TD3 runs; refused if measured under another"
+        " protocol (physics, set, mesh, episodes)",
+    )
+    r.add_argument(
+        "--export-reference",
+        metavar="FILE",
+        help="also write this benchmark's results (every algorithm, per-seed values) as a "
+        "reference file (.json, or .csv) another lab can pass to --reference",
+    )
+    r.add_argument("--label", help="--export-reference: the reference's label")
+    r.add_argument(
+        "--rename",
+        action="append",
+        metavar="NAME=TEXT",
+        help="show algorithm NAME's row as TEXT in every table and figure (NAME@REF: the "
+        "reference REF's row, e.g. td3@quick='TD3, rrls quick'); repeatable",
+    )
+    return r
+
+
+def run(args: argparse.Namespace) -> int:
+    """Write the report and print its table; a bad input is one line, exit status 2."""
+    return guarded(args, _report)
+
+
+def _report(args: argparse.Namespace) -> int:
+    from pathlib import Path
+
+    from rrls.experiments.benchfile import reporting, stored_fingerprints
+    from rrls.experiments.reference import ReferenceError, export_reference
+    from rrls.experiments.report import make_report
+    from rrls.experiments.store import build_store
+
+    root = Path(args.dir)
+    if not (root / "runs").is_dir() and not (root / "results").is_dir():
+        return fail("report", f"{root} is not a benchmark directory (no runs/ or results/)")
+    labels = {}
+    for item in args.rename or []:
+        name, sep, text = item.partition("=")
+        if not sep or not name.strip() or not text.strip():
+            return fail(
+                "report", f"--rename {item!r}: write NAME=TEXT (NAME@REF for a reference row)"
+            )
+        labels[name.strip()] = text.strip()
+    try:
+        with reporting(root):  # one store and report at a time (a benchmark ending, too)
+            if (root / "runs").is_dir():
+                build_store(root, stored_fingerprints(root))
+            path = make_report(
+                root, plots=not args.no_plots, reference=args.reference, labels=labels or None
+            )
+            exported = None
+            if args.export_reference:
+                exported = export_reference(root, args.export_reference, label=args.label)
+    except ReferenceError as err:
+        return fail("report", str(err))
+    print(results_table(root))
+    print(f"report: {path}")
+    if exported is not None:
+        print(
+            f"reference: {args.export_reference} ({exported.label!r}: "
+            f"{len(exported.rows)} cells; `rrls report DIR --reference "
+            f"{shlex.quote(str(args.export_reference))}`)"
+        )
+    return 0
+
+
+__all__ = ["NAME", "add_parser", "run"]
