@@ -20,7 +20,7 @@ TRAIN += ["--learning-starts", "60", "--checkpoint-every", "60", "--eval-every",
 
 def test_what_the_twin_cannot_train_is_refused_saying_why():
     for args, words in (
-        (("rarl", "hopper", "v5"), "adversary's forces"),
+        (("rarl", "hopper", "v5"), "adversary moves the dynamics"),
         (("nrmdp", "hopper", "v5"), "adversary's actions"),
         (("td3", "humanoidstandup", "v5"), "PGS"),
         (("td3", "reacher", "v5"), "tasks with one"),

@@ -120,9 +120,11 @@ def not_on_twin(algo: str) -> str | None:
     from rrls.algorithms import algorithm_info
 
     info = algorithm_info(algo)
-    if info is not None and info.adversary:
-        return "its adversary acts at every step (not wired to the twin yet)"
-    return None
+    if info is None or not info.adversary:
+        return None
+    if info.set_use == "adversary":
+        return "its adversary moves the dynamics at every step (not wired to the twin yet)"
+    return "its adversary's actions mix into every step (not wired to the twin yet)"
 
 
 def check_twin(algo: str, task: str, physics: str) -> None:
