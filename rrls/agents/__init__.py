@@ -14,7 +14,7 @@ from rrls.agents.config import Diverged, Interrupted, TrainConfig, benchmark_set
 from rrls.agents.envs import task_env
 from rrls.agents.hparams import hp
 from rrls.agents.learner import Learner, LearnerProtocol, StateLayoutError
-from rrls.agents.lookup import algorithm, hyperparameters
+from rrls.agents.lookup import ResolvedRun, algorithm, hyperparameters, resolve_run
 from rrls.agents.loop import train, train_group
 from rrls.agents.nets import (
     Actor,
@@ -40,6 +40,8 @@ __all__ = [
     "algorithm",
     "benchmark_set",
     "hyperparameters",
+    "resolve_run",
+    "ResolvedRun",
     "train",
     "train_group",
     # the learner protocol and its building blocks (what docs/examples/ddpg.py is made of)

@@ -16,7 +16,14 @@ from typing import Any, NamedTuple
 from rrls.agents import td3
 from rrls.algorithms import algorithm_info, built_in, plugin_entry_points
 
-__all__ = ["LEARNER_METHODS", "Algorithm", "algorithm", "hyperparameters"]
+__all__ = [
+    "LEARNER_METHODS",
+    "Algorithm",
+    "ResolvedRun",
+    "algorithm",
+    "hyperparameters",
+    "resolve_run",
+]
 
 #: what the training loop calls on a learner (``rrls.agents.learner``)
 LEARNER_METHODS = ("act", "observe", "update", "state_dict", "load_state_dict", "export")
@@ -83,6 +90,22 @@ def _check_learner(name: str, target: str, learner: Any, config: Any, make_env: 
         )
     if not callable(make_env):
         raise ValueError(f"algorithm {name!r}: its make_env must be callable, got {make_env!r}")
+
+
+class ResolvedRun(NamedTuple):
+    """One run as the training loop takes it, resolved once: its settings (a ``TrainConfig``),
+    its algorithm (the row's loaded learner, ``Config`` class and env factory) and its
+    hyper-parameters (that ``Config`` with the run's overrides)."""
+
+    settings: Any
+    algorithm: Algorithm
+    hyper: Any
+
+
+def resolve_run(config: Any) -> ResolvedRun:
+    """``config`` resolved: its algorithm loaded (once per process) and its ``Config`` built and
+    validated (an unknown hyper-parameter: one line naming the valid ones)."""
+    return ResolvedRun(config, algorithm(config.algo), hyperparameters(config))
 
 
 def hyperparameters(config: Any) -> Any:

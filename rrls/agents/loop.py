@@ -30,7 +30,7 @@ from rrls.agents.config import Diverged, TrainConfig
 from rrls.agents.envs import env_factory, make_envs
 from rrls.agents.hparams import check_memory
 from rrls.agents.learner import check_runs_first, run_slice, stack_runs
-from rrls.agents.lookup import Algorithm, algorithm, hyperparameters
+from rrls.agents.lookup import Algorithm, ResolvedRun, resolve_run
 from rrls.agents.run import Run
 from rrls.agents.streams import RunSeeds, rng_state, set_rng_state
 from rrls.agents.threads import process_settings
@@ -66,17 +66,18 @@ def train_group(
     """
     if not configs:
         return []
-    hyper = hyperparameters(configs[0])
-    _check_group(configs, hyper)
+    resolved = [resolve_run(c) for c in configs]  # each run's algorithm and Config, once
+    _check_group(resolved)
     with ExitStack() as locks:  # a second command writing the same run directory is refused
         for c in configs:
             if c.out is not None:
                 locks.enter_context(DirectoryLock(c.out))
-        return _train_runs(configs, resume, hyper, on_episode)
+        return _train_runs(resolved, resume, on_episode)
 
 
-def _train_runs(configs, resume, hyper, on_episode) -> list[Path]:
-    runs = [Run(c, resume, hyper) for c in configs]
+def _train_runs(resolved: list[ResolvedRun], resume, on_episode) -> list[Path]:
+    group = resolved[0]  # the runs differ only in seed and directory (_check_group)
+    runs = [Run(r.settings, resume, group.hyper) for r in resolved]
     try:
         pending = [k for k, run in enumerate(runs) if not run.finished]
         states = {k: runs[k].load() for k in pending}
@@ -88,9 +89,9 @@ def _train_runs(configs, resume, hyper, on_episode) -> list[Path]:
             hook = None
             if on_episode is not None:
                 hook = (lambda ks: lambda i, s, r: on_episode(ks[i], s, r))(members)
-            with process_settings(configs[0].threads) as threads:
+            with process_settings(group.settings.threads) as threads:
                 _train_together(
-                    hyper, [runs[k] for k in members], [states[k] for k in members], hook, threads
+                    group, [runs[k] for k in members], [states[k] for k in members], hook, threads
                 )
     finally:
         for run in reversed(runs):
@@ -98,12 +99,13 @@ def _train_runs(configs, resume, hyper, on_episode) -> list[Path]:
     return [run.dir for run in runs]
 
 
-def _check_group(configs: list[TrainConfig], hyper: Any) -> None:
+def _check_group(resolved: list[ResolvedRun]) -> None:
     """The runs of a group must differ only in seed and directory."""
-    first, reference = configs[0], configs[0].identity(hyper)
+    configs = [r.settings for r in resolved]
+    first, reference = configs[0], configs[0].identity(resolved[0].hyper)
     same = ("steps", "device", "eval_every", "eval_episodes", "eval_mesh", "checkpoint_every")
-    for config in configs[1:]:
-        identity = config.identity(hyperparameters(config))
+    for config, run in zip(configs[1:], resolved[1:]):
+        identity = config.identity(run.hyper)
         diff = [k for k, v in reference.items() if k != "seed" and identity[k] != v]
         diff += [name for name in same if getattr(config, name) != getattr(first, name)]
         if diff:
@@ -165,10 +167,9 @@ def _replay(envs: Any, k: int, saved: dict[str, Any], path: Path) -> tuple:
     return obs, episode
 
 
-def _train_together(hyper, runs, states, on_episode, threads) -> None:
+def _train_together(group: ResolvedRun, runs, states, on_episode, threads) -> None:
     """The collection loop of one group of runs at the same step."""
-    first = runs[0].config
-    algo = algorithm(first.algo)
+    first, algo, hyper = runs[0].config, group.algorithm, group.hyper
     make = env_factory(algo, first, hyper)
     template = make()  # spaces and metadata; the group's envs may live in worker processes
     check_group_memory(hyper, template, len(runs), first.steps - runs[0].step)
