@@ -39,8 +39,9 @@ from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
-from gymnasium.envs.registration import WrapperSpec, register, registry
+from gymnasium.envs.registration import registry
 
+from rrls.gym_ids import register_ids, task_ids, unregister_ids
 from rrls.params import ParamSpec, force_params
 from rrls.uncertainty import UncertaintySet
 
@@ -51,7 +52,6 @@ ENTRY_POINT_GROUP = "rrls.tasks"
 #: episode length of a task whose env id declares none
 MAX_EPISODE_STEPS = 1000
 #: adversary strength of the ``probabilistic-action-robust`` ids (NR-MDP)
-NR_MDP_ALPHA = 0.1
 FAMILIES = ("robust", "force")
 
 
@@ -284,7 +284,7 @@ def register_task(
     if check:
         validate_task(spec)
     if existing is not None:
-        _unregister_ids(existing)
+        unregister_ids(existing)
     TASKS[spec.key] = spec
     for alias in spec.aliases:
         TASK_ALIASES[alias] = spec.key
@@ -450,69 +450,13 @@ def _build_base(spec: TaskSpec) -> Any:
         mujoco.set_mju_user_warning(previous)
 
 
-# -- Gymnasium ids ---------------------------------------------------------------------------------
-_ACCESS = WrapperSpec("ParamsAccess", "rrls.wrappers.access:ParamsAccess", {})
-
-
-def _wrapper(name: str, module: str, **kwargs: Any) -> WrapperSpec:
-    return WrapperSpec(name, f"rrls.wrappers.{module}:{name}", kwargs)
-
-
-def task_ids(spec: TaskSpec) -> dict[str, tuple[str, WrapperSpec | None]]:
-    """Every Gymnasium id of the task -> (entry point, game wrapper or None)."""
-    key = spec.key
-    robust, force = f"rrls.envs:Robust{spec.name}", f"rrls.envs:Force{spec.name}"
-    ids: dict[str, tuple[str, WrapperSpec | None]] = {f"rrls/robust-{key}-v0": (robust, None)}
-    if spec.forces:
-        ids[f"rrls/force-{key}-v0"] = (force, None)
-    for set_name, family in spec.families.items():
-        bounds = {k: [lo, hi] for k, (lo, hi) in spec.sets[set_name].items()}
-        adversary = _wrapper("DynamicAdversarial", "adversarial", params_bound=bounds)
-        if family == "force":
-            ids[f"rrls/robust-{key}-adversarial-forces-v0"] = (force, adversary)
-            continue
-        dr = _wrapper("DomainRandomization", "domain_randomization", params_bound=bounds)
-        ids[f"rrls/robust-{key}-adversarial-{set_name}-v0"] = (robust, adversary)
-        ids[f"rrls/robust-{key}-domain-randomization-{set_name}-v0"] = (robust, dr)
-    par = _wrapper("ProbabilisticActionRobust", "action_robust", alpha=NR_MDP_ALPHA)
-    ids[f"rrls/probabilistic-action-robust-{key}-v0"] = (robust, par)
-    ids[f"probabilistic-action-robust-{key}-v0"] = (robust, par)  # the original's spelling
-    return ids
-
-
-def register_ids(spec: TaskSpec, replace: bool = False) -> None:
-    """Register the task's Gymnasium ids (idempotent; ``replace``: overwrite existing ones).
-
-    Each id is the env class with Gymnasium's usual wrappers (the task's time limit), then the
-    game wrapper as a Gymnasium ``additional_wrappers`` spec (so ``env.spec`` round-trips), then
-    :class:`rrls.wrappers.ParamsAccess` outermost, so ``set_params``/``get_params`` are callable
-    on what ``gym.make`` returns, as in the original code.
-    """
-    for env_id, (entry_point, game) in task_ids(spec).items():
-        if env_id in registry:
-            if not replace:
-                continue
-            del registry[env_id]
-        register(
-            id=env_id,
-            entry_point=entry_point,
-            max_episode_steps=spec.max_episode_steps,
-            additional_wrappers=((game,) if game else ()) + (_ACCESS,),
-        )
-
-
-def _unregister_ids(spec: TaskSpec) -> None:
-    for env_id in task_ids(spec):
-        registry.pop(env_id, None)
-
-
 def unregister_task(key: str) -> None:
     """Forget a registered task and its Gymnasium ids (tests, notebooks re-declaring a task);
     the built-in tasks stay (they could otherwise be replaced through this door)."""
     spec = get_task(key)
     if spec.key in BUILTIN_TASKS:
         raise ValueError(f"task {spec.key!r} is built into rrls and cannot be unregistered")
-    _unregister_ids(spec)
+    unregister_ids(spec)
     del TASKS[spec.key]
     for alias in [a for a, k in TASK_ALIASES.items() if k == spec.key]:
         del TASK_ALIASES[alias]
