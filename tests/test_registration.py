@@ -1,4 +1,4 @@
-"""Registered ids, cheap import, registration without `import rrls`."""
+"""Registered ids, cheap import, registration by Gymnasium's `module:id` syntax (no hook)."""
 
 from __future__ import annotations
 
