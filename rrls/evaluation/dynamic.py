@@ -86,7 +86,7 @@ def evaluate_dynamic(
     episodes per worker) change no number; with ``out_dir``, finished chunks are kept there and
     a re-run with the same arguments resumes; ``dynamic.csv`` holds the episodes at the end.
     """
-    from rrls.evaluation.protocol import Protocol, check_sizes
+    from rrls.evaluation.protocol import Protocol, check_protocol_alone, check_sizes
     from rrls.physics import physics_label
 
     rate_game_of = game == "adversarial"  # a protocol's rate limit is the parameter game's
@@ -103,8 +103,6 @@ def evaluate_dynamic(
             rate_limit=rate_limit,
             rate_game=rate_game,
         )
-    elif not isinstance(protocol, Protocol):
-        raise TypeError(f"protocol must be an rrls.evaluation.Protocol, got {protocol!r}")
     else:
         given = {
             "uncertainty": uncertainty != "3d",
@@ -115,12 +113,8 @@ def evaluate_dynamic(
             "paper": paper is not False,
             "rate_game": rate_game != "tc",
         }
-        both = [name for name, differs in given.items() if differs]
-        if both:
-            raise ValueError(
-                f"evaluate_dynamic got protocol= and {', '.join(both)}: give the protocol alone "
-                "or the keywords alone"
-            )
+        fields = {"episodes": "dynamic_episodes", "paper": "physics"}
+        check_protocol_alone("evaluate_dynamic", protocol, given, fields)
         _check_arguments(protocol.dynamic_episodes, batch_size, history, 0, alpha, None)
     if workers == 0:  # 0: in this process, as every rrls command reads it
         workers = 1

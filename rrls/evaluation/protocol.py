@@ -36,6 +36,7 @@ __all__ = [
     "Protocol",
     "check_counts",
     "check_episodes",
+    "check_protocol_alone",
     "check_rate_limit",
     "check_seed",
     "check_sizes",
@@ -96,6 +97,23 @@ def check_rate_limit(rate: Any) -> None:
         or rate <= 0
     ):
         raise ValueError(f"rate_limit must be None (null) or a finite number > 0, got {rate!r}")
+
+
+def check_protocol_alone(
+    caller: str, protocol: Any, given: Mapping[str, bool], fields: Mapping[str, str] | None = None
+) -> None:
+    """Refuse a ``protocol`` that is not a :class:`Protocol`, or one given beside keywords it
+    holds (``given``: keyword -> whether the caller got it; ``fields``: the protocol field a
+    keyword stands for, for the hint): the keyword would be ignored, so one line names it."""
+    if not isinstance(protocol, Protocol):
+        raise TypeError(f"protocol must be an rrls.evaluation.Protocol, got {protocol!r}")
+    both = [name for name, differs in given.items() if differs]
+    if both:
+        field = (fields or {}).get(both[0], both[0])
+        raise ValueError(
+            f"{caller} got protocol= and {', '.join(both)}: give the protocol alone (with "
+            f"protocol.replace({field}=...) for another value) or the keywords alone"
+        )
 
 
 class Plan(NamedTuple):

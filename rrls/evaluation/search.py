@@ -71,15 +71,13 @@ def search_worst_case(
     fixed disruptors and context, as ``evaluate`` reads it; the keywords build one for
     interactive use and giving both is an error. A schedule family is not searched.
     """
-    from rrls.evaluation.protocol import Protocol, check_counts
+    from rrls.evaluation.protocol import Protocol, check_counts, check_protocol_alone
 
     if protocol is None:
         check_counts(episodes=episodes)
         protocol = Protocol(
             uncertainty, episodes=episodes, seed=seed, max_episode_steps=max_episode_steps
         )
-    elif not isinstance(protocol, Protocol):
-        raise TypeError(f"protocol must be an rrls.evaluation.Protocol, got {protocol!r}")
     else:
         given = {
             "uncertainty": uncertainty != "3d",
@@ -87,12 +85,7 @@ def search_worst_case(
             "seed": seed != 0,
             "max_episode_steps": max_episode_steps is not None,
         }
-        both = [name for name, differs in given.items() if differs]
-        if both:
-            raise ValueError(
-                f"search_worst_case got protocol= and {', '.join(both)}: give the protocol "
-                "alone or the keywords alone"
-            )
+        check_protocol_alone("search_worst_case", protocol, given)
     if protocol.schedule is not None:
         raise ValueError("search_worst_case searches parameter boxes, not schedule families")
     if budget < 2:

@@ -23,7 +23,7 @@ from rrls.deprecation import renamed_keywords
 from rrls.evaluation import engine, evaldir, lanes
 from rrls.evaluation.chunks import CHUNK
 from rrls.evaluation.prepared import PreparedPolicy, policy_record, prepare_policy
-from rrls.evaluation.protocol import Protocol, check_counts, check_sizes
+from rrls.evaluation.protocol import Protocol, check_counts, check_protocol_alone, check_sizes
 from rrls.evaluation.result import EvaluationResult
 from rrls.physics import physics_label
 from rrls.provenance import versions
@@ -122,8 +122,6 @@ def evaluate(
             context=context,
             max_episode_steps=max_episode_steps,
         )
-    elif not isinstance(protocol, Protocol):
-        raise TypeError(f"protocol must be an rrls.evaluation.Protocol, got {protocol!r}")
     else:  # a protocol holds every field: one given beside it would be ignored, so refuse it
         given = {
             "uncertainty": uncertainty != "3d",
@@ -138,12 +136,7 @@ def evaluate(
             "split": split is not None,
             "paper": paper is not False,
         }
-        both = [name for name, differs in given.items() if differs]
-        if both:
-            raise ValueError(
-                f"evaluate got protocol= and {', '.join(both)}: give the protocol alone (with "
-                f"protocol.replace({both[0]}=...) for another value) or the keywords alone"
-            )
+        check_protocol_alone("evaluate", protocol, given, {"paper": "physics"})
     if not isinstance(policy, PreparedPolicy):  # prepared at the door: adapted already
         policy = as_policy(policy)
     if view is None:
