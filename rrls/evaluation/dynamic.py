@@ -13,7 +13,7 @@ also on the protagonist's action), whatever the worker count or batch size.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
@@ -162,12 +162,11 @@ def _evaluate(
 
     episodes = protocol.dynamic_episodes
     seeds = episode_seeds(protocol.seed, 1, episodes)
-    env = game.make_env()  # the game's checks (a nominal set, context in the TC game) first
-    env.close()
-    spec = RolloutSpec(
-        game.task, "game", (), np.zeros((1, 0)), seeds, _episode_steps(env), game=game
-    )
+    # the first lane's env (the game's checks: a nominal set, context in the TC game) gives the
+    # episode length; the spec with it keys the same cached envs
+    spec = RolloutSpec(game.task, "game", (), np.zeros((1, 0)), seeds, 1, game=game)
     env = make_rollout_envs(spec, 1)[0]
+    spec = replace(spec, max_episode_steps=_episode_steps(env))
     players = TwoPlayers(
         protagonist if isinstance(protagonist, PreparedPolicy) else as_policy(protagonist),
         as_policy(adversary),
