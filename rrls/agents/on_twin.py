@@ -37,8 +37,9 @@ def twin_refusal(algo: str) -> str | None:
     info = algorithm_info(algo)
     if info is None:
         return "no algorithm of that name"
-    if not_on_twin(algo) is not None:
-        return not_on_twin(algo)
+    why = not_on_twin(algo)
+    if why is not None:
+        return why
     if info.set_use == "chosen":
         return "it picks each episode's point itself: train it with rrls train --simulator warp"
     return None
