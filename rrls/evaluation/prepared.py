@@ -76,8 +76,8 @@ def prepare(policy: Any, task: str, protocol: Any = None, view: Any = None) -> P
 def prepare_policy(policy: Any, spec: Any, stacklevel: int = 3) -> PreparedPolicy:
     """Check an adapted ``policy`` (``as_policy``'s) against ``spec``'s task (a policy trained
     on another task, wrong shapes, non-numbers: one-line errors before any episode); warn once
-    if its actions
-    depend on the batch (then results may differ in the last bits from a one-episode loop).
+    if its actions depend on the batch (then results may differ in the last bits from a
+    one-episode loop).
     A policy already prepared for these observations is returned as it is."""
     obs_dim, act_dim = _dims(spec)
     if isinstance(policy, PreparedPolicy):
