@@ -122,9 +122,7 @@ def _row(name: str, display: str, row: int, **flags: Any) -> AlgorithmInfo:
 ALGORITHMS: dict[str, AlgorithmInfo] = {
     a.name: a
     for a in (
-        _row(
-            "td3", "TD3", 0, paper=True, gpu_steps_per_s=((1, 784.0), (8, 2_300.0), (32, 4_189.0))
-        ),
+        _row("td3", "TD3", 0, paper=True, gpu_steps_per_s=TD3_GPU),
         _row("dr", "DR", 1, paper=True, set_use="random"),
         _row(
             "rarl",
