@@ -89,9 +89,10 @@ def evaluate_dynamic(
     from rrls.evaluation.protocol import Protocol, check_protocol_alone, check_sizes
     from rrls.physics import physics_label
 
-    rate_game_of = game == "adversarial"  # a protocol's rate limit is the parameter game's
+    # a protocol's rate limit is the parameter game's; one given by keyword for another game is
+    # refused by name (make_dynamic_env)
+    rate_applies = protocol is None or game == "adversarial"
     if protocol is None:
-        rate_game_of = True  # a rate limit given for another game is refused by name
         _check_arguments(episodes, batch_size, history, seed, alpha, rate_limit)
         protocol = Protocol(
             uncertainty,
@@ -119,12 +120,12 @@ def evaluate_dynamic(
     if workers == 0:  # 0: in this process, as every rrls command reads it
         workers = 1
     check_sizes(workers=workers)
-    spec = Game(
+    played = Game(
         task,
         game,
         protocol.uncertainty,
         float(alpha),
-        protocol.rate_limit if rate_game_of else None,
+        protocol.rate_limit if rate_applies else None,
         protocol.context,
         protocol.paper,
         rate_game=protocol.rate_game,
@@ -134,7 +135,7 @@ def evaluate_dynamic(
     )
     try:  # the engine's env cache lives only as long as this evaluation
         return _evaluate(
-            protagonist, adversary, spec, protocol, batch_size, workers, out_dir, progress
+            protagonist, adversary, played, protocol, batch_size, workers, out_dir, progress
         )
     finally:
         from rrls.evaluation.lanes import clear_env_cache
@@ -157,7 +158,7 @@ def _evaluate(
     from rrls.evaluation import engine, evaldir
     from rrls.evaluation.chunks import CHUNK
     from rrls.evaluation.lanes import RolloutSpec, episode_seeds, make_rollout_envs
-    from rrls.evaluation.policies import as_policy, policy_fingerprint
+    from rrls.evaluation.policies import as_policy
     from rrls.evaluation.prepared import PreparedPolicy
 
     episodes = protocol.dynamic_episodes
@@ -183,13 +184,14 @@ def _evaluate(
             "episodes": episodes,
             "seed": protocol.seed,
             "chunk": CHUNK,
-            **_fingerprints(players, env, policy_fingerprint),
+            **_fingerprints(players, env),
         }
         with evaldir.opened(out_dir, config) as chunk_dir:
             cols = engine.run(spec, players, workers, lanes, chunk_dir=chunk_dir, progress=progress)
             frame = _frame(seeds, cols)
             evaldir.write_dynamic(out_dir, frame)
-    frame = _frame(seeds, cols)
+    if out_dir is None:
+        frame = _frame(seeds, cols)
     n_diverged = int(frame["diverged"].sum())
     if n_diverged:
         warnings.warn(
@@ -215,9 +217,11 @@ def _episode_steps(env: Any) -> int:
     return int(spec.max_episode_steps)
 
 
-def _fingerprints(players: TwoPlayers, env: Any, fingerprint: Any) -> dict[str, str]:
+def _fingerprints(players: TwoPlayers, env: Any) -> dict[str, str]:
     """Both players' fingerprints on probes of their input widths (a resume with another
     protagonist or adversary is refused)."""
+    from rrls.evaluation.policies import policy_fingerprint as fingerprint
+
     width = range(env.observation_space.shape[0])
     p_dim = len(width[players.p0 : players.p1])
     a_dim = len(width[players.a0 : players.a1])
