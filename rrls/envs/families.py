@@ -72,13 +72,9 @@ def _bounds_enum(task: TaskSpec) -> type[Enum]:
         _SET_NAMES.get(k, k.upper()): {n: [lo, hi] for n, (lo, hi) in bounds.items()}
         for k, bounds in task.sets.items()
     }
-    enum = Enum(_enum_name(task), members)
+    enum = Enum(f"{task.name.replace('StandUp', 'Standup')}ParamsBound", members)
     enum.__module__ = PACKAGE
     return enum
-
-
-def _enum_name(task: TaskSpec) -> str:
-    return f"{task.name.replace('StandUp', 'Standup')}ParamsBound"
 
 
 class _Classes(Mapping):
@@ -105,7 +101,7 @@ class _Classes(Mapping):
 ROBUST_ENVS: Mapping[str, type] = _Classes("robust")
 FORCE_ENVS: Mapping[str, type] = _Classes("force")
 
-#: the names :func:`_publish` made attributes of this module, per task key
+#: the names :func:`_publish` put in the followed namespaces, per task key
 _PUBLISHED: dict[str, list[str]] = {}
 #: the namespaces that follow the task table (``rrls.envs``'s: :func:`follow`)
 _NAMESPACES: list[dict[str, Any]] = []
