@@ -41,7 +41,7 @@ def add_parser(sub: argparse._SubParsersAction) -> argparse.ArgumentParser:
     from rrls.tasks import TASKS  # every registered task, plug-ins' included (loaded by main)
 
     b = sub.add_parser(
-        "benchmark",
+        NAME,
         help="train, evaluate and report a grid of runs (the paper's comparison); resumable",
         description="Run a grid (algorithm x task x seed): training, the final mesh evaluation, "
         "the dynamic evaluation of RARL/NR-MDP against their own adversaries; then the result "

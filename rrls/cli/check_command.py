@@ -14,7 +14,7 @@ NAME = "check"
 def add_parser(sub: argparse._SubParsersAction) -> argparse.ArgumentParser:
     """Register ``rrls check`` on the ``rrls`` sub-command parser."""
     check = sub.add_parser(
-        "check",
+        NAME,
         help="build every env and run short random episodes at the nominal point and set corners",
         description="Smoke-test the physics stack: for each task, build the robust and force "
         "envs and run one short random-action episode at the nominal model and at every corner "

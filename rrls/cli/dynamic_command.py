@@ -15,7 +15,7 @@ NAME = "evaluate-dynamic"
 def add_parser(sub: argparse._SubParsersAction) -> argparse.ArgumentParser:
     """Register ``rrls evaluate-dynamic`` on the ``rrls`` sub-command parser."""
     ed = sub.add_parser(
-        "evaluate-dynamic",
+        NAME,
         help="a RARL / NR-MDP run's policy against its own trained adversary (paper Table 6)",
         description="Play a two-player run's final protagonist (policy.npz) against its own final "
         "adversary (adversary.npz) for --episodes episodes, in the game the run trained in "

@@ -17,7 +17,7 @@ NAME = "evaluate"
 def add_parser(sub: argparse._SubParsersAction) -> argparse.ArgumentParser:
     """Register ``rrls evaluate`` on the ``rrls`` sub-command parser."""
     ev = sub.add_parser(
-        "evaluate",
+        NAME,
         help="evaluate a policy over a mesh of an uncertainty set (worst / average case)",
         description="Evaluate POLICY over a uniform mesh of the uncertainty set (paper §4). "
         "Re-running the same command with the same --out resumes an interrupted evaluation; "

@@ -12,7 +12,7 @@ NAME = "plot"
 def add_parser(sub: argparse._SubParsersAction) -> argparse.ArgumentParser:
     """Register ``rrls plot`` on the ``rrls`` sub-command parser."""
     plot = sub.add_parser(
-        "plot",
+        NAME,
         help="plot a saved evaluation: return over the uncertainty set",
         description="Draw the mean return over the uncertainty set from an `rrls evaluate` "
         "output directory: a line (1D), a heatmap (2D) or three slices through the worst point "

@@ -20,7 +20,7 @@ NAME = "quickstart"
 def add_parser(sub: argparse._SubParsersAction) -> argparse.ArgumentParser:
     """Register ``rrls quickstart`` on the ``rrls`` sub-command parser."""
     quick = sub.add_parser(
-        "quickstart",
+        NAME,
         help="the `quick` benchmark preset: five algorithms on InvertedPendulum's 1D set, "
         "evaluated, reported, plotted (~18 min on 2 cores)",
         description="The README's main command: `rrls benchmark --preset quick` in --out. TD3, "

@@ -17,7 +17,7 @@ NAME = "report"
 def add_parser(sub: argparse._SubParsersAction) -> argparse.ArgumentParser:
     """Register ``rrls report`` on the ``rrls`` sub-command parser."""
     r = sub.add_parser(
-        "report",
+        NAME,
         help="regenerate a benchmark's report (summary.json, report.md, tables, figures)",
         description="Rebuild DIR/results from the run directories and write DIR/report: "
         "summary.json, report.md, tables/*.tex (booktabs) and *.csv, figures.",

@@ -17,7 +17,7 @@ NAME = "submit"
 def add_parser(sub: argparse._SubParsersAction) -> argparse.ArgumentParser:
     """Register ``rrls submit`` on the ``rrls`` sub-command parser."""
     s = sub.add_parser(
-        "submit",
+        NAME,
         help="evaluate a policy trained elsewhere under a benchmark's protocol and add it as an "
         "algorithm (then `rrls report DIR` shows it beside the baselines)",
         description="Evaluate POLICY exactly as BENCH_DIR evaluates its own runs (same set, mesh, "

@@ -27,7 +27,7 @@ def add_parser(sub: argparse._SubParsersAction) -> argparse.ArgumentParser:
     from rrls.algorithms import built_in
 
     tr = sub.add_parser(
-        "train",
+        NAME,
         help=f"train a baseline ({', '.join(built_in())}) or a plug-in{_plugin_names()}; needs "
         "the `train` extra",
         description="Train a baseline with the paper's hyper-parameters. Checkpoints are written "

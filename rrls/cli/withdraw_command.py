@@ -16,7 +16,7 @@ NAME = "withdraw"
 def add_parser(sub: argparse._SubParsersAction) -> argparse.ArgumentParser:
     """Register ``rrls withdraw`` on the ``rrls`` sub-command parser."""
     w = sub.add_parser(
-        "withdraw",
+        NAME,
         help="take an algorithm's submissions out of a benchmark (undoes `rrls submit`)",
         description="Remove the submitted runs of --algo (all, or those of --task / --seed) "
         "from BENCH_DIR; a task left without runs leaves a submissions-only benchmark's task "
