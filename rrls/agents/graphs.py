@@ -124,6 +124,11 @@ class Update:
         self._entries: dict[Any, dict[str, Any]] = {}
         self._pool: Any = None
 
+    def sibling(self, fn: Callable) -> Update:
+        """An ``Update`` of ``fn`` made as this one was (compiled, captured, rehearsed), whatever
+        the settings in force now: a learner's acting on the device, made on first use."""
+        return Update(fn, self.device, self.graphs, self.compiled, self.static, self.warmup)
+
     def __call__(self, variant: Any, inputs: dict[str, torch.Tensor]) -> dict[str, torch.Tensor]:
         if not self.static:
             return self.fn(variant, {k: v.to(self.device) for k, v in inputs.items()})

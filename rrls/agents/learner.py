@@ -16,6 +16,19 @@ each run on its own: in ``state_dict()``, every tensor with at least one dimensi
 first (``(K, ...)``); 0-d tensors and plain values are common to the group (step counts). A
 run's checkpoint is its slice ``[k : k + 1]`` of every such tensor (a group of one), whatever
 group it was trained in.
+
+The device-resident loop (``rrls.agents.on_twin``: the Warp twin's observations, the replay
+and the updates stay on the GPU) calls four more methods, which TD3, DR, SAC and SAC-DR have::
+
+    draw_ahead(steps) -> {name: (steps, ...) tensor}   # the next steps' random inputs
+    act_tensor(obs, draws) -> (K, act) tensor          # draws: one step's row of each
+    put(obs, actions, rewards, next_obs, terminated)   # observe, for device tensors
+    update_drawn(step, draws) -> {name: (K,) tensor}   # update, on that step's row
+
+Why ahead: each run draws from its own seeded generators on the CPU (so a run does not depend
+on its group), and drawing a block of steps at once uploads them once per block instead of
+once per step. Row ``t`` of every stream belongs to env step ``t``, used or not, so a run's
+numbers do not depend on the block size.
 """
 
 from __future__ import annotations
@@ -26,6 +39,7 @@ import numpy as np
 import torch
 
 __all__ = [
+    "DeviceLearnerProtocol",
     "Learner",
     "LearnerProtocol",
     "StateLayoutError",
@@ -48,6 +62,16 @@ class LearnerProtocol(Protocol):
     def state_dict(self) -> dict[str, Any]: ...
     def load_state_dict(self, state: dict[str, Any]) -> None: ...
     def export(self, k: int) -> dict[str, Any]: ...
+
+
+@runtime_checkable
+class DeviceLearnerProtocol(Protocol):
+    """What the device-resident loop calls beyond ``LearnerProtocol`` (the module docstring)."""
+
+    def draw_ahead(self, steps: int) -> dict[str, torch.Tensor]: ...
+    def act_tensor(self, obs: torch.Tensor, draws: dict[str, torch.Tensor]) -> torch.Tensor: ...
+    def put(self, obs, actions, rewards, next_obs, terminated) -> None: ...
+    def update_drawn(self, step: int, draws: dict[str, torch.Tensor]) -> dict: ...
 
 
 class Learner:

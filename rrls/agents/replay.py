@@ -8,6 +8,12 @@ group, and a resumed run the same as an uninterrupted one. The capacity is ``buf
 whatever ``--steps`` (extending a finished run with ``--resume --steps N`` then equals the
 N-step run); on a CPU the table grows by doubling as it fills, on a GPU it is allocated at once
 (a captured CUDA graph keeps its address).
+
+The device-resident loop (``rrls.agents.on_twin``) stores device tensors with ``put`` and draws
+a block of steps' indices at once with ``draw_ahead``: uniform numbers from each run's own
+``"replay.ahead"`` numpy stream, scaled on the host by the size the buffer will have at each of
+those steps, uploaded once per block. Row ``t`` of that stream belongs to env step ``t`` whether
+an update uses it or not, so a run's batches do not depend on the block size.
 """
 
 from __future__ import annotations
@@ -17,7 +23,7 @@ import math
 import numpy as np
 import torch
 
-from rrls.agents.streams import Generators, RunSeeds
+from rrls.agents.streams import Generators, NumpyGenerators, RunSeeds
 
 __all__ = [
     "ReplayBuffer",
@@ -66,6 +72,8 @@ class ReplayBuffer:
             start += width
         self.pos = self.size = 0
         self.generators = Generators(seeds, purpose)
+        self.seeds, self.purpose = seeds, purpose
+        self.ahead: NumpyGenerators | None = None  # draw_ahead's streams, made on first use
 
     def _allocate(self, rows: int) -> None:
         table = torch.zeros((self.group, rows, self.width), device=self.device)
@@ -79,11 +87,37 @@ class ReplayBuffer:
         """Store one transition per run: each field ``(K, *shape)`` (or ``(K,)`` for scalars)."""
         for name, value in transitions.items():
             self._columns[name][:] = np.asarray(value, dtype=np.float32).reshape(self.group, -1)
+        self._write(torch.from_numpy(self._row))
+
+    def put(self, **transitions: torch.Tensor) -> None:
+        """``add`` for tensors already on the device (every field, each ``(K, *shape)``): one
+        copy into the table, no trip through the host."""
+        missing = set(self.shapes) ^ set(transitions)
+        if missing:
+            raise ValueError(f"put: fields {sorted(missing)} differ from {list(self.shapes)}")
+        row = torch.cat(
+            [transitions[name].reshape(self.group, -1).float() for name in self.shapes], 1
+        )
+        self._write(row)
+
+    def _write(self, row: torch.Tensor) -> None:
+        """Row ``(K, width)`` at the write position (the table grows first if it is full)."""
         if self.pos >= self.table.shape[1]:
             self._allocate(min(self.capacity, 2 * self.table.shape[1]))
-        self.table[:, self.pos].copy_(torch.from_numpy(self._row))
+        self.table[:, self.pos].copy_(row)
         self.pos = (self.pos + 1) % self.capacity
         self.size = min(self.size + 1, self.capacity)
+
+    def draw_ahead(self, steps: int, batch_size: int) -> torch.Tensor:
+        """The batch indices of the next ``steps`` env steps, ``(steps, K, batch)`` on the
+        device: step ``j`` (``0``-based) samples the ``min(size + j + 1, capacity)`` rows the
+        buffer will hold once that step's transition is stored."""
+        if self.ahead is None:
+            self.ahead = NumpyGenerators(self.seeds, self.purpose + ".ahead")
+        u = np.stack([rng.random((steps, batch_size)) for rng in self.ahead], 1)
+        sizes = np.minimum(self.size + 1 + np.arange(steps), self.capacity)
+        idx = (u * sizes[:, None, None]).astype(np.int64)
+        return torch.from_numpy(idx).to(self.device)
 
     def draw(self, batch_size: int) -> torch.Tensor:
         """Each run's batch indices from its own generator, ``(K, batch)``, on the CPU."""

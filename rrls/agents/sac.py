@@ -116,6 +116,9 @@ class Learner(_Learner):
         )
         self.act_dim = act_dim
         self._update = Update(self._compute, device)
+        self._act: Update | None = None  # acting on the device, made on first use
+        self.seeds = seeds
+        self.ahead: NumpyGenerators | None = None  # draw_ahead's streams, made on first use
 
     def act(self, obs: np.ndarray) -> list[Any]:
         """A sample of each run's policy at its observation."""
@@ -138,11 +141,55 @@ class Learner(_Learner):
 
     def update(self, step: int) -> dict[str, torch.Tensor]:
         cfg = self.config
+        n = 1 + (2 * cfg.policy_frequency if step % cfg.policy_frequency == 0 else 0)
+        draws = {"idx": self.buffer.draw(cfg.batch_size), "eps": self.draw(cfg.batch_size, n)}
+        return self.update_drawn(step, draws)
+
+    def update_drawn(self, step: int, draws: dict[str, torch.Tensor]) -> dict[str, torch.Tensor]:
+        """The update of ``step`` on ``draw_ahead``'s inputs of that step (its first ``n``
+        noise samples: 1, or ``1 + 2 · policy_frequency`` with the policy steps)."""
+        cfg = self.config
         policy = step % cfg.policy_frequency == 0
         target = step % cfg.target_network_frequency == 0
         n = 1 + (2 * cfg.policy_frequency if policy else 0)
-        draws = {"idx": self.buffer.draw(cfg.batch_size), "eps": self.draw(cfg.batch_size, n)}
-        return self._update((policy, target), draws)
+        return self._update((policy, target), {"idx": draws["idx"], "eps": draws["eps"][:n]})
+
+    # -- the device-resident loop (``rrls.agents.on_twin``): acting, storing and updating on
+    # device tensors, every random input drawn a block of steps ahead (``docs/algorithms.md``)
+    def draw_ahead(self, steps: int) -> dict[str, torch.Tensor]:
+        """The next ``steps`` env steps' random inputs, ``(steps, ...)`` on the device: acting's
+        samples from the runs' ``"explore"`` streams (the CPU path's draws), replay indices and
+        the updates' samples (as many as an update with policy steps takes) from their
+        ``".ahead"`` streams."""
+        cfg = self.config
+        if self.ahead is None:
+            self.ahead = NumpyGenerators(self.seeds, "noise.ahead")
+        n = 1 + 2 * cfg.policy_frequency
+        shape = (steps, n, cfg.batch_size, self.act_dim)
+        eps = [rng.standard_normal(shape, dtype=np.float32) for rng in self.ahead]
+        noise = [rng.standard_normal((steps, self.act_dim)) for rng in self.rngs]
+        return {
+            "noise": torch.from_numpy(np.stack(noise, 1).astype(np.float32)).to(self.device),
+            "idx": self.buffer.draw_ahead(steps, cfg.batch_size),
+            "eps": torch.from_numpy(np.stack(eps, 2)).to(self.device),
+        }
+
+    def act_tensor(self, obs: torch.Tensor, draws: dict[str, torch.Tensor]) -> torch.Tensor:
+        """``act`` on the device: a sample of each run's policy, ``(K, obs) -> (K, act)``."""
+        if self._act is None:
+            self._act = self._update.sibling(self._act_on_device)
+        return self._act(None, {"obs": obs, "noise": draws["noise"]})
+
+    def _act_on_device(self, _variant: None, x: dict[str, torch.Tensor]) -> torch.Tensor:
+        with torch.no_grad():
+            action, _ = self.actor.sample(x["obs"].unsqueeze(1), x["noise"].unsqueeze(1))
+            return action.squeeze(1)
+
+    def put(self, obs, actions, rewards, next_obs, terminated) -> None:
+        """``observe`` for device tensors."""
+        self.buffer.put(
+            obs=obs, action=actions, reward=rewards, next_obs=next_obs, terminated=terminated
+        )
 
     def _compute(self, variant: tuple[bool, bool], x: dict[str, torch.Tensor]) -> dict:
         """The device work of one update (``graphs.Update`` may capture it)."""

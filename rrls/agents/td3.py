@@ -112,6 +112,8 @@ class TD3:
         self.targets = [*self.actor_target.parameters(), *self.critic_target.parameters()]
         self.sources = [*self.actor.parameters(), *self.critic.parameters()]
         self.noise = Generators(seeds, name + "noise")  # target policy smoothing
+        self.seeds, self.name = seeds, name
+        self.ahead: NumpyGenerators | None = None  # draw_ahead's streams, made on first use
         self.low = torch.as_tensor(np.asarray(low, np.float32), device=device)
         self.high = torch.as_tensor(np.asarray(high, np.float32), device=device)
         self.act_dim = act_dim
@@ -125,6 +127,15 @@ class TD3:
         """Standard normal ``(K, batch, width)``, each run from its own generator."""
         width = self.act_dim if width is None else width
         return torch.stack([torch.randn((batch, width), generator=g) for g in self.noise])
+
+    def draw_ahead(self, steps: int, batch: int) -> torch.Tensor:
+        """``draw``'s noise for the next ``steps`` updates, ``(steps, K, batch, act)`` on the
+        device, from each run's ``"noise.ahead"`` numpy stream (the device-resident loop)."""
+        if self.ahead is None:
+            self.ahead = NumpyGenerators(self.seeds, self.name + "noise.ahead")
+        shape = (steps, batch, self.act_dim)
+        eps = [rng.standard_normal(shape, dtype=np.float32) for rng in self.ahead]
+        return torch.from_numpy(np.stack(eps, 1)).to(self.device)
 
     @torch.no_grad()
     def target_action(self, actor: Actor, next_obs: torch.Tensor, eps: torch.Tensor):
@@ -198,6 +209,7 @@ class Learner(_Learner):
             config.buffer_size, transition_fields(obs_dim, (len(self.low),)), device, seeds
         )
         self._update = Update(self._compute, device)
+        self._act: Update | None = None  # acting on the device, made on first use
 
     def act(self, obs: np.ndarray) -> list[Any]:
         """``π(s) + N(0, σ · scale)`` per run (each run's own generator), clipped to the box."""
@@ -212,7 +224,44 @@ class Learner(_Learner):
     def update(self, step: int) -> dict[str, torch.Tensor]:
         size = self.config.batch_size
         draws = {"idx": self.buffer.draw(size), "eps": self.agent.draw(size)}
+        return self.update_drawn(step, draws)
+
+    def update_drawn(self, step: int, draws: dict[str, torch.Tensor]) -> dict[str, torch.Tensor]:
+        """The update of ``step`` on given random inputs (``idx``, ``eps``)."""
         return self._update(step % self.config.policy_frequency == 0, draws)
+
+    # -- the device-resident loop (``rrls.agents.on_twin``): acting, storing and updating on
+    # device tensors, every random input drawn a block of steps ahead (``docs/algorithms.md``)
+    def draw_ahead(self, steps: int) -> dict[str, torch.Tensor]:
+        """The next ``steps`` env steps' random inputs, ``(steps, K, ...)`` on the device:
+        exploration noise from the runs' ``"explore"`` streams (the CPU path's draws), replay
+        indices and smoothing noise from their ``".ahead"`` streams."""
+        size = self.config.batch_size
+        noise = np.stack(
+            [rng.normal(0.0, self.sigma, (steps, len(self.sigma))) for rng in self.rngs], 1
+        )
+        return {
+            "noise": torch.from_numpy(noise.astype(np.float32)).to(self.agent.device),
+            "idx": self.buffer.draw_ahead(steps, size),
+            "eps": self.agent.draw_ahead(steps, size),
+        }
+
+    def act_tensor(self, obs: torch.Tensor, draws: dict[str, torch.Tensor]) -> torch.Tensor:
+        """``act`` on the device: ``clip(π(s) + noise, low, high)``, ``(K, obs) -> (K, act)``."""
+        if self._act is None:
+            self._act = self._update.sibling(self._act_on_device)
+        return self._act(None, {"obs": obs, "noise": draws["noise"]})
+
+    def _act_on_device(self, _variant: None, x: dict[str, torch.Tensor]) -> torch.Tensor:
+        with torch.no_grad():
+            action = self.agent.actor(x["obs"].unsqueeze(1)).squeeze(1) + x["noise"]
+            return action.clamp(self.agent.low, self.agent.high)
+
+    def put(self, obs, actions, rewards, next_obs, terminated) -> None:
+        """``observe`` for device tensors."""
+        self.buffer.put(
+            obs=obs, action=actions, reward=rewards, next_obs=next_obs, terminated=terminated
+        )
 
     def _compute(self, update_actor: bool, x: dict[str, torch.Tensor]) -> dict[str, torch.Tensor]:
         """The device work of one update (``graphs.Update`` may capture it)."""

@@ -1,0 +1,137 @@
+"""The twin's device-resident training loop (``rrls.agents.on_twin.train_on_twin``) on warp's CPU
+device: nothing crosses to the host inside a block of steps, a run's numbers do not depend on
+the block size, the CUDA-graph path (rehearsed) computes what the eager one does, and a
+transition is stored as the twin gave it."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import torch
+
+pytest.importorskip("warp")
+pytest.importorskip("mujoco_warp")
+
+from rrls.agents.graphs import settings
+from rrls.agents.on_twin import train_on_twin
+
+STEPS, STARTS = 60, 20
+HYPER = {"learning_starts": STARTS, "batch_size": 16, "hidden": (16, 16)}
+
+
+def _train(algo: str, block: int, **kw):
+    return train_on_twin(
+        algo,
+        "invertedpendulum",
+        seeds=(0, 1),
+        steps=STEPS,
+        device="cpu",
+        hyper=HYPER,
+        block=block,
+        progress_every=STEPS,
+        **kw,
+    )
+
+
+class _HostReads:
+    """Counts every read of a tensor or warp array back to the host, and the twin's step count
+    at each (``WarpTwin.step`` counted by a wrapper)."""
+
+    def __init__(self, monkeypatch: pytest.MonkeyPatch) -> None:
+        import warp as wp
+
+        from rrls.twin import WarpTwin
+
+        self.steps, self.at = 0, []
+        for owner, name in (
+            (torch.Tensor, "cpu"),
+            (torch.Tensor, "numpy"),
+            (torch.Tensor, "item"),
+            (torch.Tensor, "tolist"),
+            (torch.Tensor, "__array__"),
+            (torch.Tensor, "__bool__"),
+            (torch.Tensor, "__float__"),
+            (wp.array, "numpy"),
+        ):
+            monkeypatch.setattr(owner, name, self._counted(getattr(owner, name)))
+        step = WarpTwin.step
+
+        def counted_step(twin, actions):
+            self.steps += 1
+            return step(twin, actions)
+
+        monkeypatch.setattr(WarpTwin, "step", counted_step)
+
+    def _counted(self, method):
+        def read(*args, **kwargs):
+            self.at.append(self.steps)
+            return method(*args, **kwargs)
+
+        return read
+
+
+@pytest.mark.warp
+@pytest.mark.parametrize("algo", ["td3", "sac"])
+def test_the_host_reads_once_a_block_and_the_block_size_changes_nothing(algo, monkeypatch):
+    whole = _train(algo, block=STEPS)
+    reads = _HostReads(monkeypatch)
+    with settings(rehearse=True):  # the CUDA-graph path's static inputs, without the capture
+        blocks = _train(algo, block=7)
+    monkeypatch.undo()
+    ends = {0, *range(7, STEPS, 7), STEPS}
+    inside = sorted(set(reads.at) - ends)
+    assert not inside, f"host reads inside a block, at steps {inside}"
+    assert any(0 < s < STEPS for s in reads.at)  # the counter sees the block ends' reads
+    assert blocks.returns == whole.returns and sum(map(len, whole.returns)) > 0
+    obs = np.random.default_rng(0).normal(size=(5, 4))
+    for a, b in zip(whole.policies, blocks.policies, strict=True):
+        np.testing.assert_array_equal(a(obs), b(obs))
+    assert not np.array_equal(whole.policies[0](obs), whole.policies[1](obs))  # two runs
+
+
+@pytest.mark.warp
+def test_a_stored_transition_is_the_twins_step(monkeypatch):
+    """The replay's rows are the twin's (obs, action, reward, last obs, terminated), the last
+    observation of an ended episode included (not the next episode's first)."""
+    from rrls.agents.replay import ReplayBuffer
+    from rrls.twin import WarpTwin
+
+    seen, stored = [], []
+    step, put = WarpTwin.step, ReplayBuffer.put
+
+    def record_step(twin, actions):
+        out = step(twin, actions)
+        obs, reward, terminated, truncated, info = out
+        ended = (terminated | truncated)[:, None]
+        last = torch.where(ended, info["final_obs"], obs)
+        seen.append((actions.clone(), reward.clone(), last.clone(), terminated.clone(), ended))
+        return out
+
+    def record_put(buffer, **fields):
+        stored.append({k: v.clone() for k, v in fields.items()})
+        return put(buffer, **fields)
+
+    monkeypatch.setattr(WarpTwin, "step", record_step)
+    monkeypatch.setattr(ReplayBuffer, "put", record_put)
+    result = _train("td3", block=16)
+    assert len(seen) == len(stored) == STEPS and sum(map(len, result.returns)) > 0
+    restarts = 0
+    for t, ((actions, reward, last, terminated, _), row) in enumerate(zip(seen, stored)):
+        torch.testing.assert_close(row["action"], actions.float())
+        torch.testing.assert_close(row["reward"], reward)
+        torch.testing.assert_close(row["next_obs"], last)
+        assert torch.equal(row["terminated"], terminated)
+        if t:  # a continuing episode's next state is the following step's state; an ended
+            # one's following step starts from the next episode's first state, not its last
+            ended = seen[t - 1][4].squeeze(1)
+            torch.testing.assert_close(row["obs"][~ended], stored[t - 1]["next_obs"][~ended])
+            if ended.any():
+                assert not torch.isclose(row["obs"][ended], stored[t - 1]["next_obs"][ended]).all()
+            restarts += int(ended.sum())
+    assert restarts > 0
+
+
+def test_bad_blocks_are_refused_in_one_line():
+    for name in ("block", "steps", "progress_every"):
+        with pytest.raises(ValueError, match=f"{name} must be a positive integer, got 0"):
+            train_on_twin("td3", "invertedpendulum", device="cpu", **{name: 0})
