@@ -40,3 +40,13 @@ def test_the_built_in_learners_satisfy_the_typed_protocol():
         learner = algorithm(name).Learner
         assert all(callable(getattr(learner, m, None)) for m in ("act", "update", "export"))
         assert issubclass(learner, LearnerProtocol)
+
+
+def test_the_device_resident_methods_are_where_they_work():
+    """TD3's and SAC's learners (so DR and SAC-DR) have the device-resident loop's methods;
+    M2TD3 and NR-MDP, which subclass TD3's learner with transitions of their own, mark them
+    absent, and RARL never had them."""
+    from rrls.agents import ALGOS, DeviceLearnerProtocol, algorithm
+
+    has = {name: issubclass(algorithm(name).Learner, DeviceLearnerProtocol) for name in ALGOS}
+    assert {name for name, yes in has.items() if yes} == {"td3", "dr", "sac", "sacdr"}

@@ -13,7 +13,12 @@ from __future__ import annotations
 from rrls.agents.config import Diverged, Interrupted, TrainConfig, benchmark_set
 from rrls.agents.envs import task_env
 from rrls.agents.hparams import hp
-from rrls.agents.learner import Learner, LearnerProtocol, StateLayoutError
+from rrls.agents.learner import (
+    DeviceLearnerProtocol,
+    Learner,
+    LearnerProtocol,
+    StateLayoutError,
+)
 from rrls.agents.lookup import ResolvedRun, algorithm, hyperparameters, resolve_run
 from rrls.agents.loop import train, train_group
 from rrls.agents.nets import (
@@ -47,6 +52,7 @@ __all__ = [
     # the learner protocol and its building blocks (what docs/examples/ddpg.py is made of)
     "Actor",
     "Critic",
+    "DeviceLearnerProtocol",
     "GaussianActor",
     "Generators",
     "Learner",

@@ -209,6 +209,10 @@ class Learner(TD3Learner):
     """TD3 with ω-conditioned critics, the candidates ω̂ and each run's episode ω (acting and
     exploration as TD3's learner)."""
 
+    # not TD3's device-resident methods (its transitions and updates are its own): None marks
+    # them absent, so ``isinstance(learner, DeviceLearnerProtocol)`` is False, as for ``__hash__``
+    draw_ahead = act_tensor = put = update_drawn = None  # type: ignore[assignment]
+
     def __init__(self, env: Any, config: Config, seeds: list[RunSeeds], device: Any) -> None:
         try:  # through any wrapper a user (or a benchmark's clock) put around make_env's env
             box = env.get_wrapper_attr("uncertainty_box")

@@ -77,6 +77,10 @@ def make_env(task: str, uncertainty: Any, config: Config, paper: bool = False) -
 class Learner(TD3Learner):
     """TD3's learner (the protagonist: acting, buffer, critic) plus the adversaries' policies."""
 
+    # not TD3's device-resident methods (its transitions and updates are its own): None marks
+    # them absent, so ``isinstance(learner, DeviceLearnerProtocol)`` is False, as for ``__hash__``
+    draw_ahead = act_tensor = put = update_drawn = None  # type: ignore[assignment]
+
     def __init__(self, env: Any, config: Config, seeds: list[RunSeeds], device: Any) -> None:
         space = env.action_space.spaces[0]
         super().__init__(_Protagonist(env, space), config, seeds, device)
