@@ -100,7 +100,7 @@ def test_a_learner_exporting_nan_weights_is_refused(modules, tmp_path):
     import numpy as np
 
     from rrls.agents import Diverged
-    from rrls.agents.loop import _policies
+    from rrls.agents.run import export_policies
     from rrls.evaluation.policies import MLPPolicy
 
     bad = MLPPolicy([np.full((3, 2), np.nan)], [np.zeros(2)])
@@ -110,4 +110,4 @@ def test_a_learner_exporting_nan_weights_is_refused(modules, tmp_path):
             return {"policy": bad}
 
     with pytest.raises(Diverged, match="the policy of seed 4 has non-finite"):
-        _policies(Exporter(), 0, {"seed": 4})
+        export_policies(Exporter(), 0, {"seed": 4})

@@ -135,3 +135,80 @@ def test_bad_blocks_are_refused_in_one_line():
     for name in ("block", "steps", "progress_every"):
         with pytest.raises(ValueError, match=f"{name} must be a positive integer, got 0"):
             train_on_twin("td3", "invertedpendulum", device="cpu", **{name: 0})
+
+
+@pytest.mark.warp
+def test_rrls_train_on_the_twin_reads_back_only_at_checkpoints_and_evaluations(
+    tmp_path, monkeypatch
+):
+    """``rrls train --simulator warp`` for a learner with the device methods: blocks end at
+    every checkpoint and periodic evaluation (the host's only reads); a run stopped after a
+    checkpoint resumes its episode in progress from that episode's first state and finishes."""
+    from rrls.agents import TrainConfig, train
+    from rrls.agents.run import read_checkpoint
+
+    def config(name: str) -> TrainConfig:
+        return TrainConfig(
+            algo="td3",
+            task="invertedpendulum",
+            seed=3,
+            steps=120,
+            out=str(tmp_path / name),
+            device="cpu",
+            simulator="warp",
+            checkpoint_every=60,
+            eval_every=60,
+            eval_episodes=1,
+            hyper={"learning_starts": STARTS, "batch_size": 16, "hidden": [16, 16]},
+        )
+
+    reads = _HostReads(monkeypatch)
+    run = train(config("whole"))
+    monkeypatch.undo()
+    inside = sorted(set(reads.at) - {0, 60, 120})
+    assert not inside, f"host reads inside a block, at steps {inside}"
+    saved = read_checkpoint(run / "checkpoint.pt")
+    assert saved["twin_episode"] >= 2  # InvertedPendulum's random episodes are short
+    scalars = (run / "scalars.csv").read_text()
+    assert "charts/episode_return" in scalars and "eval/" in scalars
+    from rrls.agents.run import STOP_AT_ENV
+
+    monkeypatch.setenv(STOP_AT_ENV, "60")
+    from rrls.agents import Interrupted
+
+    with pytest.raises(Interrupted):
+        train(config("cut"))
+    monkeypatch.delenv(STOP_AT_ENV)
+    resumed = train(config("cut"), resume=True)
+    import json
+
+    assert json.loads((resumed / "run.json").read_text())["steps"] == 120
+
+
+@pytest.mark.warp
+def test_a_world_restarts_its_episode_and_draws_dr_points_from_its_own_seed():
+    from rrls.twin import WarpTwin
+
+    def twin(seeds):
+        return WarpTwin("invertedpendulum", len(seeds), domain_randomization=True,
+                        seed=seeds, pool_seed=0, device="cpu", array="numpy")  # fmt: skip
+
+    pair, alone = twin([11, 12]), twin([11])
+    first, _ = pair.reset()
+    np.testing.assert_array_equal(pair.restart(np.array([1, 1])), first)
+    rng = np.random.default_rng(0)
+    starts, points = [], []
+    while len(starts) < 2:  # world 0's second and third episodes begin
+        obs, _, term, trunc, _ = pair.step(rng.uniform(-3, 3, (2, 1)).astype(np.float32))
+        if term[0] or trunc[0]:
+            starts.append((pair.episodes()[0], obs[0].copy()))
+            points.append(pair.points()[0])
+    counts = pair.episodes()
+    counts[0] = starts[0][0]
+    np.testing.assert_array_equal(pair.restart(counts)[0], starts[0][1])
+    alone.reset()
+    for (count, _), point in zip(starts, points):  # the same point without world 1 beside it
+        alone.restart(np.array([count]))
+        np.testing.assert_array_equal(alone.points()[0], point)
+    pair.close()
+    alone.close()

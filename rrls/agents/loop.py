@@ -25,13 +25,13 @@ import numpy as np
 import torch
 
 from rrls._io import DirectoryLock
-from rrls.agents import graphs
+from rrls.agents import graphs, resident
 from rrls.agents.config import Diverged, TrainConfig
 from rrls.agents.envs import env_factory, make_envs
 from rrls.agents.hparams import check_memory
 from rrls.agents.learner import check_runs_first, run_slice, stack_runs
 from rrls.agents.lookup import Algorithm, ResolvedRun, resolve_run
-from rrls.agents.run import Run
+from rrls.agents.run import Run, export_policies
 from rrls.agents.streams import RunSeeds, rng_state, set_rng_state
 from rrls.agents.threads import process_settings
 
@@ -173,10 +173,12 @@ def _train_together(group: ResolvedRun, runs, states, on_episode, threads) -> No
     make = env_factory(algo, first, hyper)
     template = make()  # spaces and metadata; the group's envs may live in worker processes
     check_group_memory(hyper, template, len(runs), first.steps - runs[0].step)
-    if first.simulator == "warp":  # the task's MuJoCo Warp twin: run k on world k
+    if resident.trains_on_device(first, algo.Learner):  # the twin, without leaving the device
+        envs: Any = resident.make_twin(first, [run.config.seed for run in runs])
+    elif first.simulator == "warp":  # the twin, each episode begun on the run's CPU env
         from rrls.agents.twin_envs import TwinEnvs
 
-        envs: Any = TwinEnvs(make, len(runs), first.task, first.training_set(), first.device)
+        envs = TwinEnvs(make, len(runs), first.task, first.training_set(), first.device)
     else:
         envs = make_envs(make, len(runs), env_workers(first, len(runs)))
     try:
@@ -280,6 +282,9 @@ def _collect(
     observations, episodes = [], []
     if any(state is not None for state in states):
         learner.load_state_dict(stack_runs([state["learner"] for state in states]))
+    if resident.trains_on_device(first, algo.Learner):
+        resident.collect(learner, envs, runs, states, on_episode, threads, learning_starts)
+        return
     for k, (run, state) in enumerate(zip(runs, states)):
         if state is None:
             options = learner.episode_options(k, 0)
@@ -323,7 +328,7 @@ def _collect(
                         run.log({f"losses/{n}": v[k] for n, v in values.items()})
             if runs[0].eval_due():
                 for k, run in enumerate(runs):
-                    run.evaluate(_policies(learner, k, metas[k])["policy"])
+                    run.evaluate(export_policies(learner, k, metas[k])["policy"])
 
             for k, episode in enumerate(episodes):
                 episode.actions.append(actions[k])
@@ -356,7 +361,9 @@ def _collect(
     finally:
         bar.close()
     for k, run in enumerate(runs):
-        run.finish(_policies(learner, k, metas[k]), {"steps": run.step, "episodes": run.episodes})
+        run.finish(
+            export_policies(learner, k, metas[k]), {"steps": run.step, "episodes": run.episodes}
+        )
 
 
 def _finite(action: Any) -> bool:
@@ -380,23 +387,3 @@ def _check_actions(actions: Any, step: int, runs: list[Run]) -> None:
                 "was written past the last checkpoint (the learner diverged: lower its learning "
                 "rate or check its update)"
             )
-
-
-def _policies(learner: Any, k: int, metadata: dict[str, Any]) -> dict[str, Any]:
-    """Run ``k``'s exported policies, their metadata completed with the run's; a policy with
-    NaN/inf weights is refused (``Diverged``), never written."""
-    out = learner.export(k)
-    for name, policy in out.items():
-        arrays = [*getattr(policy, "weights", []), *getattr(policy, "biases", [])]
-        if not all(np.all(np.isfinite(a)) for a in arrays):
-            seed = metadata.get("seed")
-            raise Diverged(
-                f"training stopped: the {name} of seed {seed} has non-finite (NaN/inf) weights; "
-                "it is not written (the learner diverged: lower its learning rate or check its "
-                "update)"
-            )
-        own = dict(policy.metadata)
-        policy.metadata = {**metadata, "act_dim": policy.act_dim, **own}
-        if name != "policy":
-            policy.metadata.setdefault("role", name)
-    return out

@@ -6,35 +6,26 @@ run keeps the paper's protocol of one env per run: its world resets on its own, 
 draws a new point of the set at every episode (from the twin's pool). The policies it returns
 are evaluated where rrls evaluates everything, on CPU MuJoCo.
 
-A lean loop, and device-resident: observations, actions, rewards, the replay and the updates
-stay on the device, and nothing crosses to the host within a block of steps. Each run's random
-inputs (warm-up actions, exploration noise, replay indices, smoothing noise) are drawn from its
-own seeded generators on the CPU a block ahead and uploaded once per block
-(``DeviceLearnerProtocol``), so a run's numbers depend neither on its group nor on the block
-size; the episode returns come back once per block. On a GPU, PyTorch runs on the twin's CUDA
-stream (no implicit synchronisation between the two), the twin's step is one CUDA graph and
-each learner's acting and update variants are captured in CUDA graphs too (``graphs.Update``).
-
-``rrls train --simulator warp`` (the training loop of every run, with
-``rrls.agents.twin_envs``) adds checkpoints and resume, run directories, TensorBoard, periodic
-evaluations and M2TD3, and crosses the host once per step. The adversarial games (RARL,
-NR-MDP: an adversary acting every step) are refused by both.
+A lean loop over ``rrls.agents.resident`` (the device-resident blocks of steps that
+``rrls train --simulator warp`` also runs: nothing read back inside a block, each run's random
+inputs drawn a block ahead from its own generators), without run directories, checkpoints or
+periodic evaluations: for measuring the twin's throughput and for scripts. ``rrls train
+--simulator warp`` adds those, and M2TD3 (through each run's CPU env). The adversarial games
+(RARL, NR-MDP: an adversary acting every step) are refused by both.
 """
 
 from __future__ import annotations
 
-import contextlib
-import math
 import time
 from dataclasses import dataclass, field
 from typing import Any
 
-import numpy as np
 import torch
 
 from rrls.agents.learner import DeviceLearnerProtocol
 from rrls.agents.lookup import algorithm
-from rrls.agents.streams import NumpyGenerators, RunSeeds
+from rrls.agents.resident import Worlds, check_finite, ended, twin_stream
+from rrls.agents.streams import RunSeeds
 from rrls.algorithms import algorithm_info, warmup
 from rrls.twin.tasks import not_on_twin
 
@@ -109,7 +100,7 @@ def train_on_twin(
         seed=[s.integer("env") for s in run_seeds],
         device=device,
         array="torch",
-        **(twin_options or {}),
+        **{"pool_seed": 0, **(twin_options or {})},
     )
     dev = torch.device(device)
     learner = info.Learner(twin.cpu, config, run_seeds, dev)
@@ -119,58 +110,27 @@ def train_on_twin(
             f"{algo}'s learner has no device-resident methods (draw_ahead, act_tensor, put, "
             "update_drawn; docs/algorithms.md): train it with rrls train --simulator warp"
         )
-    warm = NumpyGenerators(run_seeds, "warmup")
-    low, high = twin.single_action_space.low, twin.single_action_space.high
+    worlds = Worlds(twin, dev, [s.numpy("warmup") for s in run_seeds])
     starts = int(getattr(config, "learning_starts", warmup(algo)))
-    k = len(seeds)
-    returns: list[list[float]] = [[] for _ in range(k)]
+    returns: list[list[float]] = [[] for _ in seeds]
     start = time.perf_counter()
-    with _twin_stream(twin, dev):
-        obs = twin.reset()[0].clone()
-        ret = torch.zeros(k, dtype=torch.float64, device=dev)
+    with twin_stream(twin, dev):
+        worlds.start()
         done = 0
         while done < steps:
             # a block ends at every progress point, where the host reads the returns
             n = min(block, steps - done, progress_every - done % progress_every)
-            draws = learner.draw_ahead(n)
-            uniform = np.stack([rng.uniform(low, high, (n, len(low))) for rng in warm], 1)
-            uniform_t = torch.from_numpy(uniform.astype(np.float32)).to(dev)
-            ended_returns = torch.full((n, k), math.nan, dtype=torch.float64, device=dev)
-            for j in range(n):
-                step = done + j + 1
-                row = {name: value[j] for name, value in draws.items()}
-                actions = uniform_t[j] if step <= starts else learner.act_tensor(obs, row)
-                next_obs, reward, terminated, truncated, out = twin.step(actions)
-                ended = terminated | truncated
-                # the transition's next state is the episode's last observation, not the reset's
-                last = torch.where(ended[:, None], out["final_obs"], next_obs)
-                learner.put(obs, actions, reward, last, terminated)
-                if step > starts:
-                    learner.update_drawn(step, row)
-                ret += reward
-                ended_returns[j] = torch.where(ended, ret, math.nan)
-                ret.masked_fill_(ended, 0.0)
-                obs = next_obs.clone()  # the twin writes its next observations in place
+            out = worlds.block(learner, done, n, starts)
+            check_finite(out, done, list(seeds), algo)
+            for _, w, ret, _ in ended(out):
+                returns[w].append(ret)
             done += n
-            host = ended_returns.cpu().numpy()  # the block's one trip to the host
-            for j, w in zip(*np.nonzero(~np.isnan(host)), strict=True):
-                returns[w].append(float(host[j, w]))
             if on_progress is not None and done % progress_every == 0:
                 on_progress(done, returns)
     wall = time.perf_counter() - start
-    policies = [learner.export(w)["policy"] for w in range(k)]
+    policies = [learner.export(w)["policy"] for w in range(len(seeds))]
     twin.close()
     return TwinTraining(policies, returns, steps, wall)
-
-
-def _twin_stream(twin: Any, device: torch.device) -> Any:
-    """On a GPU, PyTorch's work on the twin's CUDA stream: the twin's outputs are read and its
-    actions written in stream order, without the legacy default stream's implicit waits."""
-    if device.type != "cuda":
-        return contextlib.nullcontext()
-    import warp as wp
-
-    return torch.cuda.stream(wp.stream_to_torch(twin.device))
 
 
 __all__ = ["TwinTraining", "train_on_twin", "twin_refusal"]

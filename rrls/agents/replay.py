@@ -144,6 +144,8 @@ class ReplayBuffer:
             "pos": self.pos,
             "size": self.size,
             "generator": self.generators.state_dict(),
+            # draw_ahead's streams, once used (the device-resident loop's checkpoints)
+            **({"ahead": self.ahead.state_dict()} if self.ahead is not None else {}),
         }
 
     def load_state_dict(self, state: dict[str, object]) -> None:
@@ -152,3 +154,6 @@ class ReplayBuffer:
             self._allocate(min(self.capacity, 1 << max(0, self.size - 1).bit_length()))
         self.table[:, : self.size] = state["table"].to(self.device)
         self.generators.load_state_dict(state["generator"])
+        if "ahead" in state:
+            self.ahead = NumpyGenerators(self.seeds, self.purpose + ".ahead")
+            self.ahead.load_state_dict(state["ahead"])

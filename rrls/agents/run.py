@@ -20,10 +20,11 @@ from dataclasses import asdict
 from pathlib import Path
 from typing import Any
 
+import numpy as np
 import torch
 
 from rrls import rundir
-from rrls.agents.config import Interrupted, TrainConfig, benchmark_set
+from rrls.agents.config import Diverged, Interrupted, TrainConfig, benchmark_set
 from rrls.agents.hparams import jsonable
 from rrls.physics import physics_label
 from rrls.provenance import machine, source_commit
@@ -263,6 +264,15 @@ class Run:
         rundir.truncate_scalars(self.dir / rundir.SCALARS, self.step)
         return state
 
+    def steps_to_checkpoint(self) -> int:
+        """Env steps until the next checkpoint falls due."""
+        return max(1, self.config.checkpoint_every - (self.step - self._last_checkpoint))
+
+    def steps_to_eval(self) -> int | None:
+        """Env steps until the next periodic evaluation falls due (None: none planned)."""
+        every = self.config.eval_every
+        return max(1, every - (self.step - self._last_eval)) if every > 0 else None
+
     def checkpoint_due(self) -> bool:
         return self.step - self._last_checkpoint >= self.config.checkpoint_every
 
@@ -392,3 +402,23 @@ class Run:
         if self.metrics is not None:
             self.metrics.close()
             self.metrics = None
+
+
+def export_policies(learner: Any, k: int, metadata: dict[str, Any]) -> dict[str, Any]:
+    """Run ``k``'s exported policies, their metadata completed with the run's; a policy with
+    NaN/inf weights is refused (``Diverged``), never written."""
+    out = learner.export(k)
+    for name, policy in out.items():
+        arrays = [*getattr(policy, "weights", []), *getattr(policy, "biases", [])]
+        if not all(np.all(np.isfinite(a)) for a in arrays):
+            seed = metadata.get("seed")
+            raise Diverged(
+                f"training stopped: the {name} of seed {seed} has non-finite (NaN/inf) weights; "
+                "it is not written (the learner diverged: lower its learning rate or check its "
+                "update)"
+            )
+        own = dict(policy.metadata)
+        policy.metadata = {**metadata, "act_dim": policy.act_dim, **own}
+        if name != "policy":
+            policy.metadata.setdefault("role", name)
+    return out

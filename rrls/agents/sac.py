@@ -246,6 +246,7 @@ class Learner(_Learner):
             "noise": self.noise.state_dict(),
             "explore": self.rngs.state_dict(),
             "buffer": self.buffer.state_dict(),
+            **({"noise_ahead": self.ahead.state_dict()} if self.ahead is not None else {}),
         }
 
     def load_state_dict(self, state: dict[str, Any]) -> None:
@@ -259,6 +260,9 @@ class Learner(_Learner):
         self.noise.load_state_dict(state["noise"])
         self.rngs.load_state_dict(state["explore"])
         self.buffer.load_state_dict(state["buffer"])
+        if "noise_ahead" in state:
+            self.ahead = NumpyGenerators(self.seeds, "noise.ahead")
+            self.ahead.load_state_dict(state["noise_ahead"])
 
     def export(self, k: int) -> dict[str, Any]:
         return {"policy": to_mlp_policy(self.actor, k)}

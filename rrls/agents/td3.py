@@ -181,6 +181,7 @@ class TD3:
         return {
             **{n: getattr(self, n).state_dict() for n in NETS},
             "noise": self.noise.state_dict(),
+            **({"noise_ahead": self.ahead.state_dict()} if self.ahead is not None else {}),
         }
 
     def load_state_dict(self, state: dict[str, Any]) -> None:
@@ -190,6 +191,9 @@ class TD3:
             else:
                 getattr(self, n).load_state_dict(state[n])
         self.noise.load_state_dict(state["noise"])
+        if "noise_ahead" in state:
+            self.ahead = NumpyGenerators(self.seeds, self.name + "noise.ahead")
+            self.ahead.load_state_dict(state["noise_ahead"])
 
 
 NETS = ("actor", "actor_target", "critic", "critic_target", "actor_opt", "critic_opt")

@@ -11,8 +11,10 @@ any two float paths do: the docs show by how much).
 
 Points: ``points=`` gives each world a fixed point (an ``(n, dim)`` array over the set's
 names); ``domain_randomization=True`` draws each world a new point at every reset, uniformly from
-a pool of ``pool`` points of the set drawn from the seed (the pool's fields are computed once by
-CPU MuJoCo, so a reset never leaves the device); neither: the nominal model.
+a pool of ``pool`` points of the set drawn from the seed, or from ``pool_seed`` (the pool's fields
+are computed once by CPU MuJoCo, so a reset never leaves the device; training gives
+``pool_seed=0``: one pool for every run, so a run's draws depend on its own seed alone, not on
+its group); neither: the nominal model.
 
 Autoreset is Gymnasium's ``SAME_STEP`` mode: a world that ends returns its first observation of
 the next episode, its last one in ``info["final_obs"]``. Arrays stay on the device:
@@ -85,6 +87,7 @@ class WarpTwin(VectorEnv):
         points: np.ndarray | None = None,
         domain_randomization: bool = False,
         pool: int = 1024,
+        pool_seed: int | None = None,
         seed: int | Sequence[int] = 0,
         device: str = "cuda",
         array: str = "numpy",
@@ -129,7 +132,8 @@ class WarpTwin(VectorEnv):
         self.single_action_space = self.cpu.action_space
         self.observation_space = gym.vector.utils.batch_space(self.single_observation_space, n)
         self.action_space = gym.vector.utils.batch_space(self.single_action_space, n)
-        self.pool_points = self._pool(points, domain_randomization, pool, seed)
+        pool_from = seed if pool_seed is None else pool_seed
+        self.pool_points = self._pool(points, domain_randomization, pool, pool_from)
         self.redraw = int(domain_randomization)
         self.formula = self._formula(kernels.Formula())
         self._build(nconmax, njmax)
@@ -381,6 +385,23 @@ class WarpTwin(VectorEnv):
         """Put every world at a state (the episode's step count is kept)."""
         self.d.qpos.assign(np.asarray(qpos, dtype=np.float32))
         self.d.qvel.assign(np.asarray(qvel, dtype=np.float32))
+
+    def episodes(self) -> np.ndarray:
+        """Each world's episode count, the episode in progress included (a host copy): with
+        the world's seed it fixes that episode's first state and DR point."""
+        return self.episode.numpy().copy()
+
+    def restart(self, episodes: np.ndarray) -> Any:
+        """Reset every world to the first state and point of its episode number
+        ``episodes[w]`` (counted as ``episodes()`` counts): a resumed run starts the episode it
+        was in again. Returns the observations, as ``reset`` does."""
+        counts = np.asarray(episodes, dtype=np.int32)
+        if counts.shape != (self.num_envs,) or (counts < 1).any():
+            raise ValueError(f"episodes must be {self.num_envs} counts >= 1, got {counts.tolist()}")
+        self.episode.assign(counts - 1)
+        with self._wp.ScopedDevice(self.device):
+            self._reset(self.all)
+        return self._out(self.obs)
 
     def put_world(self, w: int, env: Any) -> None:
         """World ``w`` becomes a copy of CPU env ``env`` as it stands: its model fields at its
