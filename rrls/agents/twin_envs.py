@@ -1,6 +1,8 @@
-"""The envs of a group of runs on the MuJoCo Warp twin (``rrls train --simulator warp``): the
-same interface as ``rrls.agents.envs.LocalEnvs``, so the training loop, its checkpoints, logs,
-periodic evaluations and run files are the CPU path's, unchanged.
+"""The envs of a group of runs on the MuJoCo Warp twin (``rrls train --simulator warp``) for
+learners without the device-resident methods (M2TD3, whose learner chooses each episode's point;
+TD3, DR, SAC and SAC-DR run in ``rrls.agents.resident`` instead): the same interface as
+``rrls.agents.envs.LocalEnvs``, so the training loop, its checkpoints, logs, periodic
+evaluations and run files are the CPU path's, unchanged.
 
 Run ``k`` owns world ``k`` and a CPU env of its own. An episode starts on the CPU env (reset
 with the run's seed and the learner's options: DR's draw, M2TD3's chosen point), and the world
