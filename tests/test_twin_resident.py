@@ -212,3 +212,20 @@ def test_a_world_restarts_its_episode_and_draws_dr_points_from_its_own_seed():
         np.testing.assert_array_equal(alone.points()[0], point)
     pair.close()
     alone.close()
+
+
+def test_a_non_finite_action_stops_training_at_its_step_naming_the_seed():
+    from rrls.agents import Diverged
+    from rrls.agents.resident import Block, check_finite, ended
+
+    bad = torch.zeros((4, 2), dtype=torch.bool)
+    returns = torch.full((4, 2), float("nan"), dtype=torch.float64)
+    returns[1, 0], returns[3, 1] = 12.5, 7.0
+    lengths = torch.zeros((4, 2), dtype=torch.int64)
+    lengths[1, 0], lengths[3, 1] = 30, 44
+    block = Block(returns, lengths, bad, {})
+    check_finite(block, 100, [5, 6], "td3")  # all finite: nothing raised
+    assert ended(block) == [(1, 0, 12.5, 30), (3, 1, 7.0, 44)]
+    bad[2, 1] = bad[3, 0] = True
+    with pytest.raises(Diverged, match=r"^training stopped at step 103: td3 .* seed 6;"):
+        check_finite(block, 100, [5, 6], "td3")
