@@ -10,6 +10,10 @@ resumed run continues bit for bit), logs and the export of the final policies.
 
 Every generator of a run is a child of ``SeedSequence(seed)`` (``rrls.agents.streams``): the
 loop's ``"env"`` (first reset) and ``"warmup"`` streams, the learner's own.
+
+On the MuJoCo Warp twin (``--simulator warp``), a learner with the device-resident methods runs
+``rrls.agents.resident``'s blocks of steps instead of this step-by-step loop (the rest, the
+run's files, checkpoints, logs and evaluations, is shared).
 """
 
 from __future__ import annotations
