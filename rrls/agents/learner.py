@@ -39,6 +39,7 @@ import numpy as np
 import torch
 
 __all__ = [
+    "DeviceActing",
     "DeviceLearnerProtocol",
     "Learner",
     "LearnerProtocol",
@@ -72,6 +73,26 @@ class DeviceLearnerProtocol(Protocol):
     def act_tensor(self, obs: torch.Tensor, draws: dict[str, torch.Tensor]) -> torch.Tensor: ...
     def put(self, obs, actions, rewards, next_obs, terminated) -> None: ...
     def update_drawn(self, step: int, draws: dict[str, torch.Tensor]) -> dict: ...
+
+
+class DeviceActing:
+    """``act_tensor`` and ``put`` for a learner with a ``buffer`` (``ReplayBuffer``), an
+    ``_update`` (``graphs.Update``) and ``_act_on_device(variant, {"obs", "noise"})``: acting is
+    an ``Update`` made as the learner's update was (compiled, captured), on first use."""
+
+    _act: Any = None
+
+    def act_tensor(self, obs: torch.Tensor, draws: dict[str, torch.Tensor]) -> torch.Tensor:
+        """``act`` on the device, ``(K, obs) -> (K, act)``, with that step's ``noise``."""
+        if self._act is None:
+            self._act = self._update.sibling(self._act_on_device)  # type: ignore[attr-defined]
+        return self._act(None, {"obs": obs, "noise": draws["noise"]})
+
+    def put(self, obs, actions, rewards, next_obs, terminated) -> None:
+        """``observe`` for device tensors."""
+        self.buffer.put(  # type: ignore[attr-defined]
+            obs=obs, action=actions, reward=rewards, next_obs=next_obs, terminated=terminated
+        )
 
 
 class Learner:

@@ -24,7 +24,7 @@ import torch
 
 from rrls.agents.learner import DeviceLearnerProtocol
 from rrls.agents.lookup import algorithm
-from rrls.agents.resident import Worlds, check_finite, ended, twin_stream
+from rrls.agents.resident import BLOCK, Worlds, check_finite, ended, twin_stream
 from rrls.agents.streams import RunSeeds
 from rrls.algorithms import algorithm_info, warmup
 from rrls.twin.tasks import not_on_twin
@@ -74,7 +74,7 @@ def train_on_twin(
     twin_options: dict[str, Any] | None = None,
     on_progress: Any = None,
     progress_every: int = 1000,
-    block: int = 64,
+    block: int = BLOCK,
 ) -> TwinTraining:
     """Train ``len(seeds)`` runs of ``algo`` on ``task``'s twin, world ``k`` for seed ``k``;
     ``on_progress(step, returns)`` every ``progress_every`` steps; random inputs drawn ``block``

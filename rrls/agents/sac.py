@@ -29,6 +29,7 @@ import torch
 from rrls.agents.envs import task_env
 from rrls.agents.graphs import Update, adam, descend, load_optimizer
 from rrls.agents.hparams import MAX_BATCH, MAX_BUFFER, MAX_LAYERS, MAX_WIDTH, check_limits, hp
+from rrls.agents.learner import DeviceActing
 from rrls.agents.learner import Learner as _Learner
 from rrls.agents.nets import Critic, GaussianActor, polyak, to_mlp_policy
 from rrls.agents.replay import ReplayBuffer, transition_fields
@@ -89,7 +90,7 @@ def make_env(task: str, uncertainty: Any, config: Config, paper: bool = False) -
     return task_env(task, paper=paper)[0]
 
 
-class Learner(_Learner):
+class Learner(DeviceActing, _Learner):
     """SAC for ``K`` runs: one replay buffer each, one update for all."""
 
     def __init__(self, env: Any, config: Config, seeds: list[RunSeeds], device: Any) -> None:
@@ -116,7 +117,6 @@ class Learner(_Learner):
         )
         self.act_dim = act_dim
         self._update = Update(self._compute, device)
-        self._act: Update | None = None  # acting on the device, made on first use
         self.seeds = seeds
         self.ahead: NumpyGenerators | None = None  # draw_ahead's streams, made on first use
 
@@ -174,22 +174,11 @@ class Learner(_Learner):
             "eps": torch.from_numpy(np.stack(eps, 2)).to(self.device),
         }
 
-    def act_tensor(self, obs: torch.Tensor, draws: dict[str, torch.Tensor]) -> torch.Tensor:
-        """``act`` on the device: a sample of each run's policy, ``(K, obs) -> (K, act)``."""
-        if self._act is None:
-            self._act = self._update.sibling(self._act_on_device)
-        return self._act(None, {"obs": obs, "noise": draws["noise"]})
-
     def _act_on_device(self, _variant: None, x: dict[str, torch.Tensor]) -> torch.Tensor:
+        """``act_tensor``'s device work: a sample of each run's policy, ``noise`` its ε."""
         with torch.no_grad():
             action, _ = self.actor.sample(x["obs"].unsqueeze(1), x["noise"].unsqueeze(1))
             return action.squeeze(1)
-
-    def put(self, obs, actions, rewards, next_obs, terminated) -> None:
-        """``observe`` for device tensors."""
-        self.buffer.put(
-            obs=obs, action=actions, reward=rewards, next_obs=next_obs, terminated=terminated
-        )
 
     def _compute(self, variant: tuple[bool, bool], x: dict[str, torch.Tensor]) -> dict:
         """The device work of one update (``graphs.Update`` may capture it)."""

@@ -23,6 +23,7 @@ import torch
 from rrls.agents.envs import task_env
 from rrls.agents.graphs import Update, adam, descend, load_optimizer
 from rrls.agents.hparams import MAX_BATCH, MAX_BUFFER, MAX_LAYERS, MAX_WIDTH, check_limits, hp
+from rrls.agents.learner import DeviceActing
 from rrls.agents.learner import Learner as _Learner
 from rrls.agents.nets import Actor, Critic, NumpyActor, deterministic, polyak, to_mlp_policy
 from rrls.agents.replay import ReplayBuffer, transition_fields
@@ -199,7 +200,7 @@ class TD3:
 NETS = ("actor", "actor_target", "critic", "critic_target", "actor_opt", "critic_opt")
 
 
-class Learner(_Learner):
+class Learner(DeviceActing, _Learner):
     """TD3 for ``K`` runs: one replay buffer each, one update for all."""
 
     def __init__(self, env: Any, config: Config, seeds: list[RunSeeds], device: Any) -> None:
@@ -213,7 +214,6 @@ class Learner(_Learner):
             config.buffer_size, transition_fields(obs_dim, (len(self.low),)), device, seeds
         )
         self._update = Update(self._compute, device)
-        self._act: Update | None = None  # acting on the device, made on first use
 
     def act(self, obs: np.ndarray) -> list[Any]:
         """``π(s) + N(0, σ · scale)`` per run (each run's own generator), clipped to the box."""
@@ -250,22 +250,11 @@ class Learner(_Learner):
             "eps": self.agent.draw_ahead(steps, size),
         }
 
-    def act_tensor(self, obs: torch.Tensor, draws: dict[str, torch.Tensor]) -> torch.Tensor:
-        """``act`` on the device: ``clip(π(s) + noise, low, high)``, ``(K, obs) -> (K, act)``."""
-        if self._act is None:
-            self._act = self._update.sibling(self._act_on_device)
-        return self._act(None, {"obs": obs, "noise": draws["noise"]})
-
     def _act_on_device(self, _variant: None, x: dict[str, torch.Tensor]) -> torch.Tensor:
+        """``act_tensor``'s device work: ``clip(π(s) + noise, low, high)``."""
         with torch.no_grad():
             action = self.agent.actor(x["obs"].unsqueeze(1)).squeeze(1) + x["noise"]
             return action.clamp(self.agent.low, self.agent.high)
-
-    def put(self, obs, actions, rewards, next_obs, terminated) -> None:
-        """``observe`` for device tensors."""
-        self.buffer.put(
-            obs=obs, action=actions, reward=rewards, next_obs=next_obs, terminated=terminated
-        )
 
     def _compute(self, update_actor: bool, x: dict[str, torch.Tensor]) -> dict[str, torch.Tensor]:
         """The device work of one update (``graphs.Update`` may capture it)."""
