@@ -229,3 +229,12 @@ def test_a_non_finite_action_stops_training_at_its_step_naming_the_seed():
     bad[2, 1] = bad[3, 0] = True
     with pytest.raises(Diverged, match=r"^training stopped at step 103: td3 .* seed 6;"):
         check_finite(block, 100, [5, 6], "td3")
+
+
+def test_the_docs_state_the_block_the_code_uses():
+    from pathlib import Path
+
+    from rrls.agents.resident import BLOCK
+
+    twin = " ".join((Path(__file__).parents[1] / "docs" / "twin.md").read_text().split())
+    assert f"once per block of {BLOCK} steps" in twin and f"(`block={BLOCK}`)" in twin
