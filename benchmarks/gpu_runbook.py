@@ -153,7 +153,8 @@ def twin_steps(book: Book, args: argparse.Namespace, py: str) -> None:
     book.step("Warp twin vs CPU MuJoCo", check, args.out / "twin_check.log", 900)
     train = [py, "benchmarks/twin_train.py", str(args.out / "twin_train"), "--device", d]
     if tiny:
-        train += ["--ks", "1", "--window", "5", "--train-steps", "30", "--starts", "10"]
+        train += ["--ks", "1", "--window", "5", "--speed-starts", "10"]
+        train += ["--train-steps", "30", "--starts", "10"]
         train += ["--points", "1"]
     book.step("training on the twin", train, args.out / "twin_train.log", 900)
     loop = [py, "benchmarks/twin_loop_speed.py", "--device", d]

@@ -5,9 +5,10 @@ points.
     python3 benchmarks/twin_train.py OUT --device cuda --ks 1 32 128 --train-steps 60000
     python3 benchmarks/twin_train.py OUT --device cpu --ks 2 --window 20 --train-steps 300  # dry
 
-Speed: ``train_on_twin("td3", task, seeds=range(K))`` with ``learning_starts`` 1 000; the clock
-runs over the ``--window`` steps after ``2 * window + 1000`` (the first updates capture their
-CUDA graphs). Sim-to-sim: one TD3 run of ``--train-steps`` on the twin (nominal model;
+Speed: ``train_on_twin("td3", task, seeds=range(K))`` with ``learning_starts`` ``--speed-starts``
+(1 000); the clock runs over the ``--window`` steps after ``starts + 2 * window`` (the first
+updates capture their CUDA graphs; the CPU dry run takes 10, since a twin step on warp's CPU
+device takes ~0.15 s). Sim-to-sim: one TD3 run of ``--train-steps`` on the twin (nominal model;
 ``--starts`` random steps first), then
 ``--points`` points of the task's largest set, one episode each (deterministic policy): the
 return on CPU MuJoCo (float64, rrls's evaluation physics) and on the twin (float32), both from
@@ -33,24 +34,24 @@ from rrls.twin.env import default_set
 STARTS = 1000
 
 
-def speed(task: str, k: int, window: int, device: str) -> float:
+def speed(task: str, k: int, window: int, device: str, starts: int = STARTS) -> float:
     marks: dict[int, float] = {}
 
     def mark(step: int, _returns: object) -> None:
         marks[step] = time.perf_counter()
 
-    steps = STARTS + 3 * window
+    steps = starts + 3 * window
     train_on_twin(
         "td3",
         task,
         seeds=tuple(range(k)),
         steps=steps,
         device=device,
-        hyper={"learning_starts": STARTS},
+        hyper={"learning_starts": starts},
         on_progress=mark,
         progress_every=window,
     )
-    a, b = STARTS + 2 * window, STARTS + 3 * window
+    a, b = starts + 2 * window, starts + 3 * window
     return k * window / (marks[b] - marks[a])
 
 
@@ -135,6 +136,7 @@ def main() -> None:
     parser.add_argument("--train-steps", type=int, default=60_000)
     parser.add_argument("--points", type=int, default=10)
     parser.add_argument("--starts", type=int, default=5000, help="sim-to-sim run's warm-up")
+    parser.add_argument("--speed-starts", type=int, default=STARTS, help="speed runs' warm-up")
     parser.add_argument(
         "--policy",
         type=Path,
@@ -156,7 +158,7 @@ def main() -> None:
     print("| algo | task | K | aggregated env steps/s | per run |")
     print("|---|---|---|---|---|")
     for k in args.ks:
-        rate = speed(args.task, k, args.window, args.device)
+        rate = speed(args.task, k, args.window, args.device, args.speed_starts)
         print(f"| td3 | {args.task} | {k} | {rate:,.0f} | {rate / k:,.0f} |", flush=True)
     if args.train_steps:
         start = time.perf_counter()

@@ -15,7 +15,7 @@ import pytest
 from rrls.twin.tasks import check_twin
 
 TRAIN = ["train", "--task", "hopper", "--simulator", "warp", "--device", "cpu"]
-TRAIN += ["--learning-starts", "60", "--checkpoint-every", "60", "--eval-every", "60"]
+TRAIN += ["--learning-starts", "30", "--checkpoint-every", "30", "--eval-every", "30"]
 
 
 def test_what_the_twin_cannot_train_is_refused_saying_why():
@@ -93,23 +93,23 @@ def _rrls(*args: str, env: dict | None = None) -> subprocess.CompletedProcess:
 @pytest.mark.warp
 def test_rrls_train_on_the_twin_writes_runs_that_say_so_and_resume(tmp_path):
     out = tmp_path / "twin"
-    done = _rrls(*TRAIN, "--algo", "dr", "--seeds", "0-1", "--steps", "120", "--out", str(out))
+    done = _rrls(*TRAIN, "--algo", "dr", "--seeds", "0-1", "--steps", "60", "--out", str(out))
     assert done.returncode == 0, done.stderr[-1500:]
     for k in (0, 1):
         run = json.loads((out / f"seed{k}" / "run.json").read_text())
         assert run["simulator"] == "warp" and run["config"]["simulator"] == "warp"
-        assert run["physics"] == "v5" and run["steps"] == 120
+        assert run["physics"] == "v5" and run["steps"] == 60
         scalars = (out / f"seed{k}" / "scalars.csv").read_text()
         assert "charts/episode_return" in scalars and "eval/" in scalars  # evaluated on CPU
     # killed after its first checkpoint, then resumed: it finishes with the steps it was given
     one = tmp_path / "one"
-    argv = [*TRAIN, "--algo", "m2td3", "--seed", "0", "--steps", "120", "--out", str(one)]
-    stopped = _rrls(*argv, env={"RRLS_STOP_AT": "60"})
+    argv = [*TRAIN, "--algo", "m2td3", "--seed", "0", "--steps", "60", "--out", str(one)]
+    stopped = _rrls(*argv, env={"RRLS_STOP_AT": "30"})
     assert stopped.returncode != 0 or "RRLS_STOP_AT" in stopped.stderr + stopped.stdout
     assert not (one / "run.json").exists()
     resumed = _rrls(*argv, "--resume")
     assert resumed.returncode == 0, resumed.stderr[-1500:]
-    assert json.loads((one / "run.json").read_text())["steps"] == 120
+    assert json.loads((one / "run.json").read_text())["steps"] == 60
     # the policy evaluates where everything does, on CPU MuJoCo
     ev = _rrls("evaluate", str(one), "--mesh", "2", "--episodes", "1", "--workers", "0",
                "--out", str(tmp_path / "ev"))  # fmt: skip
