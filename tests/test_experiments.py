@@ -49,7 +49,8 @@ def smoke(tmp_path_factory) -> Path:
 
 @needs_torch
 def test_an_exported_reference_says_where_it_came_from(smoke, tmp_path):
-    from rrls.experiments.reference import export_reference, load_reference
+    from rrls.experiments.exported import export_reference
+    from rrls.experiments.reference import load_reference
 
     export_reference(smoke, tmp_path / "ref.json")
     prov = load_reference(tmp_path / "ref.json").provenance
@@ -58,6 +59,9 @@ def test_an_exported_reference_says_where_it_came_from(smoke, tmp_path):
     assert all(prov["versions"][k] for k in ("rrls", "torch", "mujoco", "gymnasium", "numpy"))
     assert prov["devices"] == ["cpu"] and len(prov["machines"]) == 1
     assert {"cpu", "cores", "simd"} <= set(prov["machines"][0]) and "commits" in prov
+    assert load_reference(tmp_path / "ref.json").notes.endswith(f"from {smoke.name}")
+    export_reference(smoke, tmp_path / "noted.json", notes="300 steps: a smoke test")
+    assert load_reference(tmp_path / "noted.json").notes == "300 steps: a smoke test"
 
 
 @needs_torch

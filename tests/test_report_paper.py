@@ -371,3 +371,24 @@ def test_every_figure_draws_the_references_rows_beside_the_benchmarks(tmp_path, 
     from rrls.experiments.figstyle import LIGHT, colours
 
     assert colours(["td3", "my-sac"])["my-sac"] not in LIGHT
+
+
+def test_a_figure_saved_twice_is_the_same_bytes(tmp_path, monkeypatch):
+    # the PDF carries no creation date: a regenerated report leaves committed figures alone
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from rrls.experiments.figstyle import save
+
+    fig, ax = plt.subplots()
+    ax.plot([0, 1], [1, 0])
+    monkeypatch.setenv("SOURCE_DATE_EPOCH", "1000000000")  # two saves at two dates
+    first = save(fig, tmp_path / "a" / "f.png")
+    monkeypatch.setenv("SOURCE_DATE_EPOCH", "1700000000")
+    second = save(fig, tmp_path / "b" / "f.png")
+    plt.close(fig)
+    for suffix in (".png", ".pdf"):
+        a, b = first.with_suffix(suffix), second.with_suffix(suffix)
+        assert a.read_bytes() == b.read_bytes(), suffix

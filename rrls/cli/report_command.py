@@ -39,6 +39,11 @@ def add_parser(sub: argparse._SubParsersAction) -> argparse.ArgumentParser:
     )
     r.add_argument("--label", help="--export-reference: the reference's label")
     r.add_argument(
+        "--notes",
+        help="--export-reference: what a reader must know of its runs (budget, what differs, "
+        "where they ran); default: the directory it was exported from",
+    )
+    r.add_argument(
         "--rename",
         action="append",
         metavar="NAME=TEXT",
@@ -57,7 +62,8 @@ def _report(args: argparse.Namespace) -> int:
     from pathlib import Path
 
     from rrls.experiments.benchfile import reporting, stored_fingerprints
-    from rrls.experiments.reference import ReferenceError, export_reference
+    from rrls.experiments.exported import export_reference
+    from rrls.experiments.reference import ReferenceError
     from rrls.experiments.report import make_report
     from rrls.experiments.store import build_store
 
@@ -81,7 +87,9 @@ def _report(args: argparse.Namespace) -> int:
             )
             exported = None
             if args.export_reference:
-                exported = export_reference(root, args.export_reference, label=args.label)
+                exported = export_reference(
+                    root, args.export_reference, label=args.label, notes=args.notes
+                )
     except ReferenceError as err:
         return fail("report", str(err))
     print(results_table(root))

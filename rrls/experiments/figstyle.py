@@ -76,8 +76,10 @@ def markers(algos: Iterable[str]) -> dict[str, str]:
 
 
 def save(fig: Any, path: Path) -> Path:
-    """``path`` (PNG, 200 dpi) and the same figure as a vector PDF beside it."""
+    """``path`` (PNG, 200 dpi) and the same figure as a vector PDF beside it. The PDF carries
+    no creation date, so the same data give the same bytes (a regenerated report whose data
+    did not change leaves its committed figures alone)."""
     path.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(path, dpi=200, bbox_inches="tight")
-    fig.savefig(path.with_suffix(".pdf"), bbox_inches="tight")
+    fig.savefig(path.with_suffix(".pdf"), bbox_inches="tight", metadata={"CreationDate": None})
     return path

@@ -4,7 +4,8 @@ A reference is what a lab (or the paper) measured under one evaluation protocol:
 and algorithm, the worst-case and average-case (and dynamic) mean over seeds, with the std, the
 number of seeds and, when known, the per-seed values. ``rrls report DIR --reference FILE``
 normalises a task with the reference's TD3 and M2TD3 when the benchmark has not trained its own,
-and ``rrls report DIR --export-reference FILE`` writes a benchmark's results as such a file.
+and ``rrls report DIR --export-reference FILE`` writes a benchmark's results as such a file
+(``rrls.experiments.exported``).
 
 A reference is only a reference for a benchmark that measures the same thing: the same
 ``physics``, uncertainty set, mesh (points per dimension, endpoint) and episodes per point;
@@ -53,9 +54,10 @@ SHIPPED = {
     "paper": "paper_reference.json",
     "quick": "quick_reference.json",
     "hopper": "hopper_reference.json",
+    "halfcheetah": "halfcheetah_reference.json",
 }
 _META = ("label", "physics", "mesh", "episodes", "endpoint", "steps", "eval_seed")
-_VERSION_KEYS = ("rrls", "gymnasium", "mujoco")
+VERSION_KEYS = ("rrls", "gymnasium", "mujoco")
 
 
 class ReferenceError(ValueError):
@@ -157,7 +159,7 @@ class Reference:
                     "n_seeds": row.get("n_seeds"),
                     "values": ";".join(repr(float(v)) for v in values) if values else "",
                     **{k: getattr(self, k) for k in _META},
-                    **{f"{k}_version": self.versions.get(k, "") for k in _VERSION_KEYS},
+                    **{f"{k}_version": self.versions.get(k, "") for k in VERSION_KEYS},
                 }
             )
         buf = io.StringIO()
@@ -275,7 +277,7 @@ def _csv_as_json(path: Path) -> dict[str, Any]:
     except Exception as err:  # noqa: BLE001 - any unreadable table: one line naming it
         raise _fail(path, f"unreadable CSV: {err}") from None
     data: dict[str, Any] = {"format": FORMAT, "version": VERSION, "versions": {}}
-    for col in (*_META, *(f"{k}_version" for k in _VERSION_KEYS)):
+    for col in (*_META, *(f"{k}_version" for k in VERSION_KEYS)):
         if col not in frame.columns:
             continue
         distinct = frame[col].dropna().unique()
@@ -352,134 +354,6 @@ def check_compatible(ref: Reference, spec: dict[str, Any]) -> None:
             f"({', '.join(spec['tasks'])}) on set {mine['uncertainty']}; it has: "
             f"{', '.join(ref.tasks(mine['uncertainty'])) or 'none'}"
         )
-
-
-def export_reference(
-    root: str | Path, path: str | Path, label: str | None = None, algos: list[str] | None = None
-) -> Reference:
-    """Write the results of the benchmark in ``root`` (every algorithm, or ``algos``) as a
-    reference file another lab can normalise and compare with; returns it."""
-    from rrls.experiments import benchfile, stats
-    from rrls.experiments.store import load_store
-
-    root = Path(root)
-    spec = benchfile.read_spec_json(root)
-    tables = load_store(root)
-    ev, dyn = tables["evaluations"], tables["dynamic"]
-    if not len(ev):
-        raise ReferenceError(f"{root} holds no finished run to export")
-    scores = stats.per_seed_scores(ev)
-    wanted = list(dict.fromkeys(algos or scores["algorithm"]))
-    unknown = [a for a in wanted if a not in set(scores["algorithm"])]
-    if unknown:
-        raise ReferenceError(
-            f"no runs of {', '.join(unknown)} in {root}; it has: "
-            f"{', '.join(dict.fromkeys(scores['algorithm']))}"
-        )
-    rows = []
-    for (task, algo), group in scores.groupby(["task", "algorithm"], sort=True):
-        if algo not in wanted:
-            continue
-        group = group.sort_values("seed")
-        for metric in ("worst_case", "average_case"):
-            rows.append(_row(task, spec["uncertainty"], algo, metric, group[metric].to_numpy()))
-        if len(dyn):
-            sel = dyn[(dyn["task"] == task) & (dyn["algorithm"] == algo)]
-            if len(sel):
-                per_seed = sel.groupby("seed")["return"].mean().to_numpy()
-                rows.append(_row(task, spec["uncertainty"], algo, "dynamic", per_seed))
-    versions = {}
-    for key in _VERSION_KEYS:
-        col = f"{key}_version"
-        if col in ev:
-            versions[key] = "/".join(sorted(map(str, ev[col].unique())))
-    proto = benchmark_protocol(spec)
-    ref = Reference(
-        label=label or f"{root.resolve().name} ({spec.get('preset', 'custom')} preset)",
-        physics=proto["physics"],
-        mesh=proto["mesh"],
-        episodes=proto["episodes"],
-        endpoint=proto["endpoint"],
-        steps=int(spec["steps"]),
-        eval_seed=int(spec.get("eval_seed", 0)),
-        versions=versions,
-        notes=f"exported by `rrls report --export-reference` from {root.resolve().name}",
-        rows=rows,
-        provenance=provenance(root, spec, wanted),
-    )
-    ref.save(path)
-    ref.path = str(path)
-    return ref
-
-
-def provenance(root: Path, spec: dict[str, Any], algos: list[str]) -> dict[str, Any]:
-    """Where a benchmark's numbers came from, from its spec and its runs' ``run.json``: the
-    preset, budget and hyper-parameters, and every rrls commit, library version, machine and
-    device that trained a run (more than one value: the runs were produced in pieces)."""
-    from rrls import __version__, rundir
-    from rrls.experiments import store
-
-    runs: dict[str, Any] = {}
-    for directory in sorted(p for p in (root / "runs").glob("*") if p.is_dir()):
-        run: dict[str, Any] = {}
-        for read in (store.read_result, rundir.read_run_json):  # run.json has the machine
-            try:
-                run.update(read(directory))
-            except FileNotFoundError:  # unfinished, or submitted (no training)
-                continue
-        if run.get("algorithm") in algos:
-            runs[directory.name] = run
-
-    def distinct(values: Any) -> list[Any]:
-        out: list[Any] = []
-        for v in values:
-            if v is not None and v not in out:
-                out.append(v)
-        return out
-
-    versions: dict[str, list[str]] = {}
-    for run in runs.values():
-        for key, value in (run.get("versions") or {}).items():
-            versions.setdefault(key, [])
-            if value not in versions[key]:
-                versions[key].append(value)
-    prov = [run.get("provenance") or {} for run in runs.values()]
-    return {
-        "preset": spec.get("preset"),
-        "physics": spec.get("physics"),
-        "uncertainty": spec.get("uncertainty"),
-        "steps": spec.get("steps"),
-        "seeds": spec.get("seeds"),
-        "learning_starts": spec.get("learning_starts"),
-        "hidden": spec.get("hidden"),
-        "learning_rate": spec.get("learning_rate"),
-        "batch_size": spec.get("batch_size"),
-        "mesh": spec.get("mesh"),
-        "episodes": spec.get("episodes"),
-        "dynamic_episodes": spec.get("dynamic_episodes"),
-        "runs": len(runs),
-        "exported_with_rrls": __version__,
-        "versions": {k: sorted(map(str, v)) for k, v in sorted(versions.items())},
-        "commits": distinct(p.get("commit") for p in prov),
-        "machines": distinct(p.get("machine") for p in prov),
-        "devices": distinct(p.get("device") for p in prov),
-    }
-
-
-def _row(task: str, uncertainty: str, algo: str, metric: str, values: Any) -> dict[str, Any]:
-    import numpy as np
-
-    values = np.asarray(values, dtype=float)
-    return {
-        "task": task,
-        "uncertainty": uncertainty,
-        "algorithm": algo,
-        "metric": metric,
-        "mean": float(values.mean()),
-        "std": float(values.std()),
-        "n_seeds": len(values),
-        "values": [float(v) for v in values],
-    }
 
 
 def paper_reference_from_results(paper: dict[str, Any]) -> Reference:
