@@ -7,10 +7,18 @@ finished run (``result.json`` present) contributes its policy, ``run.json``, ``r
 curves (``scalars.csv``) and evaluation (summary and episodes, dynamic episodes) — never
 checkpoints, replay buffers or TensorBoard files. ``benchmark.json`` comes along, so
 ``rrls report DEST`` (after ``rrls benchmark`` would resume the rest) rebuilds the report.
+
+A run resumed after its machine went away was trained in several executions, and its
+``result.json`` times only the last (``seconds``: training since resuming, and evaluation). Each
+execution wrote its own TensorBoard file, so ``executions.csv`` records them all: per file its
+first and last event's wall time and steps, and ``in_result`` (1: the execution that
+``result.json`` times). The earlier executions' spans plus ``seconds`` are the run's cost.
 """
 
 from __future__ import annotations
 
+import csv
+import json
 import shutil
 import sys
 from pathlib import Path
@@ -48,7 +56,56 @@ def collect(bench: Path, dest: Path) -> list[str]:
                         shutil.copy2(path, target)
                         if src.name not in copied:
                             copied.append(src.name)
+        if executions(src, out / EXECUTIONS) and src.name not in copied:
+            copied.append(src.name)
     return copied
+
+
+EXECUTIONS = "executions.csv"
+COLUMNS = ("started", "ended", "first_step", "last_step", "in_result")
+
+
+def executions(run: Path, dest: Path) -> bool:
+    """Write ``dest`` from ``run/tb``'s event files (one row per execution); ``False`` where the
+    run has no TensorBoard files (kept as it was) or ``dest`` is already what they give."""
+    files = sorted((run / "tb").glob("events.out.tfevents.*"))
+    if not files:
+        return False
+    from tensorboard.backend.event_processing.event_file_loader import EventFileLoader
+
+    result = run / "result.json"
+    # the execution result.json times began `seconds` before it was written
+    began = result.stat().st_mtime - float(json.loads(result.read_text())["seconds"])
+    rows = []
+    for path in files:
+        events = [(e.wall_time, e.step) for e in EventFileLoader(str(path)).Load()]
+        if not events:
+            continue
+        times, steps = [t for t, _ in events], [s for _, s in events]
+        # a minute's slack: the event file opens just after the execution's clock starts
+        rows.append((min(times), max(times), min(steps), max(steps), int(min(times) > began - 60)))
+    rows.sort()
+    lines = [",".join(COLUMNS)] + [f"{a:.3f},{b:.3f},{c},{d},{e}" for a, b, c, d, e in rows]
+    text = "\n".join(lines) + "\n"
+    if dest.exists() and dest.read_text() == text:
+        return False
+    dest.parent.mkdir(parents=True, exist_ok=True)
+    dest.write_text(text)
+    return True
+
+
+def run_seconds(run: Path) -> tuple[float, int]:
+    """A shipped run's cost in seconds and its number of executions: ``result.json``'s
+    ``seconds`` plus the earlier executions' spans in ``executions.csv`` (without that file,
+    ``seconds`` alone, and 0 executions: not known)."""
+    seconds = float(json.loads((run / "result.json").read_text()).get("seconds") or 0.0)
+    path = run / EXECUTIONS
+    if not path.exists():
+        return seconds, 0
+    with open(path, newline="") as f:
+        rows = list(csv.DictReader(f))
+    earlier = [r for r in rows if r["in_result"] == "0"]
+    return seconds + sum(float(r["ended"]) - float(r["started"]) for r in earlier), len(earlier) + 1
 
 
 if __name__ == "__main__":

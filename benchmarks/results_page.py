@@ -27,6 +27,8 @@ import re
 import sys
 from pathlib import Path
 
+from collect_runs import run_seconds  # benchmarks/, beside this script
+
 from rrls.algorithms import display_name, sort_algos
 from rrls.experiments.reference import load_reference
 from rrls.experiments.stats import t_interval
@@ -148,22 +150,26 @@ def orderings(data: dict[str, dict[str, list[float]]]) -> str:
 
 
 def runs(folder: Path) -> str:
+    """One line per run: its CPU kind, its cost (every execution where known: ``compute``) and
+    its scores."""
     lines = [
-        "| run | CPU | seconds | worst case | average case | own adversary |",
-        "|---|---|---|---|---|---|",
+        "| run | CPU | executions | seconds | worst case | average case | own adversary |",
+        "|---|---|---|---|---|---|---|",
     ]
     rows = []
     for result in folder.glob("runs/*/result.json"):
         info = json.loads(result.read_text())
         run = json.loads((result.parent / "run.json").read_text())
         simd = (run.get("provenance", {}).get("machine") or {}).get("simd", "")
-        rows.append((info, simd))
-    order = {a: i for i, a in enumerate(sort_algos({i["algorithm"] for i, _ in rows}))}
-    for info, simd in sorted(rows, key=lambda r: (r[0]["seed"], order[r[0]["algorithm"]])):
+        rows.append((info, simd, *run_seconds(result.parent)))
+    order = {a: i for i, a in enumerate(sort_algos({r[0]["algorithm"] for r in rows}))}
+    for info, simd, seconds, executions in sorted(
+        rows, key=lambda r: (r[0]["seed"], order[r[0]["algorithm"]])
+    ):
         dyn = f"{info['dynamic_mean']:.1f}" if "dynamic_mean" in info else ""
         lines.append(
             f"| {display_name(info['algorithm'])} seed {info['seed']} | {simd} | "
-            f"{info.get('seconds', 0):.0f} | {info['worst_case']:.1f} | "
+            f"{executions or '?'} | {seconds:.0f} | {info['worst_case']:.1f} | "
             f"{info['average_case']:.1f} | {dyn} |"
         )
     return "\n".join(lines) + "\n"
@@ -292,20 +298,35 @@ def status(folder: Path) -> str:
 
 
 def compute(folder: Path) -> str:
-    """The runs' own record of their cost: seconds in ``result.json`` (single-threaded runs:
-    CPU-seconds at most) and the CPU kinds in ``run.json``."""
-    seconds, kinds = 0.0, {}
+    """The runs' own record of their cost (``collect_runs.run_seconds``: every execution of a
+    resumed run where ``executions.csv`` lists them, else ``result.json``'s last execution) and
+    the CPU kinds in ``run.json``."""
+    seconds, kinds, known, resumed, runs = 0.0, {}, 0, 0, 0
     for path in folder.glob("runs/*/result.json"):
-        seconds += float(json.loads(path.read_text()).get("seconds") or 0.0)
+        spent, executions = run_seconds(path.parent)
+        seconds, runs = seconds + spent, runs + 1
+        known += executions > 0
+        resumed += executions > 1
         machine = json.loads((path.parent / "run.json").read_text()).get("provenance", {})
         machine = machine.get("machine") or {}
         cores, cpu, simd = (machine.get(k, "?") for k in ("cores", "cpu", "simd"))
         kind = f"{cores}-core {cpu} ({simd})"
         kinds[kind] = kinds.get(kind, 0) + 1
     where = ", ".join(f"{k}: {n} runs" for k, n in sorted(kinds.items()))
+    if known == runs:
+        counted = (
+            f"every execution counted: {resumed} of the {runs} runs were resumed after their "
+            "machine went away, and their earlier executions are timed from their TensorBoard "
+            "files (`executions.csv`, to within a minute each)"
+        )
+    else:
+        counted = (
+            f"{runs - known} of the {runs} runs timed by `result.json` alone, which counts a "
+            "resumed run's last execution only"
+        )
     return (
         f"{seconds / 3600:.1f} hours of run time summed over the runs (each single-threaded: at "
-        f"most that many CPU-hours); {where or 'no run yet'}.\n"
+        f"most that many CPU-hours; {counted}); {where or 'no run yet'}.\n"
     )
 
 

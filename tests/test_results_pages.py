@@ -19,7 +19,7 @@ import results_page  # noqa: E402
 import td3_sanity  # noqa: E402
 
 #: each results page with its shipped reference (None: a page without one)
-PAGES = {"quick": "quick", "hopper": "hopper", "halfcheetah": None}  # halfcheetah: no reference yet
+PAGES = {"quick": "quick", "hopper": "hopper", "halfcheetah": "halfcheetah"}
 
 
 def _pages():
@@ -102,3 +102,54 @@ def test_the_quick_pages_td3_balances_on_every_shipped_seed():
     # "TD3's final nominal return is 1000 on all three seeds"
     nominal = results_page.per_seed(RESULTS / "quick")["td3"]["nominal"]
     assert nominal == [1000.0] * 3
+
+
+def test_the_halfcheetah_td3_runs_past_4000_on_every_shipped_seed():
+    # the page and README: "300 000 steps ... leaves TD3 well past 4 000 on every measured
+    # seed"; the issue's budget rule: TD3's final nominal return >= 4 000 on every seed
+    nominal = results_page.per_seed(RESULTS / "halfcheetah")["td3"]["nominal"]
+    assert len(nominal) >= 2 and min(nominal) >= 4_000, nominal
+
+
+def test_a_resumed_runs_cost_counts_every_execution(tmp_path, monkeypatch):
+    # two executions, each with its TensorBoard file; result.json times the second only
+    import json
+    import os
+    import time
+
+    import collect_runs
+    from torch.utils.tensorboard import SummaryWriter
+
+    run = tmp_path / "bench" / "runs" / "td3-hopper-3d-seed0"
+    for began, ended in ((1000.0, 1500.0), (2000.0, 2600.0)):
+        monkeypatch.setattr(time, "time", lambda began=began: began)  # the file's first event
+        writer = SummaryWriter(str(run / "tb"))
+        for wall in (began, ended):
+            writer.add_scalar("charts/episode_return", 1.0, int(wall), walltime=wall)
+        writer.close()
+    monkeypatch.undo()
+    (run / "result.json").write_text(json.dumps({"seconds": 750.0}))
+    os.utime(run / "result.json", (2700.0, 2700.0))  # written at 2 700: its clock began at 1 950
+    assert len(list((run / "tb").glob("events.*"))) == 2
+    dest = tmp_path / "shipped"
+    assert collect_runs.executions(run, dest / collect_runs.EXECUTIONS)
+    assert not collect_runs.executions(run, dest / collect_runs.EXECUTIONS)  # unchanged
+    rows = pd.read_csv(dest / collect_runs.EXECUTIONS)
+    assert list(rows["in_result"]) == [0, 1] and list(rows["started"]) == [1000.0, 2000.0]
+    assert list(rows["ended"]) == [1500.0, 2600.0] and list(rows["last_step"]) == [1500, 2600]
+    (dest / "result.json").write_text((run / "result.json").read_text())
+    assert collect_runs.run_seconds(dest) == (750.0 + 500.0, 2)
+    (dest / collect_runs.EXECUTIONS).unlink()
+    assert collect_runs.run_seconds(dest) == (750.0, 0)  # not known: result.json alone
+
+
+def test_every_shipped_execution_list_names_the_one_result_json_times():
+    import json
+
+    for path in sorted(RESULTS.glob("*/runs/*/executions.csv")):
+        rows = pd.read_csv(path)
+        assert list(rows["in_result"]) == [0] * (len(rows) - 1) + [1], path
+        assert (rows["ended"] >= rows["started"]).all() and rows["started"].is_monotonic_increasing
+        last = rows.iloc[-1]
+        seconds = json.loads((path.parent / "result.json").read_text())["seconds"]
+        assert last.ended - last.started <= seconds, path  # its training, within its clock

@@ -21,10 +21,10 @@ from rrls._io import atomic_write_json
 from rrls.cli import main
 from rrls.evaluation import BatchInvariant, MLPPolicy, evaluate
 from rrls.experiments import submit
+from rrls.experiments.exported import export_reference
 from rrls.experiments.reference import (
     PAPER_PHYSICS,
     ReferenceError,
-    export_reference,
     load_reference,
     paper_reference_from_results,
 )
@@ -340,6 +340,21 @@ def test_shipped_hopper_reference_fits_the_hopper_preset(tmp_path):
     from rrls.experiments.reference import check_compatible
 
     check_compatible(ref, spec.to_json())  # same physics, set, mesh, episodes
+
+
+def test_shipped_halfcheetah_reference_fits_its_preset_and_counts_its_runs(tmp_path):
+    # produced in pieces: its label says how many of the 25 runs it holds, as its rows do
+    ref = load_reference("halfcheetah")
+    assert ref.physics == "v5" and ref.steps == 300_000 and ref.sets == ["3d"]
+    assert ref.episodes == 5 and ref.mesh == 10 and ref.endpoint is False  # the paper's mesh
+    static = [r for r in ref.rows if r["metric"] == "worst_case"]
+    runs = sum(r["n_seeds"] for r in static)
+    assert f"{runs} of 25 runs" in ref.label and f"{runs} of the preset's 25 runs" in ref.notes
+    assert ref.provenance["preset"] == "halfcheetah" and ref.provenance["runs"] == runs
+    spec = create_benchmark(tmp_path / "b", "halfcheetah", ("halfcheetah",))
+    from rrls.experiments.reference import check_compatible
+
+    check_compatible(ref, spec.to_json())
 
 
 def test_shipped_quick_reference_fits_the_quick_preset(tmp_path):
