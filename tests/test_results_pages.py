@@ -153,3 +153,18 @@ def test_every_shipped_execution_list_names_the_one_result_json_times():
         last = rows.iloc[-1]
         seconds = json.loads((path.parent / "result.json").read_text())["seconds"]
         assert last.ended - last.started <= seconds, path  # its training, within its clock
+
+
+def test_the_t_quantiles_the_pages_quote_are_students():
+    # "at 5 seeds `t = 2.78`", "3 seeds (`t = 4.30`)", "t(0.975, 2) · s / √3` (`t = 4.30`)"
+    import re
+
+    from scipy.stats import t
+
+    quoted = 0
+    for page in sorted(RESULTS.glob("*/README.md")):
+        text = " ".join(page.read_text().split())
+        for n, value in re.findall(r"(\d+) seeds \(?`t = ([\d.]+)`", text):
+            assert f"{t.ppf(0.975, int(n) - 1):.2f}" == value, (page.parent.name, n, value)
+            quoted += 1
+    assert quoted >= 4
