@@ -90,7 +90,9 @@ def executions(run: Path, dest: Path) -> bool:
     if dest.exists() and dest.read_text() == text:
         return False
     dest.parent.mkdir(parents=True, exist_ok=True)
-    dest.write_text(text)
+    tmp = dest.with_name(dest.name + ".tmp")  # atomic: a killed copy leaves the old file
+    tmp.write_text(text)
+    tmp.replace(dest)
     return True
 
 
