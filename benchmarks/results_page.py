@@ -316,7 +316,7 @@ def compute(folder: Path) -> str:
     if known == runs:
         counted = (
             f"every execution counted: {resumed} of the {runs} runs were resumed after their "
-            "machine went away, and their earlier executions are timed from their TensorBoard "
+            "process was stopped, and their earlier executions are timed from their TensorBoard "
             "files (`executions.csv`, to within a minute each)"
         )
     else:
