@@ -8,7 +8,7 @@ curves (``scalars.csv``) and evaluation (summary and episodes, dynamic episodes)
 checkpoints, replay buffers or TensorBoard files. ``benchmark.json`` comes along, so
 ``rrls report DEST`` (after ``rrls benchmark`` would resume the rest) rebuilds the report.
 
-A run resumed after its machine went away was trained in several executions, and its
+A run resumed after its process was stopped was trained in several executions, and its
 ``result.json`` times only the last (``seconds``: training since resuming, and evaluation). Each
 execution wrote its own TensorBoard file, so ``executions.csv`` records them all: per file its
 first and last event's wall time and steps, and ``in_result`` (1: the execution that

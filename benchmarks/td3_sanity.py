@@ -53,11 +53,14 @@ def _one(job: tuple[int, int, str]) -> list[tuple[int, int, float]]:
     import torch
     from cleanrl_loops import published
 
+    from rrls.envs.base import mujoco_warnings_to_python
+
     warnings.simplefilter("ignore")
     torch.set_num_threads(1)
     seed, steps, task = job
     returns: list[tuple[int, float]] = []
-    published("td3", task, steps - 25_000 - 1, 0, seed, learning_starts=25_000, returns=returns)
+    with mujoco_warnings_to_python():  # not MUJOCO_LOG.TXT in the working directory
+        published("td3", task, steps - 25_000 - 1, 0, seed, learning_starts=25_000, returns=returns)
     return [(seed, step, value) for step, value in returns]
 
 
@@ -78,6 +81,19 @@ def windowed(frame: pd.DataFrame, step: int) -> list[float]:
     return part.groupby("seed")["return"].mean().tolist()
 
 
+def td3_curves(folder: Path) -> tuple[pd.DataFrame, pd.DataFrame]:
+    """A results folder's TD3 runs: their training-episode returns (seed, step, return) and
+    their nominal evaluations (``scalars.csv`` rows, with a seed column)."""
+    train, nominal = [], []
+    for path in sorted(folder.glob("runs/td3-*-seed*/scalars.csv")):
+        seed = int(path.parent.name.rpartition("seed")[2])
+        data = pd.read_csv(path)
+        rets = data[data["metric"] == "charts/episode_return"]
+        train.append(pd.DataFrame({"seed": seed, "step": rets["step"], "return": rets["value"]}))
+        nominal.append(data[data["metric"] == "eval/nominal_return"].assign(seed=seed))
+    return pd.concat(train), pd.concat(nominal)
+
+
 def cell(values: list[float]) -> str:
     if not values:
         return "-"
@@ -93,15 +109,7 @@ def table(
     """The side-by-side table (markdown) of a results folder's TD3 runs, CleanRL's loop's
     returns (``cleanrl``) and, where given, the TD3 authors' published figures."""
     authors = TASKS.get(folder.name, (steps, AUTHORS))[1] if authors is None else authors
-    train, nominal = [], []
-    for path in sorted(folder.glob("runs/td3-*-seed*/scalars.csv")):
-        seed = int(path.parent.name.rpartition("seed")[2])
-        data = pd.read_csv(path)
-        rets = data[data["metric"] == "charts/episode_return"]
-        train.append(pd.DataFrame({"seed": seed, "step": rets["step"], "return": rets["value"]}))
-        nominal.append(data[data["metric"] == "eval/nominal_return"].assign(seed=seed))
-    rrls = pd.concat(train)
-    evals = pd.concat(nominal)
+    rrls, evals = td3_curves(folder)
     clean = (
         pd.read_csv(cleanrl)
         if cleanrl.is_file()

@@ -63,13 +63,7 @@ def test_hopper_td3_learns_as_cleanrls_loop_within_a_standard_deviation():
     # steps on, and within 1.2 at 50 k, where CleanRL's loop is slightly ahead"
     folder = RESULTS / "hopper"
     clean = pd.read_csv(folder / "cleanrl_td3_returns.csv")
-    frames = []
-    for path in sorted(folder.glob("runs/td3-*/scalars.csv")):
-        data = pd.read_csv(path)
-        rets = data[data["metric"] == "charts/episode_return"]
-        seed = int(path.parent.name.rpartition("seed")[2])
-        frames.append(pd.DataFrame({"seed": seed, "step": rets["step"], "return": rets["value"]}))
-    rrls = pd.concat(frames)
+    rrls, _ = td3_sanity.td3_curves(folder)
     for step in td3_sanity.STEPS:
         ours, theirs = td3_sanity.windowed(rrls, step), td3_sanity.windowed(clean, step)
         gap, spread = abs(np.mean(ours) - np.mean(theirs)), max(np.std(ours), np.std(theirs))
@@ -177,13 +171,7 @@ def test_halfcheetah_td3_learns_as_cleanrls_loop_no_difference_resolved():
 
     folder = RESULTS / "halfcheetah"
     clean = pd.read_csv(folder / "cleanrl_td3_returns.csv")
-    frames = []
-    for path in sorted(folder.glob("runs/td3-*/scalars.csv")):
-        data = pd.read_csv(path)
-        rets = data[data["metric"] == "charts/episode_return"]
-        seed = int(path.parent.name.rpartition("seed")[2])
-        frames.append(pd.DataFrame({"seed": seed, "step": rets["step"], "return": rets["value"]}))
-    rrls = pd.concat(frames)
+    rrls, _ = td3_sanity.td3_curves(folder)
     text = " ".join((folder / "README.md").read_text().split())
     n = rrls["seed"].nunique()
     assert f"With rrls's {n} seeds and CleanRL's {clean['seed'].nunique()}," in text
