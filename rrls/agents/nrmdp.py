@@ -54,9 +54,15 @@ class Config(TD3Config):
         choices=("nr", "pr"),
     )
     ratio: int = hp(10, "protagonist policy steps per adversary policy step (reference: 10)")
+    normalize_obs: bool = hp(
+        False, "Tessler's running observation standardisation (one mean and variance per run)"
+    )
+    critic_weight_decay: float = hp(0.0, "Adam's L2 term on the critic (Tessler's DDPG: 1e-2)")
 
     def __post_init__(self) -> None:
         super().__post_init__()
+        if not (np.isfinite(self.critic_weight_decay) and self.critic_weight_decay >= 0):
+            raise ValueError(f"critic_weight_decay must be >= 0, got {self.critic_weight_decay}")
         if not (np.isfinite(self.alpha) and 0.0 <= self.alpha <= 1.0):
             raise ValueError(f"alpha must be in [0, 1], got {self.alpha}")
         if self.mode not in ("nr", "pr"):
@@ -95,16 +101,24 @@ class Learner(TD3Learner):
         self.fast = NumpyActor(self.opponent) if self.agent.fast is not None else None
         self.alpha, self.policy_steps = config.alpha, 0
         self.game = {"game": config.mode, "alpha": config.alpha}
+        if config.critic_weight_decay:
+            critic = self.agent.critic.parameters()
+            lr, decay = config.learning_rate, config.critic_weight_decay
+            self.agent.critic_opt = adam(critic, lr, device, weight_decay=decay)
+        self.stats = PooledStats(len(seeds), device) if config.normalize_obs else None
         self._update = Update(self._compute, device)
 
     def act(self, obs: np.ndarray) -> list[Any]:
         """The protagonist explores with noise, the adversary acts without (as the reference)."""
-        theirs = deterministic(self.opponent, obs, self.fast).astype(np.float32)
-        return list(zip(super().act(obs), theirs))
+        seen = obs if self.stats is None else self.stats.normalize(obs)
+        theirs = deterministic(self.opponent, seen, self.fast).astype(np.float32)
+        return list(zip(super().act(seen), theirs))
 
     def observe(self, obs, actions, rewards, next_obs, terminated, infos) -> None:
         executed = np.stack([info["executed_action"] for info in infos])
         super().observe(obs, executed, rewards, next_obs, terminated, infos)
+        if self.stats is not None:  # the raw states are stored; the stats follow each one
+            self.stats.update(obs)
 
     def update(self, step: int) -> dict[str, torch.Tensor]:
         size, turn = self.config.batch_size, None
@@ -133,6 +147,9 @@ class Learner(TD3Learner):
         """The shared critic's step, then ``turn``'s policy step."""
         agent, alpha, nr = self.agent, self.alpha, self.config.mode == "nr"
         data = self.buffer.gather(x["idx"])
+        if self.stats is not None:  # normalised when sampled, by the stats of now (the reference)
+            seen = {name: self.stats(data[name]) for name in ("obs", "next_obs")}
+            data = {**data, **seen}
         s = data["obs"]
         y = self.target(data, x["mine"], x["theirs"])
         losses = {"critic_loss": agent.critic_step(s, data["action"], y)}
@@ -169,6 +186,7 @@ class Learner(TD3Learner):
             "opponent_target": self.opponent_target.state_dict(),
             "opponent_opt": self.opponent_opt.state_dict(),
             "policy_steps": self.policy_steps,
+            **({"obs_stats": self.stats.state_dict()} if self.stats is not None else {}),
         }
 
     def load_state_dict(self, state: dict[str, Any]) -> None:
@@ -177,12 +195,82 @@ class Learner(TD3Learner):
         self.opponent_target.load_state_dict(state["opponent_target"])
         load_optimizer(self.opponent_opt, state["opponent_opt"])
         self.policy_steps = int(state["policy_steps"])
+        if self.stats is not None:
+            self.stats.load_state_dict(state["obs_stats"])
 
     def export(self, k: int) -> dict[str, Any]:
-        return {
+        """Run ``k``'s two policies; with ``normalize_obs``, the standardisation folded into
+        their first layers (``MLPPolicy`` stays a plain MLP of the raw observation)."""
+        policies = {
             "policy": to_mlp_policy(self.agent.actor, k, self.game),
             "adversary": to_mlp_policy(self.opponent, k, self.game),
         }
+        if self.stats is not None:
+            for name, policy in policies.items():
+                policies[name] = self.stats.fold(policy, k)
+        return policies
+
+
+class PooledStats:
+    """Tessler's observation statistics, as his code computes them, one set per run.
+
+    His ``RunningMeanStd`` (count 1e-4, mean 0, variance 1; ``utils.py:47-53``) is updated with
+    each stored state alone (``ddpg.py``, ``store_transition``: ``obs_rms.update(state[b])``), and
+    ``update`` takes the moments along axis 0 of that 1-D state (``utils.py:55-58``): so the mean
+    and variance are **pooled over every feature** of every stored state, and every feature is
+    shifted and scaled alike, ``(s - mean) / sqrt(var)`` (``ddpg.py:28-31``), at acting and when a
+    batch is sampled. Kept as his code has it, not per feature.
+    """
+
+    def __init__(self, runs: int, device: Any) -> None:
+        self.mean, self.var = np.zeros(runs), np.ones(runs)
+        self.count = np.full(runs, 1e-4)
+        self.shift = torch.zeros(runs, 1, 1, device=device)
+        self.scale = torch.ones(runs, 1, 1, device=device)
+        self._sync()
+
+    def update(self, obs: np.ndarray) -> None:
+        """Fold one stored state per run (``(K, obs)``) in: Chan et al.'s parallel update."""
+        obs = np.asarray(obs, np.float32)
+        n = obs.shape[1]
+        batch_mean, batch_var = obs.mean(1, dtype=np.float64), obs.var(1, dtype=np.float64)
+        delta, total = batch_mean - self.mean, self.count + n
+        m2 = self.var * self.count + batch_var * n + delta**2 * self.count * n / total
+        self.mean, self.var, self.count = self.mean + delta * n / total, m2 / total, total
+        self._sync()
+
+    def _sync(self) -> None:
+        mean, std = self.mean.astype(np.float32), np.sqrt(self.var.astype(np.float32))
+        self.shift.copy_(torch.from_numpy(mean).view(-1, 1, 1))  # in place: graphs read them
+        self.scale.copy_(torch.from_numpy(std).view(-1, 1, 1))
+        self.mean32, self.std32 = mean[:, None], std[:, None]
+
+    def normalize(self, obs: np.ndarray) -> np.ndarray:
+        """``(K, obs)`` states as the networks see them."""
+        return ((np.asarray(obs, np.float32) - self.mean32) / self.std32).astype(np.float32)
+
+    def __call__(self, obs: torch.Tensor) -> torch.Tensor:
+        """``(K, B, obs)`` sampled states as the networks see them."""
+        return (obs - self.shift) / self.scale
+
+    def fold(self, policy: Any, k: int) -> Any:
+        """``policy`` of the normalised state as a policy of the raw one: ``((s - m) / σ) W + b
+        = s (W / σ) + (b - (m / σ) Σ_i W_i)``, in float64 then stored in float32."""
+        m, sd = float(self.mean32[k, 0]), float(self.std32[k, 0])
+        w0, b0 = policy.weights[0].astype(np.float64), policy.biases[0].astype(np.float64)
+        weights = [w0 / sd, *policy.weights[1:]]
+        biases = [b0 - (m / sd) * w0.sum(0), *policy.biases[1:]]
+        return type(policy)(  # an MLPPolicy
+            weights, biases, policy.action_scale, policy.action_bias, metadata=policy.metadata
+        )
+
+    def state_dict(self) -> dict[str, torch.Tensor]:
+        return {n: torch.from_numpy(getattr(self, n).copy()) for n in ("mean", "var", "count")}
+
+    def load_state_dict(self, state: dict[str, torch.Tensor]) -> None:
+        for n in ("mean", "var", "count"):
+            setattr(self, n, state[n].numpy().astype(np.float64).copy())
+        self._sync()
 
 
 class _Protagonist:
