@@ -10,12 +10,14 @@ seeds. Six methods::
     state_dict() / load_state_dict(state)  # everything, tensors with the runs first
     export(k) -> {"policy": MLPPolicy[, "adversary": MLPPolicy]}   # run k's final policies
 
-Two optional hooks: ``episode_options(k, step)`` (``reset(options=...)``, M2TD3's ω) and
-``episode_end(k, ret, length) -> {scalar: value}``. The convention that lets the loop checkpoint
-each run on its own: in ``state_dict()``, every tensor with at least one dimension has the run
-first (``(K, ...)``); 0-d tensors and plain values are common to the group (step counts). A
-run's checkpoint is its slice ``[k : k + 1]`` of every such tensor (a group of one), whatever
-group it was trained in.
+Three optional hooks: ``episode_options(k, step)`` (``reset(options=...)``, M2TD3's ω),
+``episode_end(k, ret, length) -> {scalar: value}`` and ``same_start`` (True: every episode is
+reset with the run's first seed, one start state, as the M2TD3 authors' trainer).
+
+The convention that lets the loop checkpoint each run on its own: in ``state_dict()``, every
+tensor with at least one dimension has the run first (``(K, ...)``); 0-d tensors and plain
+values are common to the group (step counts). A run's checkpoint is its slice ``[k : k + 1]`` of
+every such tensor (a group of one), whatever group it was trained in.
 
 The device-resident loop (``rrls.agents.on_twin``: the Warp twin's observations, the replay
 and the updates stay on the GPU) calls four more methods, which TD3, DR, SAC and SAC-DR have::
@@ -116,6 +118,8 @@ class Learner:
 
     def export(self, k: int) -> dict[str, Any]:
         raise NotImplementedError
+
+    same_start = False  # True: every reset reuses the run's first seed (one start state)
 
     def episode_options(self, k: int, step: int) -> dict | None:
         return None

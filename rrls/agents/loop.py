@@ -345,7 +345,10 @@ def _collect(
                     if on_episode is not None:
                         on_episode(k, step, episode.ret)
                     options = learner.episode_options(k, step)
-                    next_obs[k], episodes[k] = _begin(envs, k, None, options)
+                    again = (
+                        seeds[k].integer("env") if getattr(learner, "same_start", False) else None
+                    )
+                    next_obs[k], episodes[k] = _begin(envs, k, again, options)
                     threads.poll()
             obs = next_obs
 

@@ -75,6 +75,14 @@ class Config(TD3Config):
     normalize_omega: bool = hp(
         False, "critics see ω rescaled to [-1, 1] (the authors feed raw values)"
     )
+    clip_exploration: bool = hp(
+        True,
+        "exploring actions clipped to the action box before they are stored (the authors "
+        "store and send them unclipped; MuJoCo clamps the control)",
+    )
+    same_start: bool = hp(
+        False, "every episode reset with the run's first seed: one start state (the authors')"
+    )
 
     def __post_init__(self) -> None:
         super().__post_init__()
@@ -246,7 +254,16 @@ class Learner(TD3Learner):
         self.noise_clip = tensor(config.noise_clip_omega_rate * half)
         self.coeff = torch.full((len(seeds),), 1e-3, dtype=torch.float64, device=device)
         self.omega = np.zeros((len(seeds), dim))
+        self.same_start = config.same_start
         self._update = Update(self._compute, device)
+
+    def act(self, obs: np.ndarray) -> list[Any]:
+        """TD3's ``π(s) + N(0, σ · scale)``; unclipped with ``clip_exploration=False``, as the
+        authors' ``src/m2td3/algo.py:471-494`` (the same draws either way)."""
+        if self.config.clip_exploration:
+            return super().act(obs)
+        noise = np.stack([rng.normal(0.0, self.sigma) for rng in self.rngs])
+        return list((self.agent.act(obs) + noise).astype(np.float32))
 
     def critic_omega(self, w: torch.Tensor) -> torch.Tensor:
         """The critics' view of ω: raw (the authors) or rescaled to [-1, 1] (opt-in)."""
