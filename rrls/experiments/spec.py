@@ -350,9 +350,9 @@ def validate(spec: Spec) -> None:
     from rrls.tasks import TASKS, get_task
 
     plugins = [ep.name for ep in entry_points(group="rrls.algorithms")]
-    bad = [a for a in spec.algos if a not in BUILT_IN and a not in plugins and ":" not in a]
+    bad = [a for a in spec.algos if algorithm_info(a) is None]  # registered rows count too
     if bad:
-        valid = ", ".join([*BUILT_IN, *plugins])
+        valid = ", ".join(dict.fromkeys([*ALGORITHMS, *plugins]))
         raise SpecError(f"unknown algorithm {bad[0]!r}; valid: {valid}, or package.module:Learner")
     if not spec.algos or not spec.tasks:
         raise SpecError("a benchmark needs at least one algorithm and one task")
