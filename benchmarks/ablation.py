@@ -22,7 +22,10 @@ from pathlib import Path
 import pandas as pd
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from authors_variants import VARIANTS  # (registers the variants' rows)
+from authors_variants import VARIANTS, register
+
+if __name__ in ("__main__", "__mp_main__"):  # the driver, and the benchmark's spawned processes
+    register()
 
 ROOT = Path(__file__).resolve().parent.parent
 REFERENCE = ROOT / "docs" / "results" / "halfcheetah" / "runs"

@@ -41,22 +41,24 @@ def _m2td3_options(spec) -> dict:
     return {"normalize_omega": spec.normalize_omega}
 
 
-#: the rows ``rrls benchmark`` reads (display name, adversary, warm-up), registered on import:
-#: the benchmark's spawned processes import the script that imports this module again
+#: the rows ``rrls benchmark`` reads (display name, adversary, warm-up), by the built-in they vary
 VARIANTS = {
-    "nrmdp": register_algorithm(
-        AlgorithmInfo(
-            "nrmdp-tessler", "NR-MDP (Tessler's code)", f"{__name__}:TesslerNRMDP", adversary=True
-        )
+    "nrmdp": AlgorithmInfo(
+        "nrmdp-tessler", "NR-MDP (Tessler's code)", f"{__name__}:TesslerNRMDP", adversary=True
     ),
-    "m2td3": register_algorithm(
-        AlgorithmInfo(
-            "m2td3-authors",
-            "M2TD3 (authors' code)",
-            f"{__name__}:AuthorsM2TD3",
-            set_use="chosen",
-            learning_starts=100_000,
-            options=_m2td3_options,
-        )
+    "m2td3": AlgorithmInfo(
+        "m2td3-authors",
+        "M2TD3 (authors' code)",
+        f"{__name__}:AuthorsM2TD3",
+        set_use="chosen",
+        learning_starts=100_000,
+        options=_m2td3_options,
     ),
 }
+
+
+def register() -> None:
+    """Add the rows to ``rrls.algorithms.ALGORITHMS`` (in the benchmark's driver, and in each of
+    its spawned processes, which import the driver's script again)."""
+    for info in VARIANTS.values():
+        register_algorithm(info)

@@ -15,7 +15,9 @@ data give, so no number on a page is typed by hand. Blocks:
   method, ``rrls.experiments.stats.t_interval``), each seed's final nominal return;
 - ``orderings``: every pair of algorithms whose intervals do not overlap, per criterion, and the
   lowest and highest mean: the only orderings a page may state;
-- ``runs``: one row per shipped run.
+- ``runs``: one row per shipped run;
+- ``ablation``: NR-MDP and M2TD3 with their authors' details beside the runs of the same seeds
+  (``ablation.csv``, written by ``benchmarks/ablation.py``).
 """
 
 from __future__ import annotations
@@ -378,6 +380,11 @@ def blocks(folder: Path, reference: str | None) -> dict[str, str]:
 
         steps = td3_sanity.TASKS[folder.name][0]
         out["sanity"] = td3_sanity.table(folder, folder / "cleanrl_td3_returns.csv", steps)
+    if (folder / "ablation.csv").is_file():
+        import ablation  # beside this file
+        import pandas as pd
+
+        out["ablation"] = ablation.table(pd.read_csv(folder / "ablation.csv")) + "\n"
     return out
 
 

@@ -17,7 +17,8 @@ ROOT = Path(__file__).resolve().parent.parent
 def ablation():
     spec = importlib.util.spec_from_file_location("ablation", ROOT / "benchmarks/ablation.py")
     module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)  # registers the two variants' rows
+    spec.loader.exec_module(module)
+    module.register()  # as the script does when it runs
     yield module
     from rrls.algorithms import ALGORITHMS
 
