@@ -31,6 +31,10 @@ Opt-in (``normalize_omega`` / ``--normalize-omega``): the critics see ω rescale
 authors feed raw values; on InvertedPendulum's pole mass (1-31) raw ω swamps the first layer and
 M2TD3 barely learns in 20 k steps (average 51 over the 1D mesh, seed 1), rescaled it learns as
 fast as DR (average 879). The same function class — only the optimisation's conditioning changes.
+
+Opt-in, two details of the authors' trainer every rrls baseline leaves off: ``clip_exploration=
+False`` (the exploring action stored and sent unclipped, ``src/m2td3/algo.py:471-494``) and
+``same_start`` (every episode reset with the run's one seed, ``src/m2td3/trainer.py:197``).
 """
 
 from __future__ import annotations

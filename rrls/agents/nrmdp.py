@@ -23,6 +23,10 @@ Polyak rate, Gaussian instead of Ornstein-Uhlenbeck exploration, one update per 
 paper's 256-256 networks. The reference evaluates the critic at ``s`` but feeds the actors
 ``s'`` in the policy losses; here both use ``s`` (the paper's objective). The final adversary is
 saved (``adversary.npz``) for the dynamic evaluation (paper Table 6).
+
+Opt-in, two defaults of the reference's ``DDPG`` (``ddpg.py:42``) the TD3 core leaves off:
+``normalize_obs`` (its running state standardisation, pooled over features as its code computes
+it: ``PooledStats``) and ``critic_weight_decay`` (its Adam L2 term on the critic, 1e-2).
 """
 
 from __future__ import annotations
