@@ -49,6 +49,10 @@ def test_variants_are_registered_rows_the_benchmark_accepts(ablation):
     assert tessler.normalize_obs and tessler.critic_weight_decay == 1e-2
     authors = algorithm("m2td3-authors").Config()
     assert not authors.clip_exploration and authors.same_start
+    from rrls.experiments.spec import make_spec
+
+    spec = make_spec("halfcheetah", algos="nrmdp-tessler,m2td3-authors", seeds=2)
+    assert spec.warmup("m2td3-authors") == 100_000 and spec.warmup("nrmdp-tessler") == 25_000
 
 
 def test_table_pairs_each_variant_run_with_the_reference_run_of_its_seed(ablation, tmp_path):
