@@ -3,11 +3,11 @@ plug-in learners for ``rrls benchmark --algos`` (the ablation that measures thos
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 from rrls.agents import m2td3, nrmdp
 from rrls.agents.hparams import hp
-from rrls.algorithms import AlgorithmInfo, register_algorithm
+from rrls.algorithms import ALGORITHMS, register_algorithm
 
 
 @dataclass
@@ -37,22 +37,22 @@ class AuthorsM2TD3(m2td3.Learner):
     make_env = staticmethod(m2td3.make_env)
 
 
-def _m2td3_options(spec) -> dict:
-    return {"normalize_omega": spec.normalize_omega}
-
-
-#: the rows ``rrls benchmark`` reads (display name, adversary, warm-up), by the built-in they vary
+#: the rows ``rrls benchmark`` reads, by the built-in they vary: its row (set use, adversary,
+#: warm-up, benchmark options) under another name, display and learner
 VARIANTS = {
-    "nrmdp": AlgorithmInfo(
-        "nrmdp-tessler", "NR-MDP (Tessler's code)", f"{__name__}:TesslerNRMDP", adversary=True
+    "nrmdp": replace(
+        ALGORITHMS["nrmdp"],
+        name="nrmdp-tessler",
+        display="NR-MDP (Tessler's code)",
+        learner=f"{__name__}:TesslerNRMDP",
+        paper=False,
     ),
-    "m2td3": AlgorithmInfo(
-        "m2td3-authors",
-        "M2TD3 (authors' code)",
-        f"{__name__}:AuthorsM2TD3",
-        set_use="chosen",
-        learning_starts=100_000,
-        options=_m2td3_options,
+    "m2td3": replace(
+        ALGORITHMS["m2td3"],
+        name="m2td3-authors",
+        display="M2TD3 (authors' code)",
+        learner=f"{__name__}:AuthorsM2TD3",
+        paper=False,
     ),
 }
 

@@ -266,8 +266,7 @@ class Learner(TD3Learner):
         authors' ``src/m2td3/algo.py:471-494`` (the same draws either way)."""
         if self.config.clip_exploration:
             return super().act(obs)
-        noise = np.stack([rng.normal(0.0, self.sigma) for rng in self.rngs])
-        return list((self.agent.act(obs) + noise).astype(np.float32))
+        return list(self.explore(obs).astype(np.float32))
 
     def critic_omega(self, w: torch.Tensor) -> torch.Tensor:
         """The critics' view of ω: raw (the authors) or rescaled to [-1, 1] (opt-in)."""

@@ -217,8 +217,12 @@ class Learner(DeviceActing, _Learner):
 
     def act(self, obs: np.ndarray) -> list[Any]:
         """``π(s) + N(0, σ · scale)`` per run (each run's own generator), clipped to the box."""
+        return list(np.clip(self.explore(obs), self.low, self.high).astype(np.float32))
+
+    def explore(self, obs: np.ndarray) -> np.ndarray:
+        """``π(s) + N(0, σ · scale)`` per run, unclipped (each run's own generator)."""
         noise = np.stack([rng.normal(0.0, self.sigma) for rng in self.rngs])
-        return list(np.clip(self.agent.act(obs) + noise, self.low, self.high).astype(np.float32))
+        return self.agent.act(obs) + noise
 
     def observe(self, obs, actions, rewards, next_obs, terminated, infos) -> None:
         self.buffer.add(
