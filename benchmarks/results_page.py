@@ -16,6 +16,8 @@ data give, so no number on a page is typed by hand. Blocks:
 - ``orderings``: every pair of algorithms whose intervals do not overlap, per criterion, and the
   lowest and highest mean: the only orderings a page may state;
 - ``runs``: one row per shipped run;
+- ``earlier``: the algorithms retrained after a change of defaults, their earlier runs
+  (sub-folder ``earlier/``, its own report) beside today's, seed for seed;
 - ``ablation``: NR-MDP and M2TD3 with their authors' details beside the runs of the same seeds
   (``ablation.csv``, written by ``benchmarks/ablation.py``).
 """
@@ -361,6 +363,36 @@ def td3_budget(folder: Path, threshold: float = 4_000.0) -> str:
     return "\n".join(lines) + "\n"
 
 
+def earlier(folder: Path, sub: str = "earlier") -> str:
+    """Per algorithm of ``folder/sub`` (the same seeds trained under earlier defaults) and metric:
+    the earlier runs and today's, mean with its 95 % t interval, their ratio, each seed's
+    difference, and whether the intervals separate (the only change a page may state)."""
+    before, now = per_seed(folder / sub), per_seed(folder)
+    lines = [
+        "| algorithm | metric | earlier defaults | today's defaults | today / earlier "
+        "| per seed (today - earlier) | intervals |",
+        "|---|---|---|---|---|---|---|",
+    ]
+    words = {**METRICS, "nominal": "final nominal return"}
+    for algo in sort_algos(before):
+        if algo not in now:
+            continue
+        for metric, name in words.items():
+            a, b = before[algo][metric], now[algo][metric]
+            if len(a) != len(b):  # per_seed lists seeds in order: only equal sets pair
+                raise SystemExit(f"{folder}: {algo} has {len(a)} earlier runs, {len(b)} today")
+            ca, cb = t_interval(a), t_interval(b)
+            apart = ca is not None and cb is not None and (cb[0] > ca[1] or ca[0] > cb[1])
+            mean_a, mean_b = sum(a) / len(a), sum(b) / len(b)
+            ratio = f"{mean_b / mean_a:.2f}" if mean_a else ""
+            diffs = ", ".join(f"{y - x:+.0f}" for x, y in zip(a, b))
+            lines.append(
+                f"| {display_name(algo)} | {name} | {_cell(a)} | {_cell(b)} | {ratio} | {diffs} "
+                f"| {'apart' if apart else 'overlap'} |"
+            )
+    return "\n".join(lines) + "\n"
+
+
 def blocks(folder: Path, reference: str | None) -> dict[str, str]:
     data = per_seed(folder)
     out = {"summary": summary(data, dynamic(folder, reference)), "orderings": orderings(data)}
@@ -375,6 +407,8 @@ def blocks(folder: Path, reference: str | None) -> dict[str, str]:
         out["evaluation"] = evaluation(folder)
         out["td3_budget"] = td3_budget(folder)
         out["compute"] = compute(folder)
+    if (folder / "earlier" / "tables" / "per_run.csv").is_file():
+        out["earlier"] = earlier(folder)
     if (folder / "cleanrl_td3_returns.csv").is_file():
         import td3_sanity  # beside this file
 

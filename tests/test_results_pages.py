@@ -179,3 +179,30 @@ def test_halfcheetah_td3_learns_as_cleanrls_loop_no_difference_resolved():
         ours, theirs = td3_sanity.windowed(rrls, step), td3_sanity.windowed(clean, step)
         assert (np.mean(ours) > np.mean(theirs)) == (step >= 200_000), step
         assert ttest_ind(ours, theirs, equal_var=False).pvalue > 0.05, step
+
+
+def _per_run(folder: Path, rows: dict[str, list[tuple[float, float, float]]]) -> None:
+    lines = ["task,algorithm,seed,steps,final_nominal_return,worst_case,average_case"]
+    for algo, values in rows.items():
+        for seed, (nominal, worst, average) in enumerate(values):
+            lines.append(f"hopper,{algo},{seed},200000,{nominal},{worst},{average}")
+    (folder / "tables").mkdir(parents=True)
+    (folder / "tables" / "per_run.csv").write_text("\n".join(lines) + "\n")
+
+
+def test_the_earlier_block_pairs_seeds_and_states_only_separated_intervals(tmp_path):
+    _per_run(
+        tmp_path,
+        {"td3": [(1, 1, 1)] * 3, "rarl": [(300, 100, 400), (310, 110, 410), (320, 120, 420)]},
+    )
+    _per_run(tmp_path / "earlier", {"rarl": [(200, 100, 390), (210, 150, 420), (220, 80, 400)]})
+    block = results_page.earlier(tmp_path)
+    rows = {line.split(" | ")[1]: line for line in block.splitlines() if line.startswith("| RARL")}
+    assert set(rows) == {"worst case", "average case", "final nominal return"}  # TD3: not retrained
+    assert "+100, +100, +100" in rows["final nominal return"]
+    assert rows["final nominal return"].endswith("| 1.48 | +100, +100, +100 | apart |")
+    assert rows["worst case"].endswith("| overlap |") and "+0, -40, +40" in rows["worst case"]
+    assert rows["average case"].endswith("| overlap |")
+    _per_run(tmp_path / "short", {"rarl": [(200, 100, 390)] * 2})
+    with pytest.raises(SystemExit, match="2 earlier runs, 3 today"):
+        results_page.earlier(tmp_path, "short")
