@@ -62,6 +62,18 @@ def test_an_exported_reference_says_where_it_came_from(smoke, tmp_path):
     assert load_reference(tmp_path / "ref.json").notes.endswith(f"from {smoke.name}")
     export_reference(smoke, tmp_path / "noted.json", notes="300 steps: a smoke test")
     assert load_reference(tmp_path / "noted.json").notes == "300 steps: a smoke test"
+    assert "trained_otherwise" not in prov  # every run trained as the benchmark says
+    # a run re-evaluated under the benchmark's protocol but trained otherwise: the reference
+    # says so, per algorithm
+    from rrls.experiments import store
+
+    copy = tmp_path / "bench"
+    shutil.copytree(smoke, copy)
+    run = next((copy / "runs").glob("m2td3-*"))
+    store.write_result(run, {**store.read_result(run), "trained_otherwise": {"learning_starts": 9}})
+    export_reference(copy, tmp_path / "otherwise.json")
+    prov = load_reference(tmp_path / "otherwise.json").provenance
+    assert prov["trained_otherwise"] == {"m2td3": {"learning_starts": 9}}
 
 
 @needs_torch

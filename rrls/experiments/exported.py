@@ -109,7 +109,13 @@ def provenance(root: Path, spec: dict[str, Any], algos: list[str]) -> dict[str, 
             if value not in versions[key]:
                 versions[key].append(value)
     prov = [run.get("provenance") or {} for run in runs.values()]
-    return {
+    # runs re-evaluated under today's protocol but trained under other settings say how, per
+    # algorithm (``result.json``'s ``trained_otherwise``): a reader of the reference must know
+    otherwise: dict[str, Any] = {}
+    for run in runs.values():
+        if run.get("trained_otherwise"):
+            otherwise.setdefault(run["algorithm"], run["trained_otherwise"])
+    out = {
         "preset": spec.get("preset"),
         "physics": spec.get("physics"),
         "uncertainty": spec.get("uncertainty"),
@@ -129,6 +135,9 @@ def provenance(root: Path, spec: dict[str, Any], algos: list[str]) -> dict[str, 
         "machines": distinct(p.get("machine") for p in prov),
         "devices": distinct(p.get("device") for p in prov),
     }
+    if otherwise:
+        out["trained_otherwise"] = dict(sorted(otherwise.items()))
+    return out
 
 
 def _row(task: str, uncertainty: str, algo: str, metric: str, values: Any) -> dict[str, Any]:
