@@ -206,3 +206,34 @@ def test_the_earlier_block_pairs_seeds_and_states_only_separated_intervals(tmp_p
     _per_run(tmp_path / "short", {"rarl": [(200, 100, 390)] * 2})
     with pytest.raises(SystemExit, match="2 earlier runs, 3 today"):
         results_page.earlier(tmp_path, "short")
+
+
+def test_the_hopper_pages_retraining_claims():
+    import json
+
+    from rrls.experiments.reference import load_reference
+    from rrls.experiments.spec import make_spec
+
+    folder = RESULTS / "hopper"
+    # "No change is resolved at 3 seeds: every pair of intervals overlaps"
+    assert "| apart |" not in results_page.earlier(folder)
+    # "the authors' warm-up leaves M2TD3 100 000 updates where TD3 and the earlier M2TD3 had
+    # 175 000 ... at the paper's 5 M steps the difference is 1.5 %"
+    spec, paper = make_spec("hopper"), make_spec("paper")
+    assert spec.steps - spec.warmup("m2td3") == 100_000
+    assert spec.steps - spec.warmup("td3") == 175_000 == spec.steps - 25_000
+    updates = [paper.steps - paper.warmup(a) for a in ("m2td3", "td3")]
+    assert f"{100 * (1 - updates[0] / updates[1]):.1f} %" == "1.5 %"
+    # the algorithms retrained are those in earlier/, and none of today's runs of them was
+    # trained otherwise; the reference names every algorithm still trained otherwise
+    retrained = {p.name.split("-")[0] for p in (folder / "earlier" / "runs").iterdir()}
+    otherwise = set()
+    for path in (folder / "runs").glob("*/result.json"):
+        if json.loads(path.read_text()).get("trained_otherwise"):
+            otherwise.add(path.parent.name.split("-")[0])
+    assert retrained and not retrained & otherwise
+    provenance = load_reference("hopper").provenance
+    assert set(provenance.get("trained_otherwise", {})) == otherwise
+    text = (folder / "README.md").read_text()
+    if "rarl" in otherwise:  # "RARL's retraining ... has not finished: its rows here are still"
+        assert "its rows here are still the\n  earlier RARL" in text
