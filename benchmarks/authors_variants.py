@@ -7,7 +7,7 @@ from dataclasses import dataclass, replace
 
 from rrls.agents import m2td3, nrmdp
 from rrls.agents.hparams import hp
-from rrls.algorithms import ALGORITHMS, register_algorithm
+from rrls.algorithms import ALGORITHMS, AlgorithmInfo, register_algorithm
 
 
 @dataclass
@@ -37,23 +37,17 @@ class AuthorsM2TD3(m2td3.Learner):
     make_env = staticmethod(m2td3.make_env)
 
 
-#: the rows ``rrls benchmark`` reads, by the built-in they vary: its row (set use, adversary,
-#: warm-up, benchmark options) under another name, display and learner
+def _renamed(algo: str, name: str, display: str, learner: type) -> AlgorithmInfo:
+    """The built-in row ``algo`` (set use, adversary, warm-up, benchmark options) under another
+    name, display and learner: nothing else can drift from the built-in."""
+    learner_path = f"{__name__}:{learner.__name__}"
+    return replace(ALGORITHMS[algo], name=name, display=display, learner=learner_path, paper=False)
+
+
+#: the rows ``rrls benchmark`` reads, by the built-in they vary
 VARIANTS = {
-    "nrmdp": replace(
-        ALGORITHMS["nrmdp"],
-        name="nrmdp-tessler",
-        display="NR-MDP (Tessler's code)",
-        learner=f"{__name__}:TesslerNRMDP",
-        paper=False,
-    ),
-    "m2td3": replace(
-        ALGORITHMS["m2td3"],
-        name="m2td3-authors",
-        display="M2TD3 (authors' code)",
-        learner=f"{__name__}:AuthorsM2TD3",
-        paper=False,
-    ),
+    "nrmdp": _renamed("nrmdp", "nrmdp-tessler", "NR-MDP (Tessler's code)", TesslerNRMDP),
+    "m2td3": _renamed("m2td3", "m2td3-authors", "M2TD3 (authors' code)", AuthorsM2TD3),
 }
 
 
