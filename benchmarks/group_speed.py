@@ -215,30 +215,6 @@ def groups(args: argparse.Namespace) -> None:
                 for _ in range(args.group_rounds)
             ]
         reference = statistics.median(ref)
-    together: dict[tuple, list[float]] = {}
-    apart: dict[tuple, list[float]] = {}
-    for _ in range(args.group_rounds):
-        for device in devices:
-            for algo in args.algos:
-                for k in args.ks:
-                    key = (device, algo, k)
-                    job = (algo, args.task, k, args.group_steps, args.group_warmup)
-                    # not a Pool: its daemonic worker could not start the group's env workers
-                    with ProcessPoolExecutor(1, mp_context=ctx) as pool:
-                        whole = (*job, args.learning_starts, None, device)
-                        rate = pool.submit(_group_job, whole).result()
-                    together.setdefault(key, []).append(rate)
-                    apart.setdefault(key, []).append(
-                        separate_processes(
-                            algo,
-                            args.task,
-                            k,
-                            args.process_steps,
-                            args.group_warmup,
-                            args.learning_starts,
-                            device,
-                        )
-                    )
     print(
         f"\nGroups of runs, {args.task}, one update per env step per run, steps/s after "
         f"learning starts ({args.learning_starts} random steps, then {args.group_warmup} "
@@ -256,14 +232,36 @@ def groups(args: argparse.Namespace) -> None:
         "| device | algo | K | (b) K runs in one process: env steps/s | per run | (b) / (a) "
         "| (c) K processes, 1 thread each: env steps/s | (b)/(c) |"
     )
-    print("|---|---|---|---|---|---|---|---|")
-    for (device, algo, k), values in together.items():
-        b = statistics.median(values)
-        c = statistics.median(apart[(device, algo, k)])
-        vs_a = f"{b / reference:.2f}x" if reference else "-"
-        print(
-            f"| {device} | {algo} | {k} | {b:.0f} | {b / k:.0f} | {vs_a} | {c:.0f} | {b / c:.2f}x |"
-        )
+    print("|---|---|---|---|---|---|---|---|", flush=True)
+    # each row printed as soon as its rounds are done: a run cut short (a GPU lease) keeps them
+    for device in devices:
+        for algo in args.algos:
+            for k in args.ks:
+                together, apart = [], []
+                job = (algo, args.task, k, args.group_steps, args.group_warmup)
+                for _ in range(args.group_rounds):
+                    # not a Pool: its daemonic worker could not start the group's env workers
+                    with ProcessPoolExecutor(1, mp_context=ctx) as pool:
+                        whole = (*job, args.learning_starts, None, device)
+                        together.append(pool.submit(_group_job, whole).result())
+                    apart.append(
+                        separate_processes(
+                            algo,
+                            args.task,
+                            k,
+                            args.process_steps,
+                            args.group_warmup,
+                            args.learning_starts,
+                            device,
+                        )
+                    )
+                b, c = statistics.median(together), statistics.median(apart)
+                vs_a = f"{b / reference:.2f}x" if reference else "-"
+                print(
+                    f"| {device} | {algo} | {k} | {b:.0f} | {b / k:.0f} | {vs_a} | {c:.0f} "
+                    f"| {b / c:.2f}x |",
+                    flush=True,
+                )
     print(
         "\nTargets: CPU (b)/(c) >= 1.0 (no slower per run than separate processes); on an H100 "
         "TD3 K=1 >= 2 000, TD3 K=32 >= 20 000, M2TD3 K=32 >= 10 000 env steps/s (b)."
