@@ -17,7 +17,8 @@ data give, so no number on a page is typed by hand. Blocks:
   lowest and highest mean: the only orderings a page may state;
 - ``runs``: one row per shipped run;
 - ``earlier``: the algorithms retrained after a change of defaults, their earlier runs
-  (sub-folder ``earlier/``, its own report) beside today's, seed for seed;
+  (sub-folder ``earlier/``, its own report) beside today's, seed for seed (RARL and NR-MDP also
+  against their own final adversary);
 - ``ablation``: NR-MDP and M2TD3 with their authors' details beside the runs of the same seeds
   (``ablation.csv``, written by ``benchmarks/ablation.py``).
 """
@@ -363,21 +364,41 @@ def td3_budget(folder: Path, threshold: float = 4_000.0) -> str:
     return "\n".join(lines) + "\n"
 
 
+def own_adversary(folder: Path) -> dict[str, list[float]]:
+    """``{algo: values by seed}`` of the runs against their own final adversary (``result.json``'s
+    ``dynamic_mean``), for the algorithms all of whose runs have one."""
+    found: dict[str, dict[int, float | None]] = {}
+    for result in folder.glob("runs/*/result.json"):
+        info = json.loads(result.read_text())
+        found.setdefault(info["algorithm"], {})[int(info["seed"])] = info.get("dynamic_mean")
+    return {
+        algo: [by_seed[s] for s in sorted(by_seed)]
+        for algo, by_seed in found.items()
+        if all(v is not None for v in by_seed.values())
+    }
+
+
 def earlier(folder: Path, sub: str = "earlier") -> str:
     """Per algorithm of ``folder/sub`` (the same seeds trained under earlier defaults) and metric:
     the earlier runs and today's, mean with its 95 % t interval, their ratio, each seed's
     difference, and whether the intervals separate (the only change a page may state)."""
     before, now = per_seed(folder / sub), per_seed(folder)
+    for seeds, where in ((before, folder / sub), (now, folder)):
+        for algo, values in own_adversary(where).items():  # the two-player games' own metric
+            if algo in seeds:
+                seeds[algo]["dynamic"] = values
     lines = [
         "| algorithm | metric | earlier defaults | today's defaults | today / earlier "
         "| per seed (today - earlier) | intervals |",
         "|---|---|---|---|---|---|---|",
     ]
-    words = {**METRICS, "nominal": "final nominal return"}
+    words = {**METRICS, "nominal": "final nominal return", "dynamic": "vs own adversary"}
     for algo in sort_algos(before):
         if algo not in now:
             continue
         for metric, name in words.items():
+            if metric not in before[algo] or metric not in now[algo]:
+                continue
             a, b = before[algo][metric], now[algo][metric]
             if len(a) != len(b):  # per_seed lists seeds in order: only equal sets pair
                 raise SystemExit(f"{folder}: {algo} has {len(a)} earlier runs, {len(b)} today")

@@ -206,6 +206,23 @@ def test_the_earlier_block_pairs_seeds_and_states_only_separated_intervals(tmp_p
     _per_run(tmp_path / "short", {"rarl": [(200, 100, 390)] * 2})
     with pytest.raises(SystemExit, match="2 earlier runs, 3 today"):
         results_page.earlier(tmp_path, "short")
+    # the runs against their own adversary: a row where every run on both sides has one
+    import json
+
+    for sub, values in (("", (300, 250, 200)), ("earlier", (100, 120, 140))):
+        for seed, value in enumerate(values):
+            run = tmp_path / sub / "runs" / f"rarl-hopper-3d-seed{seed}"
+            run.mkdir(parents=True)
+            info = {"algorithm": "rarl", "seed": seed, "dynamic_mean": value}
+            (run / "result.json").write_text(json.dumps(info))
+    block = results_page.earlier(tmp_path)
+    rows = [line for line in block.splitlines() if "own adversary" in line]
+    assert rows == ["| RARL | vs own adversary | 120.0 [70.3, 169.7] | 250.0 [125.8, 374.2] | 2.08 "
+                    "| +200, +130, +60 | overlap |"]  # fmt: skip
+    (tmp_path / "runs" / "rarl-hopper-3d-seed2" / "result.json").write_text(
+        json.dumps({"algorithm": "rarl", "seed": 2})  # one run without: no row
+    )
+    assert "own adversary" not in results_page.earlier(tmp_path)
 
 
 def test_the_hopper_pages_retraining_claims():
