@@ -241,6 +241,28 @@ def test_the_hopper_pages_retraining_claims():
     assert spec.steps - spec.warmup("td3") == 175_000 == spec.steps - 25_000
     updates = [paper.steps - paper.warmup(a) for a in ("m2td3", "td3")]
     assert f"{100 * (1 - updates[0] / updates[1]):.1f} %" == "1.5 %"
+    # "RARL's protagonist ... got 88 000 of the 175 000 updates after the warm-up; learning every
+    # step, it gets all 175 000" (the learner's own schedule, both ways)
+    from types import SimpleNamespace
+
+    from rrls.agents import rarl
+
+    start = spec.warmup("rarl")
+    for schedule, protagonist in (("alternating", 88_000), ("simultaneous", 175_000)):
+        player = SimpleNamespace(config=rarl.Config(schedule=schedule, learning_starts=start))
+        steps = range(start + 1, spec.steps + 1)
+        assert sum(0 in rarl.Learner.learning(player, t) for t in steps) == protagonist
+    # "for both algorithms": the earlier block has rows of M2TD3 and RARL, all overlapping
+    rows = results_page.earlier(folder).splitlines()[2:]
+    assert {row.split(" | ")[0] for row in rows} == {"| M2TD3", "| RARL"}
+    # "RARL seeds 1 and 2 were also trained on another CPU kind than seed 0"
+    machines = [
+        json.loads((folder / "runs" / f"rarl-hopper-3d-seed{seed}" / "run.json").read_text())[
+            "provenance"
+        ]["machine"]
+        for seed in range(3)
+    ]
+    assert machines[1] == machines[2] != machines[0]
     # the algorithms retrained are those in earlier/, and none of today's runs of them was
     # trained otherwise; the reference names every algorithm still trained otherwise
     retrained = {p.name.split("-")[0] for p in (folder / "earlier" / "runs").iterdir()}
