@@ -31,6 +31,11 @@ ROOT = Path(__file__).resolve().parent.parent
 REFERENCE = ROOT / "docs" / "results" / "halfcheetah" / "runs"
 OUT = ROOT / "docs" / "results" / "halfcheetah" / "ablation.csv"
 METRICS = ("worst_case", "average_case", "nominal")
+NAMES = {
+    "worst_case": "worst case",
+    "average_case": "average case",
+    "nominal": "final nominal return",
+}
 
 
 def run_row(run: Path) -> dict[str, float]:
@@ -65,11 +70,12 @@ def collect(out: Path, reference: Path = REFERENCE) -> pd.DataFrame:
 
 def table(frame: pd.DataFrame) -> str:
     """Per algorithm and metric: rrls's default and the authors' details, mean ± std over the
-    paired seeds, their ratio and each seed's difference."""
+    paired seeds (one seed: its value alone; a std of one value says nothing), their ratio and
+    each seed's difference."""
     lines = [
-        "| algorithm | metric | rrls default | authors' details | authors / rrls | per seed "
-        "(authors - rrls) |",
-        "|---|---|---|---|---|---|",
+        "| algorithm | metric | seeds | rrls default | authors' details | authors / rrls "
+        "| per seed (authors - rrls) |",
+        "|---|---|---|---|---|---|---|",
     ]
     for algo, group in frame.groupby("algorithm", sort=False):
         wide = group.pivot(index="seed", columns="variant", values=list(METRICS))
@@ -78,10 +84,13 @@ def table(frame: pd.DataFrame) -> str:
             a, b = wide[metric]["rrls"].to_numpy(), wide[metric]["authors"].to_numpy()
             diffs = ", ".join(f"{d:+.0f}" for d in b - a)
             ratio = b.mean() / a.mean() if a.mean() else float("nan")
-            sa, sb = (x.std(ddof=1) if n > 1 else 0.0 for x in (a, b))
+            cells = [
+                f"{x.mean():.0f} ± {x.std(ddof=1):.0f}" if n > 1 else f"{x.mean():.0f}"
+                for x in (a, b)
+            ]
             lines.append(
-                f"| {VARIANTS[algo].display} | {metric} | {a.mean():.0f} ± {sa:.0f} "
-                f"| {b.mean():.0f} ± {sb:.0f} | {ratio:.2f} | {diffs} |"
+                f"| {VARIANTS[algo].display} | {NAMES[metric]} | {n} | {cells[0]} | {cells[1]} "
+                f"| {ratio:.2f} | {diffs} |"
             )
     return "\n".join(lines)
 

@@ -69,7 +69,9 @@ def test_table_pairs_each_variant_run_with_the_reference_run_of_its_seed(ablatio
     assert (row.worst_case, row.nominal) == (-300.0, 5000.0)  # the last nominal evaluation
     text = ablation.table(frame)
     assert (
-        "| NR-MDP (Tessler's code) | worst_case | -400 ± 141 | -200 ± 141 | 0.50 | +200, +200 |"
+        "| NR-MDP (Tessler's code) | worst case | 2 | -400 ± 141 | -200 ± 141 | 0.50 | +200, +200 |"
         in text
     )
-    assert "| average_case | 1500 ± 707 | 2500 ± 707 | 1.67 | +1000, +1000 |" in text
+    assert "| average case | 2 | 1500 ± 707 | 2500 ± 707 | 1.67 | +1000, +1000 |" in text
+    one = ablation.table(frame[frame.seed == 0])  # one seed: its value, no spread
+    assert "| final nominal return | 1 | 5000 | 6000 | 1.20 | +1000 |" in one and "±" not in one
