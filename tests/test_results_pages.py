@@ -276,3 +276,33 @@ def test_the_hopper_pages_retraining_claims():
     text = (folder / "README.md").read_text()
     if "rarl" in otherwise:  # "RARL's retraining ... has not finished: its rows here are still"
         assert "its rows here are still the\n  earlier RARL" in text
+
+
+def test_the_halfcheetah_ablation_reading_is_its_data():
+    import json
+
+    import pandas as pd
+
+    folder = RESULTS / "halfcheetah"
+    text = " ".join((folder / "README.md").read_text().split())
+    frame = pd.read_csv(folder / "ablation.csv")
+    seeds = frame.groupby("algorithm").seed.nunique()
+    if (seeds == 1).all():  # "One seed per algorithm so far: each row is one paired difference"
+        assert "One seed per algorithm so far" in text
+
+    # the variants on an Intel Xeon (X86_V4), the page's runs on the EPYC (X86_V3)
+    def machine(run):
+        return json.loads((run / "run.json").read_text())["provenance"]["machine"]
+
+    variants = {machine(r)["simd"] for r in (folder / "ablation" / "runs").iterdir()}
+    pairs = frame[["algorithm", "seed"]].drop_duplicates().itertuples(index=False)
+    own = {machine(folder / "runs" / f"{a}-halfcheetah-3d-seed{s}")["simd"] for a, s in pairs}
+    assert variants == {"X86_V4"} and own == {"X86_V3"}
+    # "every difference ... within two standard deviations of this page's own seeds"
+    runs = pd.read_csv(folder / "tables" / "per_run.csv")
+    runs = runs.rename(columns={"final_nominal_return": "nominal"})
+    wide = frame.pivot_table(index=["algorithm", "seed"], columns="variant")
+    for (algo, _), row in wide.iterrows():
+        for metric in ("worst_case", "average_case", "nominal"):
+            spread = runs[runs.algorithm == algo][metric].std(ddof=1)
+            assert abs(row[(metric, "authors")] - row[(metric, "rrls")]) < 2 * spread, algo
