@@ -164,9 +164,9 @@ def test_the_t_quantiles_the_pages_quote_are_students():
     assert quoted >= 4
 
 
-def test_halfcheetah_td3_learns_as_cleanrls_loop_no_difference_resolved():
-    # the page: "CleanRL's loop is slightly ahead at 100 k steps, and rrls's TD3 is ahead from
-    # 200 k steps on ... Welch's t-test resolves none of the three differences at 5 %"
+def test_halfcheetah_td3_learns_as_cleanrls_loop_behind_only_at_100k():
+    # the page: "CleanRL's loop is ahead at 100 k steps, and rrls's TD3 is ahead from
+    # 200 k steps on ... Welch's t-test resolves the first difference at 5 %"
     from scipy.stats import ttest_ind
 
     folder = RESULTS / "halfcheetah"
@@ -178,7 +178,10 @@ def test_halfcheetah_td3_learns_as_cleanrls_loop_no_difference_resolved():
     for step in td3_sanity.TASKS["halfcheetah"][0]:
         ours, theirs = td3_sanity.windowed(rrls, step), td3_sanity.windowed(clean, step)
         assert (np.mean(ours) > np.mean(theirs)) == (step >= 200_000), step
-        assert ttest_ind(ours, theirs, equal_var=False).pvalue > 0.05, step
+        # "resolves the first difference at 5 % (... about 4 % behind) and neither of the later two"
+        assert (ttest_ind(ours, theirs, equal_var=False).pvalue < 0.05) == (step == 100_000), step
+        if step == 100_000:
+            assert 0.03 < 1 - np.mean(ours) / np.mean(theirs) < 0.05
 
 
 def _per_run(folder: Path, rows: dict[str, list[tuple[float, float, float]]]) -> None:
