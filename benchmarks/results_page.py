@@ -155,25 +155,28 @@ def orderings(data: dict[str, dict[str, list[float]]]) -> str:
 
 
 def runs(folder: Path) -> str:
-    """One line per run: its CPU kind, its cost (every execution where known: ``compute``) and
-    its scores."""
+    """One line per run: the rrls commit that trained it, its CPU kind, its cost (every execution
+    where known: ``compute``) and its scores."""
     lines = [
-        "| run | CPU | executions | seconds | worst case | average case | own adversary |",
-        "|---|---|---|---|---|---|---|",
+        "| run | commit | CPU | executions | seconds | worst case | average case | own adversary |",
+        "|---|---|---|---|---|---|---|---|",
     ]
     rows = []
     for result in folder.glob("runs/*/result.json"):
         info = json.loads(result.read_text())
         run = json.loads((result.parent / "run.json").read_text())
-        simd = (run.get("provenance", {}).get("machine") or {}).get("simd", "")
-        rows.append((info, simd, *run_seconds(result.parent)))
+        provenance = run.get("provenance", {})
+        simd = (provenance.get("machine") or {}).get("simd", "")
+        sha = provenance.get("commit") or "?"  # "+dirty": built from uncommitted changes
+        commit = f"`{sha[:7]}{'+dirty' if sha.endswith('+dirty') else ''}`"
+        rows.append((info, commit, simd, *run_seconds(result.parent)))
     order = {a: i for i, a in enumerate(sort_algos({r[0]["algorithm"] for r in rows}))}
-    for info, simd, seconds, executions in sorted(
+    for info, commit, simd, seconds, executions in sorted(
         rows, key=lambda r: (r[0]["seed"], order[r[0]["algorithm"]])
     ):
         dyn = f"{info['dynamic_mean']:.1f}" if "dynamic_mean" in info else ""
         lines.append(
-            f"| {display_name(info['algorithm'])} seed {info['seed']} | {simd} | "
+            f"| {display_name(info['algorithm'])} seed {info['seed']} | {commit} | {simd} | "
             f"{executions or '?'} | {seconds:.0f} | {info['worst_case']:.1f} | "
             f"{info['average_case']:.1f} | {dyn} |"
         )
