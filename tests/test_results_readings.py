@@ -75,3 +75,104 @@ def test_the_hopper_page_names_each_runs_commit_and_cpu():
             assert commit == "e0436bc" and "Xeon" in cpu and simd == "X86_V4", name
     assert "all three M2TD3 seeds and RARL seed 0 retrained on" in text
     assert "M2TD3 (all three seeds) and RARL seed 0 at `d65188c`" in text
+
+
+def _nominal_curve(run: Path) -> pd.Series:
+    scalars = pd.read_csv(run / "scalars.csv")
+    curve = scalars[scalars.metric == "eval/nominal_return"].sort_values("step")
+    return curve.set_index("step").value
+
+
+def test_the_halfcheetah_reading_of_who_has_learned_to_run():
+    import json
+
+    from rrls.experiments.report import paper_results
+
+    folder = RESULTS / "halfcheetah"
+    text = _flat(folder / "README.md")
+    nominal = {a: v["nominal"] for a, v in results_page.per_seed(folder).items()}
+    # "TD3, DR, M2TD3 and NR-MDP: every seed's final nominal return is above 2 000 (TD3's above
+    # 4 000)"; "RARL ... below zero on every seed, and no periodic evaluation ... reached 250"
+    assert all(min(nominal[a]) > 2000 for a in ("td3", "dr", "m2td3", "nrmdp"))
+    assert min(nominal["td3"]) > 4000 and max(nominal["rarl"]) < 0
+    rarl = list((folder / "runs").glob("rarl-*"))
+    assert rarl and all(_nominal_curve(run).max() < 250 for run in rarl)
+    assert "no periodic evaluation of any RARL seed reached 250" in text
+    # the paper's RARL "near zero ... (worst case −211.8 ± 218.7, average case 206.7 ± 887.2)"
+    paper = paper_results()
+    for metric, name in (("raw_worst_case", "worst case"), ("raw_average_case", "average case")):
+        mean, std = paper[metric]["rarl"]["halfcheetah"]
+        assert abs(mean) < std
+        assert f"{name} {mean:.1f} ± {std:.1f}".replace("-", "−") in text
+    # "both robust-by-design methods beat TD3 in the worst case by more than 2 500"
+    worst = {a: paper["raw_worst_case"][a]["halfcheetah"][0] for a in ("td3", "dr", "m2td3")}
+    assert min(worst["dr"], worst["m2td3"]) - worst["td3"] > 2500
+    assert "beat TD3 in the worst case by more than 2 500" in text
+    # NR-MDP "scores more against its own adversary than without it, on every seed"; the paper's
+    # Table 6 "(NR-MDP against its adversary 10 990 ± 474, its average case 1 388.9 ± 283.2)"
+    for run in (folder / "runs").glob("nrmdp-*"):
+        result = json.loads((run / "result.json").read_text())
+        assert result["dynamic_mean"] > _nominal_curve(run).iloc[-1], run.name
+    dyn, avg = paper["dynamic"]["nrmdp"]["halfcheetah"], paper["raw_average_case"]["nrmdp"]
+    mean = f"{avg['halfcheetah'][0]:,.1f}".replace(",", " ")
+    assert f"10 990 ± 474, its average case {mean} ± " in text
+    assert dyn == [10990.0, 474.0]
+    # "NR-MDP seed 3 scored 6 379, 4 037 and 3 420 in its last three"
+    last = _nominal_curve(folder / "runs" / "nrmdp-halfcheetah-3d-seed3").iloc[-3:]
+    a, b, c = (f"{v:,.0f}".replace(",", " ") for v in last)
+    assert f"NR-MDP seed 3 scored {a}, {b} and {c} in its last three" in text
+
+
+def test_the_halfcheetah_normaliser_is_flagged_where_the_page_says():
+    # "on the average case the two are within each other's 95 % intervals, so the report flags
+    # that normaliser as unstable"
+    folder = RESULTS / "halfcheetah"
+    avg = {a: v["average_case"] for a, v in results_page.per_seed(folder).items()}
+    td3, m2td3 = results_page.t_interval(avg["td3"]), results_page.t_interval(avg["m2td3"])
+    assert td3[0] <= m2td3[1] and m2td3[0] <= td3[1]
+    report = _flat(folder / "report.md")
+    assert "unstable normalisation**, halfcheetah average case" in report
+
+
+def test_the_halfcheetah_page_states_the_versions_every_run_recorded():
+    import json
+
+    folder = RESULTS / "halfcheetah"
+    versions = {
+        json.dumps(json.loads(p.read_text())["versions"], sort_keys=True)
+        for p in (folder / "runs").glob("*/result.json")
+    }
+    assert len(versions) == 1
+    v = json.loads(versions.pop())
+    stated = (
+        f"torch {v['torch']}, MuJoCo {v['mujoco']}, Gymnasium {v['gymnasium']}, "
+        f"numpy {v['numpy']}, Python {v['python']}"
+    )
+    assert stated in _flat(folder / "README.md")
+
+
+def test_the_halfcheetah_page_says_what_the_reference_refuses():
+    # "refuses a benchmark whose mesh, episodes, set or physics differ from this reference's"
+    from rrls.experiments.reference import (
+        COMPARED,
+        ReferenceError,
+        check_compatible,
+        load_reference,
+    )
+
+    assert set(COMPARED) == {"physics", "uncertainty", "mesh", "endpoint", "episodes"}
+    ref = load_reference("halfcheetah")
+    import json
+
+    spec = json.loads((RESULTS / "halfcheetah" / "benchmark.json").read_text())
+    check_compatible(ref, spec)  # its own benchmark fits
+    spec["endpoint"] = True  # rrls's default mesh
+    try:
+        check_compatible(ref, spec)
+    except ReferenceError as err:
+        assert "endpoint" in str(err)
+    else:
+        raise AssertionError("rrls's default mesh (upper bounds included) was accepted")
+    assert "refuses a benchmark whose mesh, episodes, set or physics differ" in _flat(
+        RESULTS / "halfcheetah" / "README.md"
+    )
