@@ -1,4 +1,6 @@
-"""The paper's physics (Gymnasium v4, as its code ran) against rrls's default (v5), task by task.
+"""Gymnasium v4 against v5, task by task: what ``paper=True`` changed when it moved from the v4
+envs (the original code's files before 2023-11-28) to the v5 envs (its files from then through
+the paper's time, ``docs/differences.md``), and the paper's parameter writes against rrls's.
 
 For each of the paper's six tasks: observation size, the env's reward/health constants that
 differ, the model constants that differ (per-geom friction, masses, damping, gear, timestep),
@@ -6,7 +8,8 @@ the reward terms reported in ``info``, and the effect on a fixed policy's return
 open-loop action sequence (seeded uniform actions) from the same reset seeds, on the v4 env and
 on the v5 env, and on rrls's robust env with ``worldfriction`` moved away from nominal under each
 semantics (v5: every geom; paper: the original code's write, the floor only on Hopper and
-Walker2d, every geom on HalfCheetah). Prints the tables in docs/differences.md.
+Walker2d, every geom on HalfCheetah; both on the v5 env). Prints the tables in
+docs/differences.md, with the versions they were measured on.
 
     python3 benchmarks/physics_differences.py [--episodes 3] [--steps 1000]
 """
@@ -86,10 +89,12 @@ def main() -> None:
 
 
 def run(args: argparse.Namespace) -> None:
+    print(f"gymnasium {gym.__version__}, mujoco {mujoco.__version__}\n")
     rows = []
     for key in PAPER:
         task = TASKS[key]
-        v4, v5 = gym.make(task.paper_id).unwrapped, gym.make(task.v5_id).unwrapped
+        v4_id = task.v5_id.replace("-v5", "-v4")  # what paper=True built until 2026-11-27
+        v4, v5 = gym.make(v4_id).unwrapped, gym.make(task.v5_id).unwrapped
         space = v5.action_space
         rng = np.random.default_rng(0)
         actions = rng.uniform(space.low, space.high, (args.episodes, args.steps, *space.shape))
@@ -99,7 +104,7 @@ def run(args: argparse.Namespace) -> None:
         v4.reset(seed=0), v5.reset(seed=0)
         i4 = set(v4.step(actions[0, 0])[4]) - {"x_position"}
         i5 = set(v5.step(actions[0, 0])[4]) - {"x_position"}
-        ret4 = _returns(lambda t=task: gym.make(t.paper_id), actions, args.episodes)
+        ret4 = _returns(lambda i=v4_id: gym.make(i), actions, args.episodes)
         ret5 = _returns(lambda t=task: gym.make(t.v5_id), actions, args.episodes)
         cls = ROBUST_ENVS[key]
         friction = {}
@@ -114,7 +119,7 @@ def run(args: argparse.Namespace) -> None:
                 friction[paper] = _returns(make, actions, args.episodes)
         rows.append((key, v4, v5, consts, _model_diff(v4.model, v5.model), i4, i5, ret4, ret5,
                      friction))  # fmt: skip
-        print(f"## {key} ({task.paper_id} vs {task.v5_id})")
+        print(f"## {key} ({v4_id} vs {task.v5_id})")
         print(f"- observation: {v4.observation_space.shape[0]} vs {v5.observation_space.shape[0]}")
         print(f"- info reward terms: v4 {sorted(i4)}; v5 {sorted(i5)}")
         print("- env constants: " + ("; ".join(consts) or "same"))
@@ -123,7 +128,7 @@ def run(args: argparse.Namespace) -> None:
         if friction:
             print(
                 f"- same policy, worldfriction=0.3: v5 semantics (every geom) "
-                f"{friction[False]:,.1f}, paper semantics (the original's write, v4) "
+                f"{friction[False]:,.1f}, paper semantics (the original's write) "
                 f"{friction[True]:,.1f}"
             )
         print()

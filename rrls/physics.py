@@ -8,10 +8,12 @@ metadata, ``benchmark.json``, reference files), always with one of these labels,
 - ``paper``: the paper's physics (the Gymnasium v5 envs the original code built, its parameter
   writes: :mod:`rrls.envs.paper`, the ``np.arange`` mesh), what ``paper=True`` builds.
 
-Files written before the labels were the command-line words say ``rrls-v5`` and ``paper-v4``
-(the shipped references and docs/results still do): they are read as the same two, so every
-comparison goes through :func:`physics_label`. Nothing here imports anything: every layer may
-use it.
+Files written before the labels were the command-line words say ``rrls-v5`` (the shipped
+``quick`` files still do): it is read as ``v5``, so every comparison goes through
+:func:`physics_label`. ``paper-v4`` and ``v4`` named the paper's physics when ``paper=True``
+built Gymnasium v4 envs; it builds v5 now (``docs/differences.md``), so those labels are refused
+with a one-line error rather than read as physics they did not run. Nothing here imports
+anything: every layer may use it.
 """
 
 from __future__ import annotations
@@ -25,7 +27,12 @@ LABELS = (V5, PAPER)
 #: task's MuJoCo Warp twin (``rrls.twin``); every evaluation runs on CPU MuJoCo either way
 SIMULATORS = ("mujoco", "warp")
 #: what ``--physics`` and older files say -> the label
-ALIASES = {V5: V5, "rrls": V5, "rrls-v5": V5, PAPER: PAPER, "v4": PAPER, "paper-v4": PAPER}
+ALIASES = {V5: V5, "rrls": V5, "rrls-v5": V5, PAPER: PAPER}
+#: labels of physics rrls no longer builds -> why (a file carrying one ran other physics)
+RETIRED = {
+    "v4": "the paper's physics on Gymnasium v4, which paper=True built before it built v5",
+    "paper-v4": "the paper's physics on Gymnasium v4, which paper=True built before it built v5",
+}
 
 
 def physics_label(value: Any = None) -> str:
@@ -35,7 +42,13 @@ def physics_label(value: Any = None) -> str:
         return V5
     if value is True:
         return PAPER
-    label = ALIASES.get(str(value).strip().lower()) if isinstance(value, str) else None
+    key = str(value).strip().lower() if isinstance(value, str) else None
+    if key in RETIRED:
+        raise ValueError(
+            f"physics {value!r} is {RETIRED[key]}; not built in any more: valid: {V5} or "
+            f"{PAPER} (for v4, register_task(..., paper_env='<Task>-v4') under a key of your own)"
+        )
+    label = ALIASES.get(key) if key is not None else None
     if label is None:
         raise ValueError(f"unknown physics {value!r}; valid: {V5} or {PAPER}")
     return label
@@ -46,4 +59,4 @@ def is_paper(value: Any) -> bool:
     return physics_label(value) == PAPER
 
 
-__all__ = ["ALIASES", "is_paper", "LABELS", "PAPER", "physics_label", "SIMULATORS", "V5"]
+__all__ = ["ALIASES", "is_paper", "LABELS", "PAPER", "physics_label", "RETIRED", "SIMULATORS", "V5"]

@@ -130,7 +130,11 @@ def test_physics_labels_are_one_vocabulary_and_old_ones_read_as_today():
     from rrls.physics import PAPER, V5, physics_label
 
     assert [physics_label(v) for v in ("v5", "rrls-v5", None, False)] == [V5] * 4
-    assert [physics_label(v) for v in ("paper", "paper-v4", "v4", True)] == [PAPER] * 4
+    assert [physics_label(v) for v in ("paper", "PAPER", True)] == [PAPER] * 3
+    # the v4 labels named physics paper=True no longer builds: refused, not read as v5
+    for old in ("paper-v4", "v4"):
+        with pytest.raises(ValueError, match=f"physics '{old}' is the paper's physics on Gym"):
+            physics_label(old)
     assert (V5, PAPER) == ("v5", "paper")  # recorded as --physics says it
     with pytest.raises(ValueError, match="unknown physics 'v3'; valid: v5"):
         physics_label("v3")

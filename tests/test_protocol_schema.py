@@ -126,7 +126,7 @@ def test_evaluate_refuses_a_protocol_and_its_fields_together(keyword):
 def test_a_policys_default_protocol_comes_from_one_constructor():
     """``Protocol.for_policy``: the set and physics it trained on, its split on its own set; any
     given field overrides; a set the task lacks falls back to the task's benchmark set."""
-    meta = {"uncertainty": "2d", "physics": "paper-v4", "split": "extrapolation:0.5"}
+    meta = {"uncertainty": "2d", "physics": "paper", "split": "extrapolation:0.5"}
     own = Protocol.for_policy(meta, "hopper")
     assert (own.uncertainty, own.physics, own.split) == ("2d", "paper", "extrapolation:0.5")
     other = Protocol.for_policy(meta, "hopper", uncertainty="3d", mesh=3, physics="v5")

@@ -47,7 +47,8 @@ def test_old_benchmark_files_and_shipped_references_read_as_today():
     stored = make_spec("smoke").to_json()
     assert stored["physics"] == "v5"
     assert Spec.from_json({**stored, "physics": "rrls-v5"}) == make_spec("smoke")
-    assert Spec.from_json({**stored, "physics": "paper-v4"}).physics == "paper"
+    with pytest.raises(ValueError, match="physics 'paper-v4' is the paper's physics on Gym"):
+        Spec.from_json({**stored, "physics": "paper-v4"})  # ran v4: not read as today's paper
     shipped = json.loads((ROOT / "rrls" / "experiments" / "quick_reference.json").read_text())
     assert shipped["physics"] == "rrls-v5"  # the file as shipped, untouched
     assert load_reference("quick").physics == "v5"

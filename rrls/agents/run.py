@@ -231,7 +231,7 @@ class Run:
     # -- checkpoints ------------------------------------------------------------------------
     def _check_identity(self, state: dict[str, Any]) -> None:
         saved = json.loads(state["config"])
-        saved["physics"] = physics_label(saved.get("physics"))  # older ones: rrls-v5, paper-v4
+        saved["physics"] = physics_label(saved.get("physics"))  # older: rrls-v5 (paper-v4 refused)
         current = self.config.identity(self.hyper)
         diff = [k for k in current if k != "hyper" and saved.get(k) != current[k]]
         diff += [

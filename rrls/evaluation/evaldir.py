@@ -103,7 +103,7 @@ def opened(out_dir: str | Path, config: dict[str, Any]) -> Iterator[Path]:
         path = out_dir / ARGUMENTS
         if path.exists():
             old = read_checked_json(path)
-            if "physics" in old:  # written before the labels were v5/paper: rrls-v5, paper-v4
+            if "physics" in old:  # older: rrls-v5 (paper-v4 refused)
                 old["physics"] = physics_label(old["physics"])
             diff = sorted(k for k in set(old) | set(config) if old.get(k) != config.get(k))
             if diff:
