@@ -176,3 +176,21 @@ def test_the_halfcheetah_page_says_what_the_reference_refuses():
     assert "refuses a benchmark whose mesh, episodes, set or physics differ" in _flat(
         RESULTS / "halfcheetah" / "README.md"
     )
+
+
+def test_the_presets_cpu_hours_stated_are_the_estimators():
+    # docs/benchmark.md's preset table and `rrls benchmark --help`: "~9 CPU-hours" (hopper),
+    # "~22 CPU-hours" (halfcheetah), each what `--dry-run` estimates
+    import argparse
+
+    from rrls.cli.benchmark_command import add_parser
+    from rrls.experiments.cpu_estimate import estimate
+    from rrls.experiments.spec import make_spec
+
+    doc = _flat(ROOT / "docs" / "benchmark.md")
+    helps = " ".join(add_parser(argparse.ArgumentParser().add_subparsers()).format_help().split())
+    helps = helps.replace("CPU- hours", "CPU-hours")  # argparse wraps after a hyphen
+    for preset in ("hopper", "halfcheetah"):
+        hours = round(estimate(make_spec(preset), 2)["cpu_s"] / 3600)
+        assert f"| ~{hours} CPU-hours (estimate;" in doc, preset
+        assert f"{preset} (~{hours} CPU-hours" in helps, preset
