@@ -60,6 +60,17 @@ def test_an_exported_reference_says_where_it_came_from(smoke, tmp_path):
     assert prov["devices"] == ["cpu"] and len(prov["machines"]) == 1
     assert {"cpu", "cores", "simd"} <= set(prov["machines"][0]) and "commits" in prov
     assert load_reference(tmp_path / "ref.json").notes.endswith(f"from {smoke.name}")
+    # each row names the seed of each value, in JSON and CSV alike; a row whose seeds and
+    # values disagree is refused
+    rows = load_reference(tmp_path / "ref.json").rows
+    assert rows and all(r["seeds"] == [0] and len(r["values"]) == 1 for r in rows)
+    load_reference(tmp_path / "ref.json").save(tmp_path / "ref.csv")
+    assert load_reference(tmp_path / "ref.csv").rows == rows
+    data = json.loads((tmp_path / "ref.json").read_text())
+    data["rows"][0]["seeds"] = [0, 1]
+    (tmp_path / "bad.json").write_text(json.dumps(data))
+    with pytest.raises(ValueError, match=r"rows\[0\]: 2 seeds for 1 values"):
+        load_reference(tmp_path / "bad.json")
     export_reference(smoke, tmp_path / "noted.json", notes="300 steps: a smoke test")
     assert load_reference(tmp_path / "noted.json").notes == "300 steps: a smoke test"
     assert "trained_otherwise" not in prov  # every run trained as the benchmark says

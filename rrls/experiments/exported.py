@@ -46,13 +46,25 @@ def export_reference(
         if algo not in wanted:
             continue
         group = group.sort_values("seed")
+        seeds = group["seed"].to_numpy()
         for metric in ("worst_case", "average_case"):
-            rows.append(_row(task, spec["uncertainty"], algo, metric, group[metric].to_numpy()))
+            rows.append(
+                _row(task, spec["uncertainty"], algo, metric, group[metric].to_numpy(), seeds)
+            )
         if len(dyn):
             sel = dyn[(dyn["task"] == task) & (dyn["algorithm"] == algo)]
             if len(sel):
-                per_seed = sel.groupby("seed")["return"].mean().to_numpy()
-                rows.append(_row(task, spec["uncertainty"], algo, "dynamic", per_seed))
+                per_seed = sel.groupby("seed")["return"].mean()
+                rows.append(
+                    _row(
+                        task,
+                        spec["uncertainty"],
+                        algo,
+                        "dynamic",
+                        per_seed.to_numpy(),
+                        per_seed.index.to_numpy(),
+                    )
+                )
     versions = {}
     for key in VERSION_KEYS:
         col = f"{key}_version"
@@ -140,7 +152,11 @@ def provenance(root: Path, spec: dict[str, Any], algos: list[str]) -> dict[str, 
     return out
 
 
-def _row(task: str, uncertainty: str, algo: str, metric: str, values: Any) -> dict[str, Any]:
+def _row(
+    task: str, uncertainty: str, algo: str, metric: str, values: Any, seeds: Any
+) -> dict[str, Any]:
+    """One reference row: the mean and (population) std over the seeds, each seed's value and
+    which seed it is."""
     import numpy as np
 
     values = np.asarray(values, dtype=float)
@@ -153,6 +169,7 @@ def _row(task: str, uncertainty: str, algo: str, metric: str, values: Any) -> di
         "std": float(values.std()),
         "n_seeds": len(values),
         "values": [float(v) for v in values],
+        "seeds": [int(s) for s in seeds],
     }
 
 

@@ -2,7 +2,8 @@
 
 A reference is what a lab (or the paper) measured under one evaluation protocol: per task, set
 and algorithm, the worst-case and average-case (and dynamic) mean over seeds, with the std, the
-number of seeds and, when known, the per-seed values. ``rrls report DIR --reference FILE``
+number of seeds and, when known, the per-seed values (with the seeds they belong to, in seed
+order). ``rrls report DIR --reference FILE``
 normalises a task with the reference's TD3 and M2TD3 when the benchmark has not trained its own,
 and ``rrls report DIR --export-reference FILE`` writes a benchmark's results as such a file
 (``rrls.experiments.exported``).
@@ -19,11 +20,12 @@ JSON (``.json``)::
      "versions": {"rrls": "...", "gymnasium": "...", "mujoco": "..."}, "notes": "...",
      "rows": [{"task": "hopper", "uncertainty": "3d", "algorithm": "td3",
                "metric": "worst_case", "mean": 69.3, "std": 42.77, "n_seeds": 10,
-               "values": [...] or null}, ...]}
+               "values": [...] or null, "seeds": [...] (optional)}, ...]}
 
 CSV (any other suffix): one line per row with the same columns, the metadata repeated on every
 line (``label, physics, mesh, episodes, endpoint, steps, eval_seed, rrls_version,
-gymnasium_version, mujoco_version``) and ``values`` as ``;``-separated numbers (or empty).
+gymnasium_version, mujoco_version``) and ``values`` (and ``seeds``) as ``;``-separated numbers
+(or empty).
 """
 
 from __future__ import annotations
@@ -158,6 +160,7 @@ class Reference:
                     "std": row.get("std"),
                     "n_seeds": row.get("n_seeds"),
                     "values": ";".join(repr(float(v)) for v in values) if values else "",
+                    "seeds": ";".join(str(s) for s in row.get("seeds") or ()),
                     **{k: getattr(self, k) for k in _META},
                     **{f"{k}_version": self.versions.get(k, "") for k in VERSION_KEYS},
                 }
@@ -174,6 +177,8 @@ def _clean_row(row: dict[str, Any]) -> dict[str, Any]:
     out["n_seeds"] = None if row.get("n_seeds") is None else int(row["n_seeds"])
     values = row.get("values")
     out["values"] = None if values is None else [float(v) for v in values]
+    if row.get("seeds") is not None:  # optional: which seed each value is (older files lack it)
+        out["seeds"] = [int(s) for s in row["seeds"]]
     return out
 
 
@@ -191,6 +196,7 @@ _ROW_SCHEMA = Schema(
         "std": number(0, null=True),
         "n_seeds": integer(1, MAX_SEEDS, null=True),
         "values": array(number(), max_items=MAX_SEEDS, null=True),
+        "seeds": array(integer(0, MAX_SEED), max_items=MAX_SEEDS, null=True),
     }
 )
 _OPEN = Schema({}, open=True)
@@ -252,6 +258,11 @@ def _from_json(data: Any, path: Any) -> Reference:
                 path,
                 f"rows[{i}]: n_seeds is {row['n_seeds']} but it holds {len(row['values'])} values",
             )
+        seeds = row.get("seeds")
+        if seeds is not None and (row["values"] is None or len(seeds) != len(row["values"])):
+            raise _fail(
+                path, f"rows[{i}]: {len(seeds)} seeds for {len(row['values'] or ())} values"
+            )
     return Reference(
         label=data["label"],
         physics=physics_label(data["physics"]),
@@ -273,7 +284,9 @@ def _csv_as_json(path: Path) -> dict[str, Any]:
     import pandas as pd
 
     try:
-        frame = pd.read_csv(path, keep_default_na=False, na_values=[""], dtype={"values": str})
+        frame = pd.read_csv(
+            path, keep_default_na=False, na_values=[""], dtype={"values": str, "seeds": str}
+        )
     except Exception as err:  # noqa: BLE001 - any unreadable table: one line naming it
         raise _fail(path, f"unreadable CSV: {err}") from None
     data: dict[str, Any] = {"format": FORMAT, "version": VERSION, "versions": {}}
@@ -298,6 +311,12 @@ def _csv_as_json(path: Path) -> dict[str, Any]:
             row["values"] = [float(v) for v in str(text).split(";")] if text else None
         except ValueError:
             raise _fail(path, f"line {i + 2}: values {text!r} are not numbers") from None
+        text = row.pop("seeds", None)
+        if text:
+            try:
+                row["seeds"] = [int(s) for s in str(text).split(";")]
+            except ValueError:
+                raise _fail(path, f"line {i + 2}: seeds {text!r} are not integers") from None
         rows.append(row)
     data["rows"] = rows
     return data
