@@ -194,3 +194,22 @@ def test_the_presets_cpu_hours_stated_are_the_estimators():
         hours = round(estimate(make_spec(preset), 2)["cpu_s"] / 3600)
         assert f"| ~{hours} CPU-hours (estimate;" in doc, preset
         assert f"{preset} (~{hours} CPU-hours" in helps, preset
+
+
+def test_the_halfcheetah_runs_commits_train_alike():
+    # "for every algorithm, the commits that trained its runs give the same weights and curves
+    # bit for bit (same_training.csv). RARL differs at ca42dfc, which ... trained no RARL run"
+    folder = RESULTS / "halfcheetah"
+    same = pd.read_csv(folder / "same_training.csv")
+    used: dict[str, set[str]] = {}
+    for run in (folder / "runs").iterdir():
+        commit = _provenance(run)[0]
+        used.setdefault(run.name.split("-")[0], set()).add(commit)
+    assert set(used["td3"]) == {"ca42dfc", "26468a0", "d6285a2"} <= set(same.commit)
+    for algo, commits in used.items():
+        rows = same[(same.algorithm == algo) & same.commit.isin(commits)]
+        assert set(rows.commit) == commits, algo
+        assert rows.weights_sha256.nunique() == 1 and rows.curves_sha256.nunique() == 1, algo
+    rarl = same[same.algorithm == "rarl"].set_index("commit").weights_sha256
+    assert "ca42dfc" not in used["rarl"] and rarl["ca42dfc"] != rarl["26468a0"]
+    assert "trained no RARL run" in _flat(folder / "README.md")
