@@ -213,3 +213,15 @@ def test_the_halfcheetah_runs_commits_train_alike():
     rarl = same[same.algorithm == "rarl"].set_index("commit").weights_sha256
     assert "ca42dfc" not in used["rarl"] and rarl["ca42dfc"] != rarl["26468a0"]
     assert "trained no RARL run" in _flat(folder / "README.md")
+
+
+def test_the_quick_pages_provenance_lists_the_references_commits():
+    # "The reference's provenance.commits lists every commit that trained one of the 15 runs:
+    # 827d334, 84de2a6, fb7996c and 827d334…+dirty"
+    from rrls.experiments.reference import load_reference
+
+    commits = load_reference("quick").provenance["commits"]
+    short = sorted(c[:7] + ("…+dirty" if c.endswith("+dirty") else "") for c in commits)
+    assert short == ["827d334", "827d334…+dirty", "84de2a6", "fb7996c"]
+    text = _flat(RESULTS / "quick" / "README.md")
+    assert "15 runs: `827d334`, `84de2a6`, `fb7996c` and `827d334…+dirty`" in text
