@@ -59,6 +59,11 @@ def test_an_exported_reference_says_where_it_came_from(smoke, tmp_path):
     assert all(prov["versions"][k] for k in ("rrls", "torch", "mujoco", "gymnasium", "numpy"))
     assert prov["devices"] == ["cpu"] and len(prov["machines"]) == 1
     assert {"cpu", "cores", "simd"} <= set(prov["machines"][0]) and "commits" in prov
+    # the hyper-parameters each algorithm trained with, as its runs recorded them
+    hyper = prov["hyperparameters"]
+    assert set(hyper) == {"td3", "dr", "rarl", "nrmdp", "m2td3"}
+    run = json.loads(next((smoke / "runs").glob("m2td3-*/run.json")).read_text())
+    assert hyper["m2td3"] == run["hyperparameters"] and hyper["td3"]["hidden"] == [16, 16]
     assert load_reference(tmp_path / "ref.json").notes.endswith(f"from {smoke.name}")
     # each row names the seed of each value, in JSON and CSV alike; a row whose seeds and
     # values disagree is refused

@@ -127,6 +127,14 @@ def provenance(root: Path, spec: dict[str, Any], algos: list[str]) -> dict[str, 
     for run in runs.values():
         if run.get("trained_otherwise"):
             otherwise.setdefault(run["algorithm"], run["trained_otherwise"])
+    # the hyper-parameters each algorithm's runs trained with (``run.json``), where the spec
+    # leaves them to each algorithm's own table (its null batch size, learning rate, warm-up)
+    hyper: dict[str, list[Any]] = {}
+    for run in runs.values():
+        if run.get("hyperparameters"):
+            seen = hyper.setdefault(run["algorithm"], [])
+            if run["hyperparameters"] not in seen:
+                seen.append(run["hyperparameters"])
     out = {
         "preset": spec.get("preset"),
         "physics": spec.get("physics"),
@@ -147,6 +155,8 @@ def provenance(root: Path, spec: dict[str, Any], algos: list[str]) -> dict[str, 
         "machines": distinct(p.get("machine") for p in prov),
         "devices": distinct(p.get("device") for p in prov),
     }
+    if hyper:  # one dict per algorithm; a list where its runs trained with more than one
+        out["hyperparameters"] = {a: h[0] if len(h) == 1 else h for a, h in sorted(hyper.items())}
     if otherwise:
         out["trained_otherwise"] = dict(sorted(otherwise.items()))
     return out
