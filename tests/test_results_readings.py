@@ -210,6 +210,10 @@ def test_the_halfcheetah_runs_commits_train_alike():
         rows = same[(same.algorithm == algo) & same.commit.isin(commits)]
         assert set(rows.commit) == commits, algo
         assert rows.weights_sha256.nunique() == 1 and rows.curves_sha256.nunique() == 1, algo
+    # "and so does the later d77eecd, which the check also ran"
+    later = same[same.commit == "d77eecd"].set_index("algorithm")
+    for algo, row in same[same.commit == "26468a0"].set_index("algorithm").iterrows():
+        assert later.loc[algo, "weights_sha256"] == row.weights_sha256, algo
     rarl = same[same.algorithm == "rarl"].set_index("commit").weights_sha256
     assert "ca42dfc" not in used["rarl"] and rarl["ca42dfc"] != rarl["26468a0"]
     assert "trained no RARL run" in _flat(folder / "README.md")
