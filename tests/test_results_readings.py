@@ -98,6 +98,7 @@ def test_the_halfcheetah_reading_of_who_has_learned_to_run():
     rarl = list((folder / "runs").glob("rarl-*"))
     assert rarl and all(_nominal_curve(run).max() < 250 for run in rarl)
     assert "no periodic evaluation of any RARL seed reached 250" in text
+    assert "where four of the five baselines learn to run" in text  # the title
     # the paper's RARL "near zero ... (worst case −211.8 ± 218.7, average case 206.7 ± 887.2)"
     paper = paper_results()
     for metric, name in (("raw_worst_case", "worst case"), ("raw_average_case", "average case")):

@@ -55,7 +55,7 @@ def add_parser(sub: argparse._SubParsersAction) -> argparse.ArgumentParser:
         metavar="{" + ",".join(PRESETS) + "}",
         help="smoke (seconds, for tests), quick (~18 min on 2 cores, reduced protocol), "
         "hopper (~9 CPU-hours: the early-training locomotion reference), halfcheetah (~22 "
-        "CPU-hours: the locomotion reference where the agents have learned), paper (the "
+        "CPU-hours: the locomotion reference where TD3 runs), paper (the "
         "paper's protocol); "
         "default: %(default)s (250 runs: try --dry-run first)",
     )
