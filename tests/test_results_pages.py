@@ -304,8 +304,8 @@ def test_the_halfcheetah_ablation_reading_is_its_data():
     own = {machine(folder / "runs" / f"{a}-halfcheetah-3d-seed{s}")["simd"] for a, s in pairs}
     assert variants == {"X86_V4"} and own == {"X86_V3"}
     # M2TD3: "every difference is within two standard deviations of this page's M2TD3 seeds";
-    # NR-MDP: "lower on all three criteria; the average case by more than ten standard
-    # deviations ..., the worst case and the final nominal return by less than two"
+    # NR-MDP: "lower on all three criteria; the average case by more than five standard
+    # deviations ..., the final nominal return by about two, the worst case by less than two"
     runs = pd.read_csv(folder / "tables" / "per_run.csv")
     runs = runs.rename(columns={"final_nominal_return": "nominal"})
     wide = frame.pivot_table(index=["algorithm", "seed"], columns="variant")
@@ -317,6 +317,8 @@ def test_the_halfcheetah_ablation_reading_is_its_data():
             if algo == "m2td3":
                 assert abs(diff) < 2 * spread, metric
             elif metric == "average_case":
-                assert diff < -10 * spread, metric
+                assert diff < -5 * spread, metric
+            elif metric == "nominal":
+                assert -2.25 * spread < diff < -1.75 * spread, metric
             else:
                 assert -2 * spread < diff < 0, metric
