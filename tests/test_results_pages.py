@@ -161,7 +161,7 @@ def test_the_t_quantiles_the_pages_quote_are_students():
         for n, value in re.findall(r"(\d+) seeds \(?`t = ([\d.]+)`", text):
             assert f"{t.ppf(0.975, int(n) - 1):.2f}" == value, (page.parent.name, n, value)
             quoted += 1
-    assert quoted >= 4
+    assert quoted >= 2  # hopper's 3 seeds, halfcheetah's 5
 
 
 def test_halfcheetah_td3_learns_as_cleanrls_loop_behind_only_at_100k():
@@ -303,7 +303,8 @@ def test_the_halfcheetah_ablation_reading_is_its_data():
     pairs = frame[["algorithm", "seed"]].drop_duplicates().itertuples(index=False)
     own = {machine(folder / "runs" / f"{a}-halfcheetah-3d-seed{s}")["simd"] for a, s in pairs}
     assert variants == {"X86_V4"} and own == {"X86_V3"}
-    # M2TD3: "every difference is within two standard deviations of this page's M2TD3 seeds";
+    # M2TD3: "the worst case and the final nominal return within two standard deviations of
+    # this page's M2TD3 seeds, the average case higher by about two";
     # NR-MDP: "lower on all three criteria; the average case by more than five standard
     # deviations ..., the final nominal return by about two, the worst case by less than two"
     runs = pd.read_csv(folder / "tables" / "per_run.csv")
@@ -314,7 +315,9 @@ def test_the_halfcheetah_ablation_reading_is_its_data():
         for metric in ("worst_case", "average_case", "nominal"):
             spread = runs[runs.algorithm == algo][metric].std(ddof=1)
             diff = row[(metric, "authors")] - row[(metric, "rrls")]
-            if algo == "m2td3":
+            if algo == "m2td3" and metric == "average_case":
+                assert 1.75 * spread < diff < 2.5 * spread, metric
+            elif algo == "m2td3":
                 assert abs(diff) < 2 * spread, metric
             elif metric == "average_case":
                 assert diff < -5 * spread, metric

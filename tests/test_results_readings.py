@@ -247,3 +247,27 @@ def test_the_hopper_td3_reading_against_the_authors_curves():
             assert ours < mean, step
     text = _flat(folder / "README.md")
     assert "At 50 k steps rrls's TD3 is where the authors' was; from 100 k steps on" in text
+
+
+def test_the_halfcheetah_reading_of_rarls_own_adversary():
+    # "averages −8 687.5 on seed 4, its episodes between −25 591 and −523, against −433.3 to
+    # −198.9 on seeds 0-3 ... far below anything on the static mesh"
+    import json
+
+    folder = RESULTS / "halfcheetah"
+    text = _flat(folder / "README.md")
+    dyn, worst = {}, []
+    for seed in range(5):
+        run = folder / "runs" / f"rarl-halfcheetah-3d-seed{seed}"
+        dyn[seed] = json.loads((run / "result.json").read_text())["dynamic_mean"]
+        worst.append(_points(run)["mean"].min())
+    episodes = pd.read_csv(folder / "runs" / "rarl-halfcheetah-3d-seed4" / "dynamic.csv")["return"]
+
+    def num(v: float, fmt: str) -> str:
+        return format(v, fmt).replace(",", " ").replace("-", "−")
+
+    assert f"averages {num(dyn[4], ',.1f')} on seed 4" in text
+    assert f"between {num(episodes.min(), ',.0f')} and {num(episodes.max(), ',.0f')}" in text
+    others = [dyn[s] for s in range(4)]
+    assert f"against {num(min(others), ',.1f')} to {num(max(others), ',.1f')} on seeds 0-3" in text
+    assert dyn[4] < 10 * min(worst)  # far below the static mesh's worst point of any seed

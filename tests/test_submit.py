@@ -343,13 +343,14 @@ def test_shipped_hopper_reference_fits_the_hopper_preset(tmp_path):
 
 
 def test_shipped_halfcheetah_reference_fits_its_preset_and_counts_its_runs(tmp_path):
-    # produced in pieces: its label says how many of the 25 runs it holds, as its rows do
+    # produced in pieces, now complete: its label and notes say so, as its rows do
     ref = load_reference("halfcheetah")
     assert ref.physics == "v5" and ref.steps == 300_000 and ref.sets == ["3d"]
     assert ref.episodes == 5 and ref.mesh == 10 and ref.endpoint is False  # the paper's mesh
     static = [r for r in ref.rows if r["metric"] == "worst_case"]
     runs = sum(r["n_seeds"] for r in static)
-    assert f"{runs} of 25 runs" in ref.label and f"{runs} of the preset's 25 runs" in ref.notes
+    assert runs == 25 and "5 seeds" in ref.label  # complete: 5 seeds of each of the five
+    assert "all 25 of the preset's runs (5 seeds of each algorithm)" in ref.notes
     assert ref.provenance["preset"] == "halfcheetah" and ref.provenance["runs"] == runs
     spec = create_benchmark(tmp_path / "b", "halfcheetah", ("halfcheetah",))
     from rrls.experiments.reference import check_compatible
