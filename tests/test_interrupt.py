@@ -19,7 +19,10 @@ POLICY = "import numpy as np\n\ndef zeros(obs):\n    return np.zeros((len(obs), 
 
 def _interrupt(args: list[str], cwd: Path, ready: Path) -> subprocess.CompletedProcess:
     """Run ``rrls ARGS``, press Ctrl-C once ``ready`` exists, and return what it printed."""
-    code = f"import sys; from rrls.cli import main; sys.exit(main({args!r}))"
+    # Python leaves SIGINT ignored if it starts ignored (a suite launched in the background by a
+    # non-interactive shell): give the child Ctrl-C's default, as a terminal would
+    code = "import signal, sys; signal.signal(signal.SIGINT, signal.default_int_handler); "
+    code += f"from rrls.cli import main; sys.exit(main({args!r}))"
     env = {**os.environ, "PYTHONPATH": str(ROOT)}
     proc = subprocess.Popen(
         [sys.executable, "-c", code], cwd=cwd, env=env, text=True, start_new_session=True,
