@@ -34,7 +34,12 @@ def _interrupt(args: list[str], cwd: Path, ready: Path) -> subprocess.CompletedP
     time.sleep(1.0)
     if proc.poll() is None:
         os.killpg(proc.pid, signal.SIGINT)
-    out, err = proc.communicate(timeout=120)
+    try:
+        out, err = proc.communicate(timeout=120)
+    except subprocess.TimeoutExpired:  # never leave a run training behind a failed test
+        os.killpg(proc.pid, signal.SIGKILL)
+        proc.communicate()
+        raise
     return subprocess.CompletedProcess(args, proc.returncode, out, err)
 
 
