@@ -29,10 +29,9 @@ SIMULATORS = ("mujoco", "warp")
 #: what ``--physics`` and older files say -> the label
 ALIASES = {V5: V5, "rrls": V5, "rrls-v5": V5, PAPER: PAPER}
 #: labels of physics rrls no longer builds -> why (a file carrying one ran other physics)
-RETIRED = {
-    "v4": "the paper's physics on Gymnasium v4, which paper=True built before it built v5",
-    "paper-v4": "the paper's physics on Gymnasium v4, which paper=True built before it built v5",
-}
+RETIRED = dict.fromkeys(
+    ("v4", "paper-v4"), "the paper's physics on Gymnasium v4, which paper=True built before v5"
+)
 
 
 def physics_label(value: Any = None) -> str:
