@@ -271,3 +271,20 @@ def test_the_halfcheetah_reading_of_rarls_own_adversary():
     others = [dyn[s] for s in range(4)]
     assert f"against {num(min(others), ',.1f')} to {num(max(others), ',.1f')} on seeds 0-3" in text
     assert dyn[4] < 10 * min(worst)  # far below the static mesh's worst point of any seed
+
+
+def test_the_halfcheetah_pages_counts_are_its_protocols():
+    # "(5 episodes of the last policy)", "(5 000 episodes per run)", "for 3 000 steps at each"
+    import json
+
+    import same_training
+
+    folder = RESULTS / "halfcheetah"
+    text = _flat(folder / "README.md")
+    spec = json.loads((folder / "benchmark.json").read_text())
+    assert f"({spec['eval_episodes']} episodes of the last policy)" in text
+    for run in (folder / "runs").iterdir():  # a 3D mesh: mesh³ points × episodes
+        assert len(pd.read_parquet(run / "eval" / "episodes.parquet")) == 5000, run.name
+    assert spec["mesh"] ** 3 * spec["episodes"] == 5000 and "(5 000 episodes per run)" in text
+    steps = same_training.SHORT[same_training.SHORT.index("--steps") + 1]
+    assert f"for {int(steps):,} steps at each".replace(",", " ") in text
