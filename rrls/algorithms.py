@@ -27,6 +27,7 @@ __all__ = [
     "TD3_GPU",
     "AlgorithmInfo",
     "algorithm_info",
+    "algorithm_key",
     "built_in",
     "display_name",
     "paper_five",
@@ -192,6 +193,27 @@ def algorithm_info(name: str) -> AlgorithmInfo | None:
     if target is None:
         return None
     return AlgorithmInfo(name, name, target)
+
+
+def _spelling(name: str) -> str:
+    return "".join(c for c in name.lower() if c.isalnum())
+
+
+def algorithm_key(name: str) -> str:
+    """The name every command stores for ``name``: a declared row by its name or display name
+    in any case and punctuation (``TD3``, ``NR-MDP``, ``nr_mdp`` → ``td3``, ``nrmdp``), an
+    installed plug-in's entry point in any case, else ``name`` itself (``package.module:Learner``
+    and submitted names; an unknown one is refused where it is used)."""
+    if name in ALGORITHMS or ":" in name:
+        return name
+    wanted = _spelling(name)
+    for info in ALGORITHMS.values():
+        if wanted in (_spelling(info.name), _spelling(info.display)):
+            return info.name
+    for plugin in plugin_entry_points():
+        if plugin.lower() == name.lower():
+            return plugin
+    return name
 
 
 def display_name(name: str) -> str:

@@ -99,6 +99,8 @@ def run(args: argparse.Namespace) -> int:
         key, sep, value = item.partition("=")
         if not sep or not key.strip():
             return fail("submit", f"--budget {item!r}: write KEY=VALUE (e.g. 'gpu hours=3')")
+        if key.strip() in budget:
+            return fail("submit", f"--budget {key.strip()!r} is given twice; give each key once")
         budget[key.strip()] = value.strip()
     try:
         done = submit(

@@ -20,8 +20,8 @@ from typing import Any
 
 from rrls.agents.config import TrainConfig
 from rrls.agents.lookup import algorithm
-from rrls.algorithms import built_in
-from rrls.argtypes import seed_value, step_count
+from rrls.algorithms import algorithm_key, built_in
+from rrls.argtypes import seed_value, step_count, task_key
 from rrls.deprecation import DeprecatedOption
 from rrls.seeds import EXAMPLES, parse_seeds
 
@@ -56,6 +56,10 @@ def _add(parser: argparse._ActionsContainer, name: str, kind: Any, **kwargs: Any
         kind = step_count
     elif kind is int and name == "seed":
         kind = seed_value
+    elif name == "task":  # every spelling any command takes (InvertedPendulum, walker2d)
+        kind = task_key
+    elif name == "algo":  # TD3, NR-MDP, sac_dr: the table's names in any spelling
+        kind = algorithm_key
     if kind is bool:
         parser.add_argument(flag, action=argparse.BooleanOptionalAction, **kwargs)
     elif isinstance(kind, tuple):
@@ -101,7 +105,8 @@ def add_train_arguments(parser: argparse.ArgumentParser) -> None:
         if f.name in ("algo", "task"):
             kwargs["required"] = True
             if f.name == "task":
-                kwargs["choices"] = list(TASKS)
+                kwargs["metavar"] = "TASK"
+                kwargs["help"] += f" (one of {', '.join(TASKS)})"
         elif f.name == "uncertainty":  # any set the task declares: TrainConfig checks it
             kwargs["metavar"] = "SET"
         elif f.metadata.get("choices"):

@@ -12,7 +12,14 @@ from dataclasses import asdict, dataclass, fields
 from functools import cached_property
 from typing import Any
 
-from rrls.algorithms import ALGORITHMS, algorithm_info, built_in, paper_five, warmup
+from rrls.algorithms import (
+    ALGORITHMS,
+    algorithm_info,
+    algorithm_key,
+    built_in,
+    paper_five,
+    warmup,
+)
 from rrls.evaluation.protocol import Protocol, check_episodes
 from rrls.physics import SIMULATORS, V5, is_paper, physics_label
 
@@ -319,6 +326,7 @@ def make_spec(preset: str = "paper", **overrides: Any) -> Spec:
     except ValueError as err:
         raise SpecError(str(err)) from None
     values["tasks"] = tuple(dict.fromkeys(_task_key(t) for t in values["tasks"]))
+    values["algos"] = tuple(dict.fromkeys(algorithm_key(a) for a in values["algos"]))
     if values.get("split"):  # canonical (extrapolation:0.5), so two spellings are one protocol
         from rrls.envs import training_split
 

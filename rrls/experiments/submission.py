@@ -35,11 +35,15 @@ from typing import Any
 
 import numpy as np
 
+from rrls._io import json_bytes
 from rrls.algorithms import ALGORITHMS, plugin_entry_points
+from rrls.experiments.changes import Changes
 from rrls.experiments.spec import BUILT_IN, RunKey, Spec, SpecError
 from rrls.experiments.stages import run_dynamic, run_evaluation
-from rrls.experiments.submitted import discard, install, jsonable
+from rrls.experiments.store import write_result
+from rrls.experiments.submitted import discard, jsonable
 from rrls.physics import is_paper
+from rrls.schema import SchemaError
 
 #: names a submission may not take (in any case): every built-in algorithm, their display
 #: names, and "paper" (the paper's published numbers in the report); installed plug-ins'
@@ -343,8 +347,10 @@ def submit(
     not stated); ``budget``: anything else about it (``{"env steps": "1e6", ...}``); both go
     into the run's files and the report prints each source's budget beside the benchmark's.
 
-    A refused submission changes nothing: the benchmark (its task list included) and the run
-    directory are written only once the evaluation succeeded, under the benchmark's lock.
+    A refused or failed submission changes nothing: everything is checked (the policy, its
+    metadata, the budget, the result's fields) before the first change, and the changes (the
+    run directory, an earlier submission replaced, the task list grown) are made together
+    under the benchmark's lock, undone if any of them fails (``rrls.experiments.changes``).
     """
     from dataclasses import replace
 
@@ -374,7 +380,9 @@ def submit(
     if adversary is None and (game is not None or alpha is not None):
         raise SubmitError("--game and --alpha need --adversary (the dynamic evaluation)")
 
+    budget = _check_budget(budget)
     source, adapted = _load("policy", policy)
+    _check_declared_steps(getattr(adapted, "metadata", None) or {})
     obs_shape, act_shape, set_dim = _env_shapes(key, spec.uncertainty, is_paper(spec.physics))
     view = policy_view(adapted)  # an rrls TC-RMDP Stacked/Oracle protagonist: what it sees
     seen = obs_shape if view is None else (view.dim(obs_shape[0], act_shape[0]),)
@@ -439,7 +447,7 @@ def submit(
         "budget": {
             "steps": result["steps"] or None,
             "declared_by": declared,  # submitter, the policy's metadata, or None: not stated
-            **{str(k): str(v) for k, v in (budget or {}).items()},
+            **budget,
         },
         "adversary": None
         if adv is None
@@ -451,16 +459,25 @@ def submit(
         },
     }
     try:
+        write_result(staging, result)  # checked against the result schema before any change
         with benchfile.locked(root):  # concurrent submissions: one at a time from here
-            _record_task(root, spec, key)
             done = _existing(final, identity, fingerprint, adv_identity, overwrite)
             if done is not None:  # the same policy, submitted meanwhile
-                discard(staging, [])
+                discard(staging, made)
                 return done
-            install(root, staging, final, result)
-    except BaseException:
-        discard(staging, [])
+            grown = _grown_spec(root, spec, key)
+            with Changes(root) as change:  # all or nothing: undone if any step fails
+                if final.exists():
+                    change.remove(final)  # the earlier submission (--overwrite)
+                change.move(staging, final)
+                if grown is not None:
+                    change.write(benchfile.spec_path(root), json_bytes(grown.to_json()))
+    except BaseException as err:
+        discard(staging, made)
+        if isinstance(err, SchemaError):
+            raise SubmitError(f"{err}; nothing was submitted") from None
         raise
+    discard(staging, made)  # the staging folders it created, now empty
     return Submission(final, result, evaluated=True)
 
 
@@ -490,22 +507,59 @@ def _check_new_task(root: Path, spec: Spec, key: str, add_task: bool) -> None:
         raise SubmitError(str(err)) from None
 
 
-def _record_task(root: Path, spec: Spec, key: str) -> None:
-    """Under the lock: write the benchmark (new) or add ``key`` to the stored one, re-read now
-    (another command may have added tasks or baselines meanwhile: nothing of theirs is lost)."""
+#: budget keys rrls writes itself: the steps (``--steps``) and who declared them
+BUDGET_KEYS = ("steps", "declared_by")
+
+
+def _check_budget(budget: dict[str, Any] | None) -> dict[str, str]:
+    """The free-form budget as text, refusing the keys rrls writes itself (one line)."""
+    out: dict[str, str] = {}
+    for key, value in (budget or {}).items():
+        name = str(key).strip()
+        if not name or name in BUDGET_KEYS:
+            raise SubmitError(
+                f"--budget key {key!r} is reserved or empty (rrls writes {', '.join(BUDGET_KEYS)}: "
+                "declare the steps with --steps); valid: any other KEY=VALUE"
+            )
+        if isinstance(value, (dict, list)):
+            raise SubmitError(f"--budget {name}={value!r}: the value must be text or a number")
+        out[name] = str(value)
+    return out
+
+
+def _check_declared_steps(meta: dict[str, Any]) -> None:
+    """The policy's recorded training steps, if any, must be a whole number >= 0 (a bool, a
+    negative or a fraction is refused in one line before the evaluation runs)."""
+    value = meta.get("steps")
+    if value is None:
+        return
+    ok = not isinstance(value, (bool, np.bool_)) and isinstance(value, (int, np.integer, float))
+    if ok and isinstance(value, float):
+        ok = np.isfinite(value) and value == int(value)
+    if not ok or value < 0:
+        raise SubmitError(
+            f"the policy's metadata records steps {value!r}; valid: a whole number >= 0 "
+            "(fix the policy's metadata; --steps declares the budget instead)"
+        )
+
+
+def _grown_spec(root: Path, spec: Spec, key: str) -> Spec | None:
+    """Under the lock: the benchmark to write with this submission — ``spec`` for a new one,
+    the stored one (re-read now: another command may have added tasks or baselines meanwhile,
+    nothing of theirs is lost) with ``key`` added, or None if it has ``key`` already."""
     from dataclasses import replace
 
     from rrls.experiments import benchfile
 
     if not benchfile.spec_path(root).exists():
-        benchfile.write_spec(root, spec)
-        return
+        return spec
     stored = load_spec(root)
     if stored.binding_fields() != spec.binding_fields():
         raise SubmitError(
             f"{benchfile.spec_path(root)} changed during the evaluation (another protocol); "
             "nothing was submitted: submit again"
         )
-    if key not in stored.tasks:  # submit() checked it may join (add_task)
-        _check_new_task(root, stored, key, add_task=True)
-        benchfile.write_spec(root, replace(stored, tasks=(*stored.tasks, key)))
+    if key in stored.tasks:
+        return None
+    _check_new_task(root, stored, key, add_task=True)  # submit() checked it may join
+    return replace(stored, tasks=(*stored.tasks, key))
