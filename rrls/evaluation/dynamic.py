@@ -19,6 +19,7 @@ from typing import Any
 
 import numpy as np
 
+from rrls.evaluation.defaults import Default, or_default, passed
 from rrls.evaluation.games import Game, TwoPlayers, dynamic_env_id, make_dynamic_env
 from rrls.physics import is_paper
 
@@ -50,16 +51,16 @@ def evaluate_dynamic(
     adversary: Any,
     task: str,
     game: str = "adversarial",
-    uncertainty: str = "3d",
-    episodes: int = 10,
-    seed: int = 0,
+    uncertainty: str | Default = Default("3d"),
+    episodes: int | Default = Default(10),
+    seed: int | Default = Default(0),
     alpha: float = 0.1,
     batch_size: int = 64,
-    rate_limit: float | None = None,
-    context: bool = False,
-    paper: bool = False,
+    rate_limit: float | None | Default = Default(None),
+    context: bool | Default = Default(False),
+    paper: bool | Default = Default(False),
     *,
-    rate_game: str = "tc",
+    rate_game: str | Default = Default("tc"),
     observe: str = "vanilla",
     history: int = 1,
     omniscient: bool = True,
@@ -78,44 +79,49 @@ def evaluate_dynamic(
     action of the step: ``adversary([ψ01, s, a])``. ``paper=True``: on the paper's physics
     (``env_id`` then ends in ``[paper]``).
 
+    Defaults: the ``"3d"`` set, ``episodes=10`` (the paper's), ``seed=0``, no rate limit
+    (``rate_game="tc"`` once one is given), no context, the v5 physics (``paper=False``).
+
     ``protocol``: a :class:`~rrls.evaluation.Protocol` giving the set, ``dynamic_episodes``, the
     seed, the physics, ``context`` and (for the parameter game) the rate-limited game, as a
-    benchmark stores them; the keywords build one for interactive use and giving both is an
-    error. ``game``, ``alpha``, ``observe``, ``history`` and ``omniscient`` describe the players,
-    not the protocol. ``workers`` (processes; ``None``: every core) and ``batch_size`` (live
-    episodes per worker) change no number; with ``out_dir``, finished chunks are kept there and
-    a re-run with the same arguments resumes; ``dynamic.csv`` holds the episodes at the end.
+    benchmark stores them; the keywords build one for interactive use, and passing any of them
+    beside it is an error naming them, whatever the value. ``game``, ``alpha``, ``observe``,
+    ``history`` and ``omniscient`` describe the players, not the protocol. ``workers``
+    (processes; ``None``: every core) and ``batch_size`` (live episodes per worker) change no
+    number; with ``out_dir``, finished chunks are kept there and a re-run with the same
+    arguments resumes; ``dynamic.csv`` holds the episodes at the end.
     """
     from rrls.evaluation.protocol import Protocol, check_protocol_alone, check_sizes
     from rrls.physics import physics_label
 
+    fields = passed(
+        uncertainty=uncertainty,
+        episodes=episodes,
+        seed=seed,
+        rate_limit=rate_limit,
+        context=context,
+        paper=paper,
+        rate_game=rate_game,
+    )
     # a protocol's rate limit is the parameter game's; one given by keyword for another game is
     # refused by name (make_dynamic_env)
     rate_applies = protocol is None or game == "adversarial"
     if protocol is None:
+        episodes, seed, rate_limit = or_default(episodes), or_default(seed), or_default(rate_limit)
         _check_arguments(episodes, batch_size, history, seed, alpha, rate_limit)
         protocol = Protocol(
-            uncertainty,
+            or_default(uncertainty),
             episodes=1,
             seed=seed,
-            physics=physics_label(bool(paper)),
-            context=bool(context),
+            physics=physics_label(bool(or_default(paper))),
+            context=bool(or_default(context)),
             dynamic_episodes=episodes,
             rate_limit=rate_limit,
-            rate_game=rate_game,
+            rate_game=or_default(rate_game),
         )
     else:
-        given = {
-            "uncertainty": uncertainty != "3d",
-            "episodes": episodes != 10,
-            "seed": seed != 0,
-            "rate_limit": rate_limit is not None,
-            "context": context is not False,
-            "paper": paper is not False,
-            "rate_game": rate_game != "tc",
-        }
-        fields = {"episodes": "dynamic_episodes", "paper": "physics"}
-        check_protocol_alone("evaluate_dynamic", protocol, given, fields)
+        renamed = {"episodes": "dynamic_episodes", "paper": "physics"}
+        check_protocol_alone("evaluate_dynamic", protocol, fields, renamed)
         _check_arguments(protocol.dynamic_episodes, batch_size, history, 0, alpha, None)
     if workers == 0:  # 0: in this process, as every rrls command reads it
         workers = 1

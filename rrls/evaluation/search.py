@@ -15,6 +15,7 @@ from typing import Any
 import numpy as np
 
 from rrls.evaluation import lanes
+from rrls.evaluation.defaults import Default, or_default, passed
 from rrls.uncertainty import UncertaintySet
 
 
@@ -49,13 +50,13 @@ class WorstCaseSearch:
 def search_worst_case(
     policy: Any,
     task: str,
-    uncertainty: str | UncertaintySet = "3d",
+    uncertainty: str | UncertaintySet | Default = Default("3d"),
     budget: int = 200,
-    episodes: int = 1,
-    seed: int = 0,
+    episodes: int | Default = Default(1),
+    seed: int | Default = Default(0),
     workers: int | None = None,
     popsize: int | None = None,
-    max_episode_steps: int | None = None,
+    max_episode_steps: int | None | Default = Default(None),
     *,
     protocol: Any = None,
 ) -> WorstCaseSearch:
@@ -68,24 +69,26 @@ def search_worst_case(
 
     ``protocol``: a :class:`~rrls.evaluation.Protocol` giving the set (the box searched: every
     axis its mesh would have, disruptor ranges included), ``episodes``, the seed, the physics,
-    fixed disruptors and context, as ``evaluate`` reads it; the keywords build one for
-    interactive use and giving both is an error. A schedule family is not searched.
+    fixed disruptors and context, as ``evaluate`` reads it; the keywords (defaults: the ``"3d"``
+    set, ``episodes=1``, ``seed=0``) build one for interactive use, and passing any of them beside
+    it is an error naming them, whatever the value. A schedule family is not searched.
     """
     from rrls.evaluation.protocol import Protocol, check_counts, check_protocol_alone
 
+    fields = passed(
+        uncertainty=uncertainty, episodes=episodes, seed=seed, max_episode_steps=max_episode_steps
+    )
     if protocol is None:
+        episodes = or_default(episodes)
         check_counts(episodes=episodes)
         protocol = Protocol(
-            uncertainty, episodes=episodes, seed=seed, max_episode_steps=max_episode_steps
+            or_default(uncertainty),
+            episodes=episodes,
+            seed=or_default(seed),
+            max_episode_steps=or_default(max_episode_steps),
         )
     else:
-        given = {
-            "uncertainty": uncertainty != "3d",
-            "episodes": episodes != 1,
-            "seed": seed != 0,
-            "max_episode_steps": max_episode_steps is not None,
-        }
-        check_protocol_alone("search_worst_case", protocol, given)
+        check_protocol_alone("search_worst_case", protocol, fields)
     if protocol.schedule is not None:
         raise ValueError("search_worst_case searches parameter boxes, not schedule families")
     if budget < 2:

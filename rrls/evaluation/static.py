@@ -22,6 +22,7 @@ import numpy as np
 from rrls.deprecation import renamed_keywords
 from rrls.evaluation import engine, evaldir, lanes
 from rrls.evaluation.chunks import CHUNK
+from rrls.evaluation.defaults import Default, or_default, passed
 from rrls.evaluation.prepared import PreparedPolicy, policy_record, prepare_policy
 from rrls.evaluation.protocol import Protocol, check_counts, check_protocol_alone, check_sizes
 from rrls.evaluation.result import EvaluationResult
@@ -46,22 +47,22 @@ def _box_json(box: UncertaintySet | None) -> dict[str, Any] | None:
 def evaluate(
     policy: Any,
     task: str,
-    uncertainty: str | UncertaintySet = "3d",
-    mesh: int = 10,
-    episodes: int = 5,
-    seed: int = 0,
+    uncertainty: str | UncertaintySet | Default = Default("3d"),
+    mesh: int | Default = Default(10),
+    episodes: int | Default = Default(5),
+    seed: int | Default = Default(0),
     workers: int | None = None,
     *,
-    endpoint: bool | None = None,
+    endpoint: bool | None | Default = Default(None),
     out_dir: str | Path | None = None,
     batch_size: int | None = None,
     progress: bool | None = None,
-    max_episode_steps: int | None = None,
-    disruptors: Mapping[str, float | Sequence[float]] | None = None,
-    schedule: Any = None,
-    context: bool = False,
-    split: Split | None = None,
-    paper: bool = False,
+    max_episode_steps: int | None | Default = Default(None),
+    disruptors: Mapping[str, float | Sequence[float]] | None | Default = Default(None),
+    schedule: Any = Default(None),
+    context: bool | Default = Default(False),
+    split: Split | None | Default = Default(None),
+    paper: bool | Default = Default(False),
     view: Any = None,
     protocol: Protocol | None = None,
 ) -> EvaluationResult:
@@ -96,10 +97,13 @@ def evaluate(
       (:class:`~rrls.wrappers.tc_rmdp.View`); by default the one the policy's metadata records
       (``rrls train --algo rarl --rate-limit R --observe ...``), so it sees what it trained on.
 
+    Defaults: the ``"3d"`` set, ``mesh=10`` points per dimension, ``episodes=5`` per point,
+    ``seed=0``, the v5 physics (``paper=False``), no split, disruptor, schedule or context.
+
     ``protocol``: a :class:`~rrls.evaluation.Protocol` holding all of the above (the set, mesh,
     episodes, seed, physics, split, disruptors, schedule, context), as a benchmark stores it; the
-    keyword arguments build one for interactive use, and giving both is an error (one line
-    naming the keywords).
+    keyword arguments build one for interactive use, and passing any of them beside it is an
+    error naming them (whatever the value: ``mesh=10`` too, as the protocol's would win).
 
     Rows stay equal to the one-episode loop on the same wrapper stack
     (``env.set_params(**point); env.reset(seed=seed)``).
@@ -107,36 +111,37 @@ def evaluate(
     from rrls.evaluation.policies import as_policy
     from rrls.evaluation.stack import policy_view
 
+    fields = passed(
+        uncertainty=uncertainty,
+        mesh=mesh,
+        episodes=episodes,
+        seed=seed,
+        endpoint=endpoint,
+        max_episode_steps=max_episode_steps,
+        disruptors=disruptors,
+        schedule=schedule,
+        context=context,
+        split=split,
+        paper=paper,
+    )
     if protocol is None:
+        mesh, episodes = or_default(mesh), or_default(episodes)
         check_counts(episodes=episodes, mesh=mesh)  # named as the caller gave them
         protocol = Protocol(
-            uncertainty,
+            or_default(uncertainty),
             mesh=mesh,
             episodes=episodes,
-            seed=seed,
-            physics=physics_label(bool(paper)),
-            endpoint=endpoint,
-            split=split,
-            disruptors=tuple(dict(disruptors or {}).items()),
-            schedule=schedule,
-            context=context,
-            max_episode_steps=max_episode_steps,
+            seed=or_default(seed),
+            physics=physics_label(bool(or_default(paper))),
+            endpoint=or_default(endpoint),
+            split=or_default(split),
+            disruptors=tuple(dict(or_default(disruptors) or {}).items()),
+            schedule=or_default(schedule),
+            context=or_default(context),
+            max_episode_steps=or_default(max_episode_steps),
         )
-    else:  # a protocol holds every field: one given beside it would be ignored, so refuse it
-        given = {
-            "uncertainty": uncertainty != "3d",
-            "mesh": mesh != 10,
-            "episodes": episodes != 5,
-            "seed": seed != 0,
-            "endpoint": endpoint is not None,
-            "max_episode_steps": max_episode_steps is not None,
-            "disruptors": bool(disruptors),
-            "schedule": schedule is not None,
-            "context": context is not False,
-            "split": split is not None,
-            "paper": paper is not False,
-        }
-        check_protocol_alone("evaluate", protocol, given, {"paper": "physics"})
+    else:  # a protocol holds every field: one passed beside it would be ignored, so refuse it
+        check_protocol_alone("evaluate", protocol, fields, {"paper": "physics"})
     if not isinstance(policy, PreparedPolicy):  # prepared at the door: adapted already
         policy = as_policy(policy)
     if view is None:
