@@ -199,3 +199,45 @@ def test_withdraw_takes_every_spelling_submit_takes(bench, task, capsys):
     assert main(["withdraw", str(bench), "--algo", "MINE", "--task", task]) == 0
     assert "mine-inverteddoublependulum-1d-seed0" in capsys.readouterr().out
     assert read_spec(bench).tasks == ("invertedpendulum",)
+
+
+def test_a_failed_store_rebuild_keeps_the_old_store(bench, tmp_path):
+    """The result store is rebuilt beside the old one and swapped in whole."""
+    from rrls.experiments.store import build_store
+
+    build_store(bench)
+    remove_submission(bench, "other")  # the next rebuild differs
+    n, done = succeed(build_store, bench, tmp_path / "count")
+    before = snapshot(bench)
+    for at in range(1, n + 1):
+        copy = tmp_path / f"at{at}"
+        shutil.copytree(bench, copy)
+        with pytest.MonkeyPatch.context() as mp:
+            Fault(mp, at)
+            try:
+                build_store(copy)
+            except OSError:
+                assert snapshot(copy) == before, f"store: step {at} of {n} left changes"
+            else:
+                assert set(snapshot(copy)) == done
+        shutil.rmtree(copy)
+
+
+def test_a_failed_report_keeps_the_old_report(bench, tmp_path, monkeypatch):
+    """The report is built beside the old one and swapped in whole: a failure while writing
+    its figures leaves every file of the old report in place."""
+    from rrls.experiments import plots
+    from rrls.experiments.report import make_report
+    from rrls.experiments.store import build_store
+
+    build_store(bench)
+    make_report(bench, plots=False)
+    before = snapshot(bench)
+
+    def broken(*args, **kwargs):
+        raise OSError(28, "No space left on device (injected)")
+
+    monkeypatch.setattr(plots, "make_figures", broken)
+    with pytest.raises(OSError, match="injected"):
+        make_report(bench)
+    assert snapshot(bench) == before

@@ -30,11 +30,12 @@ import time
 from collections.abc import Callable
 from pathlib import Path
 from types import TracebackType
+from typing import Any
 
 from rrls import rundir
 from rrls._io import atomic_write_bytes
 
-__all__ = ["TRASH", "Changes"]
+__all__ = ["TRASH", "Changes", "rebuild_folder"]
 
 #: where removed and replaced runs wait until the whole change is in (under the benchmark)
 TRASH = Path("submissions") / ".trash"
@@ -122,3 +123,21 @@ def _restore(files: dict[Path, bytes | None]) -> None:
             path.unlink(missing_ok=True)
         else:
             atomic_write_bytes(path, data)
+
+
+def rebuild_folder(root: str | Path, name: str, build: Callable[[Path], Any]) -> Path:
+    """Rebuild ``root/name`` (the result store, the report) whole or not at all: ``build``
+    writes a new folder beside it, which replaces the old one only once it is complete; a
+    failure while building or swapping leaves the old folder as it was. Returns the folder."""
+    root = Path(root)
+    fresh = root / f".{name}.new-{os.getpid()}-{time.time_ns()}"
+    fresh.mkdir(parents=True)
+    try:
+        build(fresh)
+        with Changes(root) as change:
+            if (root / name).exists():
+                change.remove(root / name)
+            change.move(fresh, root / name)
+    finally:
+        shutil.rmtree(fresh, ignore_errors=True)  # gone already unless something failed
+    return root / name

@@ -26,6 +26,7 @@ from typing import Any
 from rrls import rundir
 from rrls.evaluation import evaldir
 from rrls.evaluation.evaldir import DYNAMIC_SCHEMA, EPISODES_SCHEMA
+from rrls.experiments.changes import rebuild_folder
 from rrls.physics import ALIASES
 from rrls.schema import Schema, TableSchema, integer, number, obj, string
 from rrls.seeds import MAX_SEED
@@ -173,8 +174,6 @@ def build_store(root: str | Path, expected: dict[str, str] | None = None) -> Pat
     ``benchmark``: its protocol's), which every run's result must carry when it has them."""
     import pandas as pd
 
-    from rrls._io import atomic_write_table
-
     root = Path(root)
     expected = expected or {}
     frames: dict[str, list[Any]] = {name: [] for name in TABLES}
@@ -210,8 +209,15 @@ def build_store(root: str | Path, expected: dict[str, str] | None = None) -> Pat
                 ]
             )
         )
-    out = root / "results"
-    out.mkdir(parents=True, exist_ok=True)
+    return rebuild_folder(root, "results", lambda out: _write_store(out, frames))
+
+
+def _write_store(out: Path, frames: dict[str, list[Any]]) -> None:
+    """Write the store's tables into the new folder ``out`` (swapped in by the caller)."""
+    import pandas as pd
+
+    from rrls._io import atomic_write_table
+
     suffix = ".parquet" if _parquet() else ".csv"
     order = {"evaluations": ["point", "episode"], "curves": ["step"], "dynamic": ["episode"]}
     for name, parts in frames.items():
@@ -221,11 +227,7 @@ def build_store(root: str | Path, expected: dict[str, str] | None = None) -> Pat
             frame = frame.sort_values(keys, kind="stable").reset_index(drop=True)
         front = [c for c in keys + ["train_set", "steps"] if c in frame.columns]
         frame = frame[front + [c for c in frame.columns if c not in front]]
-        for other in (".parquet", ".csv"):
-            if other != suffix:
-                (out / f"{name}{other}").unlink(missing_ok=True)
         atomic_write_table(out / f"{name}{suffix}", frame)
-    return out
 
 
 def load_store(root: str | Path) -> dict[str, Any]:
