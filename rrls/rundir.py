@@ -27,14 +27,24 @@ seal) is read as it is.
 from __future__ import annotations
 
 import hashlib
-import json
 import shutil
 from pathlib import Path
 from typing import Any
 
 from rrls._io import atomic_write_bytes
 from rrls.physics import ALIASES
-from rrls.schema import Schema, SchemaError, array, integer, obj, string
+from rrls.schema import (
+    MAX_JSON_BYTES,
+    JsonError,
+    Schema,
+    SchemaError,
+    array,
+    integer,
+    loads_json,
+    obj,
+    read_limited,
+    string,
+)
 from rrls.seeds import MAX_SEED
 
 CHECKPOINT = "checkpoint.pt"
@@ -146,10 +156,17 @@ def _expected(path: Path) -> str | None:
 _ADVICE = "the results in it cannot be trusted: restore it from a copy or re-run that step"
 
 
-def read_checked(path: Path) -> bytes:
-    """``path``'s bytes, checked against its seal (``DamagedFile`` if they differ)."""
+def read_checked(path: Path, limit: int | None = None) -> bytes:
+    """``path``'s bytes, checked against its seal (``DamagedFile`` if they differ); with
+    ``limit``, a file holding more bytes is damaged too (never read whole)."""
     path = Path(path)
-    data = path.read_bytes()
+    if limit is None:
+        data = path.read_bytes()
+    else:
+        try:
+            data = read_limited(path, limit)
+        except JsonError as err:
+            raise DamagedFile(f"{path} is damaged ({err.reason}); {_ADVICE}") from None
     digest = _expected(path)
     if digest is not None and hashlib.sha256(data).hexdigest() != digest:
         raise DamagedFile(
@@ -159,12 +176,13 @@ def read_checked(path: Path) -> bytes:
 
 
 def read_checked_json(path: Path) -> dict[str, Any]:
-    """A sealed (or older unsealed) JSON object file; damage is a one-line ``DamagedFile``."""
-    data = read_checked(path)
+    """A sealed (or older unsealed) JSON object file; damage (not JSON, larger than
+    ``MAX_JSON_BYTES``, nested deeper than ``MAX_JSON_DEPTH``) is a one-line ``DamagedFile``."""
+    data = read_checked(path, MAX_JSON_BYTES)
     try:
-        obj = json.loads(data.decode("utf-8"))
-    except (UnicodeDecodeError, ValueError) as err:
-        raise DamagedFile(f"{path} is damaged (not valid JSON: {err}); {_ADVICE}") from None
+        obj = loads_json(data, str(path))
+    except JsonError as err:
+        raise DamagedFile(f"{path} is damaged ({err.reason}); {_ADVICE}") from None
     if not isinstance(obj, dict):
         raise DamagedFile(
             f"{path} is damaged (it holds a JSON {type(obj).__name__}, not an object); {_ADVICE}"

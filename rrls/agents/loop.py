@@ -38,6 +38,7 @@ from rrls.agents.lookup import Algorithm, ResolvedRun, resolve_run
 from rrls.agents.run import Run, export_policies
 from rrls.agents.streams import RunSeeds, rng_state, set_rng_state
 from rrls.agents.threads import process_settings
+from rrls.schema import loads_json
 
 
 def train(
@@ -152,10 +153,15 @@ def _begin(envs: Any, k: int, seed: int | None, options: dict | None) -> tuple:
     return obs, _Episode(state, seed, options)
 
 
+def _options(saved: dict[str, Any], path: Path) -> Any:
+    """The reset options of the episode a checkpoint was taken in (JSON in the checkpoint)."""
+    return loads_json(saved["options"], f"{path}: the episode's reset options")
+
+
 def _replay(envs: Any, k: int, saved: dict[str, Any], path: Path) -> tuple:
     """Re-run the episode a checkpoint was taken in, up to the checkpoint."""
     envs.set_rng_state(k, saved["env_rng"])
-    obs, episode = _begin(envs, k, saved["seed"], json.loads(saved["options"]))
+    obs, episode = _begin(envs, k, saved["seed"], _options(saved, path))
     parts = [p.numpy() for p in saved["actions"]]
     for i in range(len(parts[0]) if parts else 0):
         action = tuple(p[i] for p in parts) if saved["tuple"] else parts[0][i]
@@ -297,7 +303,8 @@ def _collect(
             set_rng_state(warmup[k], state["warmup"])
             saved = state["episode"]
             envs.set_rng_state(k, saved["env_rng"])
-            obs, episode = _begin(envs, k, saved["seed"], json.loads(saved["options"]))
+            options = _options(saved, run.checkpoint_path)
+            obs, episode = _begin(envs, k, saved["seed"], options)
         else:  # restore the loop's generator, then replay the episode in progress
             set_rng_state(warmup[k], state["warmup"])
             obs, episode = _replay(envs, k, state["episode"], run.checkpoint_path)

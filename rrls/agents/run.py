@@ -28,6 +28,7 @@ from rrls.agents.config import Diverged, Interrupted, TrainConfig, benchmark_set
 from rrls.agents.hparams import jsonable
 from rrls.physics import physics_label
 from rrls.provenance import machine, source_commit
+from rrls.schema import loads_json
 
 #: stop a run right after the checkpoint at or past this step, as if killed (fault injection)
 STOP_AT_ENV = "RRLS_STOP_AT"
@@ -230,7 +231,12 @@ class Run:
 
     # -- checkpoints ------------------------------------------------------------------------
     def _check_identity(self, state: dict[str, Any]) -> None:
-        saved = json.loads(state["config"])
+        saved = loads_json(state["config"], f"{self.checkpoint_path}: its config")
+        if not isinstance(saved, dict):
+            raise ValueError(
+                f"cannot resume from {self.checkpoint_path}: its config is not an object; "
+                "pass --overwrite to start again"
+            )
         saved["physics"] = physics_label(saved.get("physics"))  # older: rrls-v5 (paper-v4 refused)
         current = self.config.identity(self.hyper)
         diff = [k for k in current if k != "hyper" and saved.get(k) != current[k]]

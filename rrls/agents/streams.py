@@ -16,6 +16,8 @@ import zlib
 
 import numpy as np
 
+from rrls.schema import loads_json
+
 __all__ = ["Generators", "NumpyGenerators", "RunSeeds", "rng_state", "set_rng_state"]
 
 #: the purposes the loop and the built-in learners use (a learner may use others)
@@ -123,4 +125,4 @@ def rng_state(gen: np.random.Generator) -> str:
 
 
 def set_rng_state(gen: np.random.Generator, state: str) -> None:
-    gen.bit_generator.state = json.loads(state)
+    gen.bit_generator.state = loads_json(state, "a checkpoint's generator state")

@@ -122,12 +122,12 @@ def confirmed(command: str, runs: int, yes: bool) -> bool:
 def results_table(root: object) -> str:
     """The worst / average case per task and algorithm, the reference's rows too (the
     report's ``summary.json``, as ``rrls.experiments.report.terminal_table`` prints it)."""
-    import json
     from pathlib import Path
 
     from rrls.experiments.report import terminal_table
+    from rrls.schema import read_json
 
-    return terminal_table(json.loads((Path(str(root)) / "report" / "summary.json").read_text()))
+    return terminal_table(read_json(Path(str(root)) / "report" / "summary.json"))
 
 
 __all__ = [

@@ -29,7 +29,7 @@ import numpy as np
 
 from rrls.evaluation.exact import ExactLinear, exact_tanh
 from rrls.extras import install_hint
-from rrls.schema import Schema, integer, obj, string
+from rrls.schema import Schema, integer, loads_json, obj, string
 
 BLOCK = 64  # rows per policy call inside BatchInvariant (invariance measured in tests)
 
@@ -190,7 +190,7 @@ class MLPPolicy:
             with np.load(path, allow_pickle=False) as f:
                 if not hasattr(f, "files") or "header" not in f:
                     raise ValueError("no header")
-                header = HEADER_SCHEMA.check(json.loads(bytes(f["header"]).decode()), "header")
+                header = HEADER_SCHEMA.check(loads_json(bytes(f["header"]), "header"), "header")
                 n = header["layers"]
                 weights = [f[f"w{i}"] for i in range(n)]
                 biases = [f[f"b{i}"] for i in range(n)]

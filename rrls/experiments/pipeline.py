@@ -18,7 +18,6 @@ two threads each on 2 cores took 118 s for what takes 38 s with one thread each.
 
 from __future__ import annotations
 
-import json
 import os
 import time
 import traceback
@@ -33,7 +32,7 @@ from rrls._proc import THREAD_ENV
 from rrls.algorithms import plays_adversary
 from rrls.experiments.spec import RunKey, Spec
 from rrls.experiments.stages import run_dynamic, run_evaluation
-from rrls.schema import Schema, integer, number, string
+from rrls.schema import Schema, integer, number, read_json, string
 
 
 def run_dir(root: Path, spec: Spec, key: RunKey) -> Path:
@@ -274,7 +273,7 @@ def read_progress(path: Path) -> dict[str, Any] | None:
     """A run's progress, or None where there is none (yet) or it is not one: the display
     shows nothing for it rather than numbers it cannot trust."""
     try:
-        return PROGRESS_SCHEMA.check(json.loads((path / rundir.PROGRESS).read_text()), "")
+        return PROGRESS_SCHEMA.check(read_json(path / rundir.PROGRESS), "")
     except (OSError, ValueError):
         return None
 

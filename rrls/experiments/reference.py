@@ -30,7 +30,6 @@ gymnasium_version, mujoco_version``) and ``values`` (and ``seeds``) as ``;``-sep
 
 from __future__ import annotations
 
-import json
 import math
 from dataclasses import dataclass, field
 from importlib import resources
@@ -39,7 +38,19 @@ from typing import Any
 
 from rrls.evaluation.protocol import MAX_EPISODES
 from rrls.physics import ALIASES, PAPER, V5, physics_label
-from rrls.schema import Schema, SchemaError, array, boolean, integer, number, obj, string
+from rrls.schema import (
+    JsonError,
+    Schema,
+    SchemaError,
+    array,
+    boolean,
+    integer,
+    loads_json,
+    number,
+    obj,
+    read_json,
+    string,
+)
 from rrls.seeds import MAX_SEED, MAX_SEEDS
 from rrls.uncertainty import MAX_MESH_POINTS
 
@@ -224,7 +235,7 @@ def load_reference(path: str | Path) -> Reference:
     """Read a reference file (JSON or CSV), or a shipped one by name (``paper``)."""
     if str(path) in SHIPPED:
         text = resources.files("rrls.experiments").joinpath(SHIPPED[str(path)]).read_text()
-        ref = _from_json(json.loads(text), str(path))
+        ref = _from_json(loads_json(text, str(path)), str(path))
         ref.path = str(path)
         return ref
     path = Path(path)
@@ -234,9 +245,10 @@ def load_reference(path: str | Path) -> Reference:
         )
     if path.suffix.lower() == ".json":
         try:
-            data = json.loads(path.read_text())
-        except (ValueError, UnicodeDecodeError) as err:
-            raise _fail(path, f"invalid JSON: {err}") from None
+            data = read_json(path)
+        except JsonError as err:
+            why = err.reason.replace("not valid JSON", "invalid JSON") if err.syntax else err.reason
+            raise _fail(path, why) from None
         ref = _from_json(data, path)
     else:
         ref = _from_json(_csv_as_json(path), path)

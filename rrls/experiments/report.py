@@ -22,7 +22,6 @@ The report never imports the training code: it reads ``DIR/results/`` (and ``ben
 
 from __future__ import annotations
 
-import json
 from importlib import resources
 from pathlib import Path
 from typing import Any
@@ -39,9 +38,11 @@ from rrls.experiments.caveats import (
     unstable_normalisation,
 )
 from rrls.experiments.cells import fmt, pm
+from rrls.experiments.changes import rebuild_folder
 from rrls.experiments.names import ORDER, display_name
 from rrls.experiments.summary import summarise
 from rrls.experiments.tables import label, md_table, terminal_table, write_tables
+from rrls.schema import loads_json
 
 __all__ = ["make_report", "paper_results", "summarise", "terminal_table"]
 
@@ -49,7 +50,7 @@ __all__ = ["make_report", "paper_results", "summarise", "terminal_table"]
 def paper_results() -> dict[str, Any]:
     """The paper's published raw, normalised and Table 6 numbers (package data)."""
     text = resources.files("rrls.experiments").joinpath("paper_results.json").read_text()
-    return json.loads(text)
+    return loads_json(text, "paper_results.json")
 
 
 def make_report(
@@ -58,7 +59,8 @@ def make_report(
     reference: Any = None,
     labels: dict[str, str] | None = None,
 ) -> Path:
-    """Write ``root/report/`` (summary.json, report.md, tables/, figures) from the store.
+    """Write ``root/report/`` (summary.json, report.md, tables/, figures) from the store,
+    whole or not at all: built beside the old report, which it replaces once complete.
 
     ``reference``: a reference file's path, a shipped name (``paper``) or a loaded
     ``Reference``; refused (``ReferenceError``) unless measured under the benchmark's protocol.
@@ -82,28 +84,30 @@ def make_report(
     if labels:
         summary["labels"] = dict(labels)
     paper = paper_results()
-    out = root / "report"
-    out.mkdir(parents=True, exist_ok=True)
-    _, skipped = write_tables(summary, out / "tables", paper)
-    summary["tables_not_written"] = skipped
-    per_run = _per_run(root, out / "tables")
-    figures: list[tuple[str, Path]] = []
-    if plots:
-        try:
-            from rrls.experiments import plots as plotting
-            from rrls.experiments.store import load_store
 
-            figures = plotting.make_figures(load_store(root), summary, out / "figures", reference)
-        except ImportError as err:  # matplotlib is optional
-            figures = []
-            summary.setdefault("notes", []).append(f"figures skipped: {err}")
-    atomic_write_json(out / "summary.json", summary)
-    text = _markdown(summary, paper, figures, out)
-    if per_run:  # after the static tables: each run's nominal return beside its scores
-        dynamic = "## Dynamic evaluation"
-        text = text.replace(dynamic, "\n".join(per_run) + "\n" + dynamic, 1)
-    atomic_write_bytes(out / "report.md", text.encode())
-    return out / "report.md"
+    def build(out: Path) -> None:  # into a new folder, swapped in whole once complete
+        _, skipped = write_tables(summary, out / "tables", paper)
+        summary["tables_not_written"] = skipped
+        per_run = _per_run(root, out / "tables")
+        figures: list[tuple[str, Path]] = []
+        if plots:
+            try:
+                from rrls.experiments import plots as plotting
+                from rrls.experiments.store import load_store
+
+                store = load_store(root)
+                figures = plotting.make_figures(store, summary, out / "figures", reference)
+            except ImportError as err:  # matplotlib is optional
+                figures = []
+                summary.setdefault("notes", []).append(f"figures skipped: {err}")
+        atomic_write_json(out / "summary.json", summary)
+        text = _markdown(summary, paper, figures, out)
+        if per_run:  # after the static tables: each run's nominal return beside its scores
+            dynamic = "## Dynamic evaluation"
+            text = text.replace(dynamic, "\n".join(per_run) + "\n" + dynamic, 1)
+        atomic_write_bytes(out / "report.md", text.encode())
+
+    return rebuild_folder(root, "report", build) / "report.md"
 
 
 def _check_has_runs(root: Path) -> None:

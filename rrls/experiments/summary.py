@@ -14,7 +14,6 @@ The scores themselves are ``rrls.evaluation.metrics``' (one definition); the sta
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 from typing import Any
 
@@ -31,6 +30,7 @@ from rrls.evaluation.metrics import (
 from rrls.experiments import stats
 from rrls.experiments.caveats import check_normaliser
 from rrls.experiments.names import sort_algos
+from rrls.schema import SchemaError, loads_json
 
 __all__ = ["CONVENTIONS", "Scores", "reference_name", "summarise"]
 
@@ -264,12 +264,21 @@ def provenance(tables: dict[str, Any]) -> dict[str, Any]:
                 for k in keys
             }
             budget = row.get("budget")
-            budget = json.loads(budget) if isinstance(budget, str) and budget else {}
+            budget = _budget(budget) if isinstance(budget, str) and budget else {}
             steps = int(row["steps"]) if row.get("steps") else None
             submitted.append(
                 {**entry, "seed": int(entry["seed"]), "steps": steps or None, "budget": budget}
             )
     return {"versions": versions, "submitted": submitted}
+
+
+def _budget(text: str) -> dict[str, Any]:
+    """A submitted run's budget as the store's runs table holds it (JSON of an object)."""
+    where = "results/runs: column 'budget'"
+    value = loads_json(text, where)
+    if not isinstance(value, dict):
+        raise SchemaError(f"{where} holds {text!r:.60}; valid: a JSON object")
+    return value
 
 
 def unstable(refs: dict[str, dict[str, dict[str, Any] | None]]) -> list[dict[str, Any]]:
