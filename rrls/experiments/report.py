@@ -40,6 +40,9 @@ from rrls.experiments.caveats import (
 from rrls.experiments.cells import fmt, pm
 from rrls.experiments.changes import rebuild_folder
 from rrls.experiments.names import ORDER, display_name
+from rrls.experiments.pairwise import markdown as pairwise_markdown
+from rrls.experiments.pairwise import paper_orderings
+from rrls.experiments.pairwise import write_tables as write_pairwise
 from rrls.experiments.summary import summarise
 from rrls.experiments.tables import label, md_table, terminal_table, write_tables
 from rrls.schema import loads_json
@@ -84,9 +87,11 @@ def make_report(
     if labels:
         summary["labels"] = dict(labels)
     paper = paper_results()
+    summary["paper_orderings"] = paper_orderings(summary, paper)
 
     def build(out: Path) -> None:  # into a new folder, swapped in whole once complete
         _, skipped = write_tables(summary, out / "tables", paper)
+        write_pairwise(summary, out / "tables", lambda a: label(summary, a))
         summary["tables_not_written"] = skipped
         per_run = _per_run(root, out / "tables")
         figures: list[tuple[str, Path]] = []
@@ -264,6 +269,7 @@ def _markdown(
             value = fmt(p["value"]) + (FEW if 0 < (p.get("min_seeds") or 3) < 3 else "")
             lines.append(f"| {label(summary, algo)} | {value} | {ci_text} | {p['n_tasks']} |")
         lines.append("")
+    lines += pairwise_markdown(summary, lambda a: label(summary, a))
     lines += _reference_lines(summary)
     lines += _submitted_lines(summary)
     if figures:

@@ -30,6 +30,7 @@ from rrls.evaluation.metrics import (
 from rrls.experiments import stats
 from rrls.experiments.caveats import check_normaliser
 from rrls.experiments.names import sort_algos
+from rrls.experiments.pairwise import summarise_pairs
 from rrls.schema import SchemaError, loads_json
 
 __all__ = ["CONVENTIONS", "Scores", "reference_name", "summarise"]
@@ -163,6 +164,7 @@ def summarise(root: str | Path, reference: Any = None) -> dict[str, Any]:
         "algorithms": algos,
         "results": results,
         "aggregate": aggregates(scores, tasks, algos),
+        "pairwise": summarise_pairs(scores.values, tasks, algos),
         "missing": missing,
         **provenance(tables),
         "normalisation": {
