@@ -176,6 +176,7 @@ def resource_error(err: BaseException) -> str:
         errno.EPERM: "permission denied: choose another --out",
         errno.EISDIR: "a directory stands where a file is expected",
         errno.ENOTDIR: "a file stands where a directory is expected",
+        errno.ELOOP: "a loop of symbolic links: choose another path",
     }.get(getattr(err, "errno", None), "")
     where = f" ({name})" if name else ""
     return f"{what}{where}" + (f"; {hint}" if hint else "")

@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import json
 import multiprocessing
+import os
 from collections.abc import Callable
 from contextlib import ExitStack
 from pathlib import Path
@@ -118,7 +119,9 @@ def _check_group(resolved: list[ResolvedRun]) -> None:
                 f"runs trained together must differ only in seed and out; these differ: "
                 f"{', '.join(sorted(set(diff)))}"
             )
-    outs = [str(Path(c.out).resolve()) for c in configs]
+    # realpath: Path.resolve raises RuntimeError on a loop of links (Python 3.11); the run's
+    # directory refuses it in one line when it is made
+    outs = [os.path.realpath(c.out) for c in configs]
     if len(set(outs)) != len(outs):
         raise ValueError("runs trained together need one directory each (--out)")
 

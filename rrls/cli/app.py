@@ -11,7 +11,7 @@ import argparse
 import sys
 from types import ModuleType
 
-from rrls.cli.parsing import USAGE_ERRORS, Parser, unknown_option
+from rrls.cli.parsing import USAGE_ERRORS, Parser, refuse_link_loops, unknown_option
 from rrls.extras import install_hint
 
 
@@ -96,6 +96,7 @@ def main(argv: list[str] | None = None) -> int:
         print(unknown_option(sub, args.command, extras), file=sys.stderr)
         return 2
     try:
+        refuse_link_loops(args)
         return _dispatch(args)
     except USAGE_ERRORS as err:
         print(f"rrls {args.command}: error: {err}", file=sys.stderr)

@@ -5,6 +5,8 @@ texts. Kept apart so that each command module can use them without importing the
 from __future__ import annotations
 
 import argparse
+import errno
+import os
 import sys
 from typing import Any
 
@@ -52,6 +54,37 @@ def fail(command: str, message: str) -> int:
     return 2
 
 
+#: every command's arguments that name a file or directory, as its usage line shows them
+PATH_ARGUMENTS = {
+    "out": "--out",
+    "dir": "DIR",
+    "run_dir": "RUN_DIR",
+    "bench_dir": "BENCH_DIR",
+    "policy": "POLICY",
+    "adversary": "--adversary",
+    "reference": "--reference",
+    "export_reference": "--export-reference",
+}
+
+
+def refuse_link_loops(args: argparse.Namespace) -> None:
+    """A path argument that runs into a loop of symbolic links is a one-line ``UsageError``,
+    in every command alike: left to the command, Python 3.11's ``Path.resolve`` raised a
+    ``RuntimeError`` traceback and other calls said ``File exists`` or ``no such file``."""
+    for dest, name in PATH_ARGUMENTS.items():
+        value = getattr(args, dest, None)
+        if not isinstance(value, str) or not value:
+            continue
+        try:
+            os.stat(value)
+        except OSError as err:
+            if err.errno == errno.ELOOP:
+                raise UsageError(
+                    f"{name} {value}: a loop of symbolic links (too many levels); valid: a "
+                    "path whose links end at a file or directory, or at nothing yet"
+                ) from None
+
+
 def task_keys() -> list[str]:
     """Every registered task (the plug-ins' too, once ``main`` has loaded them)."""
     from rrls.tasks import TASKS
@@ -59,4 +92,13 @@ def task_keys() -> list[str]:
     return list(TASKS)
 
 
-__all__ = ["USAGE_ERRORS", "Parser", "UsageError", "fail", "task_keys", "unknown_option"]
+__all__ = [
+    "PATH_ARGUMENTS",
+    "USAGE_ERRORS",
+    "Parser",
+    "UsageError",
+    "fail",
+    "refuse_link_loops",
+    "task_keys",
+    "unknown_option",
+]
