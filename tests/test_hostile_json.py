@@ -290,3 +290,15 @@ def test_train_resume_refuses_a_deep_checkpoint_config_and_a_deep_run_json(tmp_p
     _checkpoint(out, json.dumps([1]))
     err = _cli([*argv, "--out", str(out), "--resume"], capsys)
     assert "its config is not an object" in err
+
+
+@pytest.mark.parametrize("shape", SHAPES)
+def test_train_refuses_a_deep_hyper_parameter_and_reads_plain_text_as_text(tmp_path, capsys, shape):
+    pytest.importorskip("torch")
+    argv = ["train", "--algo", "td3", "--task", "invertedpendulum", "--steps", "300"]
+    argv += ["--out", str(tmp_path / "run")]
+    err = _cli([*argv, "--hyper", f"x={DEEP[shape]}"], capsys)
+    assert "--hyper x" in err and "levels deep" in err
+    assert not (tmp_path / "run").exists()
+    err = _cli([*argv, "--hyper", "x=[not json"], capsys)  # text: refused later, by name
+    assert "td3 has no hyper-parameter 'x'" in err

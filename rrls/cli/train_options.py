@@ -12,7 +12,6 @@ It imports the algorithms' dataclasses, hence torch: ``rrls.cli.app`` adds these
 from __future__ import annotations
 
 import argparse
-import json
 import typing
 from dataclasses import fields, replace
 from pathlib import Path
@@ -23,6 +22,7 @@ from rrls.agents.lookup import algorithm
 from rrls.algorithms import algorithm_key, built_in
 from rrls.argtypes import seed_value, step_count, task_key
 from rrls.deprecation import DeprecatedOption
+from rrls.schema import JsonError, loads_json
 from rrls.seeds import EXAMPLES, parse_seeds
 
 _SKIP = {"progress", "hyper"}
@@ -201,8 +201,10 @@ def config_from_args(args: argparse.Namespace) -> tuple[TrainConfig, bool]:
         if not sep:
             raise ValueError(f"--hyper {item!r}: write NAME=VALUE")
         try:
-            hyper[name] = json.loads(text)
-        except ValueError:
+            hyper[name] = loads_json(text, f"--hyper {name}")
+        except JsonError as err:  # not JSON: text; too deep or too large: refused
+            if not err.syntax:
+                raise
             hyper[name] = text
     run = {
         f.name: getattr(args, f.name)
