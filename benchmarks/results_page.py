@@ -35,6 +35,7 @@ from pathlib import Path
 from collect_runs import run_seconds  # benchmarks/, beside this script
 
 from rrls.algorithms import display_name, sort_algos
+from rrls.experiments.pairwise import judge_paper, pairwise
 from rrls.experiments.reference import load_reference
 from rrls.experiments.stats import t_interval
 
@@ -276,11 +277,43 @@ def paper_comparison(folder: Path) -> str:
         text = "; ".join(
             f"{k} ({len(v)}): {', '.join(v) if v else 'none'}" for k, v in verdicts.items()
         )
-        lines.append(f"- **{METRICS[metric]}**, the paper's orderings here: {text}.")
+        lines.append(f"- **{METRICS[metric]}**, by disjoint 95 % intervals: {text}.")
+        lines.append(
+            f"- **{METRICS[metric]}**, by Welch's test, Holm-corrected: "
+            + _holm({a: data[a][metric] for a in algos}, paper, task, metric)
+        )
     if few:
         names = ", ".join(display_name(a) for a in few)
         lines.append(f"- not judged yet (fewer than two seeds, no interval): {names}.")
     return "\n".join(lines) + "\n"
+
+
+def _p(p: float) -> str:
+    return "< 0.001" if p < 0.001 else f"= {p:.3f}"
+
+
+def _holm(values: dict[str, list[float]], paper: dict, task: str, metric: str) -> str:
+    """The paper's orderings judged by Welch's test with Holm's correction over the pairs
+    (``rrls.experiments.pairwise``, the report's method), the uncorrected p beside each."""
+    rows = pairwise(values)
+    verdicts: dict[str, list[str]] = {"reproduced": [], "contradicted": [], "unresolved": []}
+    for j in judge_paper(rows, paper, task, metric):
+        r = j["row"]
+        mark = (
+            "; the paper: not significant"
+            if j["paper_says_not_significant"]
+            else ("" if j["paper_resolved"] else "; not resolved by the paper's own numbers")
+        )
+        p = f"p {_p(r['p'])}, Holm {_p(r['p_holm'])}" if r["p"] is not None else "no test"
+        if r["diff"] is not None and (r["diff"] > 0) != (r["a"] == j["hi"]):
+            p = f"here the other way, {p}"
+        verdicts[j["verdict"]].append(
+            f"{display_name(j['hi'])} > {display_name(j['lo'])} ({p}{mark})"
+        )
+    return (
+        "; ".join(f"{k} ({len(v)}): {', '.join(v) if v else 'none'}" for k, v in verdicts.items())
+        + "."
+    )
 
 
 def status(folder: Path) -> str:

@@ -288,3 +288,31 @@ def test_the_halfcheetah_pages_counts_are_its_protocols():
     assert spec["mesh"] ** 3 * spec["episodes"] == 5000 and "(5 000 episodes per run)" in text
     steps = same_training.SHORT[same_training.SHORT.index("--steps") + 1]
     assert f"for {int(steps):,} steps at each".replace(",", " ") in text
+
+
+def test_the_halfcheetah_reading_of_what_survives_the_correction():
+    """The worst-case claims of "What survives a correction for ten comparisons", from the
+    shipped per-run values through the report's own pairwise test."""
+    from rrls.experiments.pairwise import pairwise
+
+    folder = RESULTS / "halfcheetah"
+    text = _flat(folder / "README.md")
+    data = results_page.per_seed(folder)
+    rows = {
+        (r["a"], r["b"]): r
+        for r in pairwise(
+            {a: data[a]["worst_case"] for a in ("td3", "dr", "m2td3", "rarl", "nrmdp")}
+        )
+    }
+    dr = rows["td3", "dr"]
+    assert f"Welch p-value of {dr['p']:.3f} on its own" in text
+    assert f"Holm's correction raises it to {dr['p_holm']:.3f}" in text
+    smallest = min(r["p_holm"] for r in rows.values())
+    assert smallest >= 0.05 and f"the smallest corrected p-value is {smallest:.3f}" in text
+    assert {k for k, r in rows.items() if r["p_holm"] == smallest} == {
+        ("dr", "rarl"),
+        ("dr", "nrmdp"),
+    }
+    low, high = (f"{-x:,.0f}".replace(",", " ") for x in reversed(dr["ci95"]))
+    diff = f"{-dr['diff']:,.0f}".replace(",", " ")
+    assert f"DR ahead of TD3 by {diff} (95 % Welch interval [{low}, {high}])" in text
