@@ -28,6 +28,8 @@ from typing import Any
 
 import numpy as np
 
+from rrls.schema import Schema, SchemaError, array, number, string
+
 #: the most points a mesh may have: 10**6 points of 5 episodes of 1 000 steps is already
 #: 5 * 10**9 env steps; beyond it an evaluation could not finish, and the arrays alone fill memory
 MAX_MESH_POINTS = 1_000_000
@@ -428,6 +430,7 @@ class Split:
 
     @classmethod
     def from_json(cls, data: Mapping[str, Any]) -> Split:
+        check_box(data, SPLIT_SCHEMA, "split")
         names = tuple(data["names"])
         return cls(
             data["kind"],
@@ -447,4 +450,50 @@ class Split:
         return hash((self.kind, self.box, self.region))
 
 
-__all__ = ["MAX_MESH_POINTS", "ArrayLike", "Point", "Split", "UncertaintySet"]
+#: an ``UncertaintySet`` as JSON (a protocol's own box): names a list of strings (a string was
+#: read as one name per letter), bounds finite numbers (``"1"`` and ``true`` were read as 1.0)
+BOX_SCHEMA = Schema(
+    {
+        "names": array(string(), required=True),
+        "low": array(number(), required=True),
+        "high": array(number(), required=True),
+        "nominal": array(number(), null=True),
+        "label": string(),
+        "family": string(choices=("robust", "force"), null=True),
+    }
+)
+#: a ``Split`` as JSON (``Split.to_json``), typed as a box is
+SPLIT_SCHEMA = Schema(
+    {
+        "kind": string(required=True),
+        "names": array(string(), required=True),
+        **{key: array(number(), required=True) for key in ("low", "high")},
+        **{key: array(number(), required=True) for key in ("region_low", "region_high")},
+    }
+)
+
+
+def check_box(data: Any, schema: Schema, where: str, path: str = "") -> None:
+    """``data`` (a box's or a split's JSON) against ``schema``, with one bound per name in each
+    list of bounds; otherwise a one-line ``SchemaError`` naming ``where``, the field and value."""
+    schema.check(data, where, path)
+    n = len(data["names"])
+    for key in ("low", "high", "nominal", "region_low", "region_high"):
+        value = data.get(key)
+        if value is not None and len(value) != n:
+            field = f"{path}.{key}" if path else key
+            raise SchemaError(
+                f"{where}: field {field!r} holds {len(value)} values; valid: one per name ({n})"
+            )
+
+
+__all__ = [
+    "BOX_SCHEMA",
+    "MAX_MESH_POINTS",
+    "SPLIT_SCHEMA",
+    "ArrayLike",
+    "Point",
+    "Split",
+    "UncertaintySet",
+    "check_box",
+]

@@ -10,6 +10,7 @@ import math
 import pytest
 
 from rrls.evaluation.protocol import Protocol
+from rrls.schema import SchemaError
 from rrls.uncertainty import Split, UncertaintySet
 
 HOSTILE = [
@@ -135,3 +136,48 @@ def test_a_policys_default_protocol_comes_from_one_constructor():
     assert Protocol.for_policy({"uncertainty": "9d"}, "hopper").uncertainty == "3d"
     with pytest.raises(ValueError, match="not protocol fields: workers"):
         Protocol.for_policy({}, "hopper", workers=2)
+
+
+# --- a protocol's own box and split, typed ---------------------------------------------------
+_BOX = Protocol(uncertainty=BOX, split=Split.extrapolation(BOX, inner=0.5)).to_json()
+
+
+@pytest.mark.parametrize(
+    ("part", "field", "bad", "named"),
+    [
+        ("uncertainty", "names", "pm", "'uncertainty.names' is 'pm'"),  # was two names p, m
+        ("uncertainty", "names", ["torsomass", 3], "'uncertainty.names[1]' is 3"),
+        ("uncertainty", "names", [True, "m"], "'uncertainty.names[0]' is True"),
+        ("uncertainty", "low", ["1", 0.5], "'uncertainty.low[0]' is '1'"),  # was 1.0
+        ("uncertainty", "high", [True, 2.0], "'uncertainty.high[0]' is True"),  # was 1.0
+        ("uncertainty", "high", [None, 2.0], "'uncertainty.high[0]' is None"),
+        ("uncertainty", "low", "1.0", "'uncertainty.low' is '1.0'"),
+        ("uncertainty", "low", [1.0], "'uncertainty.low' holds 1 values"),
+        ("uncertainty", "high", [5.0, 2.0, 3.0], "'uncertainty.high' holds 3 values"),
+        ("uncertainty", "nominal", ["1", 1.0], "'uncertainty.nominal[0]' is '1'"),
+        ("uncertainty", "nominal", [1.0], "'uncertainty.nominal' holds 1 values"),
+        ("uncertainty", "label", 3, "'uncertainty.label' is 3"),
+        ("uncertainty", "family", "bogus", "'uncertainty.family' is 'bogus'"),
+        ("uncertainty", "extra", 1, "unknown field 'uncertainty.extra'"),
+        ("split", "names", "pm", "'split.names' is 'pm'"),
+        ("split", "kind", 3, "'split.kind' is 3"),
+        ("split", "region_low", [True, 1.0], "'split.region_low[0]' is True"),
+        ("split", "region_high", ["2", 1.5], "'split.region_high[0]' is '2'"),
+        ("split", "high", [5.0], "'split.high' holds 1 values"),
+    ],
+)
+def test_a_protocols_box_and_split_are_typed(part, field, bad, named):
+    data = json.loads(json.dumps(_BOX))
+    data[part][field] = bad
+    with pytest.raises(SchemaError) as err:
+        Protocol.from_json(data)
+    text = str(err.value)
+    assert "\n" not in text and text.startswith("protocol: ") and named in text, text
+    assert "valid" in text
+
+
+def test_a_split_read_alone_is_typed_too():
+    data = {**_BOX["split"], "names": "pm"}
+    with pytest.raises(SchemaError, match="split: field 'names' is 'pm'; valid: a list of"):
+        Split.from_json(data)
+    assert Split.from_json(_BOX["split"]) == Split.extrapolation(BOX, inner=0.5)

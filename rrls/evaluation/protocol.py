@@ -25,7 +25,7 @@ from typing import Any, NamedTuple
 import numpy as np
 
 from rrls.physics import is_paper, physics_label
-from rrls.uncertainty import Split, UncertaintySet
+from rrls.uncertainty import BOX_SCHEMA, SPLIT_SCHEMA, Split, UncertaintySet, check_box
 from rrls.wrappers.tc_rmdp import RATE_GAMES
 
 __all__ = [
@@ -290,6 +290,7 @@ class Protocol:
                 missing = ", ".join(sorted(set(need) - set(part)))
                 raise ValueError(f"protocol field missing {missing} in {dict(part)!r:.80}")
         if isinstance(box, Mapping):
+            check_box(box, BOX_SCHEMA, "protocol", "uncertainty")
             kw["uncertainty"] = UncertaintySet(
                 tuple(box["names"]),
                 box["low"],
@@ -299,6 +300,7 @@ class Protocol:
                 box.get("family"),
             )
         if isinstance(kw.get("split"), Mapping):
+            check_box(kw["split"], SPLIT_SCHEMA, "protocol", "split")
             kw["split"] = Split.from_json(kw["split"])
         if kw.get("schedule") is not None:
             raise ValueError(
