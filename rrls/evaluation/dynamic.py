@@ -22,6 +22,11 @@ import numpy as np
 from rrls.evaluation.defaults import Default, or_default, passed
 from rrls.evaluation.games import Game, TwoPlayers, dynamic_env_id, make_dynamic_env
 from rrls.physics import is_paper
+from rrls.schema import Schema, boolean, integer, number, string
+from rrls.wrappers.tc_rmdp import MAX_HISTORY, OBSERVE, RATE_GAMES
+
+#: the games an adversary plays: the set's parameters (RARL), or the action (NR-/PR-MDP)
+GAMES = ("adversarial", "nr", "pr")
 
 
 @dataclass
@@ -239,6 +244,41 @@ def _fingerprints(players: TwoPlayers, env: Any) -> dict[str, str]:
     }
 
 
+#: what an adversary's metadata may say of the game it plays (any adversary: the keys read by
+#: :func:`game_options` and the game's own ``game``/``alpha``); other keys are free
+GAME_SCHEMA = Schema(
+    {
+        "game": string(choices=GAMES),
+        "alpha": number(0, 1),
+        "rate_limit": number(0, null=True),
+        "context": boolean(),
+        "rate_game": string(choices=RATE_GAMES, null=True),
+        "observe": string(choices=OBSERVE, null=True),
+        "history": integer(1, MAX_HISTORY, null=True),
+        "omniscient": boolean(),
+    },
+    open=True,
+)
+#: an ``rrls train`` run's ``adversary.npz`` metadata: its game, and the task, set and physics
+#: it was trained on (what :func:`evaluate_run_dynamic` replays)
+ADVERSARY_SCHEMA = Schema(
+    {
+        **GAME_SCHEMA.fields,
+        "task": string(required=True),
+        "uncertainty": string(),
+        "physics": string(null=True),
+    },
+    open=True,
+)
+
+
+def check_adversary(meta: Any, where: str, schema: Schema = ADVERSARY_SCHEMA) -> dict[str, Any]:
+    """An adversary's metadata checked against ``schema`` (``GAME_SCHEMA`` for an adversary
+    from elsewhere, which need not name its task): a missing or ill-typed field is one line
+    naming ``where`` (the file), the field and what is valid, never a ``KeyError``."""
+    return schema.check({} if meta is None else meta, where, "metadata")
+
+
 def game_options(meta: dict[str, Any]) -> dict[str, Any]:
     """The rate-limited game a saved adversary records, as :func:`evaluate_dynamic` keywords.
 
@@ -287,7 +327,7 @@ def evaluate_run_dynamic(
             f"{run_dir} holds no adversary.npz: only RARL and NR-MDP/PR-MDP runs train one"
         )
     protagonist, adversary = MLPPolicy.load(run_dir / POLICY), MLPPolicy.load(path)
-    meta = adversary.metadata
+    meta = check_adversary(adversary.metadata, str(path))
     return evaluate_dynamic(
         protagonist,
         adversary,
@@ -317,7 +357,6 @@ def _check_arguments(
         check_seed,
         check_sizes,
     )
-    from rrls.wrappers.tc_rmdp import MAX_HISTORY
 
     check_counts(episodes=episodes, history=history)
     check_episodes(1, episodes)
@@ -331,6 +370,10 @@ def _check_arguments(
 
 
 __all__ = [
+    "ADVERSARY_SCHEMA",
+    "GAMES",
+    "GAME_SCHEMA",
+    "check_adversary",
     "dynamic_env_id",
     "DynamicResult",
     "evaluate_dynamic",
