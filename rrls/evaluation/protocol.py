@@ -34,6 +34,7 @@ __all__ = [
     "MAX_WORKERS",
     "Plan",
     "Protocol",
+    "Recheck",
     "check_counts",
     "check_episodes",
     "check_protocol_alone",
@@ -116,6 +117,39 @@ def check_protocol_alone(
         )
 
 
+@dataclass(frozen=True)
+class Recheck:
+    """How the worst case is rechecked (``rrls.evaluation.recheck``): the ``worst`` lowest
+    points, ``episodes`` fresh episodes each, and the ``quantile`` of the point means reported
+    beside it."""
+
+    worst: int = 10
+    episodes: int = 20
+    quantile: float = 0.05
+
+    def __post_init__(self) -> None:
+        for name in ("worst", "episodes"):
+            value = getattr(self, name)
+            if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 1:
+                raise ValueError(f"recheck {name} must be an integer >= 1, got {value!r}")
+            if value > 100_000:
+                raise ValueError(f"recheck {name} must be at most 100,000, got {value!r}")
+        q = self.quantile
+        if isinstance(q, bool) or not isinstance(q, (int, float)) or not 0 <= q <= 1:
+            raise ValueError(f"recheck quantile must be a number in [0, 1], got {q!r}")
+
+    def to_json(self) -> dict[str, Any]:
+        return asdict(self)
+
+    @classmethod
+    def from_json(cls, data: Any) -> Recheck:
+        if not isinstance(data, dict) or set(data) - {"worst", "episodes", "quantile"}:
+            raise ValueError(
+                f"recheck must be an object of worst, episodes, quantile: {data!r:.80}"
+            )
+        return cls(**data)
+
+
 class Plan(NamedTuple):
     """A protocol applied to one task: what the engine runs."""
 
@@ -159,8 +193,16 @@ class Protocol:
     dynamic_episodes: int = 10
     rate_limit: float | None = None
     rate_game: str = "tc"
+    #: a worst case that resists episode noise, beside the paper's (``rrls.evaluation.recheck``):
+    #: the lowest points re-evaluated with fresh episodes; None: not computed
+    recheck: Any = None
 
     def __post_init__(self) -> None:
+        if self.recheck is not None:
+            if isinstance(self.recheck, Mapping):
+                object.__setattr__(self, "recheck", Recheck.from_json(dict(self.recheck)))
+            elif not isinstance(self.recheck, Recheck):
+                raise ValueError(f"recheck must be a Recheck or None, got {self.recheck!r:.80}")
         check_counts(mesh=self.mesh, episodes=self.episodes)
         check_counts(dynamic_episodes=self.dynamic_episodes)
         if self.max_episode_steps is not None:
@@ -242,6 +284,10 @@ class Protocol:
         data["disruptors"] = [
             [n, list(v) if isinstance(v, tuple) else v] for n, v in self.disruptors
         ]
+        if self.recheck is None:  # a protocol written before the recheck existed reads the same
+            del data["recheck"]
+        else:
+            data["recheck"] = self.recheck.to_json()
         return data
 
     @classmethod
@@ -269,10 +315,14 @@ class Protocol:
 
     def fingerprint(self) -> str:
         """16 hex digits naming this protocol's fields (``rrls._io.json_fingerprint``): what a
-        run's ``result.json`` records, so a result copied from another protocol is refused."""
+        run's ``result.json`` records, so a result copied from another protocol is refused.
+        ``recheck`` is left out: it changes none of the mesh's rows, and each result records
+        its own recheck settings."""
         from rrls._io import json_fingerprint
 
-        return json_fingerprint(self.to_json())
+        data = self.to_json()
+        data.pop("recheck", None)  # adds statistics beside the mesh's; changes none of its rows
+        return json_fingerprint(data)
 
     @classmethod
     def from_json(cls, data: Mapping[str, Any]) -> Protocol:

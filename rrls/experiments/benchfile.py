@@ -16,7 +16,7 @@ from rrls._io import waiting_lock
 from rrls.evaluation.protocol import MAX_EPISODES
 from rrls.experiments.spec import Spec, SpecError
 from rrls.physics import ALIASES, SIMULATORS
-from rrls.schema import Schema, SchemaError, array, boolean, integer, number, string
+from rrls.schema import Schema, SchemaError, array, boolean, integer, number, obj, string
 from rrls.seeds import MAX_SEED, MAX_SEEDS
 from rrls.uncertainty import MAX_MESH_POINTS
 from rrls.wrappers.tc_rmdp import OBSERVE, RATE_GAMES
@@ -57,6 +57,7 @@ SPEC_SCHEMA = Schema(
         "observe": string(choices=OBSERVE),
         "split": string(null=True),
         "simulator": string(choices=SIMULATORS),
+        "recheck": obj(null=True),
     }
 )
 
@@ -136,4 +137,5 @@ def reconcile(out: Path, spec: Spec) -> Spec:
         tasks=tuple(dict.fromkeys(stored.tasks + spec.tasks)),
         seeds=tuple(sorted(set(stored.seeds) | set(spec.seeds))),
         device=spec.device,
+        recheck=spec.recheck or stored.recheck,
     )

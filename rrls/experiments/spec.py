@@ -29,7 +29,8 @@ ALGOS = paper_five()  # the paper's five (the presets' default)
 BUILT_IN = built_in()
 PAPER_TASKS = ("ant", "halfcheetah", "hopper", "humanoidstandup", "walker")
 GRID = ("algos", "tasks", "seeds")  # may grow between invocations
-LABELS = ("preset", "device")  # do not change the numbers' meaning (device: docs/performance.md)
+#: do not change the numbers' meaning (device: docs/performance.md; recheck: statistics beside)
+LABELS = ("preset", "device", "recheck")
 
 
 class SpecError(ValueError):
@@ -85,6 +86,18 @@ class Spec:
     #: what steps the training envs: ``mujoco`` (CPU MuJoCo) or ``warp`` (the task's MuJoCo
     #: Warp twin on ``device``); every evaluation stays on CPU MuJoCo
     simulator: str = "mujoco"
+    #: each run's worst case also rechecked with fresh episodes (``rrls.evaluation.recheck``);
+    #: None: not computed. Not binding: it adds statistics and changes none of the mesh's rows
+    recheck: Any = None
+
+    def __post_init__(self) -> None:
+        if isinstance(self.recheck, dict):
+            from rrls.evaluation.recheck import Recheck
+
+            try:
+                object.__setattr__(self, "recheck", Recheck.from_json(self.recheck))
+            except (TypeError, ValueError) as err:
+                raise SpecError(str(err)) from None
 
     def runs(self) -> list[RunKey]:
         """Every (algorithm, task, seed) of the grid, in a stable order: seed by seed, so that a
@@ -112,6 +125,7 @@ class Spec:
             dynamic_episodes=self.dynamic_episodes,
             rate_limit=self.rate_limit,
             rate_game=self.rate_game,
+            recheck=self.recheck,
         )
 
     def hyperparameters(self, algo: str) -> dict[str, Any]:
@@ -143,7 +157,10 @@ class Spec:
         return out
 
     def to_json(self) -> dict[str, Any]:
-        return {k: list(v) if isinstance(v, tuple) else v for k, v in asdict(self).items()}
+        out = {k: list(v) if isinstance(v, tuple) else v for k, v in asdict(self).items()}
+        if out["recheck"] is None:  # a benchmark.json written before it reads the same
+            del out["recheck"]
+        return out
 
     def fingerprints(self) -> dict[str, str]:
         """What a run's ``result.json`` records of the benchmark it ran in: ``protocol``, its

@@ -38,6 +38,12 @@ def run_evaluation(
         out_dir=out / "eval",
         progress=progress,
     )
+    rechecked = {}
+    if spec.protocol.recheck is not None:  # fresh episodes at the lowest points (docs/evaluation)
+        from rrls.evaluation.recheck import recheck
+
+        how = spec.protocol.recheck
+        rechecked = recheck(policy, task, spec.protocol, result.episodes, how, workers, progress)
     trained = trained or {
         "train_set": str(meta.get("uncertainty") or "unknown"),
         "steps": int(meta.get("steps") or 0),  # the training budget when the policy records it
@@ -56,6 +62,7 @@ def run_evaluation(
         "average_case": result.average_case,
         # the training's record (torch included) where the policy carries one
         "versions": meta.get("versions") or result.config.get("versions", {}),
+        **rechecked,
     }
 
 

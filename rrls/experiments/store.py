@@ -64,6 +64,11 @@ RESULT_SCHEMA = Schema(
         # and (trained runs) of the benchmark's protocol it ran under
         "protocol": string(),
         "benchmark": string(),
+        # the worst case rechecked with fresh episodes, and a low quantile of the point means
+        # (``rrls.evaluation.recheck``), with the settings and points it used
+        "worst_case_rechecked": number(),
+        "worst_case_q": number(),
+        "recheck": obj(Schema({}, open=True)),
     }
 )
 #: ``scalars.csv`` (training curves, long format)
@@ -199,6 +204,9 @@ def build_store(root: str | Path, expected: dict[str, str] | None = None) -> Pat
                         "worst_case": result["worst_case"],
                         "average_case": result["average_case"],
                         "dynamic_mean": result.get("dynamic_mean"),
+                        "worst_case_rechecked": result.get("worst_case_rechecked"),
+                        "worst_case_q": result.get("worst_case_q"),
+                        "recheck_quantile": (result.get("recheck") or {}).get("quantile"),
                         "source": "submitted" if result.get("submitted") else "trained",
                         "policy_kind": (result.get("submitted") or {}).get("kind"),
                         "policy_source": (result.get("submitted") or {}).get("source"),
