@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import argparse
 import sys
+import time
 from types import ModuleType
 
 from rrls.cli.parsing import USAGE_ERRORS, Parser, refuse_link_loops, unknown_option
@@ -95,6 +96,7 @@ def main(argv: list[str] | None = None) -> int:
         sub = parser.subcommands.get(args.command, parser)
         print(unknown_option(sub, args.command, extras), file=sys.stderr)
         return 2
+    started = time.time()  # what an interrupted command wrote since: rrls.cli.kept
     try:
         refuse_link_loops(args)
         return _dispatch(args)
@@ -106,10 +108,15 @@ def main(argv: list[str] | None = None) -> int:
 
         print(f"rrls {args.command}: error: {resource_error(err)}", file=sys.stderr)
         return 2
-    except KeyboardInterrupt:
-        from rrls.interrupts import interrupted
+    except KeyboardInterrupt as stop:  # one line: what was kept, the command that goes on
+        from rrls.cli.kept import kept_after
+        from rrls.interrupts import Interruption, interrupted
 
-        print(interrupted(args.command, argv), file=sys.stderr)
+        if isinstance(stop, Interruption):
+            kept, resumes = stop.kept, stop.resumes
+        else:
+            kept, resumes = kept_after(args, started)
+        print(interrupted(args.command, argv, kept, resumes), file=sys.stderr)
         return 130
 
 

@@ -230,15 +230,16 @@ def _benchmark(args: argparse.Namespace) -> int:
         return fail("benchmark", f"--out {out} is a file, not a directory: choose another --out")
     if args.dry_run:
         return _dry_run(out, spec, jobs or 0, args.backend, args.pack)
-    todo, _ = pending(Path(args.out), spec)
-    if not confirmed("benchmark", len(todo), args.yes):
-        return 1
+    from rrls.experiments.runner import benchmark, kept_runs
+    from rrls.interrupts import keeping
 
-    from rrls.experiments.runner import benchmark
-
-    code = benchmark(args.out, spec, jobs or 0, args.backend, args.ray_address, pack=args.pack)
-    if code in (0, 1) and (Path(args.out) / "report" / "summary.json").exists():
-        print(results_table(args.out))
+    with keeping(lambda: kept_runs(out, spec)):
+        todo, _ = pending(out, spec)
+        if not confirmed("benchmark", len(todo), args.yes):
+            return 1
+        code = benchmark(out, spec, jobs or 0, args.backend, args.ray_address, pack=args.pack)
+        if (out / "report" / "summary.json").exists():
+            print(results_table(out))
     return code
 
 

@@ -45,12 +45,25 @@ def add_parser(sub: argparse._SubParsersAction) -> argparse.ArgumentParser:
 
 def run(args: argparse.Namespace) -> int:
     """Play the episodes, then print the mean return and its spread."""
-    from rrls.evaluation import evaluate_run_dynamic
+    from rrls.evaluation import evaldir, evaluate_run_dynamic
+    from rrls.interrupts import keeping
 
-    result = evaluate_run_dynamic(
-        args.run_dir, episodes=args.episodes, seed=args.seed, workers=args.workers, out_dir=args.out
-    )
-    print(f"{result.env_id}: {result.mean:.2f} ± {result.std:.2f} over {args.episodes} episodes")
+    def kept() -> tuple[str, bool]:  # on Ctrl-C: the chunks on disk then, if any may be
+        if args.out is None:
+            return "nothing kept (without --out no episode is saved)", False
+        return evaldir.kept(args.out, args.episodes, evaldir.DYNAMIC), True
+
+    with keeping(kept):
+        result = evaluate_run_dynamic(
+            args.run_dir,
+            episodes=args.episodes,
+            seed=args.seed,
+            workers=args.workers,
+            out_dir=args.out,
+        )
+        print(
+            f"{result.env_id}: {result.mean:.2f} ± {result.std:.2f} over {args.episodes} episodes"
+        )
     return 0
 
 

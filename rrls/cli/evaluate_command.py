@@ -120,7 +120,8 @@ def run(args: argparse.Namespace) -> int:
     """Evaluate, then print the table of scores (and draw the plot with --plot)."""
     from pathlib import Path
 
-    from rrls.evaluation import Protocol, evaluate, load_policy
+    from rrls.evaluation import Protocol, evaldir, evaluate, load_policy
+    from rrls.interrupts import NOTHING_YET, keeping
     from rrls.tasks import get_task
 
     policy = load_policy(args.policy)
@@ -149,15 +150,32 @@ def run(args: argparse.Namespace) -> int:
         f"-ep{args.episodes}-seed{args.seed}"
         + ("-paper" if physics == "paper" else "")
     )
-    result = evaluate(
-        policy,
-        task,
-        protocol=protocol,
-        workers=args.workers,
-        out_dir=out,
-        batch_size=args.batch_size,
-        progress=True,
-    )
+
+    def kept() -> str:  # on Ctrl-C: the chunks on disk then
+        try:
+            rows = len(protocol.plan(task).points) * protocol.episodes
+        except ValueError:  # a protocol refused before any episode ran
+            return NOTHING_YET
+        return evaldir.kept(out, rows)
+
+    with keeping(kept):
+        result = evaluate(
+            policy,
+            task,
+            protocol=protocol,
+            workers=args.workers,
+            out_dir=out,
+            batch_size=args.batch_size,
+            progress=True,
+        )
+        _print(args, result, out, uncertainty, physics, split_text)
+    return 0
+
+
+def _print(
+    args: argparse.Namespace, result: Any, out: Any, uncertainty: str, physics: str, split: Any
+) -> None:
+    """The table of scores (and the plot with --plot)."""
     summary = result.summary()
     worst = ", ".join(f"{k}={v:.4g}" for k, v in result.worst_point.items()) or "nominal model"
     rows = [
@@ -169,7 +187,7 @@ def run(args: argparse.Namespace) -> int:
         ),
         ("worst case", f"{result.worst_case:,.2f}   at {worst}"),
         ("average case", f"{result.average_case:,.2f}"),
-        *_split_rows(result, split_text),
+        *_split_rows(result, split),
         ("diverged", f"{summary['diverged']} of {summary['episodes_total']} episodes"),
         ("written", f"{out / 'summary.json'}, {out / _table_file(out)}"),
     ]
@@ -180,7 +198,6 @@ def run(args: argparse.Namespace) -> int:
         from rrls.evaluation.result_plot import plot_result
 
         print(f"{'plot':<{width}}  {plot_result(out)}")
-    return 0
 
 
 def _policy_name(policy: str) -> str:

@@ -28,10 +28,21 @@ def run(args: argparse.Namespace) -> int:
     from pathlib import Path
 
     from rrls.evaluation.result_plot import plot_result
+    from rrls.interrupts import identity, keeping
 
     if not Path(args.dir).is_dir():
         raise FileNotFoundError(f"no evaluation directory {args.dir}")
-    print(plot_result(args.dir, args.out))
+    path = Path(args.out or Path(args.dir) / "returns.png")
+    before = identity(path)
+
+    def kept() -> tuple[str, bool | None]:  # the figure is written whole or not at all
+        now = identity(path)
+        if now is not None and now != before:
+            return f"{path} written", None
+        return f"{path} not written" + (" (the earlier one kept)" if now else ""), False
+
+    with keeping(kept):
+        print(plot_result(args.dir, path))
     return 0
 
 

@@ -5,6 +5,7 @@ with the report's table and a plot at the end. What it shares with ``rrls benchm
 from __future__ import annotations
 
 import argparse
+from typing import Any
 
 from rrls.argtypes import seed_value, step_count
 from rrls.cli.benchmark_options import confirmed, guarded, pending, results_table
@@ -56,7 +57,6 @@ def run(args: argparse.Namespace) -> int:
 
 def _quickstart(args: argparse.Namespace) -> int:
     """The ``quick`` preset in ``--out``: one pipeline with ``rrls benchmark --preset quick``."""
-    import shutil
     from pathlib import Path
 
     from rrls.experiments.cpu_estimate import default_jobs
@@ -66,14 +66,24 @@ def _quickstart(args: argparse.Namespace) -> int:
         import torch  # noqa: F401
     except ImportError:
         return fail("quickstart", f"needs torch: {install_hint('train')}")
-    from rrls.experiments.runner import benchmark
+    from rrls.experiments.runner import benchmark, kept_runs
+    from rrls.interrupts import keeping
 
     spec = make_spec("quick", steps=args.steps, seeds=quickstart_seeds(args))
-    todo, _ = pending(Path(args.out), spec)
-    if not confirmed("quickstart", len(todo), getattr(args, "yes", False)):
-        return 1
-    code = benchmark(args.out, spec, default_jobs())
     root = Path(args.out)
+    with keeping(lambda: kept_runs(root, spec)):
+        todo, _ = pending(root, spec)
+        if not confirmed("quickstart", len(todo), getattr(args, "yes", False)):
+            return 1
+        code = benchmark(root, spec, default_jobs())
+        _show(root)
+    return code
+
+
+def _show(root: Any) -> None:
+    """The report's table, the plot and where the rest is."""
+    import shutil
+
     if (root / "report" / "summary.json").exists():
         print(results_table(root))
         figure = root / "report" / "figures" / "returns_invertedpendulum.png"
@@ -82,7 +92,6 @@ def _quickstart(args: argparse.Namespace) -> int:
             print(f"plot: {root / 'quickstart.png'}")
         print(f"report: {root / 'report' / 'report.md'} (reduced budget, not the paper's)")
         print(f"runs: {root}/runs (TensorBoard: tensorboard --logdir {root}/runs)")
-    return code
 
 
 def quickstart_seeds(args: argparse.Namespace) -> list[int] | None:

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import argparse
 import shlex
+from typing import Any
 
 from rrls.cli.benchmark_options import guarded, results_table
 from rrls.cli.parsing import fail
@@ -66,6 +67,7 @@ def _report(args: argparse.Namespace) -> int:
     from rrls.experiments.reference import ReferenceError
     from rrls.experiments.report import make_report
     from rrls.experiments.store import build_store
+    from rrls.interrupts import identity, keeping
 
     root = Path(args.dir)
     if not (root / "runs").is_dir() and not (root / "results").is_dir():
@@ -78,29 +80,52 @@ def _report(args: argparse.Namespace) -> int:
                 "report", f"--rename {item!r}: write NAME=TEXT (NAME@REF for a reference row)"
             )
         labels[name.strip()] = text.strip()
-    try:
-        with reporting(root):  # one store and report at a time (a benchmark ending, too)
-            if (root / "runs").is_dir():
-                build_store(root, stored_fingerprints(root))
-            path = make_report(
-                root, plots=not args.no_plots, reference=args.reference, labels=labels or None
-            )
-            exported = None
-            if args.export_reference:
-                exported = export_reference(
-                    root, args.export_reference, label=args.label, notes=args.notes
+    written = [root / name for name in FOLDERS]
+    if args.export_reference:
+        written.append(Path(args.export_reference))
+    before = {path: identity(path) for path in written}
+    with keeping(lambda: _rebuilt(root, before)):
+        try:
+            with reporting(root):  # one store and report at a time (a benchmark ending, too)
+                if (root / "runs").is_dir():
+                    build_store(root, stored_fingerprints(root))
+                path = make_report(
+                    root, plots=not args.no_plots, reference=args.reference, labels=labels or None
                 )
-    except ReferenceError as err:
-        return fail("report", str(err))
-    print(results_table(root))
-    print(f"report: {path}")
-    if exported is not None:
-        print(
-            f"reference: {args.export_reference} ({exported.label!r}: "
-            f"{len(exported.rows)} cells; `rrls report DIR --reference "
-            f"{shlex.quote(str(args.export_reference))}`)"
-        )
+                exported = None
+                if args.export_reference:
+                    exported = export_reference(
+                        root, args.export_reference, label=args.label, notes=args.notes
+                    )
+        except ReferenceError as err:
+            return fail("report", str(err))
+        print(results_table(root))
+        print(f"report: {path}")
+        if exported is not None:
+            print(
+                f"reference: {args.export_reference} ({exported.label!r}: "
+                f"{len(exported.rows)} cells; `rrls report DIR --reference "
+                f"{shlex.quote(str(args.export_reference))}`)"
+            )
     return 0
+
+
+#: the folders ``rrls report`` rebuilds, each replaced whole or not at all
+FOLDERS = ("results", "report")
+
+
+def _rebuilt(root: Any, before: dict[Any, tuple[int, int] | None]) -> str:
+    """What an interrupted ``rrls report`` left: the folders (and exported reference) it had
+    replaced; the others are as they were, whole (each is swapped in only once complete)."""
+    from rrls.interrupts import identity
+
+    now = {path: identity(path) for path in before}
+    new = [str(p) for p in before if now[p] is not None and now[p] != before[p]]
+    old = [str(p) for p in before if now[p] is not None and now[p] == before[p]]
+    parts = [f"{' and '.join(new)} rewritten"] if new else []
+    if old:
+        parts.append(f"{' and '.join(old)} as before, whole")
+    return "; ".join(parts) or f"no report in {root} yet"
 
 
 __all__ = ["NAME", "add_parser", "run"]

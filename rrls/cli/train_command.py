@@ -40,16 +40,54 @@ def run(args: argparse.Namespace) -> int:
     """Train; exit status 3 when interrupted (the run continues with --resume)."""
     from rrls.agents import Interrupted, train, train_group
     from rrls.cli.train_options import configs_from_args
+    from rrls.interrupts import keeping
 
     configs, resume = configs_from_args(args)  # bad options: ValueError, one line from main()
-    try:
-        if args.seeds is None:
-            run_dirs = [train(configs[0], resume=resume)]
-        else:  # one process, the seeds stacked (same numbers as each alone)
-            run_dirs = train_group(configs, resume=resume)
-    except Interrupted as stop:
-        print(f"{stop}; continue with --resume")
-        return 3
+    with keeping(lambda: _checkpoints_kept(configs)):
+        try:
+            if args.seeds is None:
+                run_dirs = [train(configs[0], resume=resume)]
+            else:  # one process, the seeds stacked (same numbers as each alone)
+                run_dirs = train_group(configs, resume=resume)
+        except Interrupted as stop:
+            print(f"{stop}; continue with --resume")
+            return 3
+        _print(args, configs, run_dirs)
+    return 0
+
+
+def _checkpoints_kept(configs: list[Any]) -> tuple[str, bool]:
+    """What an interrupted ``rrls train`` keeps, read from its run directories: the step of
+    each checkpoint (``--resume`` goes on from it), or that none was written yet."""
+    from pathlib import Path
+
+    from rrls.agents.run import read_checkpoint
+    from rrls.rundir import CHECKPOINT
+
+    at: dict[str, list[str]] = {}
+    for config in configs:
+        path = Path(config.out) / CHECKPOINT
+        if not path.exists():
+            continue
+        try:
+            step = f"step {int(read_checkpoint(path)['step']):,} of {config.steps:,}"
+        except (OSError, ValueError) as err:
+            step = f"an unreadable step ({err})"
+        at.setdefault(step, []).append(str(config.out))
+    if not at:  # the same command starts the run again
+        dirs = ", ".join(str(c.out) for c in configs)
+        first = configs[0].checkpoint_every
+        return f"no checkpoint yet (the first at step {first:,}): nothing kept in {dirs}", False
+    kept = [
+        f"the checkpoint{'s' if len(dirs) > 1 else ''} at {step} "
+        f"{'are' if len(dirs) > 1 else 'is'} kept in {', '.join(dirs)}"
+        for step, dirs in at.items()
+    ]
+    return "; ".join(kept), True
+
+
+def _print(args: argparse.Namespace, configs: list[Any], run_dirs: list[Any]) -> None:
+    """What was trained, and how to evaluate it."""
     config = configs[0]
     warm_up = _warm_up(run_dirs[0])
     if warm_up is not None and config.steps <= warm_up:  # a policy nobody trained: say so
@@ -66,7 +104,7 @@ def run(args: argparse.Namespace) -> int:
         print("evaluate each with: rrls evaluate DIR")
         if (run_dirs[0] / "adversary.npz").exists():
             print("against its own adversary (paper Table 6): rrls evaluate-dynamic DIR")
-        return 0
+        return
     run_dir = run_dirs[0]
     print(
         f"trained {config.algo} on {config.task}/{config.uncertainty}: {run_dir}/policy.npz "
@@ -74,7 +112,6 @@ def run(args: argparse.Namespace) -> int:
     )
     if (run_dir / "adversary.npz").exists():
         print(f"against its own adversary (paper Table 6): rrls evaluate-dynamic {run_dir}")
-    return 0
 
 
 def _warm_up(run_dir: Any) -> int | None:

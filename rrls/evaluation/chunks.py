@@ -12,7 +12,7 @@ import numpy as np
 
 from rrls._io import atomic_save_npz
 
-__all__ = ["CHUNK", "chunk_path", "load_chunk", "remove_leftovers", "save_chunk"]
+__all__ = ["CHUNK", "chunk_path", "load_chunk", "remove_leftovers", "save_chunk", "saved"]
 
 CHUNK = 50  # episodes per saved chunk: the unit of saving and resuming (not of work sharing)
 
@@ -23,6 +23,17 @@ def chunk_path(chunk_dir: Path, c: int) -> Path:
 
 def save_chunk(chunk_dir: Path, c: int, cols: dict[str, np.ndarray], block: slice) -> None:
     atomic_save_npz(chunk_path(chunk_dir, c), **{k: v[block] for k, v in cols.items()})
+
+
+def saved(chunk_dir: Path, n: int, chunk: int = CHUNK) -> tuple[int, int]:
+    """``(chunks, episodes)`` of ``n`` episode rows already saved in ``chunk_dir``: what an
+    interrupted evaluation keeps, and a re-run loads instead of running."""
+    chunks = episodes = 0
+    for c in range(-(-n // chunk)):
+        if chunk_path(chunk_dir, c).exists():
+            chunks += 1
+            episodes += min(chunk, n - c * chunk)
+    return chunks, episodes
 
 
 def remove_leftovers(chunk_dir: Path) -> list[Path]:

@@ -18,6 +18,7 @@ from pathlib import Path
 from typing import Any
 
 from rrls._io import DirectoryLock, atomic_write_json
+from rrls.evaluation.chunks import CHUNK, saved
 from rrls.physics import ALIASES, physics_label
 from rrls.rundir import (
     read_checked_json,
@@ -32,6 +33,7 @@ __all__ = [
     "ARGUMENTS",
     "DYNAMIC",
     "SUMMARY",
+    "kept",
     "write_dynamic",
     "opened",
     "read",
@@ -114,6 +116,20 @@ def opened(out_dir: str | Path, config: dict[str, Any]) -> Iterator[Path]:
         else:
             atomic_write_json(path, config)
         yield out_dir / CHUNKS
+
+
+def kept(out_dir: str | Path, episodes: int, finished: str = SUMMARY) -> str:
+    """What an evaluation of ``episodes`` episode rows interrupted in ``out_dir`` keeps, in
+    words (the line a command prints on Ctrl-C): its ``finished`` file (``summary.json``,
+    ``dynamic.csv``) once written, else its saved chunks, which a re-run loads."""
+    out_dir = Path(out_dir)
+    if (out_dir / finished).exists():
+        return f"the evaluation is complete in {out_dir} ({finished} written)"
+    chunks, done = saved(out_dir / CHUNKS, episodes)
+    return (
+        f"{done:,} of {episodes:,} episodes ({chunks} of {-(-episodes // CHUNK)} chunks) kept "
+        f"in {out_dir}"
+    )
 
 
 def write(out_dir: str | Path, summary: dict[str, Any], episodes: Any) -> Path:

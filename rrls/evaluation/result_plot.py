@@ -6,11 +6,13 @@
 
 from __future__ import annotations
 
+import io
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from rrls._io import atomic_write_bytes
 from rrls.evaluation.result import EvaluationResult
 from rrls.extras import install_hint
 
@@ -72,8 +74,10 @@ def plot_result(result: EvaluationResult | str | Path, path: str | Path | None =
         fig.tight_layout()
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=120)
+    buffer = io.BytesIO()  # written whole or not at all (Ctrl-C, a full disk)
+    fig.savefig(buffer, dpi=120, format=path.suffix.lstrip(".").lower() or None)
     plt.close(fig)
+    atomic_write_bytes(path, buffer.getvalue())
     return path
 
 

@@ -139,6 +139,37 @@ def pending_runs(root: Path, spec: Spec) -> tuple[list[RunKey], int]:
     return todo, len(keys) - len(todo)
 
 
+def kept_runs(root: Path, spec: Spec) -> str:
+    """What an interrupted benchmark keeps of ``spec``'s grid in ``root``, read from the run
+    directories: the finished runs, and of the others those trained (their evaluation goes on)
+    or with a checkpoint (their training goes on); the rest start over."""
+    keys = spec.runs()
+    finished = trained = checkpointed = 0
+    for key in keys:
+        path = run_dir(root, spec, key)
+        if (path / rundir.RESULT).exists():
+            finished += 1
+        elif rundir.finished_steps(path) is not None:
+            trained += 1
+        elif (path / rundir.CHECKPOINT).exists():
+            checkpointed += 1
+    text = f"{finished} of {len(keys)} runs finished in {Path(root) / 'runs'}"
+    others = len(keys) - finished
+    kept = [
+        f"{n} {what}"
+        for n, what in (
+            (trained, "trained (their evaluation goes on)"),
+            (checkpointed, "with a checkpoint (their training goes on)"),
+        )
+        if n
+    ]
+    if others and kept:
+        text += f"; of the {others} others, " + " and ".join(kept)
+    elif others:
+        text += f"; the {others} others kept nothing yet"
+    return text
+
+
 def plan(
     root: Path, spec: Spec, todo: int, finished: int, jobs: int, backend: str, pack: int = 1
 ) -> str:
@@ -187,13 +218,31 @@ def benchmark(
     ``pack``: at most that many seeds of one (algorithm, task) cell are trained together in
     one process (``train_group``; same numbers as alone); default every seed of a cell on
     CUDA, 1 on CPU (``pipeline.default_pack``). Returns 0 when every run finished, 1 when some
-    failed (the others still ran), 130 when interrupted (finished work is kept: the same
-    command resumes).
+    failed (the others still ran). Ctrl-C stops the runs, then raises an
+    :class:`~rrls.interrupts.Interruption` saying what is kept (:func:`kept_runs`): the same
+    call resumes from it.
     """
+    from rrls.interrupts import keeping
+
+    root = Path(out)
+    with keeping(lambda: kept_runs(root, spec)):
+        return _benchmark(root, spec, jobs, backend, ray_address, stream, interval, report, pack)
+
+
+def _benchmark(
+    root: Path,
+    spec: Spec,
+    jobs: int,
+    backend: str,
+    ray_address: str | None,
+    stream: TextIO | None,
+    interval: float,
+    report: bool,
+    pack: int | None,
+) -> int:
     from rrls.experiments import benchfile
 
     stream = stream or sys.stderr
-    root = Path(out)
     root.mkdir(parents=True, exist_ok=True)
     with benchfile.locked(root):  # a concurrent `rrls submit` adding a task loses nothing
         stored = reconcile(root, spec)  # refuses another protocol; the grid may grow
@@ -203,23 +252,13 @@ def benchmark(
     print(plan(root, spec, len(todo), finished, jobs, backend, pack), file=stream, flush=True)
     slots = min(len(todo), (jobs or len(groups(todo, pack))) * pack)  # runs at once
     display = Display(root, spec, todo, finished, slots, stream, interval)
-    code = 0
-    try:
+    try:  # Ctrl-C: the runs are stopped before it goes on up
         if backend == "ray":
             run_ray(root, spec, todo, jobs, ray_address, display.event, display.tick, pack)
         else:
             run_local(root, spec, todo, jobs, display.event, display.tick, pack)
-    except KeyboardInterrupt:
-        code = 130
     finally:
         display.close()
-    if code == 130:
-        print(
-            "interrupted: finished runs and checkpoints are kept; re-run the same command to "
-            "resume",
-            file=stream,
-        )
-        return code
     from rrls.experiments.store import build_store
 
     with benchfile.reporting(root):  # a concurrent `rrls report` waits
