@@ -241,3 +241,20 @@ def test_a_failed_report_keeps_the_old_report(bench, tmp_path, monkeypatch):
     with pytest.raises(OSError, match="injected"):
         make_report(bench)
     assert snapshot(bench) == before
+
+
+@pytest.mark.parametrize("value", [True, None, float("nan"), {"a": 1}])
+def test_budget_values_that_are_not_text_or_numbers_are_refused(bench, value):
+    before = snapshot(bench)
+    with pytest.raises(SubmitError, match="valid: text or a finite number"):
+        submit(bench, "new", "invertedpendulum", 0, Linear(0.1), budget={"gpu": value})
+    assert snapshot(bench) == before
+
+
+@pytest.mark.parametrize("meta", [{"alpha": None, "game": "nr"}, {"game": "chess"}])
+def test_an_adversarys_bad_metadata_is_refused_in_one_line(bench, meta):
+    before = snapshot(bench)
+    adversary = Linear(0.2, 0.0, metadata=meta)
+    with pytest.raises(SubmitError, match="metadata") as err:
+        submit(bench, "new", "invertedpendulum", 0, Linear(0.1), adversary=adversary)
+    assert "\n" not in str(err.value) and snapshot(bench) == before

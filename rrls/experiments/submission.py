@@ -37,6 +37,7 @@ import numpy as np
 
 from rrls._io import json_bytes
 from rrls.algorithms import ALGORITHMS, plugin_entry_points
+from rrls.evaluation.dynamic import GAME_SCHEMA, GAMES, check_adversary
 from rrls.experiments.changes import Changes
 from rrls.experiments.spec import BUILT_IN, RunKey, Spec, SpecError
 from rrls.experiments.stages import run_dynamic, run_evaluation
@@ -61,7 +62,6 @@ RESERVED = tuple(
 )
 _NAME = re.compile(r"^[A-Za-z][A-Za-z0-9_.+-]{0,39}$")
 _NAME_RULE = "a letter, then up to 39 letters, digits or _ . + -"
-GAMES = ("adversarial", "nr", "pr")
 
 
 class SubmitError(ValueError):
@@ -391,7 +391,12 @@ def submit(
     adv_obs = obs_shape
     if adversary is not None:
         adv_source, adv = _load("adversary", adversary)
-        meta = getattr(adv, "metadata", None) or {}
+        try:  # what it says of its game: checked, one line (alpha: null is no alpha)
+            meta = check_adversary(
+                getattr(adv, "metadata", None), f"--adversary {adversary!s:.80}", GAME_SCHEMA
+            )
+        except SchemaError as err:
+            raise SubmitError(str(err)) from None
         game = game or meta.get("game") or "adversarial"
         if alpha is None:
             alpha = float(meta.get("alpha", 0.1))
@@ -521,8 +526,14 @@ def _check_budget(budget: dict[str, Any] | None) -> dict[str, str]:
                 f"--budget key {key!r} is reserved or empty (rrls writes {', '.join(BUDGET_KEYS)}: "
                 "declare the steps with --steps); valid: any other KEY=VALUE"
             )
-        if isinstance(value, (dict, list)):
-            raise SubmitError(f"--budget {name}={value!r}: the value must be text or a number")
+        if (
+            value is None
+            or isinstance(value, (dict, list, bool, np.bool_))
+            or (isinstance(value, float) and not np.isfinite(value))
+        ):
+            raise SubmitError(
+                f"--budget {name}={value!r}: valid: text or a finite number (not a bool or null)"
+            )
         out[name] = str(value)
     return out
 
