@@ -26,46 +26,45 @@ trains nor touches a submitted algorithm, and rebuilding the store keeps it.
 from __future__ import annotations
 
 import os
-import re
 import shlex
 import time
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-import numpy as np
-
 from rrls._io import json_bytes
-from rrls.algorithms import ALGORITHMS, plugin_entry_points
 from rrls.evaluation.dynamic import GAME_SCHEMA, GAMES, check_adversary
 from rrls.experiments.changes import Changes
-from rrls.experiments.spec import BUILT_IN, RunKey, Spec, SpecError
+from rrls.experiments.spec import RunKey, Spec, SpecError
 from rrls.experiments.stages import run_dynamic, run_evaluation
 from rrls.experiments.store import write_result
+from rrls.experiments.submit_checks import (
+    RESERVED,
+    SubmitError,
+    check_budget,
+    check_declared_steps,
+    check_name,
+    check_new_task,
+    check_seed,
+    check_shapes,
+    reserved_names,
+)
 from rrls.experiments.submitted import discard, jsonable
 from rrls.physics import is_paper
 from rrls.schema import SchemaError
 
-#: names a submission may not take (in any case): every built-in algorithm, their display
-#: names, and "paper" (the paper's published numbers in the report); installed plug-ins'
-#: names are reserved too (``reserved_names``)
-RESERVED = tuple(
-    dict.fromkeys(
-        [
-            *BUILT_IN,
-            *(a.display.lower() for a in ALGORITHMS.values() if a.name in BUILT_IN),
-            "pr-mdp",
-            "prmdp",
-            "paper",
-        ]
-    )
-)
-_NAME = re.compile(r"^[A-Za-z][A-Za-z0-9_.+-]{0,39}$")
-_NAME_RULE = "a letter, then up to 39 letters, digits or _ . + -"
-
-
-class SubmitError(ValueError):
-    """A submission that cannot be accepted (the CLI prints it on one line, exit status 2)."""
+__all__ = [  # the checks live in rrls.experiments.submit_checks; importable from here too
+    "RESERVED",
+    "Submission",
+    "SubmitError",
+    "check_name",
+    "check_seed",
+    "check_shapes",
+    "create_benchmark",
+    "load_spec",
+    "reserved_names",
+    "submit",
+]
 
 
 @dataclass(frozen=True)
@@ -83,48 +82,6 @@ class Submission:
     @property
     def average_case(self) -> float:
         return float(self.result["average_case"])
-
-
-def reserved_names() -> tuple[str, ...]:
-    """``RESERVED``, the registered rows of the algorithm table and the installed plug-in
-    algorithms (entry point group ``rrls.algorithms``), lower-case."""
-    rows = [n for a in ALGORITHMS.values() for n in (a.name.lower(), a.display.lower())]
-    plugins = [name.lower() for name in plugin_entry_points()]
-    return tuple(dict.fromkeys([*RESERVED, *rows, *plugins]))
-
-
-def check_name(name: str) -> str:
-    """``name`` if it can name a submitted algorithm, else ``SubmitError`` with the rules."""
-    if not isinstance(name, str) or not _NAME.match(name):
-        raise SubmitError(f"--algo {name!r} is not a valid algorithm name: {_NAME_RULE}")
-    reserved = reserved_names()
-    if name.lower() in reserved:
-        what = (
-            "a built-in algorithm"
-            if name.lower() in RESERVED
-            else "an installed plug-in"
-            if name.lower() in {p.lower() for p in plugin_entry_points()}
-            else "a registered algorithm"
-        )
-        raise SubmitError(
-            f"--algo {name!r} is {what} (reserved: {', '.join(reserved)}; in any case); "
-            f"choose another name: {_NAME_RULE}"
-        )
-    return name
-
-
-def check_seed(seed: Any) -> int:
-    """``seed`` as an int if it is one in ``0..MAX_SEED`` (``rrls.seeds``: the runs' 32-bit
-    seeds), else ``SubmitError`` (one line)."""
-    from rrls.seeds import MAX_SEED, seed_message
-
-    if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)):
-        raise SubmitError(f"--seed: {seed_message(repr(seed))}")
-    if not 0 <= int(seed) <= MAX_SEED:
-        text = str(int(seed))
-        shown = text if len(text) <= 24 else f"{text[:10]}...{text[-4:]} ({len(text)} digits)"
-        raise SubmitError(f"--seed: {seed_message(shown)}")
-    return int(seed)
 
 
 def load_spec(bench_dir: str | Path) -> Spec:
@@ -200,42 +157,6 @@ def _env_shapes(
     finally:
         env.close()
     return tuple(obs), tuple(act), len(resolved.box.names)
-
-
-def _shape_text(shape: tuple[int, ...]) -> str:
-    return "(B, " + ", ".join(map(str, shape)) + ")"
-
-
-def check_shapes(
-    policy: Any, obs_shape: tuple[int, ...], act_shape: tuple[int, ...], what: str, task: str
-) -> None:
-    """Refuse (``SubmitError``, one line naming both shapes) a policy that does not map the
-    task's observations to its actions — before any episode runs."""
-    from rrls.evaluation.sources import policy_shapes
-
-    declared = policy_shapes(policy)
-    expected = (
-        f"{task} has observations {_shape_text(obs_shape)} and actions {_shape_text(act_shape)}"
-    )
-    if declared is not None and declared != (obs_shape, act_shape):
-        raise SubmitError(
-            f"the {what} maps observations {_shape_text(declared[0])} to actions "
-            f"{_shape_text(declared[1])}, but {expected}"
-        )
-    probe = np.zeros((2, *obs_shape))
-    try:
-        out = np.asarray(policy(probe))
-    except Exception as err:  # noqa: BLE001 - any failure on the task's observations
-        first = (str(err).strip().splitlines() or [type(err).__name__])[0]
-        raise SubmitError(
-            f"the {what} fails on observations {_shape_text(obs_shape)} ({expected}): {first}"
-        ) from None
-    if out.shape != (2, *act_shape):
-        got = "(B, " + ", ".join(map(str, out.shape[1:])) + ")" if out.ndim else "a scalar"
-        raise SubmitError(
-            f"the {what} maps observations {_shape_text(obs_shape)} to actions {got}, "
-            f"but {expected}"
-        )
 
 
 def _first_line(err: BaseException) -> str:
@@ -373,16 +294,16 @@ def submit(
     else:
         spec = load_spec(root)
     if key not in spec.tasks:
-        _check_new_task(root, spec, key, add_task)
+        check_new_task(root, spec, key, add_task)
         spec = replace(spec, tasks=(*spec.tasks, key))  # written once the submission is in
     if game is not None and game not in GAMES:
         raise SubmitError(f"unknown game {game!r}; valid: {', '.join(GAMES)}")
     if adversary is None and (game is not None or alpha is not None):
         raise SubmitError("--game and --alpha need --adversary (the dynamic evaluation)")
 
-    budget = _check_budget(budget)
+    budget = check_budget(budget)
     source, adapted = _load("policy", policy)
-    _check_declared_steps(getattr(adapted, "metadata", None) or {})
+    check_declared_steps(getattr(adapted, "metadata", None) or {})
     obs_shape, act_shape, set_dim = _env_shapes(key, spec.uncertainty, is_paper(spec.physics))
     view = policy_view(adapted)  # an rrls TC-RMDP Stacked/Oracle protagonist: what it sees
     seen = obs_shape if view is None else (view.dim(obs_shape[0], act_shape[0]),)
@@ -435,8 +356,8 @@ def submit(
         if adv is not None:
             game = game or "adversarial"
             result.update(run_dynamic(spec, key, adapted, adv, game, alpha, staging))
-    except (OSError, MemoryError):  # the disk or memory: said as every command says it
-        discard(staging, made)
+    except (OSError, MemoryError, KeyboardInterrupt):  # the disk, memory, Ctrl-C: as said
+        discard(staging, made)  # everywhere; a re-run evaluates afresh (staging is per process)
         raise
     except Exception as err:  # noqa: BLE001 - the submitter's code raised mid-evaluation
         discard(staging, made)
@@ -486,74 +407,6 @@ def submit(
     return Submission(final, result, evaluated=True)
 
 
-def _check_new_task(root: Path, spec: Spec, key: str, add_task: bool) -> None:
-    """Whether ``key`` may join ``spec``: only on purpose (``add_task``), and only in a
-    submissions-only benchmark."""
-    from rrls.envs import get_uncertainty_set
-    from rrls.tasks import TASKS, get_task
-
-    if is_paper(spec.physics) and get_task(key).paper_id is None:
-        valid = ", ".join(k for k, t in TASKS.items() if t.paper_id is not None)
-        raise SubmitError(f"task {key!r} has no paper physics; valid in this benchmark: {valid}")
-    if spec.algos:  # a benchmark with baselines: only its tasks compare
-        raise SubmitError(
-            f"task {key!r} is not in the benchmark {root} (its tasks: "
-            f"{', '.join(spec.tasks)}); add it with `rrls benchmark --out "
-            f"{shlex.quote(str(root))} --tasks {','.join((*spec.tasks, key))} ...`"
-        )
-    if not add_task:
-        raise SubmitError(
-            f"task {key!r} is not in the benchmark {root} (its tasks: {', '.join(spec.tasks)}); "
-            "--add-task adds it on purpose"
-        )
-    try:
-        get_uncertainty_set(key, spec.uncertainty)
-    except ValueError as err:
-        raise SubmitError(str(err)) from None
-
-
-#: budget keys rrls writes itself: the steps (``--steps``) and who declared them
-BUDGET_KEYS = ("steps", "declared_by")
-
-
-def _check_budget(budget: dict[str, Any] | None) -> dict[str, str]:
-    """The free-form budget as text, refusing the keys rrls writes itself (one line)."""
-    out: dict[str, str] = {}
-    for key, value in (budget or {}).items():
-        name = str(key).strip()
-        if not name or name in BUDGET_KEYS:
-            raise SubmitError(
-                f"--budget key {key!r} is reserved or empty (rrls writes {', '.join(BUDGET_KEYS)}: "
-                "declare the steps with --steps); valid: any other KEY=VALUE"
-            )
-        if (
-            value is None
-            or isinstance(value, (dict, list, bool, np.bool_))
-            or (isinstance(value, float) and not np.isfinite(value))
-        ):
-            raise SubmitError(
-                f"--budget {name}={value!r}: valid: text or a finite number (not a bool or null)"
-            )
-        out[name] = str(value)
-    return out
-
-
-def _check_declared_steps(meta: dict[str, Any]) -> None:
-    """The policy's recorded training steps, if any, must be a whole number >= 0 (a bool, a
-    negative or a fraction is refused in one line before the evaluation runs)."""
-    value = meta.get("steps")
-    if value is None:
-        return
-    ok = not isinstance(value, (bool, np.bool_)) and isinstance(value, (int, np.integer, float))
-    if ok and isinstance(value, float):
-        ok = np.isfinite(value) and value == int(value)
-    if not ok or value < 0:
-        raise SubmitError(
-            f"the policy's metadata records steps {value!r}; valid: a whole number >= 0 "
-            "(fix the policy's metadata; --steps declares the budget instead)"
-        )
-
-
 def _grown_spec(root: Path, spec: Spec, key: str) -> Spec | None:
     """Under the lock: the benchmark to write with this submission — ``spec`` for a new one,
     the stored one (re-read now: another command may have added tasks or baselines meanwhile,
@@ -572,5 +425,5 @@ def _grown_spec(root: Path, spec: Spec, key: str) -> Spec | None:
         )
     if key in stored.tasks:
         return None
-    _check_new_task(root, stored, key, add_task=True)  # submit() checked it may join
+    check_new_task(root, stored, key, add_task=True)  # submit() checked it may join
     return replace(stored, tasks=(*stored.tasks, key))
