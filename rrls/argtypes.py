@@ -95,6 +95,26 @@ def positive_float(text: str) -> float:
     return value
 
 
+def recheck_value(text: str) -> dict[str, float]:
+    """argparse ``type=``: ``KxE`` or ``KxE@Q`` (``rrls.evaluation.Recheck``'s worst, episodes
+    and quantile) as its JSON form."""
+    import re
+
+    match = re.fullmatch(r"\s*(\d+)\s*x\s*(\d+)\s*(?:@\s*([0-9.]+))?\s*", text)
+    if match is None:
+        raise argparse.ArgumentTypeError(
+            f"invalid value {text!r}: write KxE or KxE@Q (10x20: the 10 lowest points, 20 fresh "
+            "episodes each; @0.05: the quantile reported beside)"
+        )
+    from rrls.evaluation.protocol import Recheck
+
+    k, e, q = int(match[1]), int(match[2]), float(match[3]) if match[3] else 0.05
+    try:
+        return Recheck(k, e, q).to_json()
+    except ValueError as err:
+        raise argparse.ArgumentTypeError(str(err)) from None
+
+
 def task_key(text: str) -> str:
     """argparse ``type=``: a task name or alias (``walker2d``), as its key."""
     from rrls.tasks import get_task
@@ -119,6 +139,7 @@ def set_name(text: str) -> str:
 
 
 __all__ = [
+    "recheck_value",
     "SET_CHOICES",
     "TASK_CHOICES",
     "nonnegative_int",

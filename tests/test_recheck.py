@@ -106,3 +106,22 @@ def test_a_benchmark_with_recheck_records_and_reports_it(tmp_path):
     assert "## Worst case, rechecked with fresh episodes" in text
     (row,) = [line for line in text.splitlines() if line.startswith("| InvertedPendulum | mine")]
     assert "| 2 of 2 |" in row
+
+
+@pytest.mark.parametrize(
+    ("text", "expected"),
+    [("10x20", (10, 20, 0.05)), (" 3 x 5 @ 0.1 ", (3, 5, 0.1)), ("1x1@0", (1, 1, 0.0))],
+)
+def test_the_benchmark_flag_reads_k_x_e_at_q(text, expected):
+    from rrls.argtypes import recheck_value
+
+    assert Recheck(**recheck_value(text)) == Recheck(*expected)
+
+
+@pytest.mark.parametrize("text", ["10", "0x5", "2y3", "3x4@2"])
+def test_the_benchmark_flag_refuses_other_text_in_one_line(text, capsys):
+    from rrls.cli import main
+
+    code = main(["benchmark", "--out", "b", "--preset", "smoke", "--recheck", text])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert code == 2 and len(err) == 1 and "--recheck" in err[0]

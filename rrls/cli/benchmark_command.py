@@ -9,7 +9,7 @@ from __future__ import annotations
 import argparse
 from typing import Any
 
-from rrls.argtypes import step_count, worker_count
+from rrls.argtypes import recheck_value, step_count, worker_count
 from rrls.cli.benchmark_options import (
     CONFIRM_ABOVE,
     confirmed,
@@ -150,6 +150,14 @@ def add_parser(sub: argparse._SubParsersAction) -> argparse.ArgumentParser:
         type=int,
         metavar="N",
         help="final evaluation: episodes per point (default: the preset's; paper 5)",
+    )
+    b.add_argument(
+        "--recheck",
+        metavar="KxE",
+        type=recheck_value,
+        help="also recheck each run's worst case: its K lowest mesh points re-evaluated with E "
+        "fresh episodes each, and the 5th percentile of its point means, beside the paper's "
+        "minimum (e.g. 10x20; 10x20@0.1 for the 10th percentile; docs/evaluation.md)",
     )
     b.add_argument(
         "--workers",

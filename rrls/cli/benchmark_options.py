@@ -67,6 +67,7 @@ def spec_from(args: argparse.Namespace) -> tuple:
         rate_limit=getattr(args, "rate_limit", None),
         observe=getattr(args, "observe", None),
         split=getattr(args, "split", None),
+        recheck=getattr(args, "recheck", None),
     )
     jobs = args.workers or (None if args.backend == "ray" else default_jobs())
     return spec, jobs
