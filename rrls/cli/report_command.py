@@ -26,6 +26,11 @@ def add_parser(sub: argparse._SubParsersAction) -> argparse.ArgumentParser:
     r.add_argument("dir", help="a `rrls benchmark --out` directory")
     r.add_argument("--no-plots", action="store_true", help="skip the figures")
     r.add_argument(
+        "--no-titles",
+        action="store_true",
+        help="figures without titles (for a paper, whose captions say what each shows)",
+    )
+    r.add_argument(
         "--reference",
         metavar="FILE",
         help=f"reference results (.json/.csv, or a shipped name: {', '.join(SHIPPED)}) normalising"
@@ -90,7 +95,11 @@ def _report(args: argparse.Namespace) -> int:
                 if (root / "runs").is_dir():
                     build_store(root, stored_fingerprints(root))
                 path = make_report(
-                    root, plots=not args.no_plots, reference=args.reference, labels=labels or None
+                    root,
+                    plots=not args.no_plots,
+                    reference=args.reference,
+                    labels=labels or None,
+                    titles=not args.no_titles,
                 )
                 exported = None
                 if args.export_reference:

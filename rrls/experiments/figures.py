@@ -4,8 +4,10 @@ profiles of the normalised scores, the IQM with its 95 % CI, and probabilities o
 Each figure is a PNG with a vector PDF beside it (``figstyle.save``); its caption says what the
 bands are, and names the tasks whose normalisation is unstable (§) and the cells from fewer than
 3 seeds, whose intervals are not confidence intervals. Every row of the tables is drawn: the
-reference's rows (``TD3 (ref. quick)``, from their per-seed values) in their algorithm's colour,
-dashed, with open markers, beside the benchmark's own solid ones.
+reference's rows (``TD3 (ref. quick)``, from their per-seed values) in a darker shade of their
+algorithm's colour, dashed, with open markers, beside the benchmark's own solid ones; every
+label of a row from fewer than 3 seeds carries †, as its table cells do. Each data artist's
+``gid`` names its row (``results:td3``, ``reference_results:td3``), for checks.
 """
 
 from __future__ import annotations
@@ -17,14 +19,40 @@ import numpy as np
 
 from rrls.evaluation.metrics import SCORES
 from rrls.experiments import profiles, stats
-from rrls.experiments.figstyle import PANEL, colours, markers, pyplot, save
-from rrls.experiments.names import display_name
+from rrls.experiments.caveats import FEW, few_seeds
+from rrls.experiments.figstyle import (
+    PANEL,
+    REFERENCE_LS,
+    axis_label,
+    colours,
+    keep_or_close,
+    legend_outside,
+    markers,
+    pyplot,
+    reference_colour,
+    save,
+)
 from rrls.experiments.summary import Scores
-from rrls.experiments.tables import Row, table_rows
+from rrls.experiments.tables import Row, cell, label, table_rows
 
-__all__ = ["aggregate_figures"]
+__all__ = ["aggregate_figures", "marked", "row_colour"]
 
 TITLES = {"worst_case": "worst case", "average_case": "average case"}
+#: the unit of a normalised score: its two anchors
+NORMALISED = "0 = TD3, 1 = M2TD3"
+
+
+def marked(summary: dict[str, Any], row: Row) -> str:
+    """A row's label in a figure: the table's, with † where a task's cell has fewer than 3
+    seeds (the mark its table cells carry), so a figure does not pass two seeds for many."""
+    few = any(few_seeds(cell(summary, row, t, "worst_case")) for t in summary["tasks"])
+    return row[0] + (FEW if few else "")
+
+
+def row_colour(row: Row, colour: dict[str, str]) -> str:
+    """The benchmark's own row: its algorithm's colour; a reference's: a shade of it."""
+    base = colour.get(row[1], "#777777")
+    return base if row[2] == "results" else reference_colour(base)
 
 
 def _values(scores: Scores, row: Row, task: str, metric: str) -> np.ndarray:
@@ -48,13 +76,15 @@ def _normalised(scores: Scores, tasks: list[str], rows: list[Row], metric: str) 
 
 
 def _style(row: Row, colour: dict[str, str], marker: dict[str, str]) -> dict[str, Any]:
-    """A row's line: its algorithm's colour; a reference's dashed with open markers."""
-    own = row[2] == "results"
+    """A row's line: solid in its algorithm's colour; a reference's dashed, in a shade of it,
+    with open markers."""
+    own, shade = row[2] == "results", row_colour(row, colour)
     return {
-        "color": colour[row[1]],
-        "ls": "-" if own else "--",
+        "color": shade,
+        "ls": "-" if own else REFERENCE_LS,
         "marker": marker[row[1]],
-        "mfc": colour[row[1]] if own else "white",
+        "mfc": shade if own else "white",
+        "gid": f"{row[2]}:{row[1]}",
     }
 
 
@@ -70,14 +100,17 @@ def _caveats(summary: dict[str, Any], normalised: bool = True) -> str:
     ]
     notes = []
     if seeds and min(seeds) < 3:
-        notes.append("fewer than 3 seeds: the intervals are not confidence intervals")
+        notes.append(f"{FEW} fewer than 3 seeds: the intervals are not confidence intervals")
     if unstable:
         notes.append(f"§ unstable normalisation on {', '.join(unstable)}")
     return f" ({'; '.join(notes)})" if notes else ""
 
 
-def plot_profiles(summary: dict[str, Any], scores: Scores, path: Path) -> tuple[str, Path] | None:
-    """One panel per score: the fraction of runs with a normalised score above τ."""
+def plot_profiles(
+    summary: dict[str, Any], scores: Scores, path: Path, keep: dict[str, Any] | None = None
+) -> tuple[str, Path] | None:
+    """One panel per score: the fraction of runs with a normalised score above τ. The bands are
+    light (a reference's hatched, unfilled), as they overlap where runs are few."""
     rows = table_rows(summary, "raw_worst_case")
     data = {m: _normalised(scores, summary["tasks"], rows, m) for m in SCORES}
     if not any(data.values()):
@@ -97,35 +130,39 @@ def plot_profiles(summary: dict[str, Any], scores: Scores, path: Path) -> tuple[
             rng = stats.rng_for(row[1], row[2], metric, "profile")
             prof = profiles.performance_profile(per_row[row], grid, rng)
             style = _style(row, colour, marker)
-            ax.plot(grid, prof["profile"], color=style["color"], ls=style["ls"], label=row[0])
-            ax.plot(
-                grid[::every],
-                prof["profile"][::every],
-                ls="none",
-                ms=3,
-                **{k: v for k, v in style.items() if k != "ls"},
-            )
+            own = row[2] == "results"
+            # one artist per row, its markers every few τ: the legend shows line and marker
+            ax.plot(grid, prof["profile"], markevery=every, ms=3, label=marked(summary, row),
+                    **style)  # fmt: skip
             if prof["low"] is not None:
-                ax.fill_between(grid, prof["low"], prof["high"], color=style["color"], alpha=0.15)
-        ax.set_xlabel(f"normalised {TITLES[metric]} τ")
-        ax.set_ylabel("fraction of runs > τ")
+                band = {"color": style["color"], "alpha": 0.1, "lw": 0} if own else {
+                    "facecolor": "none", "edgecolor": style["color"], "hatch": "////",
+                    "alpha": 0.35, "lw": 0,
+                }  # fmt: skip
+                ax.fill_between(grid, prof["low"], prof["high"], gid=style["gid"], **band)
+        ax.set_xlabel(axis_label(f"τ, normalised {TITLES[metric]}", NORMALISED))
+        ax.set_ylabel(axis_label("runs scoring above τ", "fraction"))
         ax.set_ylim(0, 1.02)
         ax.set_xlim(grid[0], grid[-1])
         ax.axvline(0, color="grey", lw=0.6, ls=":")  # TD3
         ax.axvline(1, color="grey", lw=0.6, ls=":")  # M2TD3's distance
-    axes[0][0].legend(frameon=False)
+    shown = [ax for ax in axes[0] if ax.get_visible()]
+    legend_outside(shown[-1])
     fig.tight_layout()
     save(fig, path)
-    plt.close(fig)
+    keep_or_close(fig, path, keep)
     caption = (
         "Performance profiles: fraction of (task, seed) runs whose normalised score exceeds τ, "
         "with 95% stratified-bootstrap bands (rliable's definition; drawn only where every "
-        f"task has {profiles.MIN_SEEDS} seeds or more); reference rows dashed" + _caveats(summary)
+        f"task has {profiles.MIN_SEEDS} seeds or more); reference rows dashed, in a darker "
+        "shade, their bands hatched" + _caveats(summary)
     )
     return caption, path
 
 
-def plot_iqm(summary: dict[str, Any], scores: Scores, path: Path) -> tuple[str, Path] | None:
+def plot_iqm(
+    summary: dict[str, Any], scores: Scores, path: Path, keep: dict[str, Any] | None = None
+) -> tuple[str, Path] | None:
     """Per score, the IQM of the normalised scores of each row (the benchmark's algorithms and
     the reference's) and its 95 % CI."""
     rows = table_rows(summary, "raw_worst_case")
@@ -152,75 +189,128 @@ def plot_iqm(summary: dict[str, Any], scores: Scores, path: Path) -> tuple[str, 
     y = np.arange(len(rows))[::-1]
     for ax, metric in zip(axes[0], SCORES):
         for yi, row in zip(y, rows):
-            cell = cells[row].get(metric) or {}
-            if cell.get("iqm") is None:
+            c = cells[row].get(metric) or {}
+            if c.get("iqm") is None:
                 continue
-            own = row[2] == "results"
-            ci = cell.get("ci95")
-            if ci:
-                ax.plot(
-                    ci, [yi, yi], color=colour[row[1]], lw=5, alpha=0.45 if own else 0.2,
-                    solid_capstyle="butt",
-                )  # fmt: skip
-            ax.plot([cell["iqm"]], [yi], "|" if own else "d", color=colour[row[1]], ms=10,
-                    mew=2, mfc=colour[row[1]] if own else "white")  # fmt: skip
-        ax.set_yticks(y, [r[0] for r in rows])
-        ax.set_xlabel(f"IQM normalised {TITLES[metric]}")
+            own, shade, gid = row[2] == "results", row_colour(row, colour), f"{row[2]}:{row[1]}"
+            ci = c.get("ci95")
+            if ci and own:
+                ax.plot(ci, [yi, yi], color=shade, lw=5, alpha=0.45, solid_capstyle="butt",
+                        gid=gid)  # fmt: skip
+            elif ci:
+                ax.plot(ci, [yi, yi], color=shade, lw=2, ls=REFERENCE_LS, gid=gid)
+            ax.plot([c["iqm"]], [yi], "|" if own else "d", color=shade, ms=10 if own else 7,
+                    mew=2 if own else 1.5, mfc=shade if own else "white", gid=gid)  # fmt: skip
+        ax.set_yticks(y, [marked(summary, r) for r in rows])
+        ax.set_xlabel(axis_label(f"IQM, normalised {TITLES[metric]}", NORMALISED, wrap=True))
         ax.axvline(0, color="grey", lw=0.6, ls=":")
         ax.axvline(1, color="grey", lw=0.6, ls=":")
     fig.tight_layout()
     save(fig, path)
-    plt.close(fig)
+    keep_or_close(fig, path, keep)
     caption = (
         "Interquartile mean of the normalised scores over all (task, seed) runs, with its 95% "
         "stratified-bootstrap CI (no bar: fewer than two runs per task); reference rows as "
-        "open diamonds" + _caveats(summary)
+        "open diamonds in a darker shade, their CI dashed" + _caveats(summary)
     )
     return caption, path
 
 
-def plot_poi(summary: dict[str, Any], scores: Scores, path: Path) -> tuple[str, Path] | None:
-    """P(X > Y) of the worst case for every algorithm X against TD3 and M2TD3, with 95 % CIs."""
-    tasks, algos = summary["tasks"], summary["algorithms"]
-    per_seed = {a: {t: scores.values(t, a, "worst_case") for t in tasks} for a in algos}
-    for task in tasks:  # TD3 from the reference where the benchmark has none
-        if "td3" in per_seed and not len(per_seed["td3"][task]):
-            per_seed["td3"][task] = scores.td3_seeds(task)
-    pairs = [p for p in profiles.poi_pairs(per_seed) if p["value"] is not None]
+def _baselines(summary: dict[str, Any], scores: Scores) -> list[tuple[Row, dict[str, Any]]]:
+    """TD3 and M2TD3 as the Y of P(X > Y): the benchmark's runs, else the reference's row
+    (its per-seed values) where the benchmark has none; ``[(row, {task: per-seed worst
+    cases})]`` (TD3 as ``poi_over_td3_worst_case`` takes it: ``Scores.td3_seeds``)."""
+    tasks, out = summary["tasks"], []
+    theirs = {r[1]: r for r in table_rows(summary, "raw_worst_case") if r[2] != "results"}
+    for algo in ("td3", "m2td3"):
+        own = {t: scores.values(t, algo, "worst_case") for t in tasks}
+        if any(len(v) for v in own.values()):
+            if algo == "td3":
+                own = {t: scores.td3_seeds(t) for t in tasks}
+            out.append(((label(summary, algo), algo, "results"), own))
+        elif algo in theirs:
+            row = theirs[algo]
+            out.append((row, {t: _values(scores, row, t, "worst_case") for t in tasks}))
+    return out
+
+
+def _poi_rows(summary: dict[str, Any], scores: Scores) -> list[dict[str, Any]]:
+    """Every algorithm X of the benchmark against each baseline Y: against TD3 the numbers
+    of the report's table (``poi_over_td3_worst_case``), against M2TD3 the same statistic."""
+    tasks, out = summary["tasks"], []
+    for y_row, y_seeds in _baselines(summary, scores):
+        for x in summary["algorithms"]:
+            x_row = (label(summary, x), x, "results")
+            if x == y_row[1] and y_row[2] == "results":
+                continue
+            if any(p["x"][1] == y_row[1] and p["y"][1] == x for p in out):
+                continue  # P(Y > X) = 1 - P(X > Y): already shown
+            if y_row[1] == "td3":
+                result = (summary["aggregate"].get(x) or {}).get("poi_over_td3_worst_case")
+            else:
+                pairs = [
+                    (scores.values(t, x, "worst_case"), y_seeds[t])
+                    for t in tasks
+                    if len(scores.values(t, x, "worst_case")) and len(y_seeds[t])
+                ]
+                result = stats.aggregate_poi(pairs, stats.rng_for(x, y_row[1], "poi-pair"))
+            if result and result.get("value") is not None:
+                out.append({"x": x_row, "y": y_row, **result})
+    return out
+
+
+def plot_poi(
+    summary: dict[str, Any], scores: Scores, path: Path, keep: dict[str, Any] | None = None
+) -> tuple[str, Path] | None:
+    """P(X > Y) of the worst case for every algorithm X against TD3 and M2TD3 (the
+    reference's where the benchmark has none: a submissions-only report has its table, so its
+    figure), with 95 % CIs; a pair against a reference's row dashed, with an open marker."""
+    pairs = _poi_rows(summary, scores)
     if not pairs:
         return None
     plt = pyplot()
-    colour = colours(algos)
+    colour = colours(summary["algorithms"])
     fig, ax = plt.subplots(figsize=(PANEL[0], max(PANEL[1], 0.25 * len(pairs) + 0.8)))
     y = np.arange(len(pairs))[::-1]
     for yi, pair in zip(y, pairs):
-        if pair["ci95"]:
-            ax.plot(pair["ci95"], [yi, yi], color=colour[pair["x"]], lw=5, alpha=0.45)
-        ax.plot([pair["value"]], [yi], "|", color=colour[pair["x"]], ms=12, mew=2)
-    names = [f"{display_name(p['x'])} > {display_name(p['y'])}" for p in pairs]
+        ours, c = pair["y"][2] == "results", colour[pair["x"][1]]
+        gid = f"results:{pair['x'][1]}>{pair['y'][2]}:{pair['y'][1]}"
+        if pair.get("ci95"):
+            band = {"lw": 5, "alpha": 0.45} if ours else {"lw": 2, "ls": REFERENCE_LS}
+            ax.plot(pair["ci95"], [yi, yi], color=c, gid=gid, **band)
+        ax.plot([pair["value"]], [yi], "|" if ours else "d", color=c, ms=12 if ours else 7,
+                mew=2 if ours else 1.5, mfc=c if ours else "white", gid=gid)  # fmt: skip
+    names = [f"{marked(summary, p['x'])} > {marked(summary, p['y'])}" for p in pairs]
     ax.set_yticks(y, names)
-    ax.set_xlim(0, 1)
+    ax.set_xlim(-0.02, 1.02)  # a marker at 0 or 1 whole
     ax.axvline(0.5, color="grey", lw=0.6, ls=":")
-    ax.set_xlabel("P(X > Y), worst case")
+    ax.set_xlabel(axis_label("P(X > Y), worst case", "probability"))
     fig.tight_layout()
     save(fig, path)
-    plt.close(fig)
+    keep_or_close(fig, path, keep)
+    against = any(p["y"][2] != "results" for p in pairs)
     caption = (
         "Probability of improvement of the worst case: P(X > Y) for a random seed of each, "
         "averaged over tasks, with 95% stratified-bootstrap CIs"
+        + ("; Y from the reference's per-seed values: dashed, open diamonds" if against else "")
         + _caveats(summary, normalised=False)
     )
     return caption, path
 
 
 def aggregate_figures(
-    tables: dict[str, Any], summary: dict[str, Any], out: Path, reference: Any = None
+    tables: dict[str, Any],
+    summary: dict[str, Any],
+    out: Path,
+    reference: Any = None,
+    keep: dict[str, Any] | None = None,
 ) -> list[tuple[str, Path]]:
-    """The rliable-style figures that the summary has data for: ``[(caption, path)]``."""
+    """The rliable-style figures that the summary has data for: ``[(caption, path)]``
+    (``keep``: see ``figstyle.keep_or_close``)."""
     scores = Scores(tables, reference, summary["uncertainty"])
     made = [
-        plot_profiles(summary, scores, out / "performance_profiles.png"),
-        plot_iqm(summary, scores, out / "iqm.png"),
-        plot_poi(summary, scores, out / "probability_of_improvement.png"),
+        plot_profiles(summary, scores, out / "performance_profiles.png", keep),
+        plot_iqm(summary, scores, out / "iqm.png", keep),
+        plot_poi(summary, scores, out / "probability_of_improvement.png", keep),
     ]
     return [m for m in made if m is not None]

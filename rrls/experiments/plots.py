@@ -1,8 +1,12 @@
 """Figures of the report: training curves (one panel per task: the seed mean with its 95 %
 Student-t band from 3 seeds on, else each seed as a thin line) and the return over the uncertainty
 set (one panel per parameter, the axis bounded by the set's box); the rliable-style aggregates
-come from ``rrls.experiments.figures``. Style, palette and the PDF beside each PNG:
-``rrls.experiments.figstyle``. Needs matplotlib."""
+come from ``rrls.experiments.figures``. Style, palette, units and the PDF beside each PNG:
+``rrls.experiments.figstyle``. Needs matplotlib.
+
+Every axis carries its unit (a parameter's from its field: kg, N, a friction coefficient
+unitless), the legend sits framed beside the axes, and ``titles=False`` leaves out the titles
+a paper's caption replaces (a panel's name stays where it tells panels apart)."""
 
 from __future__ import annotations
 
@@ -14,8 +18,22 @@ import numpy as np
 
 from rrls.evaluation.result_plot import cell_edges, outline_box
 from rrls.experiments import stats
-from rrls.experiments.figstyle import PANEL, RC, colours, pyplot, save
-from rrls.experiments.figures import aggregate_figures
+from rrls.experiments.figstyle import (
+    PANEL,
+    RC,
+    REFERENCE_LS,
+    RETURN,
+    STEPS,
+    axis_label,
+    colours,
+    keep_or_close,
+    legend_outside,
+    param_unit,
+    pyplot,
+    reference_colour,
+    save,
+)
+from rrls.experiments.figures import aggregate_figures, marked
 from rrls.experiments.names import display_name, sort_algos, task_name
 
 BINS = 50
@@ -74,10 +92,12 @@ def plot_curves(
     ylabel: str,
     colour: dict[str, str],
     names: dict[str, str] | None = None,
+    titles: bool = True,
+    keep: dict[str, Any] | None = None,
 ) -> Path | None:
     """One panel per task, one line per algorithm: the seed mean and its 95 % band (from
     ``MIN_BAND_SEEDS`` seeds; fewer: each seed as a thin line, as a band from two seeds would
-    claim a confidence it does not have)."""
+    claim a confidence it does not have). ``ylabel``: what the return is (its unit added)."""
     if metric not in curves or curves[metric].notna().sum() == 0:
         return None
     plt = pyplot()
@@ -92,21 +112,24 @@ def plot_curves(
             with warnings.catch_warnings():  # bins before a run's first episode are empty
                 warnings.simplefilter("ignore", RuntimeWarning)
                 mean = np.nanmean(values, axis=0)
-            label = f"{_algo_label(algo, names)} ({len(values)})"
-            ax.plot(centres, mean, label=label, color=colour[algo])
+            label, gid = f"{_algo_label(algo, names)} ({len(values)})", f"results:{algo}"
+            ax.plot(centres, mean, label=label, color=colour[algo], gid=gid)
             if len(values) >= MIN_BAND_SEEDS:
                 lo, hi = _band(values, stats.rng_for(task, algo, metric, "band"))
-                ax.fill_between(centres, lo, hi, color=colour[algo], alpha=0.2, linewidth=0)
+                ax.fill_between(
+                    centres, lo, hi, color=colour[algo], alpha=0.2, linewidth=0, gid=gid
+                )
             else:
                 for run in values:
-                    ax.plot(centres, run, color=colour[algo], lw=0.5, alpha=0.6)
-        ax.set_title(task_name(task))
-        ax.set_xlabel("environment steps")
-        ax.set_ylabel(ylabel)
-        ax.legend(title="algorithm (seeds)", frameon=False)
+                    ax.plot(centres, run, color=colour[algo], lw=0.5, alpha=0.6, gid=gid)
+        if titles or len(tasks) > 1:  # several panels: the task names them
+            ax.set_title(task_name(task))
+        ax.set_xlabel(axis_label("training", STEPS))
+        ax.set_ylabel(axis_label(ylabel, RETURN))
+    legend_outside(axes[0][-1], title="algorithm (seeds)")
     fig.tight_layout()
     save(fig, path)
-    plt.close(fig)
+    keep_or_close(fig, path, keep)
     return path
 
 
@@ -156,10 +179,12 @@ def plot_heatmaps(
     path: Path,
     uncertainty: str | None,
     names: dict[str, str] | None = None,
+    titles: bool = True,
+    keep: dict[str, Any] | None = None,
 ) -> Path | None:
-    """For a 2-D set: one panel per algorithm, the mean return (over seeds and episodes) at
-    each mesh point on a shared colour scale (viridis), the worst point marked, the axes the
-    set's box."""
+    """For a 2-D set: one panel per algorithm (named above it), the mean return (over seeds
+    and episodes) at each mesh point on a shared colour scale (viridis), the worst point
+    marked, the axes the set's box."""
     data = evaluations[evaluations["task"] == task]
     params = set_parameters(data)
     if len(params) != 2:
@@ -179,6 +204,7 @@ def plot_heatmaps(
         len(algos),
         figsize=(2.3 * len(algos) + 0.8, PANEL[1] + 0.3),
         squeeze=False,
+        sharey=True,
         layout="constrained",
     )
     mesh = None
@@ -201,15 +227,16 @@ def plot_heatmaps(
         ax.set_xlim(min(xlo, xe[0]), max(xhi, xe[-1]))
         ax.set_ylim(min(ylo, ye[0]), max(yhi, ye[-1]))
         ax.set_title(_algo_label(algo, names))
-        ax.set_xlabel(a)
-    axes[0][0].set_ylabel(b)
-    fig.colorbar(mesh, ax=list(axes[0]), label="mean return")
-    fig.suptitle(
-        f"{task_name(task) or task}: mean return over the set (x: worst point; dashed: the "
-        "set's bounds)"
-    )
+        ax.set_xlabel(axis_label(a, param_unit(task, a)))
+    axes[0][0].set_ylabel(axis_label(b, param_unit(task, b)))
+    fig.colorbar(mesh, ax=list(axes[0]), label=axis_label("mean return", RETURN))
+    if titles:
+        fig.suptitle(
+            f"{task_name(task) or task}: mean return over the set (x: worst point; dashed: the "
+            "set's bounds)"
+        )
     save(fig, path)
-    plt.close(fig)
+    keep_or_close(fig, path, keep)
     return path
 
 
@@ -221,6 +248,8 @@ def plot_over_set(
     uncertainty: str | None,
     names: dict[str, str] | None = None,
     reference: list[tuple[str, str, float]] | None = None,
+    titles: bool = True,
+    keep: dict[str, Any] | None = None,
 ) -> Path | None:
     """Mean return (over seeds, episodes and the other parameters) along each parameter, the
     axis bounded by the set's box. ``reference``: ``(label, algorithm, average case)`` of the
@@ -245,24 +274,37 @@ def plot_over_set(
                 ms=3,
                 label=_algo_label(algo, names),
                 color=colour[algo],
+                gid=f"results:{algo}",
             )
         for text, algo, value in reference or []:
-            ax.axhline(value, color=colour.get(algo, "grey"), ls="--", lw=1.2, label=text)
+            shade = reference_colour(colour.get(algo, "#777777"))
+            ax.axhline(value, color=shade, ls=REFERENCE_LS, lw=1.2, label=text,
+                       gid=f"reference_results:{algo}")  # fmt: skip
         ax.set_xlim(*set_bounds(task, uncertainty, data, name))
-        ax.set_xlabel(name)
-        ax.set_ylabel("mean return" if len(params) == 1 else "mean return (others averaged)")
-        ax.legend(frameon=False)
-    fig.suptitle(f"{task_name(task) or task}: return over the uncertainty set")
+        ax.set_xlabel(axis_label(name, param_unit(task, name)))
+        what = "mean return" + ("" if len(params) == 1 else ", others averaged")
+        ax.set_ylabel(axis_label(what, RETURN))
+    legend_outside(axes[0][-1])
+    if titles:
+        fig.suptitle(f"{task_name(task) or task}: return over the uncertainty set")
     fig.tight_layout()
     save(fig, path)
-    plt.close(fig)
+    keep_or_close(fig, path, keep)
     return path
 
 
 def make_figures(
-    tables: dict[str, Any], summary: dict[str, Any], out: Path, reference: Any = None
+    tables: dict[str, Any],
+    summary: dict[str, Any],
+    out: Path,
+    reference: Any = None,
+    titles: bool = True,
+    keep: dict[str, Any] | None = None,
 ) -> list[tuple]:
-    """Every figure of the report: ``[(caption, path)]`` (each PNG with a PDF beside it)."""
+    """Every figure of the report: ``[(caption, path)]`` (each PNG with a PDF beside it).
+    ``titles=False``: no figure title (the paper's caption says it; ``rrls report
+    --no-titles``). ``keep``: a dict that receives each figure by file name, left open for the
+    caller to inspect (and close); without it each is closed once saved."""
     from rrls.experiments.tables import cell, label, table_rows
 
     curves, ev = tables["curves"], tables["evaluations"]
@@ -270,42 +312,54 @@ def make_figures(
     present = [*summary["algorithms"], *(ev["algorithm"].unique() if len(ev) else [])]
     theirs = [r for r in table_rows(summary, "raw_average_case") if r[2] != "results"]
     colour = colours([*present, *(r[1] for r in theirs)])
-    names = {a: label(summary, a) for a in present}
+    names = {a: marked(summary, (label(summary, a), a, "results")) for a in present}
     figures = []
     with pyplot().rc_context(RC):
         if steps:
             for metric, caption, ylabel in (
                 ("episode_return", "Training curves: episode return", "episode return"),
-                ("eval_nominal_return", "Periodic evaluation: nominal return", "return (nominal)"),
+                (
+                    "eval_nominal_return",
+                    "Periodic evaluation: nominal return",
+                    "nominal parameters",
+                ),
                 ("eval_worst_case", "Periodic evaluation: worst case (coarse mesh)", "worst case"),
             ):
                 path = plot_curves(
-                    curves, metric, steps, out / f"curves_{metric}.png", ylabel, colour, names
-                )
+                    curves, metric, steps, out / f"curves_{metric}.png", ylabel, colour, names,
+                    titles, keep,
+                )  # fmt: skip
                 if path is not None:
                     note = " (a reference holds no curves)" if theirs else ""
                     figures.append((caption + _band_caption(curves, metric) + note, path))
         for task in summary["tasks"]:
             if len(ev) and (ev["task"] == task).any():
                 lines = [
-                    (f"{r[0]}: average over the set", r[1], c["mean"])
+                    (f"{marked(summary, r)}: average over the set", r[1], c["mean"])
                     for r in theirs
                     if (c := cell(summary, r, task, "average_case")) and c.get("mean") is not None
                 ]
                 path = plot_over_set(
                     ev, task, out / f"returns_{task}.png", colour, summary["uncertainty"],
-                    names, lines,
+                    names, lines, titles, keep,
                 )  # fmt: skip
                 if path is not None:
-                    note = "; reference rows: their average over the set, dashed" if lines else ""
+                    note = (
+                        "; reference rows: their average over the set, dashed, in a darker shade"
+                        if lines
+                        else ""
+                    )
                     figures.append((f"Return over the uncertainty set: {task}{note}", path))
                 path = plot_heatmaps(
-                    ev, task, out / f"heatmap_{task}.png", summary["uncertainty"], names
-                )
+                    ev, task, out / f"heatmap_{task}.png", summary["uncertainty"], names,
+                    titles, keep,
+                )  # fmt: skip
                 if path is not None:
                     caption = f"Mean return over the 2-D set, per algorithm: {task}"
-                    figures.append((caption + " (axes bounded by the set)", path))
-        figures += aggregate_figures(tables, summary, out, reference)
+                    figures.append(
+                        (caption + " (axes bounded by the set, dashed; x: the worst point)", path)
+                    )
+        figures += aggregate_figures(tables, summary, out, reference, keep)
     return figures
 
 

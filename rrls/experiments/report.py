@@ -61,6 +61,7 @@ def make_report(
     plots: bool = True,
     reference: Any = None,
     labels: dict[str, str] | None = None,
+    titles: bool = True,
 ) -> Path:
     """Write ``root/report/`` (summary.json, report.md, tables/, figures) from the store,
     whole or not at all: built beside the old report, which it replaces once complete.
@@ -68,6 +69,7 @@ def make_report(
     ``reference``: a reference file's path, a shipped name (``paper``) or a loaded
     ``Reference``; refused (``ReferenceError``) unless measured under the benchmark's protocol.
     ``labels``: ``{algorithm (or algorithm@reference): row name}`` for every table and figure.
+    ``titles=False``: figures without titles, for a paper whose captions say what they show.
     """
     from rrls._io import atomic_write_bytes, atomic_write_json
 
@@ -101,7 +103,9 @@ def make_report(
                 from rrls.experiments.store import load_store
 
                 store = load_store(root)
-                figures = plotting.make_figures(store, summary, out / "figures", reference)
+                figures = plotting.make_figures(
+                    store, summary, out / "figures", reference, titles=titles
+                )
             except ImportError as err:  # matplotlib is optional
                 figures = []
                 summary.setdefault("notes", []).append(f"figures skipped: {err}")
