@@ -471,6 +471,12 @@ def blocks(folder: Path, reference: str | None) -> dict[str, str]:
 
         steps = td3_sanity.TASKS[folder.name][0]
         out["sanity"] = td3_sanity.table(folder, folder / "cleanrl_td3_returns.csv", steps)
+    import page_checks  # beside this file
+
+    for name in ("rechecked", "physics"):
+        block = getattr(page_checks, name)(folder)
+        if block is not None:
+            out[name] = block
     if (folder / "ablation.csv").is_file():
         import ablation  # beside this file
         import pandas as pd

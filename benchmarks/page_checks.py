@@ -1,0 +1,116 @@
+"""Two blocks of a results page that check the reference against its own noise and physics,
+generated from shipped data (``benchmarks/results_page.py`` calls them):
+
+- ``rechecked``: per algorithm, the paper's worst case beside the same runs' worst case
+  rechecked with fresh episodes and the 5th percentile of their point means (each run's
+  ``result.json``: ``rrls.evaluation.recheck``), and the orderings each statistic gives;
+- ``physics``: per algorithm, the worst and average case on rrls's v5 physics beside the same
+  policies evaluated on the paper's physics (``paper_physics.csv``, written by
+  ``benchmarks/paper_physics.py``), and whether the orderings change.
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+from pathlib import Path
+
+import numpy as np
+
+from rrls.algorithms import display_name, sort_algos
+from rrls.experiments.pairwise import pairwise
+from rrls.experiments.stats import t_interval
+
+
+def _cell(values: list[float]) -> str:
+    ci = t_interval(values)
+    mean = float(np.mean(values))
+    return f"{mean:.1f} [{ci[0]:.1f}, {ci[1]:.1f}]" if ci else f"{mean:.1f}"
+
+
+def _order(values: dict[str, list[float]]) -> str:
+    """The algorithms by mean, highest first, and the pairs Welch + Holm resolves."""
+    ranked = sorted(values, key=lambda a: -float(np.mean(values[a])))
+    text = " > ".join(display_name(a) for a in ranked)
+    resolved = [
+        (r["a"], r["b"]) if r["diff"] > 0 else (r["b"], r["a"])
+        for r in pairwise(values)
+        if r["p_holm"] is not None and r["p_holm"] < 0.05
+    ]
+    pairs = ", ".join(f"{display_name(a)} > {display_name(b)}" for a, b in resolved) or "none"
+    return f"by mean {text}; resolved (Welch, Holm-corrected): {pairs}"
+
+
+def rechecked(folder: Path) -> str | None:
+    """The ``rechecked`` block, or None while no run of the folder was rechecked."""
+    rows: dict[str, dict[str, list[float]]] = {}
+    quantiles = set()
+    for path in sorted(folder.glob("runs/*/result.json")):
+        result = json.loads(path.read_text())
+        if "worst_case_rechecked" not in result:
+            continue
+        by = rows.setdefault(result["algorithm"], {"paper": [], "rechecked": [], "q": []})
+        by["paper"].append(result["worst_case"])
+        by["rechecked"].append(result["worst_case_rechecked"])
+        by["q"].append(result["worst_case_q"])
+        quantiles.add((result["recheck"]["worst"], result["recheck"]["episodes"]))
+        quantiles.add(result["recheck"]["quantile"])
+    if not rows:
+        return None
+    algos = sort_algos(rows)
+    lines = [
+        "| algorithm | runs | worst case (the paper's) | rechecked | rechecked − paper's, per "
+        "seed | 5th percentile of the point means |",
+        "|---|---|---|---|---|---|",
+    ]
+    for a in algos:
+        by = rows[a]
+        gain = ", ".join(f"{r - p:+.0f}" for p, r in zip(by["paper"], by["rechecked"]))
+        lines.append(
+            f"| {display_name(a)} | {len(by['paper'])} | {_cell(by['paper'])} | "
+            f"{_cell(by['rechecked'])} | {gain} | {_cell(by['q'])} |"
+        )
+    lines.append("")
+    for key, name in (("paper", "the paper's worst case"), ("rechecked", "rechecked")):
+        lines.append(f"- **{name}**: " + _order({a: rows[a][key] for a in algos}) + ".")
+    return "\n".join(lines) + "\n"
+
+
+def physics(folder: Path) -> str | None:
+    """The ``physics`` block, or None without ``paper_physics.csv``."""
+    path = folder / "paper_physics.csv"
+    if not path.is_file():
+        return None
+    data: dict[str, dict[str, list[float]]] = {}
+    with open(path, newline="") as f:
+        for row in csv.DictReader(f):
+            by = data.setdefault(row["algorithm"], {})
+            for key in (
+                "worst_case_v5",
+                "average_case_v5",
+                "worst_case_paper",
+                "average_case_paper",
+            ):
+                by.setdefault(key, []).append(float(row[key]))
+    algos = sort_algos(data)
+    lines = [
+        "| algorithm | runs | worst case, v5 | worst case, paper's physics | change | average "
+        "case, v5 | average case, paper's physics | change |",
+        "|---|---|---|---|---|---|---|---|",
+    ]
+    for a in algos:
+        by = data[a]
+        cells = []
+        for metric in ("worst_case", "average_case"):
+            v5, paper = by[f"{metric}_v5"], by[f"{metric}_paper"]
+            change = float(np.mean(paper) - np.mean(v5))
+            cells += [_cell(v5), _cell(paper), f"{change:+.1f}"]
+        lines.append(
+            f"| {display_name(a)} | {len(by['worst_case_v5'])} | " + " | ".join(cells) + " |"
+        )
+    lines.append("")
+    for metric, name in (("worst_case", "worst case"), ("average_case", "average case")):
+        for physics_name, key in (("v5", "v5"), ("the paper's physics", "paper")):
+            order = _order({a: data[a][f"{metric}_{key}"] for a in algos})
+            lines.append(f"- **{name}, {physics_name}**: {order}.")
+    return "\n".join(lines) + "\n"
