@@ -43,6 +43,26 @@ def worker_count(text: str) -> int:
     return value
 
 
+def workers_help(default: str, what: str = "") -> str:
+    """``--workers``' help, the same words in every command (only the default differs): a
+    user who learnt it in one command reads it right in all of them."""
+    from rrls.evaluation.protocol import MAX_WORKERS
+
+    doing = f" {what}" if what else ""
+    return (
+        f"N worker processes{doing}, at most {MAX_WORKERS}; 0: none, the work runs in this "
+        f"process (default: {default}; results do not depend on it)"
+    )
+
+
+#: ``--episode-seed``'s help in every command that plays episodes (evaluate, evaluate-dynamic,
+#: check); ``--seed``/``--seeds`` always name training seeds
+EPISODE_SEED_HELP = (
+    "root of the episodes' seeds (default 0); results depend only on it (not a training seed, "
+    "which is `rrls train --seed`)"
+)
+
+
 #: the most steps any count may say (1e12: ~30 000 years of one env at 1 000 steps/s)
 MAX_STEPS = 10**12
 #: suffixes a step count may carry: 100k, 1.5M, 2g
@@ -139,6 +159,7 @@ def set_name(text: str) -> str:
 
 
 __all__ = [
+    "EPISODE_SEED_HELP",
     "recheck_value",
     "SET_CHOICES",
     "TASK_CHOICES",
@@ -147,4 +168,5 @@ __all__ = [
     "positive_int",
     "set_name",
     "task_key",
+    "workers_help",
 ]

@@ -52,9 +52,13 @@ def build_parser(with_train: bool = True) -> argparse.ArgumentParser:
 
     parser = Parser(
         prog="rrls",
-        description="Robust Reinforcement Learning Suite. One vocabulary in every command: "
-        f"--seed S is one seed, --seeds a list or range of seeds ({EXAMPLES}); --workers N the "
-        "worker processes; --mesh N points per dimension; --physics v5|paper.",
+        description="Robust Reinforcement Learning Suite. One meaning per flag in every "
+        "command: --seed S is one training seed and --seeds a list or range of them "
+        f"({EXAMPLES}); --episode-seed S the root of the episodes' seeds of an evaluation; "
+        "--workers N that many worker processes, 0 none (the work runs in this process), by "
+        "default the machine's cores (train: what pays off; benchmark refuses 0: each run needs a "
+        "process of its own); --mesh N points per dimension; "
+        "--physics v5|paper.",
     )
     parser.add_argument("--version", action="version", version=f"rrls {__version__}")
     sub = parser.add_subparsers(dest="command", required=True)

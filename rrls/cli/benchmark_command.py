@@ -81,8 +81,8 @@ def add_parser(sub: argparse._SubParsersAction) -> argparse.ArgumentParser:
     b.add_argument(
         "--seeds",
         metavar="SEEDS",
-        help=f"the seeds, a list or range: {EXAMPLES} (default: the preset's). A bare N, once "
-        "a count of seeds here, is refused: write 0-2 for three seeds, 3-3 for seed 3",
+        help=f"the training seeds, a list or range: {EXAMPLES} (default: the preset's). A bare "
+        "N, once a count of seeds here, is refused: write 0-2 for three seeds, 3-3 for seed 3",
     )
     b.add_argument(
         "--physics",
@@ -163,9 +163,10 @@ def add_parser(sub: argparse._SubParsersAction) -> argparse.ArgumentParser:
         "--workers",
         type=worker_count,
         metavar="N",
-        help="worker processes: runs in parallel, >= 1 (each run has its own process: 0, 'in "
-        "this process' elsewhere, does not apply; default: the number of cores; Ray: the "
-        "cluster)",
+        help="N worker processes training and evaluating runs in parallel, at most 1024; each "
+        "run needs a process of its own, so 0 (elsewhere: none, the work runs in this process) "
+        "is refused here (default: the machine's cores; Ray: the cluster; results do not "
+        "depend on it)",
     )
     b.add_argument("--jobs", dest="workers", type=int, action=DeprecatedOption, new="--workers")
     b.add_argument(

@@ -7,6 +7,7 @@ import argparse
 
 from rrls.argtypes import positive_int, seed_value, task_key
 from rrls.cli.parsing import task_keys
+from rrls.deprecation import DeprecatedOption
 
 NAME = "check"
 
@@ -32,11 +33,16 @@ def add_parser(sub: argparse._SubParsersAction) -> argparse.ArgumentParser:
         "--steps", type=positive_int, default=100, help="steps per episode (default: %(default)s)"
     )
     check.add_argument(
-        "--seed",
+        "--episode-seed",
         type=seed_value,
         default=0,
-        help="seed of resets and actions (default: %(default)s)",
+        metavar="S",
+        help="root of the episodes' seeds: resets and random actions (default: %(default)s)",
     )
+    check.add_argument(  # --seed names a training seed in every other command
+        "--seed", dest="episode_seed", type=seed_value, action=DeprecatedOption,
+        new="--episode-seed",
+    )  # fmt: skip
     return check
 
 
@@ -44,7 +50,7 @@ def run(args: argparse.Namespace) -> int:
     """Run the smoke test; exit status 1 if any episode failed."""
     from rrls.check import main as check_main
 
-    return check_main(args.task, args.steps, args.seed)
+    return check_main(args.task, args.steps, args.episode_seed)
 
 
 __all__ = ["NAME", "add_parser", "run"]

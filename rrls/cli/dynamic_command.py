@@ -7,7 +7,8 @@ from __future__ import annotations
 import argparse
 
 from rrls import argtypes
-from rrls.argtypes import positive_int, seed_value
+from rrls.argtypes import EPISODE_SEED_HELP, positive_int, seed_value, workers_help
+from rrls.deprecation import DeprecatedOption
 
 NAME = "evaluate-dynamic"
 
@@ -26,14 +27,18 @@ def add_parser(sub: argparse._SubParsersAction) -> argparse.ArgumentParser:
         "--episodes", type=positive_int, default=10, help="episodes (default 10, the paper's)"
     )
     ed.add_argument(
-        "--seed", type=seed_value, default=0, help="seed of the episodes' resets (default 0)"
+        "--episode-seed", type=seed_value, default=0, metavar="S", help=EPISODE_SEED_HELP
     )
+    ed.add_argument(  # --seed names a training seed in every other command
+        "--seed", dest="episode_seed", type=seed_value, action=DeprecatedOption,
+        new="--episode-seed",
+    )  # fmt: skip
     ed.add_argument(
         "--workers",
         type=argtypes.worker_count,
-        default=1,
-        help="worker processes, at most 1024; 0: in this process (default 1; results do not "
-        "depend on it)",
+        default=None,
+        metavar="N",
+        help=workers_help("the machine's cores, at most one per episode", "playing the episodes"),
     )
     ed.add_argument(
         "--out",
@@ -57,7 +62,7 @@ def run(args: argparse.Namespace) -> int:
         result = evaluate_run_dynamic(
             args.run_dir,
             episodes=args.episodes,
-            seed=args.seed,
+            seed=args.episode_seed,
             workers=args.workers,
             out_dir=args.out,
         )

@@ -8,8 +8,16 @@ import argparse
 from typing import Any
 
 from rrls import argtypes
-from rrls.argtypes import positive_int, seed_value, set_name, task_key
+from rrls.argtypes import (
+    EPISODE_SEED_HELP,
+    positive_int,
+    seed_value,
+    set_name,
+    task_key,
+    workers_help,
+)
 from rrls.cli.parsing import UsageError, task_keys
+from rrls.deprecation import DeprecatedOption
 
 NAME = "evaluate"
 
@@ -49,17 +57,18 @@ def add_parser(sub: argparse._SubParsersAction) -> argparse.ArgumentParser:
         "--episodes", type=positive_int, default=5, help="episodes per point (default 5)"
     )
     ev.add_argument(
-        "--seed",
-        type=seed_value,
-        default=0,
-        help="root of the per-episode seeds (default 0); results depend only on it",
+        "--episode-seed", type=seed_value, default=0, metavar="S", help=EPISODE_SEED_HELP
     )
+    ev.add_argument(  # --seed names a training seed in every other command
+        "--seed", dest="episode_seed", type=seed_value, action=DeprecatedOption,
+        new="--episode-seed",
+    )  # fmt: skip
     ev.add_argument(
         "--workers",
         type=argtypes.worker_count,
         default=None,
-        help="worker processes, at most 1024; 0: in this process (default: the number of "
-        "cores; results do not depend on it)",
+        metavar="N",
+        help=workers_help("the machine's cores", "playing the episodes"),
     )
     ev.add_argument(
         "--batch-size",
@@ -91,7 +100,7 @@ def add_parser(sub: argparse._SubParsersAction) -> argparse.ArgumentParser:
     ev.add_argument(
         "--out",
         help="output directory (default: evaluations/<policy>-<task>-<uncertainty>-mesh<M>-ep<E>"
-        "-seed<S>)",
+        "-seed<S>, S the --episode-seed)",
     )
     ev.add_argument("--plot", action="store_true", help="also write OUT/returns.png")
     return ev
@@ -138,7 +147,7 @@ def run(args: argparse.Namespace) -> int:
         uncertainty=args.uncertainty,
         mesh=args.mesh,
         episodes=args.episodes,
-        seed=args.seed,
+        seed=args.episode_seed,
         physics=args.physics,
         endpoint=False if args.no_endpoint else None,
         split=args.split,
@@ -147,7 +156,7 @@ def run(args: argparse.Namespace) -> int:
     out = Path(
         args.out
         or f"evaluations/{_policy_name(args.policy)}-{task}-{uncertainty}-mesh{args.mesh}"
-        f"-ep{args.episodes}-seed{args.seed}"
+        f"-ep{args.episodes}-seed{args.episode_seed}"
         + ("-paper" if physics == "paper" else "")
     )
 
@@ -183,7 +192,7 @@ def _print(
         (
             "mesh",
             f"{len(result.per_point)} points ({args.mesh} per dimension) "
-            f"x {args.episodes} episodes, seed {args.seed}",
+            f"x {args.episodes} episodes, episode seed {args.episode_seed}",
         ),
         ("worst case", f"{result.worst_case:,.2f}   at {worst}"),
         ("average case", f"{result.average_case:,.2f}"),

@@ -43,7 +43,7 @@ def add_parser(sub: argparse._SubParsersAction) -> argparse.ArgumentParser:
         "--seeds",
         metavar="SEEDS",
         default=None,
-        help=f"the seeds, a list or range: {EXAMPLES} (default: the preset's 0-2)",
+        help=f"the training seeds, a list or range: {EXAMPLES} (default: the preset's 0-2)",
     )
     quick.add_argument("--seed", type=seed_value, default=None, help=argparse.SUPPRESS)
     quick.add_argument("--yes", action="store_true", help="start without asking (see benchmark)")

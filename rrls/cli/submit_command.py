@@ -7,7 +7,7 @@ from __future__ import annotations
 import argparse
 import shlex
 
-from rrls.argtypes import seed_value, step_count, worker_count
+from rrls.argtypes import seed_value, step_count, worker_count, workers_help
 from rrls.cli.parsing import fail
 from rrls.experiments.spec import PRESETS
 
@@ -37,7 +37,14 @@ def add_parser(sub: argparse._SubParsersAction) -> argparse.ArgumentParser:
         metavar="TASK",
         help="one of the benchmark's tasks (another one only with --add-task)",
     )
-    s.add_argument("--seed", required=True, type=seed_value, metavar="S", help="the policy's seed")
+    s.add_argument(
+        "--seed",
+        required=True,
+        type=seed_value,
+        metavar="S",
+        help="the training seed the policy was trained with: its label in the report (the "
+        "episodes' seeds are the benchmark's)",
+    )
     s.add_argument(
         "--steps",
         type=step_count,
@@ -81,8 +88,7 @@ def add_parser(sub: argparse._SubParsersAction) -> argparse.ArgumentParser:
         "--workers",
         type=worker_count,
         metavar="N",
-        help="worker processes: the evaluation's; 0: in this process (default: the number of "
-        "cores)",
+        help=workers_help("the machine's cores", "playing the evaluation's episodes"),
     )
     return s
 

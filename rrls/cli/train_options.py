@@ -20,7 +20,7 @@ from typing import Any
 from rrls.agents.config import TrainConfig
 from rrls.agents.lookup import algorithm
 from rrls.algorithms import algorithm_key, built_in
-from rrls.argtypes import seed_value, step_count, task_key
+from rrls.argtypes import seed_value, step_count, task_key, worker_count, workers_help
 from rrls.deprecation import DeprecatedOption
 from rrls.schema import JsonError, loads_json
 from rrls.seeds import EXAMPLES, parse_seeds
@@ -122,10 +122,24 @@ def add_train_arguments(parser: argparse.ArgumentParser) -> None:
                 help=kwargs["help"],
             )
             continue
-        if f.name == "env_workers":  # one name for worker processes in every command
-            run.add_argument("--workers", dest=f.name, type=int, metavar="N", **kwargs)
+        if f.name == "seed":  # one meaning in every command: a training seed
+            kwargs["help"] = (
+                "the training seed: every random draw of the run flows from it, each purpose a "
+                f"child of SeedSequence(seed) (default {f.default})"
+            )
+        if f.name == "env_workers":  # one name and one meaning in every command
+            kwargs["help"] = workers_help(
+                "0 on a CPU, where the update dominates; on a GPU one per 4 envs of a group of 16 "
+                "or more runs, within the cores",
+                "stepping the envs of runs trained together",
+            )
+            run.add_argument("--workers", dest=f.name, type=worker_count, metavar="N", **kwargs)
             run.add_argument(
-                "--env-workers", dest=f.name, type=int, action=DeprecatedOption, new="--workers"
+                "--env-workers",
+                dest=f.name,
+                type=worker_count,
+                action=DeprecatedOption,
+                new="--workers",
             )
             continue
         _add(run, f.name, _kind(hints[f.name]), **kwargs)
@@ -134,7 +148,7 @@ def add_train_arguments(parser: argparse.ArgumentParser) -> None:
         "--seeds",
         metavar="SEEDS",
         default=None,
-        help=f"train several seeds together in one process instead of --seed: {EXAMPLES} "
+        help=f"train several training seeds together in one process instead of --seed: {EXAMPLES} "
         "(a lone 3 is seed 3). "
         "The runs are stacked into one batched agent whose envs step in lockstep, and each run "
         "gets exactly the numbers it gets trained alone; faster on a GPU, which updates every "

@@ -25,7 +25,9 @@ def add_parser(sub: argparse._SubParsersAction) -> argparse.ArgumentParser:
     w.add_argument("bench_dir", metavar="BENCH_DIR", help="a benchmark directory")
     w.add_argument("--algo", required=True, metavar="NAME", help="the submitted algorithm")
     w.add_argument("--task", metavar="TASK", help="only its runs on this task")
-    w.add_argument("--seed", type=seed_value, metavar="S", help="only its runs of this seed")
+    w.add_argument(
+        "--seed", type=seed_value, metavar="S", help="only its runs of this training seed"
+    )
     return w
 
 
