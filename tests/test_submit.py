@@ -349,7 +349,8 @@ def test_shipped_halfcheetah_reference_fits_its_preset_and_counts_its_runs(tmp_p
     assert ref.episodes == 5 and ref.mesh == 10 and ref.endpoint is False  # the paper's mesh
     static = [r for r in ref.rows if r["metric"] == "worst_case"]
     runs = sum(r["n_seeds"] for r in static)
-    assert runs == 25 and "5 seeds" in ref.label  # complete: 5 seeds of each of the five
+    # complete: 5 seeds of each of the five, labelled as the paper's reduced budget
+    assert runs == 25 and "5 of its 10 seeds" in ref.label and "reduced budget" in ref.label
     assert "all 25 of the preset's runs (5 seeds of each algorithm)" in ref.notes
     assert ref.provenance["preset"] == "halfcheetah" and ref.provenance["runs"] == runs
     spec = create_benchmark(tmp_path / "b", "halfcheetah", ("halfcheetah",))
