@@ -321,9 +321,13 @@ def make_figures(
                 (
                     "eval_nominal_return",
                     "Periodic evaluation: nominal return",
-                    "nominal parameters",
+                    "nominal return",
                 ),
-                ("eval_worst_case", "Periodic evaluation: worst case (coarse mesh)", "worst case"),
+                (
+                    "eval_worst_case",
+                    "Periodic evaluation: worst case (coarse mesh)",
+                    "worst-case return",
+                ),
             ):
                 path = plot_curves(
                     curves, metric, steps, out / f"curves_{metric}.png", ylabel, colour, names,
