@@ -114,3 +114,58 @@ def physics(folder: Path) -> str | None:
             order = _order({a: data[a][f"{metric}_{key}"] for a in algos})
             lines.append(f"- **{name}, {physics_name}**: {order}.")
     return "\n".join(lines) + "\n"
+
+
+#: what the RRLS authors' code ran on at the paper's time (SuReLI/RRLS 428665c, 2024-06-06:
+#: ``gymnasium==1.0.0a1``, which pins ``mujoco==2.3.3``)
+ORIGINAL = {"gymnasium": "1.0.0a1", "mujoco": "2.3.3"}
+
+
+def differences(folder: Path) -> str:
+    """The ``differences`` block: what this reference holds against the paper's protocol, read
+    from the benchmark, its runs and the paper's published settings."""
+    from rrls.experiments.report import paper_results
+
+    paper = paper_results()
+    spec = json.loads((folder / "benchmark.json").read_text())
+    versions: dict[str, set[str]] = {}
+    m2td3_warmup = set()
+    for path in sorted(folder.glob("runs/*/run.json")):
+        run = json.loads(path.read_text())
+        for k in ("gymnasium", "mujoco"):
+            versions.setdefault(k, set()).add(run["versions"][k])
+        if run["algorithm"] == "m2td3":
+            m2td3_warmup.add(int(run["hyperparameters"]["learning_starts"]))
+    steps, seeds = int(spec["steps"]), len(spec["seeds"])
+    rows = [
+        (
+            "budget",
+            f"{steps:,} steps per run",
+            f"{paper['steps']:,}",
+            f"{steps / paper['steps']:.0%}",
+        ),
+        ("seeds", f"{seeds}", f"{paper['seeds']}", f"{seeds / paper['seeds']:.0%}"),
+        (
+            "physics",
+            "rrls v5: Gymnasium v5 models, derived constants recomputed after every mass write "
+            "(`mj_setConst`)",
+            "the original code's writes on the v5 models, constants not recomputed",
+            "see *Physics* below",
+        ),
+    ]
+    for k in ("mujoco", "gymnasium"):
+        rows.append((k, ", ".join(sorted(versions.get(k, {"?"}))), ORIGINAL[k], ""))
+    for w in sorted(m2td3_warmup):
+        learn = max(steps - w, 0)
+        paper_learn = paper["steps"] - w
+        rows.append(
+            (
+                "M2TD3's learning steps",
+                f"{learn:,} of {steps:,} ({learn / steps:.0%}; {w:,} random warm-up)",
+                f"{paper_learn:,} of {paper['steps']:,} ({paper_learn / paper['steps']:.0%})",
+                "",
+            )
+        )
+    lines = ["| | this reference | the paper | here / paper |", "|---|---|---|---|"]
+    lines += [f"| {a} | {b} | {c} | {d} |" for a, b, c, d in rows]
+    return "\n".join(lines) + "\n"

@@ -477,6 +477,8 @@ def blocks(folder: Path, reference: str | None) -> dict[str, str]:
         block = getattr(page_checks, name)(folder)
         if block is not None:
             out[name] = block
+    if (folder / "runs").is_dir() and (folder / "benchmark.json").exists():
+        out["differences"] = page_checks.differences(folder)
     if (folder / "ablation.csv").is_file():
         import ablation  # beside this file
         import pandas as pd
