@@ -150,7 +150,7 @@ def differences(folder: Path) -> str:
             "rrls v5: Gymnasium v5 models, derived constants recomputed after every mass write "
             "(`mj_setConst`)",
             "the original code's writes on the v5 models, constants not recomputed",
-            "see *Physics* below",
+            "measured below" if (folder / "paper_physics.csv").is_file() else "not measured yet",
         ),
     ]
     for k in ("mujoco", "gymnasium"):
