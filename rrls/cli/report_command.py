@@ -35,7 +35,8 @@ def add_parser(sub: argparse._SubParsersAction) -> argparse.ArgumentParser:
         metavar="FILE",
         help=f"reference results (.json/.csv, or a shipped name: {', '.join(SHIPPED)}) normalising"
         " the tasks without their own TD3 and M2TD3 runs; refused if measured under another"
-        " protocol (physics, set, mesh, episodes)",
+        " protocol (physics, set, mesh, episodes) or with another training budget (see"
+        " --allow-other-budget)",
     )
     r.add_argument(
         "--export-reference",
@@ -55,6 +56,19 @@ def add_parser(sub: argparse._SubParsersAction) -> argparse.ArgumentParser:
         metavar="NAME=TEXT",
         help="show algorithm NAME's row as TEXT in every table and figure (NAME@REF: the "
         "reference REF's row, e.g. td3@quick='TD3, rrls quick'); repeatable",
+    )
+    r.add_argument(
+        "--cells",
+        choices=("ci", "pm"),
+        default="ci",
+        help="what each cell of tables/*.tex shows: ci, mean [95%% CI] (default), or pm, "
+        "mean ± std (the paper's style); bold by overlapping 95%% intervals either way",
+    )
+    r.add_argument(
+        "--allow-other-budget",
+        action="store_true",
+        help="accept a --reference trained with another budget (steps) than this benchmark's: "
+        "its rows are marked ‡, normalised by its own TD3 and M2TD3 and never bold",
     )
     return r
 
@@ -100,6 +114,8 @@ def _report(args: argparse.Namespace) -> int:
                     reference=args.reference,
                     labels=labels or None,
                     titles=not args.no_titles,
+                    cells=args.cells,
+                    allow_other_budget=args.allow_other_budget,
                 )
                 exported = None
                 if args.export_reference:

@@ -10,6 +10,7 @@ __all__ = [
     "BUDGET",
     "BUDGET_NOTE",
     "BUDGET_TEX",
+    "BUDGET_TEX_MARK",
     "budget_differs",
     "FEW",
     "FEW_SEEDS_NOTE",
@@ -96,6 +97,7 @@ def unstable_normalisation(summary: dict[str, Any]) -> list[str]:
 
 
 BUDGET = "‡"  # marks a row trained with another budget than the benchmark's runs
+BUDGET_TEX_MARK = "$^{\\ddagger}$"  # the mark in LaTeX (a row name, a caption)
 BUDGET_NOTE = (
     f"{BUDGET} trained with another budget than this benchmark's runs, or a budget not stated "
     "(see Budgets): not a like-for-like comparison."
@@ -108,9 +110,17 @@ BUDGET_TEX = (
 )
 
 
-def budget_differs(summary: dict[str, Any], algo: str) -> bool:
-    """Whether any submitted run of ``algo`` states another training budget than the
-    benchmark's (or none)."""
+def budget_differs(summary: dict[str, Any], algo: str, source: str = "results") -> bool:
+    """Whether a row's training budget is not the benchmark's: a trained run of ``algo`` with
+    other steps, a submitted one stating other steps (or none), or, for the reference's rows
+    (``source`` ``reference_results``), the reference's steps (or none). Without a benchmark
+    budget only a submitted run stating one differs."""
     steps = (summary.get("benchmark") or {}).get("steps")
+    if source != "results":
+        ref = summary.get("reference") or {}
+        return steps is not None and ref.get("steps") != steps
     runs = [r for r in summary.get("submitted") or [] if r["algorithm"] == algo]
-    return bool(runs) and any(r.get("steps") != steps for r in runs)
+    trained = (summary.get("run_steps") or {}).get(algo) or []
+    return any(r.get("steps") != steps for r in runs) or (
+        steps is not None and any(s != steps for s in trained)
+    )

@@ -14,7 +14,7 @@ import numpy as np
 
 from rrls.experiments.caveats import FEW, UNSTABLE, few_seeds
 
-__all__ = ["ci", "fmt", "pm", "tex_ci", "tex_pm"]
+__all__ = ["average", "ci", "fmt", "interval", "overlaps", "pm", "tex_ci", "tex_pm", "tied_best"]
 
 Cell = dict[str, Any] | None
 
@@ -87,3 +87,64 @@ def tex_ci(cell: Cell, digits: int = 2, bold: bool = False, unstable: bool = Fal
     if interval:
         body += f"\\,[{_tex_num(interval[0], digits)}, {_tex_num(interval[1], digits)}]"
     return f"${body}{_tex_marks(cell, unstable)}$"
+
+
+def interval(cell: Cell) -> tuple[float, float] | None:
+    """A cell's 95 % interval of the mean; without one (one seed, a reference row without
+    per-seed values), its mean as a point; None without a mean."""
+    if not cell or cell.get("mean") is None:
+        return None
+    lo, hi = cell.get("ci95") or (cell["mean"], cell["mean"])
+    return float(lo), float(hi)
+
+
+def overlaps(a: Cell, b: Cell) -> bool:
+    """Whether the intervals (``interval``) of two cells share a value."""
+    x, y = interval(a), interval(b)
+    return x is not None and y is not None and x[0] <= y[1] and y[0] <= x[1]
+
+
+def tied_best(cells: list[Cell]) -> list[bool]:
+    """Which of a column's cells are bold: the highest mean and every cell whose interval
+    overlaps that cell's (a tie the seeds cannot separate). ``None`` entries are not ranked."""
+    ranked = [c for c in cells if c and c.get("mean") is not None]
+    if not ranked:
+        return [False] * len(cells)
+    best = max(ranked, key=lambda c: c["mean"])
+    return [c is not None and overlaps(c, best) for c in cells]
+
+
+def average(cells: list[Cell]) -> Cell:
+    """The paper's "Average" column over a row's task cells: the mean of the means and the
+    mean of the stds (its ``mean ± std``), and a 95 % interval of that mean: the task means are
+    independent, so its variance is the sum of their squared standard errors over T², read
+    back from each task's t interval, with Welch-Satterthwaite degrees of freedom (one task:
+    that task's interval). No interval unless every task has one."""
+    from scipy.stats import t
+
+    cells = [c for c in cells if c and c.get("mean") is not None]
+    if not cells:
+        return None
+    stds = [c["std"] for c in cells if c.get("std") is not None]
+    out = {
+        "mean": float(np.mean([c["mean"] for c in cells])),
+        "std": float(np.mean(stds)) if len(stds) == len(cells) else None,
+        "n_seeds": min(int(c.get("n_seeds") or 0) for c in cells),
+        "ci95": None,
+    }
+    ns = [int(c.get("n_seeds") or 0) for c in cells]
+    if all(c.get("ci95") for c in cells) and min(ns) >= 2:
+        var = np.array(
+            [
+                ((c["ci95"][1] - c["ci95"][0]) / 2 / t.ppf(0.975, n - 1)) ** 2
+                for c, n in zip(cells, ns)
+            ]
+        )
+        total = var.sum()
+        if total > 0:
+            df = total**2 / sum(v**2 / (n - 1) for v, n in zip(var, ns))
+            half = float(t.ppf(0.975, df) * np.sqrt(total) / len(cells))
+        else:
+            half = 0.0
+        out["ci95"] = [out["mean"] - half, out["mean"] + half]
+    return out

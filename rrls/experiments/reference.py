@@ -10,8 +10,10 @@ and ``rrls report DIR --export-reference FILE`` writes a benchmark's results as 
 
 A reference is only a reference for a benchmark that measures the same thing: the same
 ``physics``, uncertainty set, mesh (points per dimension, endpoint) and episodes per point;
-anything else is refused (``ReferenceError``, one line naming the fields). The training budget
-(``steps``) may differ; the report says so.
+anything else is refused (``ReferenceError``, one line naming the fields). So is a reference
+trained with another budget (``steps``, or none stated) unless the report is asked for it
+(``rrls report --allow-other-budget``): its rows are then marked ‡ and normalised by its own
+TD3 and M2TD3, not set beside the benchmark's as like-for-like.
 
 JSON (``.json``)::
 
@@ -360,9 +362,10 @@ def benchmark_protocol(spec: dict[str, Any]) -> dict[str, Any]:
     }
 
 
-def check_compatible(ref: Reference, spec: dict[str, Any]) -> None:
+def check_compatible(ref: Reference, spec: dict[str, Any], other_budget: bool = False) -> None:
     """Refuse (``ReferenceError``, one line naming each field) a reference measured under
-    another protocol than the benchmark ``spec``, or holding none of its tasks."""
+    another protocol than the benchmark ``spec``, holding none of its tasks, or (unless
+    ``other_budget``) trained with another budget than the benchmark's."""
     mine = benchmark_protocol(spec)
     theirs = {
         "physics": ref.physics,
@@ -377,6 +380,14 @@ def check_compatible(ref: Reference, spec: dict[str, Any]) -> None:
         raise ReferenceError(
             f"reference {ref.path or ref.label!r} ({ref.label}) was measured under another "
             f"protocol than this benchmark ({detail}): its numbers are not comparable"
+        )
+    steps = spec.get("steps")
+    if not other_budget and steps is not None and ref.steps != steps:
+        theirs_text = f"{ref.steps:,} training steps per run" if ref.steps else "no budget stated"
+        raise ReferenceError(
+            f"reference {ref.path or ref.label!r} ({ref.label}) has {theirs_text}, this benchmark "
+            f"{steps:,}: its rows are not like-for-like; --allow-other-budget shows them marked "
+            "‡ and normalised by the reference's own TD3 and M2TD3"
         )
     common = [t for t in spec["tasks"] if t in ref.tasks(mine["uncertainty"])]
     if not common:

@@ -39,6 +39,7 @@ from rrls.experiments.caveats import (
 )
 from rrls.experiments.cells import fmt, pm
 from rrls.experiments.changes import rebuild_folder
+from rrls.experiments.latex import fit_file
 from rrls.experiments.names import ORDER, display_name
 from rrls.experiments.pairwise import markdown as pairwise_markdown
 from rrls.experiments.pairwise import paper_orderings
@@ -62,12 +63,17 @@ def make_report(
     reference: Any = None,
     labels: dict[str, str] | None = None,
     titles: bool = True,
+    cells: str = "ci",
+    allow_other_budget: bool = False,
 ) -> Path:
     """Write ``root/report/`` (summary.json, report.md, tables/, figures) from the store,
     whole or not at all: built beside the old report, which it replaces once complete.
 
     ``reference``: a reference file's path, a shipped name (``paper``) or a loaded
-    ``Reference``; refused (``ReferenceError``) unless measured under the benchmark's protocol.
+    ``Reference``; refused (``ReferenceError``) unless measured under the benchmark's protocol
+    and, unless ``allow_other_budget`` (then its rows are marked ‡ and normalised by its own TD3
+    and M2TD3), trained with the benchmark's budget. ``cells``: each LaTeX cell ``ci``
+    (``mean [95 % CI]``) or ``pm`` (``mean ± std``, the paper's).
     ``labels``: ``{algorithm (or algorithm@reference): row name}`` for every table and figure.
     ``titles=False``: figures without titles, for a paper whose captions say what they show.
     """
@@ -83,19 +89,22 @@ def make_report(
 
         if not benchfile.spec_path(root).exists():
             raise ValueError(f"{root} holds no benchmark.json: a reference needs its protocol")
-        check_compatible(reference, benchfile.read_spec_json(root))
+        check_compatible(reference, benchfile.read_spec_json(root), other_budget=allow_other_budget)
     _check_has_runs(root)
     summary = summarise(root, reference)
     if labels:
         summary["labels"] = dict(labels)
+    summary["table_cells"] = cells
     paper = paper_results()
     summary["paper_orderings"] = paper_orderings(summary, paper)
 
     def build(out: Path) -> None:  # into a new folder, swapped in whole once complete
-        _, skipped = write_tables(summary, out / "tables", paper)
+        _, skipped = write_tables(summary, out / "tables", paper, cells)
         write_pairwise(summary, out / "tables", lambda a: label(summary, a))
+        for path in sorted((out / "tables").glob("pairwise_*.tex")):
+            fit_file(path)  # never wider than the line, as the other tables
         summary["tables_not_written"] = skipped
-        per_run = _per_run(root, out / "tables")
+        per_run = _per_run(root, out / "tables", summary)
         figures: list[tuple[str, Path]] = []
         if plots:
             try:
@@ -130,8 +139,9 @@ def _check_has_runs(root: Path) -> None:
     raise ValueError(f"{root}: no run has finished ({why}); there is nothing to report yet")
 
 
-def _per_run(root: Path, tables: Path) -> list[str]:
-    """``tables/per_run.csv`` and its ``report.md`` section (none for an empty store)."""
+def _per_run(root: Path, tables: Path, summary: dict[str, Any]) -> list[str]:
+    """``tables/per_run.csv`` (each row's label beside its algorithm) and its ``report.md``
+    section (none for an empty store)."""
     from rrls._io import atomic_write_table
     from rrls.experiments.per_run import per_run_lines, per_run_table
     from rrls.experiments.store import load_store
@@ -139,8 +149,9 @@ def _per_run(root: Path, tables: Path) -> list[str]:
     table = per_run_table(load_store(root))
     if not len(table):
         return []
+    table.insert(2, "label", [label(summary, a) for a in table["algorithm"]])
     atomic_write_table(tables / "per_run.csv", table)
-    return per_run_lines(table, list(ORDER))
+    return per_run_lines(table, list(ORDER), lambda a: label(summary, a))
 
 
 def _split_table(summary: dict[str, Any]) -> list[str]:
@@ -182,9 +193,8 @@ def _markdown(
     lines = ["# rrls benchmark report", ""]
     if spec:
         lines += [
-            f"- preset `{spec.get('preset')}`: {len(spec['algos'])} built-in algorithms × "
-            f"{len(spec['tasks'])} tasks × {len(spec['seeds'])} seeds, {spec['steps']:,} "
-            f"training steps per built-in run (other sources: Budgets below), set "
+            f"- preset `{spec.get('preset')}`: {_counts(summary)}, {spec['steps']:,} "
+            f"training steps per run trained here (other sources: Budgets below), set "
             f"`{spec['uncertainty']}`, mesh {spec['mesh']} per "
             f"dimension × {spec['episodes']} episodes, dynamic evaluation "
             f"{spec['dynamic_episodes']} episodes",
@@ -284,12 +294,37 @@ def _markdown(
     lines += [f"- **{k}**: {v}" for k, v in summary["conventions"].items()]
     lines += [
         "",
-        "Tables for papers: `tables/<name>.tex` (a booktabs `tabular`, cells `mean [95% CI]`; "
-        "`\\input` it inside your own `table`), `tables/<name>_std.tex` (`mean ± std`, the "
-        "paper's style) and `tables/<name>.csv`.",
+        "Tables for papers: `tables/<name>.tex` (a booktabs `tabular`, scaled down to the line "
+        "only when wider: needs `booktabs` and `graphicx`; cells "
+        + ("`mean ± std`" if summary.get("table_cells") == "pm" else "`mean [95% CI]`")
+        + " (`rrls report --cells`); its header holds the suggested caption with every note: "
+        "`\\input` it inside your own `table`) and `tables/<name>.csv`.",
         "",
     ]
     return "\n".join(lines)
+
+
+def _counts(summary: dict[str, Any]) -> str:
+    """What the report holds, counted from its finished runs rather than what the preset
+    plans: ``2 algorithms trained here × 1 task × 3 seeds, 1 submitted × 1 task × 2 seeds``."""
+    spec, done = summary.get("benchmark") or {}, summary.get("finished_runs") or {}
+
+    def count(n: int, word: str) -> str:
+        return f"{n} {word}{'' if n == 1 else 's'}"
+
+    parts = [
+        f"{count(len(held['algorithms']), 'algorithm')} {where} × "
+        f"{count(len(held['tasks']), 'task')} × {count(len(held['seeds']), 'seed')}"
+        for source, where in (("trained", "trained here"), ("submitted", "submitted"))
+        if (held := done.get(source))
+    ]
+    trained = done.get("trained") or {}
+    planned = [len(spec.get(k) or []) for k in ("algos", "tasks", "seeds")]
+    if planned[0] and planned != [
+        len(trained.get(k) or []) for k in ("algorithms", "tasks", "seeds")
+    ]:
+        parts.append(f"the protocol plans {' × '.join(map(str, planned))} trained runs")
+    return ", ".join(parts) or "no finished run"
 
 
 def _normalisation_lines(summary: dict[str, Any]) -> list[str]:
@@ -339,8 +374,13 @@ def _reference_lines(summary: dict[str, Any]) -> list[str]:
         f"`{ref['file']}`: physics {ref['physics']}, set {summary['uncertainty']}, mesh "
         f"{ref['mesh']} x {ref['episodes']} episodes"
         + (f", {ref['steps']:,} training steps per run" if ref.get("steps") else "")
-        + f". Its rows are labelled `({ref['name']})` in every table above and in "
-        "`tables/*.tex`; normalised with this report's TD3 and M2TD3 means.",
+        + f". Its rows are labelled `(ref. {ref['name']})` (or as `--rename` names them) in "
+        "every table above and in `tables/*.tex`; normalised with "
+        + (
+            "its own TD3 and M2TD3 means (its budget is not this benchmark's: its rows carry "
+            f"{BUDGET}).",
+            "this report's TD3 and M2TD3 means.",
+        )[not str(ref.get("normalised_by", "")).startswith("its")],
         "",
     ]
 
@@ -364,6 +404,7 @@ def _budget_lines(summary: dict[str, Any]) -> list[str]:
     for run in submitted:
         by_algo.setdefault(run["algorithm"], []).append(run)
     differing = {a for a in by_algo if budget_differs(summary, a)}
+    differing |= {a for a in summary.get("run_steps") or {} if budget_differs(summary, a)}
     for algo, runs in by_algo.items():
         values = sorted({r.get("steps") or 0 for r in runs})
         extra = sorted({f"{k} {v}" for r in runs for k, v in (r.get("budget") or {}).items()
@@ -372,17 +413,22 @@ def _budget_lines(summary: dict[str, Any]) -> list[str]:
         differs = algo in differing
         rows.append(
             (
-                f"{algo} (submitted{BUDGET if differs else ''})",
+                label(summary, algo),
                 ", ".join(steps_text(v) for v in values),
                 "; ".join(extra),
                 f"declared by {', '.join(who)}" + ("; **differs**" if differs else ""),
             )
         )
+    for algo, steps in (summary.get("run_steps") or {}).items():
+        if budget_differs(summary, algo):  # a run of this benchmark with other steps
+            rows.append(
+                (label(summary, algo), ", ".join(map(steps_text, steps)), "", "**differs**")
+            )
     if ref.get("rows"):
-        differs = bool(own) and ref.get("steps") not in (None, own)
+        differs = bool(own) and ref.get("steps") != own
         rows.append(
             (
-                f"reference {ref.get('name')}",
+                f"reference {ref.get('name')}" + (BUDGET if differs else ""),
                 steps_text(ref.get("steps")),
                 "",
                 "its file" + ("; **differs**" if differs else ""),
@@ -398,7 +444,7 @@ def _budget_lines(summary: dict[str, Any]) -> list[str]:
         *[f"| {a} | {b} | {c or '–'} | {d or '–'} |" for a, b, c, d in rows],
         "",
     ]
-    if differing:
+    if differing or (ref.get("rows") and budget_differs(summary, "", "reference_results")):
         lines += [BUDGET_NOTE, ""]
     return lines
 
@@ -420,7 +466,8 @@ def _submitted_lines(summary: dict[str, Any]) -> list[str]:
     for r in rows:
         sha = (r.get("policy_sha256") or "")[:12] or "–"
         lines.append(
-            f"| {r['algorithm']} | {r['task']} | {r['seed']} | {r.get('policy_kind') or '–'} "
+            f"| {label(summary, r['algorithm'])} | {r['task']} | {r['seed']} "
+            f"| {r.get('policy_kind') or '–'} "
             f"| `{r.get('policy_source') or '–'}` | {sha} |"
         )
     return [*lines, ""]

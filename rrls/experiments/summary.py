@@ -157,6 +157,9 @@ def summarise(root: str | Path, reference: Any = None) -> dict[str, Any]:
     scores = Scores(tables, reference, uncertainty)
     results, missing = cells(scores, tasks, algos, len(spec["seeds"]) if spec else None)
     refs = {t: {m: scores.norm_refs(t, m) for m in SCORES} for t in tasks}
+    # a reference trained with another budget (shown only when asked) is normalised by its own
+    # TD3 and M2TD3: this benchmark's would mix budgets in one score
+    own_norm = bool(spec) and reference is not None and reference.steps != spec.get("steps")
     return {
         "benchmark": spec,
         "uncertainty": uncertainty,
@@ -173,8 +176,13 @@ def summarise(root: str | Path, reference: Any = None) -> dict[str, Any]:
         "unstable": unstable(refs),
         "reference": None
         if reference is None
-        else _reference_summary(reference, tasks, uncertainty),
-        "reference_results": None if reference is None else reference_cells(scores, tasks),
+        else {
+            **_reference_summary(reference, tasks, uncertainty),
+            "normalised_by": "its own TD3 and M2TD3" if own_norm else "this report's normalisers",
+        },
+        "reference_results": None
+        if reference is None
+        else reference_cells(scores, tasks, own_normaliser=own_norm),
         "conventions": CONVENTIONS,
     }
 
@@ -251,7 +259,9 @@ def aggregates(scores: Scores, tasks: list[str], algos: list[str]) -> dict[str, 
 
 
 def provenance(tables: dict[str, Any]) -> dict[str, Any]:
-    """The library versions of the evaluations and where the submitted policies came from."""
+    """The library versions of the evaluations, where the submitted policies came from, the
+    trained runs' budgets (``run_steps``: per algorithm, its runs' steps) and what finished
+    (``finished_runs``: per source, trained or submitted, its algorithms, tasks and seeds)."""
     ev, runs = tables["evaluations"], tables["runs"]
     versions = {}
     for col in ("rrls_version", "gymnasium_version", "mujoco_version"):
@@ -271,7 +281,26 @@ def provenance(tables: dict[str, Any]) -> dict[str, Any]:
             submitted.append(
                 {**entry, "seed": int(entry["seed"]), "steps": steps or None, "budget": budget}
             )
-    return {"versions": versions, "submitted": submitted}
+    trained = runs[runs["source"] != "submitted"] if len(runs) and "source" in runs else runs
+    run_steps = {
+        str(a): sorted({int(s) for s in by["steps"]})
+        for a, by in (trained.groupby("algorithm") if len(trained) and "steps" in trained else [])
+    }
+    finished = {
+        str(source): {
+            "algorithms": sort_algos(map(str, by["algorithm"])),
+            "tasks": sorted({str(t) for t in by["task"]}),
+            "seeds": sorted({int(s) for s in by["seed"]}),
+            "runs": len(by),
+        }
+        for source, by in (runs.groupby("source") if len(runs) and "source" in runs else [])
+    }
+    return {
+        "versions": versions,
+        "submitted": submitted,
+        "run_steps": run_steps,
+        "finished_runs": finished,
+    }
 
 
 def _budget(text: str) -> dict[str, Any]:
@@ -300,15 +329,21 @@ def unstable(refs: dict[str, dict[str, dict[str, Any] | None]]) -> list[dict[str
     return out
 
 
-def reference_cells(scores: Scores, tasks: list[str]) -> dict[str, Any]:
+def reference_cells(
+    scores: Scores, tasks: list[str], own_normaliser: bool = False
+) -> dict[str, Any]:
     """The reference's cells for the benchmark's tasks, shaped like ``results``' (the raw
-    scores, their normalised scores with this report's normalisers, the dynamic return), so a
-    table shows them as rows. A cell's CI needs the reference's per-seed values."""
+    scores, their normalised scores with this report's normalisers, or with the reference's own
+    TD3 and M2TD3 means when ``own_normaliser``, the dynamic return), so a table shows them as
+    rows. A cell's CI needs the reference's per-seed values."""
     ref = scores.reference
     out: dict[str, Any] = {}
     name = reference_name(ref)
     for task in tasks:
-        norm = {m: scores.norm_refs(task, m) for m in SCORES}
+        norm = {
+            m: _own_norm(scores, task, m) if own_normaliser else scores.norm_refs(task, m)
+            for m in SCORES
+        }
         for algo in sort_algos(ref.algorithms()):
             cell: dict[str, Any] = {"normalised": {}}
             for m in (*SCORES, "dynamic"):
@@ -323,6 +358,14 @@ def reference_cells(scores: Scores, tasks: list[str]) -> dict[str, Any]:
             if len(cell) > 1:
                 out.setdefault(task, {})[algo] = cell
     return out
+
+
+def _own_norm(scores: Scores, task: str, metric: str) -> dict[str, Any] | None:
+    """The reference's own TD3 and M2TD3 means on ``task`` (None without both, or equal)."""
+    td3, m2td3 = (scores.reference_row(task, a, metric) for a in ("td3", "m2td3"))
+    if td3 is None or m2td3 is None or td3["mean"] == m2td3["mean"]:
+        return None
+    return {"td3": float(td3["mean"]), "m2td3": float(m2td3["mean"])}
 
 
 def _row_cell(row: dict[str, Any], norm: dict[str, Any] | None, rng: Any) -> dict[str, Any]:

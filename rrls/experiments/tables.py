@@ -1,36 +1,31 @@
 """The report's tables: LaTeX for papers, CSV for scripts, markdown for ``report.md`` and text
 for the terminal, all from ``summary.json`` and all with the reference's rows.
 
-LaTeX: ``tables/<name>.tex`` is a bare ``tabular`` (booktabs rules) that ``\\input`` drops into a
-paper's own ``table`` float: algorithms × tasks, each cell ``mean [95 % CI]`` over seeds, the best
-mean of a column over every row shown (the reference's included) in bold;
-``tables/<name>_std.tex`` is the same table as ``mean ± std`` (the paper's style, to set beside
-its Tables 4-8). The reference's rows (``TD3 (ref. quick)``: a source, not a task) follow a
-rule; ``rrls report --rename NAME=TEXT`` renames a row (``NAME@REF`` a reference's). Row names
-are LaTeX-escaped. The caveats are printed under the table, not only in a comment: † fewer
-than 3 seeds, § an unstable normalisation. A table without a row is not written
+LaTeX: ``tables/<name>.tex`` is a booktabs ``tabular`` that ``\\input`` drops into a paper's
+own ``table`` float, scaled down to ``\\linewidth`` only when wider (``\\resizebox``: needs
+``booktabs`` and ``graphicx``, nothing else). Every cell of a table is one statistic
+(``rrls report --cells``): ``ci`` (the default) ``mean [95 % CI]``, ``pm`` ``mean ± std`` (the
+paper's style), the Average column included. Bold: per column, the highest mean and every row
+whose 95 % interval overlaps it (a tie), over every row shown except those marked ‡ (another
+training budget: not ranked). The notes (marks, bold rule, seeds, budget, statistic) are in the
+suggested caption of the file's header, not inside the tabular. Rows: the paper's order (TD3,
+DR, M2TD3, RARL, NR-MDP), then the others, the raw tables as the normalised ones; the reference's
+rows (``TD3 (ref. quick)``) follow a rule. ``rrls report --rename NAME=TEXT`` renames a row
+(``NAME@REF`` a reference's); a renamed row keeps its ‡. A table without a row is not written
 (``write_tables`` says why).
 """
 
 from __future__ import annotations
 
-from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from rrls.algorithms import plays_adversary
-from rrls.experiments.caveats import (
-    BUDGET,
-    BUDGET_TEX,
-    FEW_SEEDS_TEX,
-    UNSTABLE_TEX,
-    budget_differs,
-    few_seeds,
-    is_unstable,
-)
-from rrls.experiments.cells import ci, pm, tex_ci, tex_pm
+from rrls.experiments.caveats import BUDGET, budget_differs, few_seeds, is_unstable
+from rrls.experiments.cells import average, ci, pm, tied_best
+from rrls.experiments.latex import CELLS, PACKAGES, caption, fit, tex_escape
 from rrls.experiments.names import display_name, sort_algos, task_name
 
 __all__ = [
@@ -57,20 +52,25 @@ TABLES = {
     ),
     "dynamic": ("Against the run's own adversary (paper Table 6)", "dynamic", 2),
 }
-
 #: (label, algorithm, the summary's cells it reads: "results" or "reference_results")
 Row = tuple[str, str, str]
 
 
-def label(summary: dict[str, Any], algo: str) -> str:
-    """An algorithm's name in the report (``--rename`` first); submitted ones are marked."""
-    renamed = (summary.get("labels") or {}).get(algo)
-    if renamed:
-        return renamed
-    name = display_name(algo)
-    if any(s["algorithm"] == algo for s in summary.get("submitted") or []):
-        return f"{name} (submitted)" + (BUDGET if budget_differs(summary, algo) else "")
-    return name
+def label(summary: dict[str, Any], algo: str, source: str = "results") -> str:
+    """A row's name in every table and figure: ``--rename``'s text, else its name (a submitted
+    algorithm marked, a reference's named), then ‡ when its training budget is not the
+    benchmark's: a rename never hides the mark."""
+    renamed = summary.get("labels") or {}
+    if source == "results":
+        name = renamed.get(algo) or display_name(algo)
+        submitted = any(s["algorithm"] == algo for s in summary.get("submitted") or [])
+        if submitted and not renamed.get(algo):
+            name += " (submitted)"
+    else:
+        ref = (summary.get("reference") or {}).get("name")
+        name = renamed.get(f"{algo}@{ref}") or f"{display_name(algo)} (ref. {ref})"
+    differs = budget_differs(summary, algo, source) and not name.endswith(BUDGET)
+    return name + (BUDGET if differs else "")
 
 
 def cell(summary: dict[str, Any], row: Row, task: str, getter: str) -> dict[str, Any] | None:
@@ -93,17 +93,11 @@ def table_rows(summary: dict[str, Any], name: str) -> list[Row]:
         or plays_adversary(a)
         or any("dynamic" in summary["results"][t].get(a, {}) for t in summary["tasks"])
     ]
-    ref = summary.get("reference") or {}
     algos = list(
         dict.fromkeys(a for by in (summary.get("reference_results") or {}).values() for a in by)
     )
-    renamed = summary.get("labels") or {}
     theirs = [
-        (
-            renamed.get(f"{a}@{ref.get('name')}") or f"{display_name(a)} (ref. {ref.get('name')})",
-            a,
-            "reference_results",
-        )
+        (label(summary, a, "reference_results"), a, "reference_results")
         for a in sort_algos(algos)
         if any(cell(summary, ("", a, "reference_results"), t, getter) for t in summary["tasks"])
     ]
@@ -119,36 +113,21 @@ def _filled(summary: dict[str, Any], rows: list[Row], getter: str) -> bool:
 
 
 def _average(summary: dict[str, Any], row: Row, getter: str) -> dict[str, Any] | None:
-    """The paper's "Average" column of a normalised table: the mean over tasks of the cell
-    means and of their stds (with the fewest seeds of a task, for the caveats)."""
-    if row[2] == "results":
-        agg = summary["aggregate"].get(row[1], {}).get(f"normalised_{getter[2:]}", {})
-        return {
-            "mean": agg.get("mean_over_tasks"),
-            "std": agg.get("std_over_tasks"),
-            "n_seeds": agg.get("min_seeds"),
-        }
-    cells = [cell(summary, row, t, getter) for t in summary["tasks"]]
-    cells = [c for c in cells if c and c.get("mean") is not None]
-    if not cells:
-        return None
-    stds = [c["std"] for c in cells if c.get("std") is not None]
-    return {
-        "mean": float(np.mean([c["mean"] for c in cells])),
-        "std": float(np.mean(stds)) if len(stds) == len(cells) else None,
-        "n_seeds": min(int(c.get("n_seeds") or 0) for c in cells),
-    }
+    """The paper's "Average" column of a normalised table (``cells.average``)."""
+    return average([cell(summary, row, t, getter) for t in summary["tasks"]])
 
 
 def write_tables(
-    summary: dict[str, Any], out: Path, paper: dict[str, Any]
+    summary: dict[str, Any], out: Path, paper: dict[str, Any], cells: str = "ci"
 ) -> tuple[list[Path], dict[str, str]]:
-    """``tables/<name>.tex``, ``<name>_std.tex`` and ``.csv`` of every table with a row; and,
-    for those not written, why."""
+    """``tables/<name>.tex`` (cells ``cells``: ``ci`` or ``pm``) and ``.csv`` of every table
+    with a row; and, for those not written, why."""
     import pandas as pd
 
     from rrls._io import atomic_write_bytes, atomic_write_table
 
+    if cells not in CELLS:
+        raise ValueError(f"cells {cells!r}; valid: {', '.join(CELLS)}")
     out.mkdir(parents=True, exist_ok=True)
     written, skipped = [], {}
     same_protocol = summary["uncertainty"] == paper["uncertainty"]
@@ -157,7 +136,7 @@ def write_tables(
         rows = table_rows(summary, name)
         if not _filled(summary, rows, getter):
             skipped[name] = _why_empty(summary, name)
-            for stale in (f"{name}.tex", f"{name}_std.tex", f"{name}.csv"):
+            for stale in (f"{name}.tex", f"{name}.csv"):
                 (out / stale).unlink(missing_ok=True)
             continue
         records = []
@@ -170,6 +149,7 @@ def write_tables(
                 records.append(
                     {
                         "algorithm": row[1],
+                        "label": row[0],
                         "source": "benchmark" if row[2] == "results" else ref_name,
                         "task": task,
                         "mean": c.get("mean"),
@@ -182,14 +162,13 @@ def write_tables(
                         "paper_std": pub[1] if isinstance(pub, list) else None,
                         "unstable_normalisation": getter.startswith("n:")
                         and is_unstable(summary, task, getter[2:]),
+                        "other_budget": BUDGET in row[0],
                     }
                 )
         atomic_write_table(out / f"{name}.csv", pd.DataFrame(records))
-        for suffix, formatter in (("", tex_ci), ("_std", tex_pm)):
-            text = _tex(summary, name, rows, paper, formatter, suffix)
-            atomic_write_bytes(out / f"{name}{suffix}.tex", text.encode())
-            written.append(out / f"{name}{suffix}.tex")
-        written.append(out / f"{name}.csv")
+        text = _tex(summary, name, rows, paper, cells)
+        atomic_write_bytes(out / f"{name}.tex", text.encode())
+        written += [out / f"{name}.tex", out / f"{name}.csv"]
     return written, skipped
 
 
@@ -208,45 +187,35 @@ def _why_empty(summary: dict[str, Any], name: str) -> str:
 
 
 def _tex(
-    summary: dict[str, Any],
-    name: str,
-    rows: list[Row],
-    paper: dict[str, Any],
-    formatter: Callable[..., str],
-    suffix: str,
+    summary: dict[str, Any], name: str, rows: list[Row], paper: dict[str, Any], family: str
 ) -> str:
-    """One table as a bare booktabs ``tabular``, its caveats as a last row."""
+    """One table: its header (the packages, the suggested float and caption with every note),
+    then the booktabs ``tabular``, scaled to the line only when wider (``fit``)."""
     title, getter, digits = TABLES[name]
     tasks = summary["tasks"]
     normalised = name.startswith("normalised")
     metric = getter[2:] if normalised else getter
+    formatter = CELLS[family][0]
     # Table 6 as the paper prints it: each task in its own unit (10^k), no bold (the paper:
     # the two algorithms play different adversaries, so no ranking)
     scale = {t: paper["dynamic_scale"].get(t, 1.0) if name == "dynamic" else 1.0 for t in tasks}
-    best = {}  # over every row shown, the reference's included (the note under the table)
-    for task in tasks:
-        means = [(cell(summary, r, task, getter) or {}).get("mean") for r in rows]
-        finite = [m for m in means if m is not None]
-        best[task] = max(finite) if finite else None
+    grid = []  # per row: its cells, scaled, the Average last
+    for row in rows:
+        line = [_scaled(cell(summary, row, t, getter), scale[t]) for t in tasks]
+        grid.append([*line, average(line)] if normalised else line)
+    ranked = name != "dynamic" and len(rows) > 1
+    columns = list(zip(*grid)) if grid else []
+    bold = [
+        tied_best([c if BUDGET not in rows[i][0] else None for i, c in enumerate(col)])
+        if ranked
+        else [False] * len(rows)
+        for col in columns
+    ]
     cols = [
         task_name(t) + (f" ($10^{round(np.log10(scale[t]))}$)" if scale[t] != 1 else "")
         for t in tasks
     ] + (["Average"] if normalised else [])
-    style = "mean [95\\% CI]" if suffix == "" else "mean $\\pm$ std"
-    ref = summary.get("reference") or {}
-    lines = [
-        f"% {title}: {style} over seeds -- generated by `rrls report`",
-        "% needs \\usepackage{booktabs}; in a paper:",
-        f"% \\begin{{table}}\\centering\\caption{{{title}}}\\input{{{name}{suffix}}}"
-        f"\\label{{tab:rrls-{name}}}\\end{{table}}",
-        *(
-            [
-                f"% reference rows: {ref.get('label')}"
-                + (f" ({ref['file']})" if ref.get("file") else "")
-            ]
-            if ref
-            else []
-        ),
+    body = [
         "\\begin{tabular}{l" + "c" * len(cols) + "}",
         "\\toprule",
         " & " + " & ".join(cols) + " \\\\",
@@ -256,67 +225,52 @@ def _tex(
     own = sum(r[2] == "results" for r in rows)
     for i, row in enumerate(rows):
         if i == own and i:
-            lines.append("\\midrule")
-        cells = []
-        for task in tasks:
-            c = cell(summary, row, task, getter)
-            is_best = (
-                c is not None
-                and c.get("mean") is not None
-                and c["mean"] == best[task]
-                and name != "dynamic"
-                and len(rows) > 1
-            )
-            if c and c.get("mean") is not None and scale[task] != 1:
-                c = {
-                    **c,
-                    **{
-                        k: None if c.get(k) is None else c[k] / scale[task] for k in ("mean", "std")
-                    },
-                    "ci95": None if not c.get("ci95") else [v / scale[task] for v in c["ci95"]],
-                }
-            unstable = normalised and is_unstable(summary, task, metric)
+            body.append("\\midrule")
+        texts = []
+        for j, c in enumerate(grid[i]):
+            unstable = normalised and j < len(tasks) and is_unstable(summary, tasks[j], metric)
             few |= few_seeds(c)
             unstable_seen |= bool(unstable and c and c.get("mean") is not None)
-            cells.append(formatter(c, digits, bold=is_best, unstable=unstable))
-        if normalised:
-            avg = _average(summary, row, getter)
-            few |= few_seeds(avg)
-            cells.append(tex_pm(avg, digits))
-        shown = tex_escape(row[0]).replace(BUDGET, "$^{\\ddagger}$")
-        lines.append(f"{shown} & " + " & ".join(cells) + " \\\\")
-    lines.append("\\bottomrule")
-    notes = ([FEW_SEEDS_TEX] if few else []) + ([UNSTABLE_TEX] if unstable_seen else [])
-    if any(BUDGET in r[0] for r in rows):
-        notes.append(BUDGET_TEX)
-    if name != "dynamic" and len(rows) > 1:
-        notes.insert(0, "Bold: the highest mean of each column over every row shown.")
-    if normalised:
-        notes.append("Average: mean over tasks of the means $\\pm$ of the stds.")
-    lines += [
-        f"\\multicolumn{{{len(cols) + 1}}}{{l}}{{\\footnotesize {note}}} \\\\" for note in notes
+            texts.append(formatter(c, digits, bold=bold[j][i], unstable=unstable))
+        body.append(f"{tex_escape(row[0])} & " + " & ".join(texts) + " \\\\")
+    body += ["\\bottomrule", "\\end{tabular}"]
+    seeds = sorted(
+        {
+            int(c["n_seeds"] or 0)
+            for r in grid
+            for c in r[: len(tasks)]
+            if c and c.get("mean") is not None
+        }
+    )
+    marks = {"ranked": ranked, "few": few, "unstable": unstable_seen}
+    marks["scaled"] = any(v != 1 for v in scale.values())
+    text = caption(
+        summary, title, metric if name != "dynamic" else "dynamic", rows, family, seeds, marks
+    )
+    packages = " and ".join(f"\\usepackage{{{p}}}" for p in PACKAGES)
+    header = [
+        f"% {title}: {CELLS[family][1]} over seeds -- generated by `rrls report --cells {family}`",
+        f"% needs {packages} (\\resizebox: the tabular is scaled down to \\linewidth only "
+        "when wider)",
+        "% the table's notes are its suggested caption; in a paper:",
+        "% \\begin{table}[tbp]",
+        "% \\centering",
+        f"% \\caption{{{text}}}",
+        f"% \\label{{tab:rrls-{name}}}",
+        f"% \\input{{{name}}}",
+        "% \\end{table}",
     ]
-    lines.append("\\end{tabular}")
-    return "\n".join(lines) + "\n"
+    return "\n".join(header + fit(body)) + "\n"
 
 
-_TEX_SPECIAL = {
-    "\\": r"\textbackslash{}",
-    "&": r"\&",
-    "%": r"\%",
-    "$": r"\$",
-    "#": r"\#",
-    "_": r"\_",
-    "{": r"\{",
-    "}": r"\}",
-    "~": r"\textasciitilde{}",
-    "^": r"\textasciicircum{}",
-}
-
-
-def tex_escape(text: str) -> str:
-    """``text`` as LaTeX prints it literally (a row name such as ``my_sac``)."""
-    return "".join(_TEX_SPECIAL.get(ch, ch) for ch in text)
+def _scaled(c: dict[str, Any] | None, scale: float) -> dict[str, Any] | None:
+    if not c or c.get("mean") is None or scale == 1:
+        return c
+    return {
+        **c,
+        **{k: None if c.get(k) is None else c[k] / scale for k in ("mean", "std")},
+        "ci95": None if not c.get("ci95") else [v / scale for v in c["ci95"]],
+    }
 
 
 def md_table(summary: dict[str, Any], name: str, paper: dict[str, Any]) -> list[str]:
