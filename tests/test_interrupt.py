@@ -60,12 +60,13 @@ def test_ctrl_c_in_train_says_what_was_kept_and_how_to_resume(tmp_path):
     args = ["train", "--algo", "td3", "--task", "invertedpendulum", "--steps", "200000"]
     args += ["--learning-starts", "100", "--checkpoint-every", "200", "--out", "run"]
     done = _interrupt(args, tmp_path, tmp_path / "run" / "checkpoint.pt")
-    step = int(read_checkpoint(tmp_path / "run" / "checkpoint.pt")["step"])  # what is on disk
-    assert step >= 200
+    state = read_checkpoint(tmp_path / "run" / "checkpoint.pt")  # what is on disk
+    step = int(state["step"])
+    assert step >= 200 and state["interrupted"]  # written at Ctrl-C, at the step it came in
     _check(
         done,
-        f"rrls train: interrupted; the checkpoint at step {step:,} of 200,000 is kept in run; "
-        "to go on: rrls " + " ".join(args) + " --resume",
+        f"rrls train: interrupted; the checkpoint at the interrupted step {step:,} of 200,000 is "
+        "kept in run; to go on: rrls " + " ".join(args) + " --resume",
     )
 
 

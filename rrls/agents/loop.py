@@ -5,8 +5,9 @@ The loop owns what algorithms share, written once: the environments and their se
 uniformly random warm-up, acting, time limits (an episode truncated at ``max_episode_steps``
 bootstraps, a terminated one does not, and no transition crosses a reset), when updates start,
 periodic evaluation, checkpoints (each run's slice of the learner's state, taken every
-``checkpoint_every`` steps, mid-episode: the episode in progress is replayed on resume, so the
-resumed run continues bit for bit), logs and the export of the final policies.
+``checkpoint_every`` steps and at Ctrl-C, at the end of the step it came in, mid-episode: the
+episode in progress is replayed on resume, so the resumed run continues bit for bit), logs and
+the export of the final policies.
 
 Every generator of a run is a child of ``SeedSequence(seed)`` (``rrls.agents.streams``): the
 loop's ``"env"`` (first reset) and ``"warmup"`` streams, the learner's own.
@@ -21,6 +22,7 @@ from __future__ import annotations
 import json
 import multiprocessing
 import os
+import signal
 from collections.abc import Callable
 from contextlib import ExitStack
 from pathlib import Path
@@ -36,7 +38,7 @@ from rrls.agents.envs import env_factory, make_envs
 from rrls.agents.hparams import check_memory
 from rrls.agents.learner import check_runs_first, run_slice, stack_runs
 from rrls.agents.lookup import Algorithm, ResolvedRun, resolve_run
-from rrls.agents.run import Run, export_policies
+from rrls.agents.run import Run, StepBoundary, active_ctrl_c, export_policies
 from rrls.agents.streams import RunSeeds, rng_state, set_rng_state
 from rrls.agents.threads import process_settings
 from rrls.schema import loads_json
@@ -193,11 +195,24 @@ def _train_together(group: ResolvedRun, runs, states, on_episode, threads) -> No
 
         envs = TwinEnvs(make, len(runs), first.task, first.training_set(), first.device)
     else:
-        envs = make_envs(make, len(runs), env_workers(first, len(runs)))
+        envs = _without_ctrl_c(make_envs, make, len(runs), env_workers(first, len(runs)))
     try:
         _collect(algo, hyper, runs, states, on_episode, threads, template, envs)
     finally:
         envs.close()
+
+
+def _without_ctrl_c(start: Callable[..., Any], *args: Any) -> Any:
+    """``start(*args)`` with Ctrl-C ignored while it starts processes, which inherit that: the
+    terminal's Ctrl-C reaches the whole process group, and an env worker it killed would leave
+    the loop unable to finish the step whose end the checkpoint at Ctrl-C keeps."""
+    if not active_ctrl_c():
+        return start(*args)
+    previous = signal.signal(signal.SIGINT, signal.SIG_IGN)
+    try:
+        return start(*args)
+    finally:
+        signal.signal(signal.SIGINT, previous)
 
 
 def check_group_memory(hyper: Any, env: Any, group: int, steps: int) -> None:
@@ -315,9 +330,23 @@ def _collect(
         episodes.append(episode)
     obs = np.stack(observations)
 
+    def checkpoint(interrupted: bool = False) -> None:
+        """Every run's checkpoint of the loop's state at the end of a step."""
+        state = learner.state_dict()
+        check_runs_first(state, group)  # a wrong layout: one line now, not at resume
+        for k, run in enumerate(runs):
+            slice_k = {
+                "learner": run_slice(state, k),
+                "warmup": rng_state(warmup[k]),
+                "episode": episodes[k].state(obs[k]),
+            }
+            run.save(slice_k, interrupted)
+
     step, steps, group = runs[0].step, first.steps, len(runs)
     bar = runs[0].progress(group)
+    ctrl_c = StepBoundary()  # Ctrl-C: a checkpoint at the end of its step, then stop
     try:
+        ctrl_c.hold()
         while step < steps:
             if step < learning_starts:
                 actions = [uniform(template.action_space, rng) for rng in warmup]
@@ -363,19 +392,15 @@ def _collect(
             obs = next_obs
 
             if runs[0].checkpoint_due():
-                state = learner.state_dict()
-                check_runs_first(state, group)  # a wrong layout: one line now, not at resume
-                for k, run in enumerate(runs):
-                    run.save(
-                        {
-                            "learner": run_slice(state, k),
-                            "warmup": rng_state(warmup[k]),
-                            "episode": episodes[k].state(obs[k]),
-                        }
-                    )
+                checkpoint()
                 runs[0].check_stop()
             bar.update(group)
+            if ctrl_c.requested:  # Ctrl-C came during this step: keep its end, then stop
+                if runs[0].saved_step != step:
+                    checkpoint(interrupted=True)
+                raise KeyboardInterrupt
     finally:
+        ctrl_c.release()
         bar.close()
     for k, run in enumerate(runs):
         run.finish(

@@ -2,9 +2,10 @@
 metrics sinks (``Metrics``: TensorBoard, ``scalars.csv``, Weights & Biases with ``--track``, a
 progress bar) and the periodic evaluation (``PeriodicEvaluation``).
 
-Checkpoints are taken every ``checkpoint_every`` steps, mid-episode: they hold each run's slice
-of the learner's state, the loop's generator and the episode in progress (replayed on resume),
-so a resumed run continues exactly as the uninterrupted one (tested bit for bit). They are
+Checkpoints are taken every ``checkpoint_every`` steps, mid-episode, and at Ctrl-C (at the end
+of the step it came in: ``StepBoundary``): they hold each run's slice of the learner's state,
+the loop's generator and the episode in progress (replayed on resume), so a resumed run
+continues exactly as the uninterrupted one (tested bit for bit). They are
 written atomically, sealed by a SHA-256 (a damaged file is refused with a one-line error naming
 it) and loaded with ``torch.load(weights_only=True)``. File names: ``rrls.rundir``.
 """
@@ -14,7 +15,9 @@ from __future__ import annotations
 import io
 import json
 import os
+import signal
 import sys
+import threading
 import time
 from dataclasses import asdict
 from pathlib import Path
@@ -32,6 +35,51 @@ from rrls.schema import loads_json
 
 #: stop a run right after the checkpoint at or past this step, as if killed (fault injection)
 STOP_AT_ENV = "RRLS_STOP_AT"
+#: a checkpoint's flag: written at Ctrl-C (True) or on the periodic schedule
+INTERRUPTED_KEY = "interrupted"
+
+
+class StepBoundary:
+    """Ctrl-C held until the training step it came in ends (``requested``), so that the loop
+    writes a checkpoint of a consistent state (no update, episode or buffer left half-way) and
+    then stops; a second Ctrl-C stops at once. Only where Ctrl-C is Python's default (the main
+    thread; not a benchmark's run process, which ignores it)."""
+
+    def __init__(self) -> None:
+        self.requested = False
+        self._previous: Any = None
+
+    def hold(self) -> None:
+        """From now on Ctrl-C only sets ``requested`` (until ``release``)."""
+        if active_ctrl_c():
+            self._previous = signal.signal(signal.SIGINT, self._request)
+            self.requested = False
+
+    def _request(self, signum: int, frame: Any) -> None:
+        if self.requested:
+            raise KeyboardInterrupt
+        self.requested = True
+
+    def release(self) -> None:
+        """Ctrl-C as before ``hold``."""
+        if self._previous is not None:
+            signal.signal(signal.SIGINT, self._previous)
+            self._previous = None
+
+    def __enter__(self) -> StepBoundary:
+        self.hold()
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.release()
+
+
+def active_ctrl_c() -> bool:
+    """Whether Ctrl-C raises ``KeyboardInterrupt`` here (Python's default handler, main thread)."""
+    return (
+        threading.current_thread() is threading.main_thread()
+        and signal.getsignal(signal.SIGINT) is signal.default_int_handler
+    )
 
 
 def versions() -> dict[str, str]:
@@ -227,6 +275,7 @@ class Run:
         if not self.resumed:  # a fresh start: curves of a run killed before its first
             rundir.remove_run_files(self.dir)  # checkpoint would otherwise be appended to
         self._last_checkpoint = self._last_eval = 0
+        self.saved_step: int | None = None  # the step of the checkpoint this process wrote last
         self._t0, self._t0_step = time.perf_counter(), 0
 
     # -- checkpoints ------------------------------------------------------------------------
@@ -265,7 +314,8 @@ class Run:
                 f"beyond --steps {self.config.steps}"
             )
         self.step, self.episodes = int(state["step"]), int(state["episodes"])
-        self._last_checkpoint = self.step
+        # a checkpoint written at Ctrl-C keeps the periodic ones where they were due
+        self._last_checkpoint = int(state.get("last_checkpoint", self.step))
         self._last_eval = int(state["last_eval"])
         rundir.truncate_scalars(self.dir / rundir.SCALARS, self.step)
         return state
@@ -282,13 +332,18 @@ class Run:
     def checkpoint_due(self) -> bool:
         return self.step - self._last_checkpoint >= self.config.checkpoint_every
 
-    def save(self, state: dict[str, Any]) -> None:
-        """Write the checkpoint atomically, sealed by its checksum."""
+    def save(self, state: dict[str, Any], interrupted: bool = False) -> None:
+        """Write the checkpoint atomically, sealed by its checksum; ``interrupted``: at Ctrl-C,
+        off the periodic schedule (which a resume keeps: the same steps as an unbroken run)."""
+        if not interrupted:
+            self._last_checkpoint = self.step
         state = {
             **state,
             "step": self.step,
             "episodes": self.episodes,
             "last_eval": self._last_eval,
+            "last_checkpoint": self._last_checkpoint,
+            INTERRUPTED_KEY: interrupted,
             "config": json.dumps(self.config.identity(self.hyper)),
         }
         buf = io.BytesIO()
@@ -296,7 +351,7 @@ class Run:
         if self.metrics is not None:  # the curves reach at least as far as the checkpoint
             self.metrics.flush()
         rundir.write_sealed(self.checkpoint_path, buf.getvalue())
-        self._last_checkpoint = self.step
+        self.saved_step = self.step
 
     def check_stop(self) -> None:
         """Stop as if killed, right after the checkpoint at or past ``$RRLS_STOP_AT`` (fault

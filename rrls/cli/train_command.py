@@ -58,10 +58,11 @@ def run(args: argparse.Namespace) -> int:
 
 def _checkpoints_kept(configs: list[Any]) -> tuple[str, bool]:
     """What an interrupted ``rrls train`` keeps, read from its run directories: the step of
-    each checkpoint (``--resume`` goes on from it), or that none was written yet."""
+    each checkpoint (``--resume`` goes on from it: the interrupted step itself when the loop
+    wrote one at Ctrl-C), or that none was written yet."""
     from pathlib import Path
 
-    from rrls.agents.run import read_checkpoint
+    from rrls.agents.run import INTERRUPTED_KEY, read_checkpoint
     from rrls.rundir import CHECKPOINT
 
     at: dict[str, list[str]] = {}
@@ -70,7 +71,10 @@ def _checkpoints_kept(configs: list[Any]) -> tuple[str, bool]:
         if not path.exists():
             continue
         try:
-            step = f"step {int(read_checkpoint(path)['step']):,} of {config.steps:,}"
+            state = read_checkpoint(path)
+            step = f"step {int(state['step']):,} of {config.steps:,}"
+            if state.get(INTERRUPTED_KEY):  # written at this Ctrl-C: nothing trained is lost
+                step = f"the interrupted {step}"
         except (OSError, ValueError) as err:
             step = f"an unreadable step ({err})"
         at.setdefault(step, []).append(str(config.out))
