@@ -44,6 +44,7 @@ from rrls.experiments.names import ORDER, display_name
 from rrls.experiments.pairwise import markdown as pairwise_markdown
 from rrls.experiments.pairwise import paper_orderings
 from rrls.experiments.pairwise import write_tables as write_pairwise
+from rrls.experiments.rechecked import markdown as rechecked_markdown
 from rrls.experiments.summary import summarise
 from rrls.experiments.tables import label, md_table, terminal_table, write_tables
 from rrls.schema import loads_json
@@ -283,6 +284,7 @@ def _markdown(
             value = fmt(p["value"]) + (FEW if 0 < (p.get("min_seeds") or 3) < 3 else "")
             lines.append(f"| {label(summary, algo)} | {value} | {ci_text} | {p['n_tasks']} |")
         lines.append("")
+    lines += rechecked_markdown(summary, lambda a: label(summary, a))
     lines += pairwise_markdown(summary, lambda a: label(summary, a))
     lines += _reference_lines(summary)
     lines += _submitted_lines(summary)

@@ -31,6 +31,7 @@ from rrls.experiments import stats
 from rrls.experiments.caveats import check_normaliser
 from rrls.experiments.names import sort_algos
 from rrls.experiments.pairwise import summarise_pairs
+from rrls.experiments.rechecked import summarise_rechecked
 from rrls.schema import SchemaError, loads_json
 
 __all__ = ["CONVENTIONS", "Scores", "reference_name", "summarise"]
@@ -168,6 +169,7 @@ def summarise(root: str | Path, reference: Any = None) -> dict[str, Any]:
         "results": results,
         "aggregate": aggregates(scores, tasks, algos),
         "pairwise": summarise_pairs(scores.values, tasks, algos),
+        "rechecked": summarise_rechecked(tables["runs"]),
         "missing": missing,
         **provenance(tables),
         "normalisation": {
