@@ -258,7 +258,8 @@ def write_tables(summary: Mapping[str, Any], out: Any, name: Any = str) -> None:
 
     pairs = summary.get("pairwise") or {}
     records = [
-        {"task": t, "metric": m, **{k: v for k, v in r.items() if k != "ci95" and k != "n"},
+        {"task": t, "metric": m, "label_a": name(r["a"]), "label_b": name(r["b"]),
+         **{k: v for k, v in r.items() if k != "ci95" and k != "n"},
          "n_a": r["n"][0], "n_b": r["n"][1],
          "ci95_low": (r["ci95"] or [None, None])[0], "ci95_high": (r["ci95"] or [None, None])[1]}
         for t, by in pairs.items() for m, rows in by.items() for r in rows
