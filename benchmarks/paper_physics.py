@@ -7,8 +7,8 @@ mass write (``mj_setConst``); the paper's code wrote the parameters without reco
 (``--physics paper``, ``docs/differences.md``). Each run's ``policy.npz`` is evaluated under the
 folder's benchmark protocol with only ``physics`` changed to ``paper`` (its mesh, episodes and
 seeds), and its worst and average case written beside the shipped (v5) ones to
-``paper_physics.csv`` in the folder, one row per run as it finishes (a re-run skips the runs
-already there). The results page's ``physics`` block (``benchmarks/results_page.py``) reads it.
+``paper_physics.csv`` in the folder, one row per run as it finishes, every algorithm's seed 0
+first (a re-run skips the runs already there; several processes share the work). The results page's ``physics`` block (``benchmarks/results_page.py``) reads it.
 """
 
 from __future__ import annotations
@@ -42,14 +42,19 @@ def main() -> None:
     spec = benchfile.read_spec(args.folder)
     protocol = spec.protocol.replace(physics="paper")
     out = args.folder / "paper_physics.csv"
-    done = set()
-    if out.exists():
+    if not out.exists():
+        out.write_text(",".join(COLUMNS) + "\n")
+    runs = sorted((args.folder / "runs").iterdir())
+    runs.sort(key=lambda r: int(r.name.rpartition("seed")[2]))  # every algorithm's seed 0 first
+    for run in runs:
         with open(out, newline="") as f:
             done = {row["run"] for row in csv.DictReader(f)}
-    else:
-        out.write_text(",".join(COLUMNS) + "\n")
-    for run in sorted((args.folder / "runs").iterdir()):
+        claim = args.folder / f".paper_physics.{run.name}.claim"
         if run.name in done:
+            continue
+        try:  # several processes may share the folder: each run once
+            claim.touch(exist_ok=False)
+        except FileExistsError:
             continue
         shipped = json.loads((run / "result.json").read_text())
         start = time.time()
@@ -68,6 +73,7 @@ def main() -> None:
         ]
         with open(out, "a", newline="") as f:
             csv.writer(f).writerow(row)
+        claim.unlink()
         print(*row, flush=True)
 
 
