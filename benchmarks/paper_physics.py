@@ -8,7 +8,8 @@ mass write (``mj_setConst``); the paper's code wrote the parameters without reco
 folder's benchmark protocol with only ``physics`` changed to ``paper`` (its mesh, episodes and
 seeds), and its worst and average case written beside the shipped (v5) ones to
 ``paper_physics.csv`` in the folder, one row per run as it finishes, every algorithm's seed 0
-first (a re-run skips the runs already there; several processes share the work). The results page's ``physics`` block (``benchmarks/results_page.py``) reads it.
+first (a re-run skips the runs already there; several processes share the work). The results
+page's ``physics`` block (``benchmarks/results_page.py``) reads it.
 """
 
 from __future__ import annotations
