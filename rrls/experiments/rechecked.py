@@ -12,7 +12,7 @@ from typing import Any
 
 import numpy as np
 
-from rrls.experiments.names import task_name
+from rrls.experiments.names import sort_algos, task_name
 from rrls.experiments.stats import t_interval
 
 __all__ = ["markdown", "summarise_rechecked"]
@@ -39,10 +39,12 @@ def summarise_rechecked(runs: Any) -> dict[str, Any]:
         return {}
     done = runs[runs["worst_case_rechecked"].notna()]
     out: dict[str, Any] = {"quantile": sorted(set(done["recheck_quantile"].dropna()))}
-    for (task, algo), rows in done.groupby(["task", "algorithm"], sort=False):
-        out.setdefault("tasks", {}).setdefault(task, {})[algo] = {
-            col: _cell(rows[col].to_numpy(dtype=float)) for col in COLUMNS
-        } | {"runs": int(len(runs[(runs.task == task) & (runs.algorithm == algo)]))}
+    for task, by_task in done.groupby("task", sort=False):
+        for algo in sort_algos(by_task["algorithm"]):  # the paper's row order
+            rows = by_task[by_task["algorithm"] == algo]
+            out.setdefault("tasks", {}).setdefault(task, {})[algo] = {
+                col: _cell(rows[col].to_numpy(dtype=float)) for col in COLUMNS
+            } | {"runs": int(len(runs[(runs.task == task) & (runs.algorithm == algo)]))}
     return out
 
 
@@ -58,14 +60,14 @@ def markdown(summary: Mapping[str, Any], name: Any = str) -> list[str]:
     data = summary.get("rechecked") or {}
     if not data.get("tasks"):
         return []
-    q = ", ".join(f"{x:.0%}" for x in data["quantile"]) or "?"
+    q = ", ".join(f"{x * 100:g}th percentile" for x in data["quantile"]) or "a low quantile"
     lines = [
         "## Worst case, rechecked with fresh episodes",
         "",
         "The paper's worst case is the lowest of the mesh points' mean returns; with few "
         "episodes per point it picks the point whose episodes went worst by chance. Here each "
         "run's lowest points were re-evaluated with fresh, independent episodes (rechecked: the "
-        f"lowest of those new means) and the {q} quantile of its point means is given beside "
+        f"lowest of those new means) and the {q} of its point means is given beside "
         "(mean over seeds [95 % t interval]). Far above the paper's statistic: its minimum was "
         "partly episode noise.",
         "",
