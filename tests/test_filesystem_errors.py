@@ -10,6 +10,7 @@ from pathlib import Path
 
 import pytest
 
+from rrls._progress import PLAIN_LINE
 from rrls.cli import main
 from rrls.evaluation.policies import MLPPolicy
 
@@ -46,7 +47,11 @@ def tiny(tmp_path):
 def one_line(capsys) -> str:
     """The error's line (progress bars aside): one, and no traceback."""
     err = capsys.readouterr().err
-    lines = [line for line in err.strip().splitlines() if "%|" not in line]
+    lines = [
+        line
+        for line in err.strip().splitlines()
+        if "%|" not in line and not PLAIN_LINE.match(line)  # a bar, or a log's progress line
+    ]
     assert len(lines) == 1, lines
     assert "Traceback" not in err
     return lines[0]

@@ -324,6 +324,7 @@ def test_train_takes_any_set_the_task_declares_and_the_tasks_time_limit(tmp_path
     assert main([*args, "--uncertainty", "heavypole", "--out", str(out)]) == 0
     config = json.loads((out / "run.json").read_text())["config"]
     assert config["uncertainty"] == "heavypole" and config["max_episode_steps"] == 40
+    capsys.readouterr()  # the first run's progress lines
     assert main([*args, "--uncertainty", "3d", "--out", str(tmp_path / "x")]) == 2
     err = capsys.readouterr().err.strip()
     assert err.endswith("task 'namedsets' has no uncertainty set '3d'; valid: heavypole, rarl")

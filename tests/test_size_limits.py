@@ -43,7 +43,7 @@ TRAIN = ["train", "--algo", "td3", "--task", "invertedpendulum", "--steps", "300
         ([*TRAIN, "--hidden", "100000", "100000"], "hidden"),
         ([*TRAIN, "--hidden", *["8"] * 65], "hidden"),
         ([*TRAIN, "--threads", "100000"], "threads"),  # torch crashed (signal 11) here
-        ([*TRAIN, "--workers", "100000"], "env_workers"),
+        ([*TRAIN, "--workers", "100000"], "--workers"),
         ([*TRAIN, "--eval-episodes", "100000000"], "eval_episodes"),
         ([*TRAIN, "--eval-mesh", "100000"], "eval_mesh"),
         (["train", "--algo", "m2td3", "--task", "invertedpendulum", "--steps", "300",

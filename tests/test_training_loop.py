@@ -11,6 +11,7 @@ from conftest import stopping_at
 
 torch = pytest.importorskip("torch")
 
+from rrls._progress import PLAIN_LINE  # noqa: E402
 from rrls.agents import TrainConfig, hyperparameters, train  # noqa: E402
 from rrls.agents.streams import RunSeeds  # noqa: E402
 from rrls.cli import main  # noqa: E402
@@ -415,8 +416,10 @@ def test_track_logs_to_weights_and_biases_when_installed(tmp_path, monkeypatch, 
         raise RuntimeError("api_key not configured (no-tty). call wandb.login(key=[your_api_key])")
 
     monkeypatch.setitem(sys.modules, "wandb", types.SimpleNamespace(init=no_login))
+    capsys.readouterr()
     assert _cli(tmp_path / "nologin", "td3", 50, "--track") == 2
-    err = capsys.readouterr().err.strip()
+    lines = capsys.readouterr().err.strip().splitlines()
+    err = "\n".join(line for line in lines if not PLAIN_LINE.match(line))  # progress aside
     assert len(err.splitlines()) == 1 and "wandb login" in err and "WANDB_MODE=offline" in err
     assert "api_key not configured" in err
     monkeypatch.setitem(sys.modules, "wandb", None)  # not installed: one line naming the fix

@@ -16,7 +16,6 @@ import io
 import json
 import os
 import signal
-import sys
 import threading
 import time
 from dataclasses import asdict
@@ -371,16 +370,17 @@ class Run:
         self._metrics().log(values, self.step)
 
     def progress(self, group: int = 1) -> Any:
-        from tqdm.auto import tqdm
+        """The run's progress (``rrls._progress``: a bar on a terminal; ``progress=True``, as
+        ``rrls train`` sets it, plain lines elsewhere)."""
+        from rrls._progress import progress_bar
 
-        shown = self.config.progress
-        self._bar = tqdm(
-            total=self.config.steps * group,
+        self._bar = progress_bar(
+            self.config.steps * group,
             initial=self.step * group,
             unit="step",
             desc=f"{self.config.algo} {self.config.task}"
             + (f" ({group} runs)" if group > 1 else ""),
-            disable=not sys.stderr.isatty() if shown is None else not shown,
+            shown=self.config.progress,
             smoothing=0.05,
         )
         self._t0, self._t0_step = time.perf_counter(), self.step

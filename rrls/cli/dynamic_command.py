@@ -65,6 +65,7 @@ def run(args: argparse.Namespace) -> int:
             seed=args.episode_seed,
             workers=args.workers,
             out_dir=args.out,
+            progress=True,  # a bar on a terminal, plain lines in a log (as evaluate)
         )
         print(
             f"{result.env_id}: {result.mean:.2f} ± {result.std:.2f} over {args.episodes} episodes"

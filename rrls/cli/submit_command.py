@@ -121,7 +121,7 @@ def run(args: argparse.Namespace) -> int:
             alpha=args.alpha,
             preset=args.preset,
             workers=args.workers,
-            progress=None,
+            progress=True,  # a bar on a terminal, plain lines in a log (as evaluate)
             add_task=args.add_task,
             steps=args.steps,
             budget=budget,

@@ -225,7 +225,8 @@ def config_from_args(args: argparse.Namespace) -> tuple[TrainConfig, bool]:
         for f in fields(TrainConfig)
         if f.name not in ("progress", "hyper") and getattr(args, f.name, None) is not None
     }
-    return TrainConfig(**run, hyper=hyper), bool(args.resume)
+    # the command shows its progress: a bar on a terminal, plain lines in a log (rrls._progress)
+    return TrainConfig(**run, hyper=hyper, progress=True), bool(args.resume)
 
 
 __all__ = [

@@ -28,6 +28,7 @@ import numpy as np
 from threadpoolctl import threadpool_limits
 
 from rrls._proc import cores, die_with_parent
+from rrls._progress import progress_bar
 from rrls.evaluation.chunks import CHUNK, chunk_path, load_chunk, remove_leftovers, save_chunk
 from rrls.evaluation.lanes import LANES, Finished, RolloutSpec, make_rollout_envs, run_rows
 from rrls.evaluation.scheduling import WorkPlan, plan_work, shared_bounds, steal_horizon, take_row
@@ -85,8 +86,7 @@ def run(
 
     if len(todo):
         make_rollout_envs(spec, lanes)  # built once here: forked workers inherit them
-    bar = _progress_bar(n, progress)
-    bar.update(n - len(todo))
+    bar = progress_bar(n, unit="episode", desc="evaluating", shown=progress, initial=n - len(todo))
 
     def on_finished(finished: Finished) -> None:
         for row, ret, length, term, div in finished:
@@ -240,10 +240,3 @@ def _picklable(obj: Any) -> bool:
     except Exception:  # noqa: BLE001
         return False
     return True
-
-
-def _progress_bar(total: int, progress: bool | None) -> Any:
-    from tqdm.auto import tqdm
-
-    disable = not sys.stderr.isatty() if progress is None else not progress
-    return tqdm(total=total, unit="episode", desc="evaluating", disable=disable, smoothing=0.1)
