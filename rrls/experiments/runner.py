@@ -48,11 +48,19 @@ class Display:
         if self.tty:
             from tqdm.auto import tqdm
 
+            from rrls._progress import terminal_shape
+
+            shape = terminal_shape(self.stream)  # a terminal of size 0x0 would hide the bars
             self._bar = tqdm(
-                total=self.total, initial=done_before, unit="run", file=self.stream, position=0
+                total=self.total,
+                initial=done_before,
+                unit="run",
+                file=self.stream,
+                position=0,
+                **shape,
             )
             self._rows = [
-                tqdm(bar_format="{desc}", file=self.stream, position=i + 1, leave=False)
+                tqdm(bar_format="{desc}", file=self.stream, position=i + 1, leave=False, **shape)
                 for i in range(self.slots)
             ]
 
