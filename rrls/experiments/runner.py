@@ -50,7 +50,10 @@ class Display:
 
             from rrls._progress import terminal_shape
 
-            shape = terminal_shape(self.stream)  # a terminal of size 0x0 would hide the bars
+            try:  # a real terminal of size 0x0 would hide the bars (an in-memory one has none)
+                shape = terminal_shape(self.stream) if self.stream.fileno() >= 0 else {}
+            except (AttributeError, ValueError, OSError):
+                shape = {}
             self._bar = tqdm(
                 total=self.total,
                 initial=done_before,
