@@ -126,7 +126,7 @@ def recheck_value(text: str) -> dict[str, float]:
             f"invalid value {text!r}: write KxE or KxE@Q (10x20: the 10 lowest points, 20 fresh "
             "episodes each; @0.05: the quantile reported beside)"
         )
-    from rrls.evaluation.protocol import Recheck
+    from rrls.evaluation.recheck_settings import Recheck
 
     k, e, q = int(match[1]), int(match[2]), float(match[3]) if match[3] else 0.05
     try:

@@ -24,6 +24,7 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
+from rrls.evaluation.recheck_settings import Recheck
 from rrls.physics import is_paper, physics_label
 from rrls.uncertainty import BOX_SCHEMA, SPLIT_SCHEMA, Split, UncertaintySet, check_box
 from rrls.wrappers.tc_rmdp import RATE_GAMES
@@ -115,39 +116,6 @@ def check_protocol_alone(
             f"{caller} got protocol= and {', '.join(both)}: give the protocol alone (with "
             f"protocol.replace({field}=...) for another value) or the keywords alone"
         )
-
-
-@dataclass(frozen=True)
-class Recheck:
-    """How the worst case is rechecked (``rrls.evaluation.recheck``): the ``worst`` lowest
-    points, ``episodes`` fresh episodes each, and the ``quantile`` of the point means reported
-    beside it."""
-
-    worst: int = 10
-    episodes: int = 20
-    quantile: float = 0.05
-
-    def __post_init__(self) -> None:
-        for name in ("worst", "episodes"):
-            value = getattr(self, name)
-            if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 1:
-                raise ValueError(f"recheck {name} must be an integer >= 1, got {value!r}")
-            if value > 100_000:
-                raise ValueError(f"recheck {name} must be at most 100,000, got {value!r}")
-        q = self.quantile
-        if isinstance(q, bool) or not isinstance(q, (int, float)) or not 0 <= q <= 1:
-            raise ValueError(f"recheck quantile must be a number in [0, 1], got {q!r}")
-
-    def to_json(self) -> dict[str, Any]:
-        return asdict(self)
-
-    @classmethod
-    def from_json(cls, data: Any) -> Recheck:
-        if not isinstance(data, dict) or set(data) - {"worst", "episodes", "quantile"}:
-            raise ValueError(
-                f"recheck must be an object of worst, episodes, quantile: {data!r:.80}"
-            )
-        return cls(**data)
 
 
 class Plan(NamedTuple):

@@ -28,7 +28,7 @@ from typing import Any
 
 import numpy as np
 
-from rrls.evaluation.protocol import Recheck
+from rrls.evaluation.recheck_settings import Recheck
 
 __all__ = ["STREAM", "Recheck", "recheck", "recheck_seeds"]
 
