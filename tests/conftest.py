@@ -3,9 +3,14 @@
 from __future__ import annotations
 
 import os
+import signal
+import subprocess
+import sys
+import time
 import warnings
 from collections.abc import Iterator
 from contextlib import contextmanager
+from pathlib import Path
 
 import mujoco
 import numpy as np
@@ -68,3 +73,32 @@ def policy_arrays(run_dir) -> dict:
             with np.load(run_dir / name) as f:
                 out.update({f"{name}:{k}": f[k] for k in f.files if k != "header"})
     return out
+
+
+def interrupt_rrls(
+    args: list[str], cwd: Path, ready: Path, wait: float = 120
+) -> subprocess.CompletedProcess:
+    """Run ``rrls ARGS`` in its own process group, press Ctrl-C (SIGINT to the group, as a
+    terminal sends it) once ``ready`` exists (or after ``wait`` s), and return what it printed."""
+    # Python leaves SIGINT ignored if it starts ignored (a suite launched in the background by a
+    # non-interactive shell): give the child Ctrl-C's default, as a terminal would
+    code = "import signal, sys; signal.signal(signal.SIGINT, signal.default_int_handler); "
+    code += f"from rrls.cli import main; sys.exit(main({args!r}))"
+    env = {**os.environ, "PYTHONPATH": str(Path(__file__).resolve().parents[1])}
+    proc = subprocess.Popen(
+        [sys.executable, "-c", code], cwd=cwd, env=env, text=True, start_new_session=True,
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+    )  # fmt: skip
+    deadline = time.time() + wait
+    while not ready.exists() and proc.poll() is None and time.time() < deadline:
+        time.sleep(0.2)
+    time.sleep(1.0)
+    if proc.poll() is None:
+        os.killpg(proc.pid, signal.SIGINT)
+    try:
+        out, err = proc.communicate(timeout=120)
+    except subprocess.TimeoutExpired:  # never leave a run training behind a failed test
+        os.killpg(proc.pid, signal.SIGKILL)
+        proc.communicate()
+        raise
+    return subprocess.CompletedProcess(args, proc.returncode, out, err)

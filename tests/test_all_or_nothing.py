@@ -90,6 +90,28 @@ def succeed(action, root: Path, copy: Path) -> tuple[int, set[str]]:
     return fault.calls, paths
 
 
+def fail_each_step(action, bench, tmp_path, n, before, done, name, errors) -> int:
+    """Fail each of ``action``'s ``n`` file-system steps in turn on a fresh copy of ``bench``:
+    it raises one of ``errors`` and leaves the copy as ``before``, or (a step whose failure is
+    harmless) finishes whole (the paths ``done``). Returns how many failures were felt."""
+    failed = 0
+    for at in range(1, n + 1):
+        copy = tmp_path / f"at{at}"
+        shutil.copytree(bench, copy)
+        with pytest.MonkeyPatch.context() as mp:
+            Fault(mp, at)
+            try:
+                action(copy)
+            except errors:
+                failed += 1
+                assert snapshot(copy) == before, f"{name}: step {at} of {n} left changes"
+            else:
+                after = snapshot(copy)
+                assert set(after) == done and after != before, f"{name}: step {at} half done"
+        shutil.rmtree(copy)
+    return failed
+
+
 ACTIONS = {
     "submit --overwrite": lambda r: submit(
         r,
@@ -127,21 +149,7 @@ def test_a_failure_at_any_step_leaves_the_benchmark_as_it_was(bench, tmp_path, n
     n, done = succeed(action, bench, tmp_path / "count")
     assert n >= 3, f"{name}: only {n} file-system steps counted"
     before = snapshot(bench)
-    failed = 0
-    for at in range(1, n + 1):
-        copy = tmp_path / f"at{at}"
-        shutil.copytree(bench, copy)
-        with pytest.MonkeyPatch.context() as mp:
-            Fault(mp, at)
-            try:
-                action(copy)
-            except (OSError, SubmitError):
-                failed += 1
-                assert snapshot(copy) == before, f"{name}: step {at} of {n} left changes"
-            else:
-                after = snapshot(copy)
-                assert set(after) == done and after != before, f"{name}: step {at} half done"
-        shutil.rmtree(copy)
+    failed = fail_each_step(action, bench, tmp_path, n, before, done, name, (OSError, SubmitError))
     assert failed >= n // 2, f"{name}: only {failed} of {n} injected faults were felt"
 
 
@@ -208,19 +216,7 @@ def test_a_failed_store_rebuild_keeps_the_old_store(bench, tmp_path):
     build_store(bench)
     remove_submission(bench, "other")  # the next rebuild differs
     n, done = succeed(build_store, bench, tmp_path / "count")
-    before = snapshot(bench)
-    for at in range(1, n + 1):
-        copy = tmp_path / f"at{at}"
-        shutil.copytree(bench, copy)
-        with pytest.MonkeyPatch.context() as mp:
-            Fault(mp, at)
-            try:
-                build_store(copy)
-            except OSError:
-                assert snapshot(copy) == before, f"store: step {at} of {n} left changes"
-            else:
-                assert set(snapshot(copy)) == done
-        shutil.rmtree(copy)
+    fail_each_step(build_store, bench, tmp_path, n, snapshot(bench), done, "store", (OSError,))
 
 
 def test_a_failed_report_keeps_the_old_report(bench, tmp_path, monkeypatch):

@@ -5,42 +5,14 @@ them: SIGINT to the whole process group)."""
 from __future__ import annotations
 
 import os
-import signal
 import subprocess
-import sys
-import time
 from pathlib import Path
 
 import pytest
+from conftest import interrupt_rrls
 
 ROOT = Path(__file__).resolve().parent.parent
 POLICY = "import numpy as np\n\ndef zeros(obs):\n    return np.zeros((len(obs), 3))\n"
-
-
-def _interrupt(args: list[str], cwd: Path, ready: Path) -> subprocess.CompletedProcess:
-    """Run ``rrls ARGS``, press Ctrl-C once ``ready`` exists, and return what it printed."""
-    # Python leaves SIGINT ignored if it starts ignored (a suite launched in the background by a
-    # non-interactive shell): give the child Ctrl-C's default, as a terminal would
-    code = "import signal, sys; signal.signal(signal.SIGINT, signal.default_int_handler); "
-    code += f"from rrls.cli import main; sys.exit(main({args!r}))"
-    env = {**os.environ, "PYTHONPATH": str(ROOT)}
-    proc = subprocess.Popen(
-        [sys.executable, "-c", code], cwd=cwd, env=env, text=True, start_new_session=True,
-        stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-    )  # fmt: skip
-    deadline = time.time() + 120
-    while not ready.exists() and proc.poll() is None and time.time() < deadline:
-        time.sleep(0.2)
-    time.sleep(1.0)
-    if proc.poll() is None:
-        os.killpg(proc.pid, signal.SIGINT)
-    try:
-        out, err = proc.communicate(timeout=120)
-    except subprocess.TimeoutExpired:  # never leave a run training behind a failed test
-        os.killpg(proc.pid, signal.SIGKILL)
-        proc.communicate()
-        raise
-    return subprocess.CompletedProcess(args, proc.returncode, out, err)
 
 
 def _check(done: subprocess.CompletedProcess, line: str) -> None:
@@ -59,7 +31,7 @@ def test_ctrl_c_in_train_says_what_was_kept_and_how_to_resume(tmp_path):
 
     args = ["train", "--algo", "td3", "--task", "invertedpendulum", "--steps", "200000"]
     args += ["--learning-starts", "100", "--checkpoint-every", "200", "--out", "run"]
-    done = _interrupt(args, tmp_path, tmp_path / "run" / "checkpoint.pt")
+    done = interrupt_rrls(args, tmp_path, tmp_path / "run" / "checkpoint.pt")
     state = read_checkpoint(tmp_path / "run" / "checkpoint.pt")  # what is on disk
     step = int(state["step"])
     assert step >= 200 and state["interrupted"]  # written at Ctrl-C, at the step it came in
@@ -74,7 +46,7 @@ def test_ctrl_c_in_evaluate_keeps_finished_points_and_names_the_same_command(tmp
     (tmp_path / "hop.py").write_text(POLICY)
     args = ["evaluate", "hop:zeros", "--task", "hopper", "--uncertainty", "3d", "--mesh", "12"]
     args += ["--episodes", "3", "--workers", "2", "--out", "ev"]
-    done = _interrupt(args, tmp_path, tmp_path / "ev")
+    done = interrupt_rrls(args, tmp_path, tmp_path / "ev")
     # 12**3 points x 3 episodes: 5 184 episodes, 103 chunks of 50 and one of 34
     saved = [int(p.stem) for p in (tmp_path / "ev" / "chunks").glob("[0-9]*.npz")]
     n, kept = len(saved), sum(34 if c == 103 else 50 for c in saved)

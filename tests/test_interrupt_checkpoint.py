@@ -6,17 +6,13 @@ the default ``--checkpoint-every`` (50 000: no periodic checkpoint in these runs
 from __future__ import annotations
 
 import csv
-import os
 import shlex
 import signal
-import subprocess
-import sys
-import time
 from pathlib import Path
 
 import numpy as np
 import pytest
-from conftest import policy_arrays
+from conftest import interrupt_rrls, policy_arrays
 
 torch = pytest.importorskip("torch")
 
@@ -132,27 +128,10 @@ def test_ctrl_c_from_a_terminal_keeps_every_run_of_a_group_with_env_workers(tmp_
     args = ["train", "--algo", "td3", "--task", "invertedpendulum", "--steps", "200000"]
     args += ["--hidden", "16", "16", "--learning-starts", "100", "--eval-every", "0"]
     args += ["--seeds", "0-1", "--workers", "2", "--out", "run"]
-    code = "import signal, sys; signal.signal(signal.SIGINT, signal.default_int_handler); "
-    code += f"from rrls.cli import main; sys.exit(main({args!r}))"
-    env = {**os.environ, "PYTHONPATH": str(ROOT)}
-    proc = subprocess.Popen(
-        [sys.executable, "-c", code], cwd=tmp_path, env=env, text=True, start_new_session=True,
-        stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-    )  # fmt: skip
     ready = tmp_path / "run" / "seed1" / "scalars.csv"  # an episode has ended: training
-    deadline = time.time() + 180
-    while not ready.exists() and proc.poll() is None and time.time() < deadline:
-        time.sleep(0.2)
-    time.sleep(1.0)
-    if proc.poll() is None:
-        os.killpg(proc.pid, signal.SIGINT)
-    try:
-        _, err = proc.communicate(timeout=120)
-    except subprocess.TimeoutExpired:  # never leave a run training behind a failed test
-        os.killpg(proc.pid, signal.SIGKILL)
-        proc.communicate()
-        raise
-    assert proc.returncode == 130, err[-2000:]
+    done = interrupt_rrls(args, tmp_path, ready, wait=180)
+    err = done.stderr
+    assert done.returncode == 130, err[-2000:]
     assert "Traceback" not in err
     runs = [tmp_path / "run" / seed / "checkpoint.pt" for seed in ("seed0", "seed1")]
     steps = {int(read_checkpoint(path)["step"]) for path in runs}
