@@ -13,6 +13,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 import pytest
+from test_file_schemas import RESULT  # a valid result.json, beside this file
 
 from rrls import rundir
 from rrls.cli import main
@@ -112,15 +113,6 @@ def test_a_file_above_the_size_limit_is_refused_before_it_is_read_whole(tmp_path
 
 
 # --- each file kind, through its reader ------------------------------------------------------
-RESULT = {
-    "algorithm": "td3",
-    "task": "hopper",
-    "uncertainty": "3d",
-    "seed": 0,
-    "steps": 100,
-    "worst_case": 1.0,
-    "average_case": 2.0,
-}
 
 
 def _deep(path: Path, shape: str) -> Path:
