@@ -22,10 +22,14 @@ from rrls.experiments.pairwise import pairwise
 from rrls.experiments.stats import t_interval
 
 
-def _cell(values: list[float]) -> str:
+def seed_cell(values: list[float]) -> str:
+    """Per-seed values as a page shows them: the mean with its 95 % Student-t interval (the
+    report's method, ``rrls.experiments.stats.t_interval``); one seed: its value."""
+    if not values:
+        return ""
+    mean = sum(values) / len(values)
     ci = t_interval(values)
-    mean = float(np.mean(values))
-    return f"{mean:.1f} [{ci[0]:.1f}, {ci[1]:.1f}]" if ci else f"{mean:.1f}"
+    return f"{mean:.1f}" if ci is None else f"{mean:.1f} [{ci[0]:.1f}, {ci[1]:.1f}]"
 
 
 def _order(values: dict[str, list[float]]) -> str:
@@ -67,8 +71,8 @@ def rechecked(folder: Path) -> str | None:
         by = rows[a]
         gain = ", ".join(f"{r - p:+.0f}" for p, r in zip(by["paper"], by["rechecked"]))
         lines.append(
-            f"| {display_name(a)} | {len(by['paper'])} | {_cell(by['paper'])} | "
-            f"{_cell(by['rechecked'])} | {gain} | {_cell(by['q'])} |"
+            f"| {display_name(a)} | {len(by['paper'])} | {seed_cell(by['paper'])} | "
+            f"{seed_cell(by['rechecked'])} | {gain} | {seed_cell(by['q'])} |"
         )
     lines.append("")
     for key, name in (("paper", "the paper's worst case"), ("rechecked", "rechecked")):
@@ -104,7 +108,7 @@ def physics(folder: Path) -> str | None:
         for metric in ("worst_case", "average_case"):
             v5, paper = by[f"{metric}_v5"], by[f"{metric}_paper"]
             change = float(np.mean(paper) - np.mean(v5))
-            cells += [_cell(v5), _cell(paper), f"{change:+.1f}"]
+            cells += [seed_cell(v5), seed_cell(paper), f"{change:+.1f}"]
         lines.append(
             f"| {display_name(a)} | {len(by['worst_case_v5'])} | " + " | ".join(cells) + " |"
         )

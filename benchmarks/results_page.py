@@ -33,6 +33,7 @@ import sys
 from pathlib import Path
 
 from collect_runs import run_seconds  # benchmarks/, beside this script
+from page_checks import seed_cell  # beside this script too
 
 from rrls.algorithms import display_name, sort_algos
 from rrls.experiments.pairwise import judge_paper, pairwise
@@ -74,7 +75,7 @@ def dynamic(folder: Path, reference: str | None) -> dict[str, str]:
         for row in load_reference(reference).rows:
             values = list(row["values"] or [])
             if row["metric"] == "dynamic":
-                cells[row["algorithm"]] = _cell(values)
+                cells[row["algorithm"]] = seed_cell(values)
             elif values != data[row["algorithm"]][row["metric"]]:
                 raise SystemExit(
                     f"{reference}: {row['algorithm']} {row['metric']} per seed "
@@ -95,14 +96,6 @@ def dynamic(folder: Path, reference: str | None) -> dict[str, str]:
     return cells
 
 
-def _cell(values: list[float]) -> str:
-    if not values:
-        return ""
-    mean = sum(values) / len(values)
-    ci = t_interval(values)
-    return f"{mean:.1f}" if ci is None else f"{mean:.1f} [{ci[0]:.1f}, {ci[1]:.1f}]"
-
-
 def summary(data: dict[str, dict[str, list[float]]], dyn: dict[str, str]) -> str:
     lines = [
         "| algorithm | seeds | worst case | average case | final nominal return per seed "
@@ -114,7 +107,7 @@ def summary(data: dict[str, dict[str, list[float]]], dyn: dict[str, str]) -> str
         nom = ", ".join(f"{v:.0f}" for v in cells["nominal"])
         lines.append(
             f"| {display_name(algo)} | {len(cells['worst_case'])} | "
-            f"{_cell(cells['worst_case'])} | {_cell(cells['average_case'])} | {nom} | "
+            f"{seed_cell(cells['worst_case'])} | {seed_cell(cells['average_case'])} | {nom} | "
             f"{dyn.get(algo, '')} |"
         )
     return "\n".join(lines) + "\n"
@@ -256,7 +249,7 @@ def paper_comparison(folder: Path) -> str:
         cells = []
         for metric, table in tables.items():
             mean, std = paper[table][algo][task]
-            cells += [_cell(data[algo][metric]), f"{mean:.1f} ± {std:.1f}"]
+            cells += [seed_cell(data[algo][metric]), f"{mean:.1f} ± {std:.1f}"]
         lines.append(f"| {display_name(algo)} | " + " | ".join(cells) + " |")
     lines.append("")
     few = [a for a in sort_algos(data) if len(data[a]["worst_case"]) < 2]
@@ -444,7 +437,8 @@ def earlier(folder: Path, sub: str = "earlier") -> str:
             ratio = f"{mean_b / mean_a:.2f}" if mean_a else ""
             diffs = ", ".join(f"{y - x:+.0f}" for x, y in zip(a, b))
             lines.append(
-                f"| {display_name(algo)} | {name} | {_cell(a)} | {_cell(b)} | {ratio} | {diffs} "
+                f"| {display_name(algo)} | {name} | {seed_cell(a)} | {seed_cell(b)} | {ratio} "
+                f"| {diffs} "
                 f"| {'apart' if apart else 'overlap'} |"
             )
     return "\n".join(lines) + "\n"

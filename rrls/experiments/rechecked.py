@@ -10,10 +10,9 @@ from __future__ import annotations
 from collections.abc import Mapping
 from typing import Any
 
-import numpy as np
-
+from rrls.experiments.cells import ci
 from rrls.experiments.names import sort_algos, task_name
-from rrls.experiments.stats import t_interval
+from rrls.experiments.stats import describe, rng_for
 
 __all__ = ["markdown", "summarise_rechecked"]
 
@@ -22,14 +21,6 @@ COLUMNS = {
     "worst_case_rechecked": "rechecked",
     "worst_case_q": "low quantile",
 }
-
-
-def _cell(values: np.ndarray) -> dict[str, Any]:
-    return {
-        "mean": float(values.mean()) if len(values) else None,
-        "ci95": t_interval(values) if len(values) > 1 else None,
-        "n": int(len(values)),
-    }
 
 
 def summarise_rechecked(runs: Any) -> dict[str, Any]:
@@ -43,16 +34,10 @@ def summarise_rechecked(runs: Any) -> dict[str, Any]:
         for algo in sort_algos(by_task["algorithm"]):  # the paper's row order
             rows = by_task[by_task["algorithm"] == algo]
             out.setdefault("tasks", {}).setdefault(task, {})[algo] = {
-                col: _cell(rows[col].to_numpy(dtype=float)) for col in COLUMNS
+                col: describe(rows[col].to_numpy(dtype=float), rng_for(task, algo, col))
+                for col in COLUMNS
             } | {"runs": int(len(runs[(runs.task == task) & (runs.algorithm == algo)]))}
     return out
-
-
-def _text(cell: Mapping[str, Any]) -> str:
-    if cell["mean"] is None:
-        return "–"
-    ci = cell["ci95"]
-    return f"{cell['mean']:.1f}" + (f" [{ci[0]:.1f}, {ci[1]:.1f}]" if ci else "")
 
 
 def markdown(summary: Mapping[str, Any], name: Any = str) -> list[str]:
@@ -76,7 +61,7 @@ def markdown(summary: Mapping[str, Any], name: Any = str) -> list[str]:
     ]
     for task, by_algo in data["tasks"].items():
         for algo, cells in by_algo.items():
-            n = cells["worst_case_rechecked"]["n"]
-            row = " | ".join(_text(cells[c]) for c in COLUMNS)
+            n = cells["worst_case_rechecked"]["n_seeds"]
+            row = " | ".join(ci(cells[c], 1) for c in COLUMNS)
             lines.append(f"| {task_name(task)} | {name(algo)} | {n} of {cells['runs']} | {row} |")
     return [*lines, ""]
