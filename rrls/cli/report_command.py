@@ -21,9 +21,21 @@ def add_parser(sub: argparse._SubParsersAction) -> argparse.ArgumentParser:
         NAME,
         help="regenerate a benchmark's report (summary.json, report.md, tables, figures)",
         description="Rebuild DIR/results from the run directories and write DIR/report: "
-        "summary.json, report.md, tables/*.tex (booktabs) and *.csv, figures.",
+        "summary.json, report.md, tables/*.tex (booktabs) and *.csv, figures. Several DIRs "
+        "with --out OUT: one report across their tasks in OUT/report.",
     )
-    r.add_argument("dir", help="a `rrls benchmark --out` directory")
+    r.add_argument(
+        "dir",
+        nargs="+",
+        help="a `rrls benchmark --out` directory; several (with --out): one report across "
+        "their tasks, each task from one of them (the paper's Tables 4-5 over references "
+        "trained a task at a time)",
+    )
+    r.add_argument(
+        "--out",
+        metavar="DIR",
+        help="with several benchmark directories: where the joined report is written (DIR/report)",
+    )
     r.add_argument("--no-plots", action="store_true", help="skip the figures")
     r.add_argument(
         "--no-titles",
@@ -88,9 +100,10 @@ def _report(args: argparse.Namespace) -> int:
     from rrls.experiments.store import build_store
     from rrls.interrupts import identity, keeping
 
-    root = Path(args.dir)
-    if not (root / "runs").is_dir() and not (root / "results").is_dir():
-        return fail("report", f"{root} is not a benchmark directory (no runs/ or results/)")
+    roots = [Path(d) for d in args.dir]
+    for root in roots:
+        if not (root / "runs").is_dir() and not (root / "results").is_dir():
+            return fail("report", f"{root} is not a benchmark directory (no runs/ or results/)")
     labels = {}
     for item in args.rename or []:
         name, sep, text = item.partition("=")
@@ -99,6 +112,9 @@ def _report(args: argparse.Namespace) -> int:
                 "report", f"--rename {item!r}: write NAME=TEXT (NAME@REF for a reference row)"
             )
         labels[name.strip()] = text.strip()
+    if len(roots) > 1 or args.out:
+        return _joined(args, roots, labels)
+    root = roots[0]
     written = [root / name for name in FOLDERS]
     if args.export_reference:
         written.append(Path(args.export_reference))
@@ -132,6 +148,51 @@ def _report(args: argparse.Namespace) -> int:
                 f"{len(exported.rows)} cells; `rrls report DIR --reference "
                 f"{shlex.quote(str(args.export_reference))}`)"
             )
+    return 0
+
+
+def _joined(args: argparse.Namespace, roots: list[Any], labels: dict[str, str]) -> int:
+    """``rrls report DIR DIR ... --out OUT``: each benchmark's store rebuilt under its own lock,
+    then one report across their tasks in OUT/report."""
+    from pathlib import Path
+
+    from rrls.experiments.benchfile import reporting, stored_fingerprints
+    from rrls.experiments.report import make_cross_report
+    from rrls.experiments.store import build_store
+    from rrls.interrupts import identity, keeping
+
+    if len(roots) < 2 or not args.out:
+        return fail("report", "a joined report takes two or more DIRs and --out OUT")
+    for flag, given in (
+        ("--reference", args.reference),
+        ("--export-reference", args.export_reference),
+        ("--allow-other-budget", args.allow_other_budget),
+    ):
+        if given:
+            return fail(
+                "report",
+                f"{flag} applies to one benchmark; a joined report normalises each "
+                "task by its own benchmark's TD3 and M2TD3",
+            )
+    out = Path(args.out)
+    before = {out / "report": identity(out / "report")}
+    with keeping(lambda: _rebuilt(out, before)):
+        for root in roots:
+            if (root / "runs").is_dir():
+                with reporting(root):
+                    build_store(root, stored_fingerprints(root))
+        try:
+            path = make_cross_report(
+                roots,
+                out,
+                plots=not args.no_plots,
+                labels=labels or None,
+                titles=not args.no_titles,
+                cells=args.cells,
+            )
+        except ValueError as err:
+            return fail("report", str(err))
+    print(f"report: {path}")
     return 0
 
 

@@ -13,6 +13,7 @@ from typing import Any
 
 from rrls.experiments.caveats import BUDGET, BUDGET_TEX_MARK, FEW_SEEDS_TEX, UNSTABLE_TEX
 from rrls.experiments.cells import tex_ci, tex_pm
+from rrls.experiments.names import task_name
 
 __all__ = ["CELLS", "PACKAGES", "caption", "fit", "fit_file", "tex_escape"]
 
@@ -48,16 +49,29 @@ def caption(
     spec = summary.get("benchmark") or {}
     normalised = title.startswith("Normalised")
     where = ""
+    by_task = spec.get("by_task") or {}
     if spec:
-        where = (
-            f"; set {tex_escape(str(spec['uncertainty']))}, {spec['mesh']} mesh points per "
-            f"dimension, {spec['episodes']} episode{'s' * (spec['episodes'] != 1)} per point"
+        episodes = spec.get("episodes")
+        where = f"; set {tex_escape(str(spec['uncertainty']))}, {spec['mesh']} mesh points per " + (
+            f"dimension, {episodes} episode{'s' * (episodes != 1)} per point"
+            if episodes
+            else "dimension"
         )
     text = [f"{title.split(' (paper')[0]} ({SCORE_TEXT[metric]}{where})."]
     n = "?" if not seeds else str(seeds[0]) if len(seeds) == 1 else f"{seeds[0]}--{seeds[-1]}"
     text.append(f"Each cell: {CELLS[family][1]} over {n} seed{'s' * (n != '1')}.")
-    if spec.get("steps"):
+    if spec.get("steps") and not by_task:
         text.append(f"Training budget: {spec['steps']:,} steps per run.")
+    elif by_task:  # joined benchmarks: each task's own budget, seeds and episodes
+        text.append(
+            "Each task from its own benchmark: "
+            + "; ".join(
+                f"{tex_escape(task_name(t))} {t_['steps']:,} steps per run, "
+                f"{len(t_['seeds'])} seeds, {t_['episodes']} episodes per point"
+                for t, t_ in by_task.items()
+            )
+            + "."
+        )
     if normalised:
         text.append(
             "Normalised score: $(v - v_{\\mathrm{TD3}}) / |v_{\\mathrm{M2TD3}} - "

@@ -28,28 +28,34 @@ from typing import Any
 
 from rrls.evaluation.metrics import SPLIT_SCORES
 from rrls.experiments.caveats import (
-    BUDGET,
-    BUDGET_NOTE,
     FEW,
     FEW_SEEDS_NOTE,
     UNSTABLE_NOTE,
-    budget_differs,
     few_seeds,
     unstable_normalisation,
 )
 from rrls.experiments.cells import fmt, pm
 from rrls.experiments.changes import rebuild_folder
+from rrls.experiments.crosstask import sources_lines
 from rrls.experiments.latex import fit_file
 from rrls.experiments.names import ORDER, display_name
+from rrls.experiments.origins import budget_lines, reference_lines, submitted_lines
 from rrls.experiments.pairwise import markdown as pairwise_markdown
 from rrls.experiments.pairwise import paper_orderings
 from rrls.experiments.pairwise import write_tables as write_pairwise
 from rrls.experiments.rechecked import markdown as rechecked_markdown
-from rrls.experiments.summary import summarise
+from rrls.experiments.summary import summarise, summarise_store
 from rrls.experiments.tables import label, md_table, terminal_table, write_tables
 from rrls.schema import loads_json
 
-__all__ = ["make_report", "paper_results", "summarise", "terminal_table"]
+__all__ = [
+    "make_cross_report",
+    "make_report",
+    "paper_results",
+    "summarise",
+    "terminal_table",
+    "write_report",
+]
 
 
 def paper_results() -> dict[str, Any]:
@@ -78,7 +84,7 @@ def make_report(
     ``labels``: ``{algorithm (or algorithm@reference): row name}`` for every table and figure.
     ``titles=False``: figures without titles, for a paper whose captions say what they show.
     """
-    from rrls._io import atomic_write_bytes, atomic_write_json
+    from rrls.experiments.store import load_store
 
     root = Path(root)
     if reference is not None:
@@ -93,6 +99,42 @@ def make_report(
         check_compatible(reference, benchfile.read_spec_json(root), other_budget=allow_other_budget)
     _check_has_runs(root)
     summary = summarise(root, reference)
+    return write_report(root, load_store(root), summary, plots, reference, labels, titles, cells)
+
+
+def make_cross_report(
+    dirs: list[str | Path],
+    out: str | Path,
+    plots: bool = True,
+    labels: dict[str, str] | None = None,
+    titles: bool = True,
+    cells: str = "ci",
+) -> Path:
+    """Write ``out/report/`` over several benchmarks (``rrls.experiments.crosstask.joined``:
+    each task from one of them, normalised by its own TD3 and M2TD3), as ``make_report``
+    writes one benchmark's: the paper's Tables 4-5 across the tasks, whole or not at all."""
+    from rrls.experiments.crosstask import joined
+
+    tables, spec = joined(list(dirs))
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    summary = summarise_store(tables, spec)
+    return write_report(out, tables, summary, plots, None, labels, titles, cells)
+
+
+def write_report(
+    root: Path,
+    store: dict[str, Any],
+    summary: dict[str, Any],
+    plots: bool,
+    reference: Any,
+    labels: dict[str, str] | None,
+    titles: bool,
+    cells: str,
+) -> Path:
+    """``root/report/`` from a summary and the store it was computed from."""
+    from rrls._io import atomic_write_bytes, atomic_write_json
+
     if labels:
         summary["labels"] = dict(labels)
     summary["table_cells"] = cells
@@ -105,14 +147,12 @@ def make_report(
         for path in sorted((out / "tables").glob("pairwise_*.tex")):
             fit_file(path)  # never wider than the line, as the other tables
         summary["tables_not_written"] = skipped
-        per_run = _per_run(root, out / "tables", summary)
+        per_run = _per_run(store, out / "tables", summary)
         figures: list[tuple[str, Path]] = []
         if plots:
             try:
                 from rrls.experiments import plots as plotting
-                from rrls.experiments.store import load_store
 
-                store = load_store(root)
                 figures = plotting.make_figures(
                     store, summary, out / "figures", reference, titles=titles
                 )
@@ -140,14 +180,13 @@ def _check_has_runs(root: Path) -> None:
     raise ValueError(f"{root}: no run has finished ({why}); there is nothing to report yet")
 
 
-def _per_run(root: Path, tables: Path, summary: dict[str, Any]) -> list[str]:
+def _per_run(store: dict[str, Any], tables: Path, summary: dict[str, Any]) -> list[str]:
     """``tables/per_run.csv`` (each row's label beside its algorithm) and its ``report.md``
     section (none for an empty store)."""
     from rrls._io import atomic_write_table
     from rrls.experiments.per_run import per_run_lines, per_run_table
-    from rrls.experiments.store import load_store
 
-    table = per_run_table(load_store(root))
+    table = per_run_table(store)
     if not len(table):
         return []
     table.insert(2, "label", [label(summary, a) for a in table["algorithm"]])
@@ -192,7 +231,14 @@ def _markdown(
 ) -> str:
     spec = summary.get("benchmark") or {}
     lines = ["# rrls benchmark report", ""]
-    if spec:
+    by_task = spec.get("by_task") or {}
+    if by_task:  # several benchmarks joined (rrls.experiments.crosstask): per task below
+        lines.append(
+            f"- {len(by_task)} benchmarks joined, one per task: {_counts(summary)}, set "
+            f"`{spec['uncertainty']}`, mesh {spec['mesh']} per dimension; each task's budget, "
+            "seeds and episodes under Sources below"
+        )
+    elif spec:
         lines += [
             f"- preset `{spec.get('preset')}`: {_counts(summary)}, {spec['steps']:,} "
             f"training steps per run trained here (other sources: Budgets below), set "
@@ -200,8 +246,10 @@ def _markdown(
             f"dimension × {spec['episodes']} episodes, dynamic evaluation "
             f"{spec['dynamic_episodes']} episodes",
         ]
+    if spec:
+        steps = [t.get("steps") or 0 for t in by_task.values()] or [spec["steps"]]
         reduced = (
-            spec["steps"] < paper["steps"]
+            max(steps) < paper["steps"]
             or spec["uncertainty"] != paper["uncertainty"]
             or len(spec["seeds"]) < paper["seeds"]
         )
@@ -226,7 +274,8 @@ def _markdown(
         else "- `(paper ...)`: the paper's published number for the same cell"
     )
     lines.append("")
-    lines += _budget_lines(summary)
+    lines += sources_lines(spec)
+    lines += budget_lines(summary)
     if summary["missing"]:
         lines += ["## Missing cells", ""] + [f"- {m}" for m in summary["missing"]] + [""]
     lines += _normalisation_lines(summary)
@@ -286,8 +335,8 @@ def _markdown(
         lines.append("")
     lines += rechecked_markdown(summary, lambda a: label(summary, a))
     lines += pairwise_markdown(summary, lambda a: label(summary, a))
-    lines += _reference_lines(summary)
-    lines += _submitted_lines(summary)
+    lines += reference_lines(summary)
+    lines += submitted_lines(summary)
     if figures:
         lines += ["## Figures", "", "Each figure is also a vector PDF beside its PNG.", ""]
         for caption, path in figures:
@@ -321,6 +370,10 @@ def _counts(summary: dict[str, Any]) -> str:
         if (held := done.get(source))
     ]
     trained = done.get("trained") or {}
+    if spec.get("by_task"):  # joined benchmarks: seeds differ by task (Sources)
+        return f"{trained.get('runs', 0)} runs trained there" + (
+            f", {parts[1]}" if len(parts) > 1 else ""
+        )
     planned = [len(spec.get(k) or []) for k in ("algos", "tasks", "seeds")]
     if planned[0] and planned != [
         len(trained.get(k) or []) for k in ("algorithms", "tasks", "seeds")
@@ -362,114 +415,4 @@ def _normalisation_lines(summary: dict[str, Any]) -> list[str]:
             + f"): {', '.join(sources['-'])}"
         )
     lines += unstable_normalisation(summary)
-    return [*lines, ""]
-
-
-def _reference_lines(summary: dict[str, Any]) -> list[str]:
-    """Where the reference's rows of the tables come from (its protocol and budget)."""
-    ref = summary.get("reference")
-    if not ref or not ref.get("rows"):
-        return []
-    return [
-        f"## Reference: {ref['label']}",
-        "",
-        f"`{ref['file']}`: physics {ref['physics']}, set {summary['uncertainty']}, mesh "
-        f"{ref['mesh']} x {ref['episodes']} episodes"
-        + (f", {ref['steps']:,} training steps per run" if ref.get("steps") else "")
-        + f". Its rows are labelled `(ref. {ref['name']})` (or as `--rename` names them) in "
-        "every table above and in `tables/*.tex`; normalised with "
-        + (
-            "its own TD3 and M2TD3 means (its budget is not this benchmark's: its rows carry "
-            f"{BUDGET}).",
-            "this report's TD3 and M2TD3 means.",
-        )[not str(ref.get("normalised_by", "")).startswith("its")],
-        "",
-    ]
-
-
-def _budget_lines(summary: dict[str, Any]) -> list[str]:
-    """Each source's training budget beside the benchmark's: its own runs, every submitted
-    algorithm (what its submitter declared, or its policy recorded), the reference."""
-    spec = summary.get("benchmark") or {}
-    own, submitted = spec.get("steps"), summary.get("submitted") or []
-    ref = summary.get("reference") or {}
-    if not submitted and not ref.get("rows"):
-        return []
-
-    def steps_text(steps: Any) -> str:
-        return f"{steps:,}" if steps else "not stated"
-
-    rows = []
-    if spec.get("algos"):
-        rows.append(("this benchmark's runs", steps_text(own), "", ""))
-    by_algo: dict[str, list[dict[str, Any]]] = {}
-    for run in submitted:
-        by_algo.setdefault(run["algorithm"], []).append(run)
-    differing = {a for a in by_algo if budget_differs(summary, a)}
-    differing |= {a for a in summary.get("run_steps") or {} if budget_differs(summary, a)}
-    for algo, runs in by_algo.items():
-        values = sorted({r.get("steps") or 0 for r in runs})
-        extra = sorted({f"{k} {v}" for r in runs for k, v in (r.get("budget") or {}).items()
-                        if k not in ("steps", "declared_by") and v is not None})  # fmt: skip
-        who = sorted({(r.get("budget") or {}).get("declared_by") or "nobody" for r in runs})
-        differs = algo in differing
-        rows.append(
-            (
-                label(summary, algo),
-                ", ".join(steps_text(v) for v in values),
-                "; ".join(extra),
-                f"declared by {', '.join(who)}" + ("; **differs**" if differs else ""),
-            )
-        )
-    for algo, steps in (summary.get("run_steps") or {}).items():
-        if budget_differs(summary, algo):  # a run of this benchmark with other steps
-            rows.append(
-                (label(summary, algo), ", ".join(map(steps_text, steps)), "", "**differs**")
-            )
-    if ref.get("rows"):
-        differs = bool(own) and ref.get("steps") != own
-        rows.append(
-            (
-                f"reference {ref.get('name')}" + (BUDGET if differs else ""),
-                steps_text(ref.get("steps")),
-                "",
-                "its file" + ("; **differs**" if differs else ""),
-            )
-        )
-    lines = [
-        "## Budgets",
-        "",
-        f"Training steps per run of each source; this benchmark's protocol: {steps_text(own)}.",
-        "",
-        "| source | training steps | other budget | note |",
-        "|---|---|---|---|",
-        *[f"| {a} | {b} | {c or '–'} | {d or '–'} |" for a, b, c, d in rows],
-        "",
-    ]
-    if differing or (ref.get("rows") and budget_differs(summary, "", "reference_results")):
-        lines += [BUDGET_NOTE, ""]
-    return lines
-
-
-def _submitted_lines(summary: dict[str, Any]) -> list[str]:
-    """Where the submitted policies came from (``rrls submit``'s provenance)."""
-    rows = summary.get("submitted") or []
-    if not rows:
-        return []
-    lines = [
-        "## Submitted policies",
-        "",
-        "Evaluated by `rrls submit` under this benchmark's protocol (same set, mesh, episodes "
-        "and episode seeds as its own runs); not trained here.",
-        "",
-        "| algorithm | task | seed | kind | source | sha256 |",
-        "|---|---|---|---|---|---|",
-    ]
-    for r in rows:
-        sha = (r.get("policy_sha256") or "")[:12] or "–"
-        lines.append(
-            f"| {label(summary, r['algorithm'])} | {r['task']} | {r['seed']} "
-            f"| {r.get('policy_kind') or '–'} "
-            f"| `{r.get('policy_source') or '–'}` | {sha} |"
-        )
     return [*lines, ""]

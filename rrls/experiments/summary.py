@@ -34,7 +34,7 @@ from rrls.experiments.pairwise import summarise_pairs
 from rrls.experiments.rechecked import summarise_rechecked
 from rrls.schema import SchemaError, loads_json
 
-__all__ = ["CONVENTIONS", "Scores", "reference_name", "summarise"]
+__all__ = ["CONVENTIONS", "Scores", "reference_name", "summarise", "summarise_store"]
 
 #: algorithms evaluated against their own adversary (paper Table 6)
 
@@ -147,8 +147,16 @@ def summarise(root: str | Path, reference: Any = None) -> dict[str, Any]:
     from rrls.experiments.store import load_store
 
     root = Path(root)
-    tables = load_store(root)
     spec = benchfile.read_spec_json(root) if benchfile.spec_path(root).exists() else None
+    return summarise_store(load_store(root), spec, reference)
+
+
+def summarise_store(
+    tables: dict[str, Any], spec: dict[str, Any] | None, reference: Any = None
+) -> dict[str, Any]:
+    """``summarise`` of a store already loaded and its benchmark's ``spec`` (``None``: the tasks,
+    algorithms and set are read from the evaluations): what a report over several benchmarks
+    (``rrls.experiments.crosstask``) summarises with their stores joined."""
     ev = tables["evaluations"]
     tasks = list(
         dict.fromkeys([*(spec["tasks"] if spec else []), *(ev["task"] if len(ev) else [])])
@@ -156,7 +164,9 @@ def summarise(root: str | Path, reference: Any = None) -> dict[str, Any]:
     algos = sort_algos([*(spec["algos"] if spec else []), *(ev["algorithm"] if len(ev) else [])])
     uncertainty = spec["uncertainty"] if spec else (ev["uncertainty"].iloc[0] if len(ev) else None)
     scores = Scores(tables, reference, uncertainty)
-    results, missing = cells(scores, tasks, algos, len(spec["seeds"]) if spec else None)
+    by_task = (spec or {}).get("by_task") or {}  # joined benchmarks: each task its seeds
+    expected = {t: len((by_task.get(t) or spec or {}).get("seeds") or []) for t in tasks}
+    results, missing = cells(scores, tasks, algos, expected if spec else None)
     refs = {t: {m: scores.norm_refs(t, m) for m in SCORES} for t in tasks}
     # a reference trained with another budget (shown only when asked) is normalised by its own
     # TD3 and M2TD3: this benchmark's would mix budgets in one score
@@ -190,9 +200,10 @@ def summarise(root: str | Path, reference: Any = None) -> dict[str, Any]:
 
 
 def cells(
-    scores: Scores, tasks: list[str], algos: list[str], n_expected: int | None
+    scores: Scores, tasks: list[str], algos: list[str], n_expected: dict[str, int] | None
 ) -> tuple[dict[str, Any], list[str]]:
-    """Per task and algorithm, the seed statistics of every score; and the missing cells."""
+    """Per task and algorithm, the seed statistics of every score; and the missing cells
+    (``n_expected``: each task's planned seeds)."""
     dyn = scores.dynamic
     dyn_algos = set(dyn["algorithm"]) if len(dyn) and "algorithm" in dyn else set()
     out: dict[str, Any] = {}
@@ -208,8 +219,8 @@ def cells(
             n = cell["worst_case"]["n_seeds"]
             if n == 0:
                 missing.append(f"{algo}/{task}: no finished run")
-            elif n_expected and n < n_expected:
-                missing.append(f"{algo}/{task}: {n} of {n_expected} seeds")
+            elif n_expected and n < n_expected[task]:
+                missing.append(f"{algo}/{task}: {n} of {n_expected[task]} seeds")
             cell["normalised"] = {}
             for m in SCORES:
                 x, ref = scores.values(task, algo, m), refs[m]

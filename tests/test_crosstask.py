@@ -1,0 +1,113 @@
+"""``rrls report DIR DIR --out OUT``: the paper's cross-task Tables 4-5 over references trained a
+task at a time (the shipped HalfCheetah and Hopper references), each task's cells those of its
+own report."""
+
+from __future__ import annotations
+
+import json
+import shutil
+from pathlib import Path
+
+import pandas as pd
+import pytest
+
+from rrls.cli.app import main
+from rrls.experiments.benchfile import stored_fingerprints
+from rrls.experiments.crosstask import joined
+from rrls.experiments.store import build_store
+
+RESULTS = Path(__file__).resolve().parent.parent / "docs" / "results"
+TASKS = ("halfcheetah", "hopper")
+
+
+def _copy(name: str, dest: Path) -> Path:
+    """A shipped reference's runs and protocol, its store built (the shipped folder untouched)."""
+    src = RESULTS / name
+    dest.mkdir(parents=True)
+    for f in ("benchmark.json", "benchmark.json.sha256"):
+        shutil.copy2(src / f, dest / f)
+    shutil.copytree(src / "runs", dest / "runs")
+    build_store(dest, stored_fingerprints(dest))
+    return dest
+
+
+@pytest.fixture(scope="module")
+def joined_report(tmp_path_factory: pytest.TempPathFactory) -> dict:
+    root = tmp_path_factory.mktemp("cross")
+    dirs = [_copy(t, root / t) for t in TASKS]
+    assert main(["report", *map(str, dirs), "--out", str(root / "out"), "--no-plots"]) == 0
+    report = root / "out" / "report"
+    return {"dirs": dirs, "root": root, "report": report}
+
+
+def test_each_task_reads_as_in_its_own_report(joined_report: dict) -> None:
+    summary = json.loads((joined_report["report"] / "summary.json").read_text())
+    assert summary["tasks"] == list(TASKS)
+    for task in TASKS:
+        own = json.loads((RESULTS / task / "summary.json").read_text())
+        assert summary["results"][task] == own["results"][task]
+        assert summary["pairwise"][task] == own["pairwise"][task]
+        assert summary["normalisation"][task] == own["normalisation"][task]
+    assert summary["missing"] == []  # Hopper's 3 seeds are its plan, not 3 of 5
+
+
+def test_average_column_is_the_mean_over_tasks(joined_report: dict) -> None:
+    """The paper's Table 4's Average: the mean over tasks of each algorithm's normalised mean."""
+    table = pd.read_csv(joined_report["report"] / "tables" / "normalised_worst_case.csv")
+    assert set(table["task"]) == set(TASKS)
+    summary = json.loads((joined_report["report"] / "summary.json").read_text())
+    for algo, rows in table.groupby("algorithm"):
+        expected = rows.set_index("task")["mean"].mean()
+        assert summary["aggregate"][algo]["normalised_worst_case"]["mean_over_tasks"] == (
+            pytest.approx(expected, abs=1e-12)
+        )
+    md = (joined_report["report"] / "report.md").read_text()
+    assert "| algorithm | HalfCheetah | Hopper | Average | IQM [95% CI] |" in md
+
+
+def test_each_tasks_budget_is_stated(joined_report: dict) -> None:
+    md = (joined_report["report"] / "report.md").read_text()
+    assert "| HalfCheetah | " in md and "| 300,000 | 5 | 5 |" in md
+    assert "| 200,000 | 3 | 2 |" in md  # Hopper: its own budget, seeds and episodes
+    assert "The tasks differ in steps, episodes" in md
+    tex = (joined_report["report"] / "tables" / "normalised_worst_case.tex").read_text()
+    assert "HalfCheetah 300,000 steps per run, 5 seeds, 5 episodes per point" in tex
+    assert "Hopper 200,000 steps per run, 3 seeds, 2 episodes per point" in tex
+    assert "Training budget: " not in tex  # no single budget claimed for both
+
+
+def test_a_task_from_two_benchmarks_is_refused(joined_report: dict, capsys) -> None:
+    hc = joined_report["dirs"][0]
+    code = main(["report", str(hc), str(hc), "--out", str(joined_report["root"] / "o2")])
+    err = capsys.readouterr().err
+    assert code == 2 and "task 'halfcheetah' is in both" in err and err.count("\n") == 1
+
+
+def test_benchmarks_of_another_set_are_refused(joined_report: dict, tmp_path: Path) -> None:
+    tables, spec = joined(joined_report["dirs"])
+    assert spec["steps"] is None and spec["uncertainty"] == "3d"
+    other = tmp_path / "other"
+    shutil.copytree(joined_report["dirs"][1], other)
+    data = json.loads((other / "benchmark.json").read_text())
+    data["mesh"] = 5
+    from rrls import rundir
+
+    rundir.write_checked_json(other / "benchmark.json", data)
+    with pytest.raises(ValueError, match="differ in mesh"):
+        joined([joined_report["dirs"][0], other])
+
+
+@pytest.mark.parametrize(
+    "extra, message",
+    [
+        ([], "two or more DIRs and --out OUT"),
+        (["--reference", "quick"], "--reference applies to one benchmark"),
+    ],
+)
+def test_joined_report_usage(joined_report: dict, capsys, extra: list, message: str) -> None:
+    dirs = [str(d) for d in joined_report["dirs"]]
+    argv = ["report", dirs[0], "--out", str(joined_report["root"] / "o3")]
+    if extra:
+        argv = ["report", *dirs, "--out", str(joined_report["root"] / "o3"), *extra]
+    assert main(argv) == 2
+    assert message in capsys.readouterr().err
