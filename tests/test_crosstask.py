@@ -111,3 +111,17 @@ def test_joined_report_usage(joined_report: dict, capsys, extra: list, message: 
         argv = ["report", *dirs, "--out", str(joined_report["root"] / "o3"), *extra]
     assert main(argv) == 2
     assert message in capsys.readouterr().err
+
+
+def test_the_shipped_cross_task_report_is_the_commands(joined_report: dict) -> None:
+    """docs/results/cross-task holds what the command writes over the shipped references."""
+    made = json.loads((joined_report["report"] / "summary.json").read_text())
+    shipped = json.loads((RESULTS / "cross-task" / "summary.json").read_text())
+    for key in ("tasks", "algorithms", "results", "aggregate", "pairwise", "missing"):
+        assert shipped[key] == made[key], key
+    assert shipped["benchmark"]["by_task"]["hopper"]["steps"] == 200_000
+    for name in ("normalised_worst_case", "normalised_average_case"):
+        pd.testing.assert_frame_equal(
+            pd.read_csv(RESULTS / "cross-task" / "tables" / f"{name}.csv"),
+            pd.read_csv(joined_report["report"] / "tables" / f"{name}.csv"),
+        )
