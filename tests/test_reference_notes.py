@@ -1,0 +1,35 @@
+"""The shipped references say, beside their budget and seeds, what a reader comparing them with
+the paper must know: the physics, the library versions against the original code's pins and
+M2TD3's share of learning steps, each read here from the shipped runs."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import pytest
+
+from rrls.experiments.reference import load_reference
+
+ROOT = Path(__file__).resolve().parent.parent
+
+
+@pytest.mark.parametrize("task", ["halfcheetah", "hopper"])
+def test_reference_notes_state_physics_versions_and_m2td3_share(task: str) -> None:
+    ref = load_reference(ROOT / "rrls" / "experiments" / f"{task}_reference.json")
+    assert "reduced budget" in ref.label
+    runs = [
+        json.loads(p.read_text()) for p in (ROOT / "docs/results" / task).glob("runs/*/run.json")
+    ]
+    mujoco = {r["versions"]["mujoco"] for r in runs}
+    gymnasium = {r["versions"]["gymnasium"] for r in runs}
+    assert len(mujoco) == len(gymnasium) == 1
+    assert f"MuJoCo {mujoco.pop()} and Gymnasium {gymnasium.pop()}" in ref.notes
+    assert "pins, MuJoCo 2.3.3 and Gymnasium 1.0.0a1" in ref.notes
+    assert "derived constants recomputed" in ref.notes and "not the paper's" in ref.notes
+    warmup = {r["hyperparameters"]["learning_starts"] for r in runs if r["algorithm"] == "m2td3"}
+    assert len(warmup) == 1
+    learn = ref.steps - warmup.pop()
+    assert (
+        f"M2TD3's learning steps: {learn:,} of {ref.steps:,} ({learn / ref.steps:.0%}" in ref.notes
+    )
