@@ -75,6 +75,7 @@ def test_the_compile_cache_is_the_users_own_unless_set(monkeypatch, tmp_path):
     assert os.environ["TORCHINDUCTOR_CACHE_DIR"] == str(tmp_path / "mine")
 
 
+@pytest.mark.e2e
 def test_a_compiled_run_agrees_with_eager_and_resumes_exactly(tmp_path, monkeypatch):
     compiled_fns = []
     real = torch.compile

@@ -1,8 +1,10 @@
 """The same bits on any CPU: rrls's own policy and products do not depend on the BLAS kernel.
 
-``.ci/run`` runs every ``exactness`` test twice: with the machine's own kernels and with numpy's
-and OpenBLAS's AVX-512 paths disabled (and once more on baseline SSE kernels), so a result that
+``.ci/run`` runs every ``exactness`` test three times: with the machine's own kernels, with
+numpy's and OpenBLAS's AVX-512 paths disabled, and on baseline SSE kernels, so a result that
 depends on a kernel's blocking fails CI on any machine, not only on the CPU it was written on.
+The refusals here compute no product, so no kernel can change them: they are not marked and run
+once.
 """
 
 from __future__ import annotations
@@ -15,8 +17,6 @@ import pytest
 from rrls.evaluation.exact import ExactLinear, exact_tanh, slice_bits
 from rrls.evaluation.policies import MLPPolicy
 
-pytestmark = pytest.mark.exactness
-
 # sha256 of a fixed random 17-256-256-6 MLPPolicy's float32 actions on 300 fixed observations,
 # measured on AMD EPYC (AVX2) with numpy's X86_V3 / OpenBLAS Haswell kernels, and equal there
 # with baseline X86_V2 / Sandybridge and Nehalem kernels. A plain float32 sgemm forward gives
@@ -24,6 +24,7 @@ pytestmark = pytest.mark.exactness
 GOLDEN = "fa460b1c3f9d1e23"
 
 
+@pytest.mark.exactness
 def test_mlp_policy_actions_are_the_same_bits_on_any_cpu():
     policy = MLPPolicy.random(17, 6, (256, 256), seed=7)
     obs = np.random.default_rng(3).normal(scale=3.0, size=(300, 17))
@@ -32,6 +33,7 @@ def test_mlp_policy_actions_are_the_same_bits_on_any_cpu():
     assert hashlib.sha256(actions.tobytes()).hexdigest()[:16] == GOLDEN
 
 
+@pytest.mark.exactness
 @pytest.mark.parametrize("batch", [1, 7, 64, 65, 300])
 def test_a_row_depends_on_its_observation_alone(batch):
     policy = MLPPolicy.random(11, 3, (64, 64), seed=1)
@@ -46,6 +48,7 @@ def test_a_row_depends_on_its_observation_alone(batch):
         assert np.array_equal(policy(other)[-1], alone)
 
 
+@pytest.mark.exactness
 @pytest.mark.parametrize("k", [1, 3, 11, 256, 376, 1024])
 def test_exact_linear_is_order_free_and_accurate(k):
     rng = np.random.default_rng(k)
@@ -63,6 +66,7 @@ def test_exact_linear_is_order_free_and_accurate(k):
     assert np.array_equal(lin(x[::-1])[::-1], out)
 
 
+@pytest.mark.exactness
 def test_exact_linear_non_finite_rows_are_nan_and_do_not_spread():
     lin = ExactLinear(np.ones((3, 2)))
     x = np.array([[1.0, 2.0, 3.0], [np.inf, 0.0, 0.0], [np.nan, 1.0, 1.0], [0.0, 0.0, 0.0]])
@@ -92,6 +96,7 @@ GOLDEN_EDGES = ("b8cbb8685717c2b6", "ea2012f5d174c039", "3d0a85827d528dc6")
 GOLDEN_TANH = "79120c2eb68b5fc9"
 
 
+@pytest.mark.exactness
 def test_float64_mlp_policy_is_the_same_bits_on_any_cpu():
     policy = MLPPolicy.random(17, 6, (256, 256), seed=7, dtype=np.float64)
     obs = np.random.default_rng(3).normal(scale=3.0, size=(300, 17))
@@ -100,6 +105,7 @@ def test_float64_mlp_policy_is_the_same_bits_on_any_cpu():
     assert _digest(actions) == GOLDEN_F64
 
 
+@pytest.mark.exactness
 def test_exact_linear_huge_and_subnormal_lines_are_the_same_bits_on_any_cpu():
     rng = np.random.default_rng(5)
     w, x = rng.normal(size=(256, 8)), rng.normal(size=(64, 256))
@@ -123,6 +129,7 @@ def test_a_policy_file_with_non_finite_weights_is_refused(tmp_path):
         MLPPolicy.load(tmp_path / "p.npz")
 
 
+@pytest.mark.exactness
 def test_exact_tanh_is_the_same_bits_on_any_cpu_and_within_4_ulp_of_numpy():
     t = np.random.default_rng(9).normal(scale=4, size=100_000)
     out = exact_tanh(t)

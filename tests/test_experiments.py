@@ -192,6 +192,7 @@ def _alive(pid: int) -> bool:
     return state != "Z"
 
 
+@pytest.mark.e2e
 @needs_torch
 @pytest.mark.skipif(not Path("/proc").exists(), reason="needs /proc to find the run processes")
 def test_killed_driver_leaves_no_process_and_rerun_gives_identical_numbers(smoke, tmp_path, capsys):
@@ -274,6 +275,7 @@ def test_submitting_a_runs_policy_reproduces_its_numbers_in_the_report(smoke, tm
     assert again["results"]["invertedpendulum"]["td3-again"] == cells["td3-again"]
 
 
+@pytest.mark.e2e
 @needs_torch
 def test_ray_backend_runs_the_same_function(smoke, tmp_path):
     ray = pytest.importorskip("ray", reason="the Ray backend needs `pip install rrls[ray]`")

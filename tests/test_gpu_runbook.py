@@ -22,6 +22,7 @@ def _runbook():
     return module
 
 
+@pytest.mark.e2e
 def test_the_gpu_runbook_runs_end_to_end_on_a_cpu(tmp_path):
     runbook = _runbook()
     out = tmp_path / "out"

@@ -68,6 +68,7 @@ def _close_run(a, b, tol) -> bool:
     return x.keys() == y.keys() and all(np.allclose(x[k], y[k], rtol=0, atol=tol) for k in x)
 
 
+@pytest.mark.e2e
 @pytest.mark.exactness
 @pytest.mark.parametrize("algo", ALGOS)
 def test_a_run_alone_and_in_groups(tmp_path, algo):

@@ -25,6 +25,7 @@ def _chunks(out: Path) -> int:
     return len(list((out / "chunks").glob("[0-9]*.npz")))
 
 
+@pytest.mark.e2e
 def test_ctrl_c_in_train_says_what_was_kept_and_how_to_resume(tmp_path):
     pytest.importorskip("torch")
     from rrls.agents.run import read_checkpoint
@@ -42,6 +43,7 @@ def test_ctrl_c_in_train_says_what_was_kept_and_how_to_resume(tmp_path):
     )
 
 
+@pytest.mark.e2e
 def test_ctrl_c_in_evaluate_keeps_finished_points_and_names_the_same_command(tmp_path):
     (tmp_path / "hop.py").write_text(POLICY)
     args = ["evaluate", "hop:zeros", "--task", "hopper", "--uncertainty", "3d", "--mesh", "12"]
@@ -97,6 +99,7 @@ def _policy(path: Path, obs: int, act: int, **metadata) -> str:
     return str(policy.save(path))
 
 
+@pytest.mark.e2e
 def test_ctrl_c_in_evaluate_names_the_chunks_kept_and_the_same_command_resumes_them(
     tmp_path, capsys, monkeypatch, stop_after_chunks
 ):
@@ -134,6 +137,7 @@ def two_player_run(tmp_path):
     return run
 
 
+@pytest.mark.e2e
 def test_ctrl_c_in_evaluate_dynamic_names_the_chunks_kept_in_out(
     tmp_path, capsys, monkeypatch, stop_after_chunks, two_player_run
 ):
@@ -152,6 +156,7 @@ def test_ctrl_c_in_evaluate_dynamic_names_the_chunks_kept_in_out(
     assert main(argv) == 0 and len(saved) == 2  # the same command: the 2 chunks left
 
 
+@pytest.mark.e2e
 def test_ctrl_c_in_evaluate_dynamic_without_out_says_nothing_is_kept(
     tmp_path, capsys, monkeypatch, two_player_run
 ):
@@ -169,6 +174,7 @@ def test_ctrl_c_in_evaluate_dynamic_without_out_says_nothing_is_kept(
     )
 
 
+@pytest.mark.e2e
 def test_ctrl_c_in_train_before_the_first_checkpoint_says_nothing_is_kept(
     tmp_path, capsys, monkeypatch
 ):

@@ -122,6 +122,7 @@ def test_a_periodic_checkpoint_at_the_interrupted_step_is_not_written_twice(monk
     assert read_checkpoint(Path("run/checkpoint.pt"))[INTERRUPTED_KEY] is False
 
 
+@pytest.mark.e2e
 def test_ctrl_c_from_a_terminal_keeps_every_run_of_a_group_with_env_workers(tmp_path):
     """SIGINT to the whole process group, as a terminal sends it: the env workers ignore it
     (they would die mid-step), the runs all stop at one step, checkpointed."""

@@ -137,6 +137,7 @@ def test_bad_blocks_are_refused_in_one_line():
             train_on_twin("td3", "invertedpendulum", device="cpu", **{name: 0})
 
 
+@pytest.mark.e2e
 @pytest.mark.warp
 def test_rrls_train_on_the_twin_reads_back_only_at_checkpoints_and_evaluations(
     tmp_path, monkeypatch

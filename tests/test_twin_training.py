@@ -90,6 +90,7 @@ def _rrls(*args: str, env: dict | None = None) -> subprocess.CompletedProcess:
     )
 
 
+@pytest.mark.e2e
 @pytest.mark.warp
 def test_rrls_train_on_the_twin_writes_runs_that_say_so_and_resume(tmp_path):
     out = tmp_path / "twin"
