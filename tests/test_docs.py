@@ -63,8 +63,12 @@ def tiny_evaluate(monkeypatch):
     calls = []
 
     def tiny(*args, **kwargs):
-        kwargs.update({mesh_keyword: 2, "episodes": 1, "max_episode_steps": 20, "workers": 1})
-        kwargs["progress"] = False
+        small = {mesh_keyword: 2, "episodes": 1, "max_episode_steps": 20}
+        if len(args) > 2 and isinstance(args[2], rrls.evaluation.Protocol):  # the protocol form
+            args = (*args[:2], args[2].replace(**small))
+        else:
+            kwargs.update(small)
+        kwargs.update(workers=1, progress=False)
         result = real(*args, **kwargs)
         calls.append(result)
         return result

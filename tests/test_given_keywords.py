@@ -76,7 +76,18 @@ def test_evaluate_refuses_a_keyword_passed_beside_a_protocol_even_at_its_default
 
 def test_evaluate_names_every_keyword_passed_beside_a_protocol_positional_ones_too():
     with pytest.raises(ValueError, match=r"got protocol= and uncertainty, mesh, seed: "):
-        evaluate(HOPPER, "hopper", "3d", 10, seed=0, protocol=Protocol("1d"))
+        evaluate(HOPPER, "hopper", Protocol("1d"), 10, seed=0, uncertainty="3d")
+    with pytest.raises(TypeError, match="multiple values for argument 'protocol'"):
+        evaluate(HOPPER, "hopper", "3d", protocol=Protocol("1d"))  # a set where it goes
+
+
+def test_the_set_as_third_argument_is_read_as_uncertainty_and_once_only():
+    small = {"mesh": 2, "episodes": 1, "max_episode_steps": 5, "workers": 1}
+    positional = evaluate(HOPPER, "hopper", "1d", **small)
+    keyword = evaluate(HOPPER, "hopper", uncertainty="1d", **small)
+    pd.testing.assert_frame_equal(positional.episodes, keyword.episodes)
+    with pytest.raises(TypeError, match="the set twice"):
+        evaluate(HOPPER, "hopper", "1d", uncertainty="2d", **small)
 
 
 @pytest.mark.parametrize(("keyword", "value"), DYNAMIC.items())

@@ -28,7 +28,7 @@ import numpy as np
 
 import rrls
 from rrls.envs import get_uncertainty_set
-from rrls.evaluation import evaluate, search_worst_case
+from rrls.evaluation import Protocol, evaluate, search_worst_case
 from rrls.params import joint_params, mass_params
 from rrls.wrappers import DomainRandomization
 
@@ -80,22 +80,18 @@ def main(smoke: bool) -> None:
     dr_id.reset(seed=2)
 
     # 3. evaluation over a mesh of the set, and a worst-case search
-    mesh = 2 if smoke else 10
-    result = evaluate(
-        lqr_like, "mydoublependulum", "2d", mesh=mesh, episodes=1, workers=1,
-        max_episode_steps=steps,
-    )  # fmt: skip
+    protocol = Protocol("2d", mesh=2 if smoke else 10, episodes=1, max_episode_steps=steps)
+    result = evaluate(lqr_like, "mydoublependulum", protocol, workers=1)
     print(f"2d set: worst {result.worst_case:.1f} at {result.worst_point}, "
           f"average {result.average_case:.1f}")  # fmt: skip
     damping = evaluate(
-        lqr_like, "mydoublependulum", "damping", mesh=mesh, episodes=1, workers=1,
-        max_episode_steps=steps,
-    )  # fmt: skip
+        lqr_like, "mydoublependulum", protocol.replace(uncertainty="damping"), workers=1
+    )
     print(f"damping set: worst {damping.worst_case:.1f} at {damping.worst_point}")
+    budget = 8 if smoke else 100
     search = search_worst_case(
-        lqr_like, "mydoublependulum", "2d", budget=8 if smoke else 100, workers=1,
-        max_episode_steps=steps,
-    )  # fmt: skip
+        lqr_like, "mydoublependulum", budget=budget, workers=1, protocol=protocol
+    )
     print(f"search: worst {search.value:.1f} at {search.params}")
     rrls.registry.unregister_task("mydoublependulum")  # the tests run this script in-process
     print("next: rrls train --algo m2td3 --task mydoublependulum --uncertainty 2d "

@@ -48,7 +48,7 @@ def main(argv: list[str] | None = None) -> dict:
     from stable_baselines3 import SAC
 
     import rrls  # noqa: F401  (registers the rrls/ ids)
-    from rrls.evaluation import evaluate
+    from rrls.evaluation import Protocol, evaluate
     from rrls.experiments import submit
     from rrls.experiments.report import make_report
     from rrls.experiments.store import build_store
@@ -70,7 +70,8 @@ def main(argv: list[str] | None = None) -> dict:
 
     # 2. Evaluate: worst and average case over a uniform mesh of the 3D set (the model or the
     #    zip both work: rrls adapts SB3 models, acting deterministically).
-    result = evaluate(model, "hopper", "3d", mesh=args.mesh, episodes=args.episodes, seed=0)
+    protocol = Protocol("3d", mesh=args.mesh, episodes=args.episodes, seed=0)
+    result = evaluate(model, "hopper", protocol)
     print(f"worst case {result.worst_case:.1f} at {result.worst_point}")
     print(f"average case {result.average_case:.1f}")
 

@@ -19,7 +19,7 @@ from typing import Any
 
 import numpy as np
 
-from rrls.evaluation.defaults import Default, or_default, passed
+from rrls.evaluation.defaults import Default, keyword_protocol
 from rrls.evaluation.games import Game, TwoPlayers, dynamic_env_id, make_dynamic_env
 from rrls.physics import is_paper
 from rrls.schema import Schema, boolean, integer, number, string
@@ -96,38 +96,27 @@ def evaluate_dynamic(
     number; with ``out_dir``, finished chunks are kept there and a re-run with the same
     arguments resumes; ``dynamic.csv`` holds the episodes at the end.
     """
-    from rrls.evaluation.protocol import Protocol, check_protocol_alone, check_sizes
-    from rrls.physics import physics_label
+    from rrls.evaluation.protocol import check_sizes
 
-    fields = passed(
-        uncertainty=uncertainty,
-        episodes=episodes,
-        seed=seed,
-        rate_limit=rate_limit,
-        context=context,
-        paper=paper,
-        rate_game=rate_game,
-    )
     # a protocol's rate limit is the parameter game's; one given by keyword for another game is
     # refused by name (make_dynamic_env)
     rate_applies = protocol is None or game == "adversarial"
-    if protocol is None:
-        episodes, seed, rate_limit = or_default(episodes), or_default(seed), or_default(rate_limit)
-        _check_arguments(episodes, batch_size, history, seed, alpha, rate_limit)
-        protocol = Protocol(
-            or_default(uncertainty),
-            episodes=1,
-            seed=seed,
-            physics=physics_label(bool(or_default(paper))),
-            context=bool(or_default(context)),
-            dynamic_episodes=episodes,
-            rate_limit=rate_limit,
-            rate_game=or_default(rate_game),
-        )
-    else:
-        renamed = {"episodes": "dynamic_episodes", "paper": "physics"}
-        check_protocol_alone("evaluate_dynamic", protocol, fields, renamed)
-        _check_arguments(protocol.dynamic_episodes, batch_size, history, 0, alpha, None)
+    protocol = keyword_protocol(
+        "evaluate_dynamic",
+        protocol,
+        {
+            "uncertainty": uncertainty,
+            "episodes": episodes,
+            "seed": seed,
+            "rate_limit": rate_limit,
+            "context": context,
+            "paper": paper,
+            "rate_game": rate_game,
+        },
+        {"episodes": "dynamic_episodes"},
+        episodes=1,  # the static mesh's: unused here
+    )
+    _check_arguments(protocol.dynamic_episodes, batch_size, history, alpha)
     if workers == 0:  # 0: in this process, as every rrls command reads it
         workers = 1
     check_sizes(workers=workers)
@@ -346,27 +335,18 @@ def evaluate_run_dynamic(
     )
 
 
-def _check_arguments(
-    episodes: Any, batch_size: Any, history: Any, seed: Any, alpha: Any, rate_limit: Any
-) -> None:
-    """The static evaluation's rules, one line naming the argument and what is valid."""
-    from rrls.evaluation.protocol import (
-        check_counts,
-        check_episodes,
-        check_rate_limit,
-        check_seed,
-        check_sizes,
-    )
+def _check_arguments(episodes: Any, batch_size: Any, history: Any, alpha: Any) -> None:
+    """The static evaluation's rules for what the protocol does not check (the episodes'
+    total, the batch, the players' history and alpha), one line naming the argument."""
+    from rrls.evaluation.protocol import check_counts, check_episodes, check_sizes
 
-    check_counts(episodes=episodes, history=history)
+    check_counts(history=history)
     check_episodes(1, episodes)
     check_sizes(batch_size=batch_size)
     if history > MAX_HISTORY:
         raise ValueError(f"history must be at most {MAX_HISTORY:,}, got {history}")
-    check_seed(seed)
     if isinstance(alpha, bool) or not isinstance(alpha, (int, float)) or not 0 <= alpha <= 1:
         raise ValueError(f"alpha must be a number in [0, 1], got {alpha!r}")
-    check_rate_limit(rate_limit)
 
 
 __all__ = [

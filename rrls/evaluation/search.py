@@ -15,7 +15,7 @@ from typing import Any
 import numpy as np
 
 from rrls.evaluation import lanes
-from rrls.evaluation.defaults import Default, or_default, passed
+from rrls.evaluation.defaults import Default, keyword_protocol
 from rrls.uncertainty import UncertaintySet
 
 
@@ -73,22 +73,16 @@ def search_worst_case(
     set, ``episodes=1``, ``seed=0``) build one for interactive use, and passing any of them beside
     it is an error naming them, whatever the value. A schedule family is not searched.
     """
-    from rrls.evaluation.protocol import Protocol, check_counts, check_protocol_alone
-
-    fields = passed(
-        uncertainty=uncertainty, episodes=episodes, seed=seed, max_episode_steps=max_episode_steps
+    protocol = keyword_protocol(
+        "search_worst_case",
+        protocol,
+        {
+            "uncertainty": uncertainty,
+            "episodes": episodes,
+            "seed": seed,
+            "max_episode_steps": max_episode_steps,
+        },
     )
-    if protocol is None:
-        episodes = or_default(episodes)
-        check_counts(episodes=episodes)
-        protocol = Protocol(
-            or_default(uncertainty),
-            episodes=episodes,
-            seed=or_default(seed),
-            max_episode_steps=or_default(max_episode_steps),
-        )
-    else:
-        check_protocol_alone("search_worst_case", protocol, fields)
     if protocol.schedule is not None:
         raise ValueError("search_worst_case searches parameter boxes, not schedule families")
     if budget < 2:

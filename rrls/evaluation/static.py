@@ -1,9 +1,9 @@
 """``evaluate``: the paper's robust evaluation (§4): mesh, episodes per point, worst/average case.
 
 >>> import numpy as np
->>> from rrls.evaluation import evaluate
+>>> from rrls.evaluation import Protocol, evaluate
 >>> still = lambda obs: np.zeros((len(obs), 1))  # push nothing: the pole falls
->>> result = evaluate(still, "invertedpendulum", "1d", mesh=3, episodes=2, workers=1)
+>>> result = evaluate(still, "invertedpendulum", Protocol("1d", mesh=3, episodes=2), workers=1)
 >>> result.episodes[["polemass", "episode", "length"]].shape
 (6, 3)
 >>> result.worst_case <= result.average_case
@@ -22,11 +22,10 @@ import numpy as np
 from rrls.deprecation import renamed_keywords
 from rrls.evaluation import engine, evaldir, lanes
 from rrls.evaluation.chunks import CHUNK
-from rrls.evaluation.defaults import Default, or_default, passed
+from rrls.evaluation.defaults import Default, keyword_protocol
 from rrls.evaluation.prepared import PreparedPolicy, policy_record, prepare_policy
-from rrls.evaluation.protocol import Protocol, check_counts, check_protocol_alone, check_sizes
+from rrls.evaluation.protocol import Protocol, check_sizes
 from rrls.evaluation.result import EvaluationResult
-from rrls.physics import physics_label
 from rrls.provenance import versions
 from rrls.uncertainty import Split, UncertaintySet
 
@@ -47,63 +46,52 @@ def _box_json(box: UncertaintySet | None) -> dict[str, Any] | None:
 def evaluate(
     policy: Any,
     task: str,
-    uncertainty: str | UncertaintySet | Default = Default("3d"),
+    protocol: Protocol | str | UncertaintySet | None = None,
     mesh: int | Default = Default(10),
     episodes: int | Default = Default(5),
     seed: int | Default = Default(0),
     workers: int | None = None,
     *,
-    endpoint: bool | None | Default = Default(None),
     out_dir: str | Path | None = None,
     batch_size: int | None = None,
     progress: bool | None = None,
+    view: Any = None,
+    uncertainty: str | UncertaintySet | Default = Default("3d"),
+    endpoint: bool | None | Default = Default(None),
     max_episode_steps: int | None | Default = Default(None),
     disruptors: Mapping[str, float | Sequence[float]] | None | Default = Default(None),
     schedule: Any = Default(None),
     context: bool | Default = Default(False),
     split: Split | None | Default = Default(None),
     paper: bool | Default = Default(False),
-    view: Any = None,
-    protocol: Protocol | None = None,
 ) -> EvaluationResult:
-    """Evaluate ``policy`` over a uniform mesh of ``task``'s uncertainty set (paper §4).
+    """Evaluate ``policy`` on ``task`` under ``protocol`` (paper §4): a uniform mesh of the
+    protocol's uncertainty set, its episodes per point, the worst and average case.
 
     ``policy``: a callable ``obs[B, obs_dim] -> actions[B, act_dim]``, a torch actor, a
     Stable-Baselines3 model, a saved policy path, or a policy prepared once for several
-    evaluations (:func:`~rrls.evaluation.prepare`). ``uncertainty``: ``"1d"``, ``"2d"``, ``"3d"``,
-    ``"rarl"`` (forces), ``"nominal"`` (the unmodified model) or an ``UncertaintySet``.
-    ``workers`` defaults to every core; results do not depend on it nor on ``batch_size`` (live
-    episodes per worker). With ``out_dir``, finished chunks are kept there and a re-run with the
-    same arguments resumes; ``summary.json`` and the episode table are written at the end.
-    ``max_episode_steps`` defaults to the task's episode length (1000 for the paper's tasks).
-    ``paper=True`` runs the paper's protocol on the paper's physics: the Gymnasium v5 envs with
-    the original code's parameter writes (:mod:`rrls.envs.paper`), and (unless ``endpoint`` says
-    otherwise) the original code's ``np.arange`` mesh, which stops short of the upper bounds. The
-    default is Gymnasium v5 with rrls's parameter semantics and a mesh reaching both bounds;
-    ``summary.json`` records which (``physics``).
+    evaluations (:func:`~rrls.evaluation.prepare`). ``protocol``: a
+    :class:`~rrls.evaluation.Protocol`, which holds everything that decides the numbers (the
+    set, mesh, episodes, seed, physics, split, disruptors, schedule, context: see its fields and
+    docs/perturbations.md), as a benchmark stores it.
 
-    Beyond static dynamics (docs/perturbations.md):
+    How it runs changes no number: ``workers`` (processes; default every core) and
+    ``batch_size`` (live episodes per worker). With ``out_dir``, finished chunks are kept there
+    and a re-run with the same arguments resumes; ``summary.json`` and the episode table are
+    written at the end. ``view``: what a TC-RMDP Stacked or Oracle protagonist observes
+    (:class:`~rrls.wrappers.tc_rmdp.View`); by default the one the policy's metadata records,
+    so it sees what it trained on.
 
-    * a set may name disruptor strengths (``obsnoise``, ``actiondelay``...: see
-      :mod:`rrls.wrappers.disruptors`) alone or with physical parameters; ``disruptors`` adds
-      some: ``{"obsnoise": 0.05}`` a fixed strength, ``{"obsnoise": (0, 0.1)}`` a meshed axis;
-    * ``schedule``: a :class:`~rrls.wrappers.ScheduleFamily`; the mesh is then its grid (e.g.
-      drift rate x direction) and the set is where the schedule moves, from its nominal point;
-    * ``context=True`` appends the set's normalised parameters to the observation (a policy
-      trained with :class:`~rrls.wrappers.ContextObservation`);
-    * ``split``: a :class:`~rrls.uncertainty.Split` of the set; rows get ``in_distribution`` and
-      the result the worst/average case in and out of distribution;
-    * ``view``: what a TC-RMDP Stacked or Oracle protagonist observes
-      (:class:`~rrls.wrappers.tc_rmdp.View`); by default the one the policy's metadata records
-      (``rrls train --algo rarl --rate-limit R --observe ...``), so it sees what it trained on.
-
-    Defaults: the ``"3d"`` set, ``mesh=10`` points per dimension, ``episodes=5`` per point,
-    ``seed=0``, the v5 physics (``paper=False``), no split, disruptor, schedule or context.
-
-    ``protocol``: a :class:`~rrls.evaluation.Protocol` holding all of the above (the set, mesh,
-    episodes, seed, physics, split, disruptors, schedule, context), as a benchmark stores it; the
-    keyword arguments build one for interactive use, and passing any of them beside it is an
-    error naming them (whatever the value: ``mesh=10`` too, as the protocol's would win).
+    For interactive use the protocol's fields may be given as keywords instead, which build the
+    protocol (:func:`~rrls.evaluation.defaults.keyword_protocol`): ``uncertainty`` (also the
+    third argument: ``"1d"``, ``"2d"``, ``"3d"``, ``"rarl"``, ``"nominal"`` or an
+    ``UncertaintySet``), ``mesh``, ``episodes``, ``seed``, ``endpoint``, ``max_episode_steps``,
+    ``disruptors`` (``{"obsnoise": 0.05}`` fixed, ``{"obsnoise": (0, 0.1)}`` meshed),
+    ``schedule``, ``context``, ``split``, and ``paper=True`` for the paper's physics. Defaults
+    (``Protocol()``'s): the ``"3d"`` set, ``mesh=10`` points per dimension, ``episodes=5`` per
+    point, ``seed=0``, the v5 physics (``paper=False``), no split, disruptor, schedule or
+    context. Passing any of them beside a protocol is an error naming them (whatever the value:
+    ``mesh=10`` too, as the protocol's would win).
 
     Rows stay equal to the one-episode loop on the same wrapper stack
     (``env.set_params(**point); env.reset(seed=seed)``).
@@ -111,37 +99,27 @@ def evaluate(
     from rrls.evaluation.policies import as_policy
     from rrls.evaluation.stack import policy_view
 
-    fields = passed(
-        uncertainty=uncertainty,
-        mesh=mesh,
-        episodes=episodes,
-        seed=seed,
-        endpoint=endpoint,
-        max_episode_steps=max_episode_steps,
-        disruptors=disruptors,
-        schedule=schedule,
-        context=context,
-        split=split,
-        paper=paper,
+    if isinstance(protocol, (str, UncertaintySet)):  # the set in third place: a keyword call
+        if not isinstance(uncertainty, Default):
+            raise TypeError("evaluate() got the set twice: as its third argument and uncertainty=")
+        protocol, uncertainty = None, protocol
+    protocol = keyword_protocol(
+        "evaluate",
+        protocol,
+        {
+            "uncertainty": uncertainty,
+            "mesh": mesh,
+            "episodes": episodes,
+            "seed": seed,
+            "endpoint": endpoint,
+            "max_episode_steps": max_episode_steps,
+            "disruptors": disruptors,
+            "schedule": schedule,
+            "context": context,
+            "split": split,
+            "paper": paper,
+        },
     )
-    if protocol is None:
-        mesh, episodes = or_default(mesh), or_default(episodes)
-        check_counts(episodes=episodes, mesh=mesh)  # named as the caller gave them
-        protocol = Protocol(
-            or_default(uncertainty),
-            mesh=mesh,
-            episodes=episodes,
-            seed=or_default(seed),
-            physics=physics_label(bool(or_default(paper))),
-            endpoint=or_default(endpoint),
-            split=or_default(split),
-            disruptors=tuple(dict(or_default(disruptors) or {}).items()),
-            schedule=or_default(schedule),
-            context=or_default(context),
-            max_episode_steps=or_default(max_episode_steps),
-        )
-    else:  # a protocol holds every field: one passed beside it would be ignored, so refuse it
-        check_protocol_alone("evaluate", protocol, fields, {"paper": "physics"})
     if not isinstance(policy, PreparedPolicy):  # prepared at the door: adapted already
         policy = as_policy(policy)
     if view is None:
