@@ -112,6 +112,34 @@ def test_submitted_callable_is_a_column_of_every_table(bench):
     assert dict(zip(runs["algorithm"], runs["source"]))["my-method"] == "submitted"
 
 
+def test_submit_is_its_three_steps_check_evaluate_install(bench):
+    from rrls.experiments.submission import (
+        Entry,
+        check_submission,
+        evaluate_submission,
+        install_submission,
+    )
+
+    def files() -> list[Path]:
+        return sorted(p.relative_to(bench) for p in bench.rglob("*"))
+
+    entry = Entry("stepwise", "invertedpendulum", 0, linear(0.5, 8.0, 0.5, 1.0))
+    before = files()
+    checked = check_submission(bench, entry)
+    assert files() == before  # checked: nothing run, nothing written
+    assert checked.final == bench / "runs" / "stepwise-invertedpendulum-1d-seed0"
+    staged = evaluate_submission(checked, workers=1)
+    assert staged.dir.is_dir() and not checked.final.exists()  # evaluated, not installed
+    done = install_submission(checked, staged)
+    assert done.evaluated and done.run_dir == checked.final and not staged.dir.exists()
+    again = submit(bench, "stepwise", "invertedpendulum", 0, entry.policy, workers=1)
+    assert not again.evaluated and again.worst_case == done.worst_case
+    after = files()
+    with pytest.raises(SubmitError, match="built-in algorithm"):
+        check_submission(bench, replace(entry, algo="td3"))
+    assert files() == after  # a refusal changes nothing
+
+
 def test_module_attribute_submit_records_the_module_and_its_hash(bench, tmp_path, monkeypatch):
     pkg = tmp_path / "userpkg"
     pkg.mkdir()

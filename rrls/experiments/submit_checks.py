@@ -1,6 +1,7 @@
-"""What ``rrls submit`` checks before anything runs or changes: the algorithm's name, the seed,
-the policy's shapes, the declared budget and a new task (each failure one line, a
-``SubmitError``). ``rrls.experiments.submission`` evaluates and installs."""
+"""What ``rrls submit`` checks before anything runs or changes: the benchmark, the algorithm's
+name, the seed, the policy (loaded, its shapes and identity), the declared budget and a new task
+(each failure one line, a ``SubmitError``). ``rrls.experiments.submission`` composes them and
+evaluates and installs."""
 
 from __future__ import annotations
 
@@ -12,7 +13,7 @@ from typing import Any
 import numpy as np
 
 from rrls.algorithms import ALGORITHMS, plugin_entry_points
-from rrls.experiments.spec import BUILT_IN, Spec
+from rrls.experiments.spec import BUILT_IN, Spec, SpecError
 from rrls.physics import is_paper
 
 __all__ = [
@@ -25,6 +26,12 @@ __all__ = [
     "check_new_task",
     "check_seed",
     "check_shapes",
+    "env_shapes",
+    "first_line",
+    "load_policy",
+    "load_spec",
+    "policy_identity",
+    "preset_spec",
     "reserved_names",
 ]
 
@@ -194,3 +201,95 @@ def check_declared_steps(meta: dict[str, Any]) -> None:
             f"the policy's metadata records steps {value!r}; valid: a whole number >= 0 "
             "(fix the policy's metadata; --steps declares the budget instead)"
         )
+
+
+def load_spec(bench_dir: str | Path) -> Spec:
+    """The benchmark's protocol (``DIR/benchmark.json``), or ``SubmitError`` naming the file."""
+    from rrls.experiments import benchfile
+
+    path = benchfile.spec_path(bench_dir)
+    try:
+        exists = path.is_file()
+    except OSError as err:  # a name the file system refuses (too long, ...)
+        raise SubmitError(
+            f"cannot use {bench_dir!s:.80} as a benchmark directory: {err.strerror}"
+        ) from None
+    if not exists:
+        raise SubmitError(
+            f"{bench_dir} is not a benchmark directory (no benchmark.json): create one with "
+            f"`rrls benchmark --out {shlex.quote(str(bench_dir))} ...`, or pass --preset to "
+            "`rrls submit` to start an empty one with that preset's protocol"
+        )
+    try:
+        return benchfile.read_spec(bench_dir)
+    except (SpecError, ValueError, OSError) as err:
+        raise SubmitError(str(err)) from None
+
+
+def preset_spec(preset: str, tasks: tuple[str, ...], **overrides: Any) -> Spec:
+    """``preset``'s protocol on ``tasks`` without built-in algorithms (nothing written)."""
+    from dataclasses import replace
+
+    from rrls.experiments.spec import make_spec
+
+    try:
+        base = make_spec(preset, tasks=",".join(tasks), **overrides)
+    except SpecError as err:
+        raise SubmitError(str(err)) from None
+    return replace(base, algos=())
+
+
+def env_shapes(
+    task: str, uncertainty: str, paper: bool = False
+) -> tuple[tuple[int, ...], tuple[int, ...], int]:
+    """The task's observation and action shapes (on the benchmark's physics: a task's physics
+    may change them), and the set's dimension.
+
+    One env is built: the task registry holds no shapes, which Gymnasium's MuJoCo envs derive
+    from the compiled model and the env's keywords when they are made."""
+    import gymnasium as gym
+
+    from rrls.envs import resolve
+
+    resolved = resolve(task, uncertainty)
+    env = gym.make(f"rrls/robust-{resolved.task}-v0", **({"paper": True} if paper else {}))
+    try:
+        obs, act = env.observation_space.shape, env.action_space.shape
+    finally:
+        env.close()
+    return tuple(obs), tuple(act), len(resolved.box.names)
+
+
+def first_line(err: BaseException) -> str:
+    """An exception as one line: its type and the first line of its message."""
+    lines = str(err).strip().splitlines()
+    return f"{type(err).__name__}: {lines[0]}" if lines else type(err).__name__
+
+
+def load_policy(what: str, obj: Any) -> tuple[dict[str, Any], Any]:
+    """``obj``'s source record and adapted policy; whatever loading raises (a module raising
+    on import included) is a one-line ``SubmitError``."""
+    from rrls.evaluation.policies import as_policy
+    from rrls.evaluation.sources import policy_source
+
+    prefix = "" if what == "policy" else f"--{what}: "
+    try:
+        return policy_source(obj), as_policy(obj)
+    except (TypeError, ValueError, FileNotFoundError) as err:
+        raise SubmitError(f"{prefix}{err}") from None
+    except Exception as err:  # noqa: BLE001 - code of the submitter's: any failure, one line
+        raise SubmitError(
+            f"{prefix}cannot load the {what} {obj!s:.200} ({first_line(err)})"
+        ) from None
+
+
+def policy_identity(policy: Any, obs_dim: int, what: str = "policy") -> str:
+    """What "the same policy" means: the same actions (on 64 probe observations of the size
+    it sees: a TC-RMDP stacked/oracle protagonist's or adversary's input), whatever file or
+    module holds it (a module whose weights file changed is another policy)."""
+    from rrls.evaluation.policies import policy_fingerprint
+
+    try:
+        return f"actions:{policy_fingerprint(policy, obs_dim, n=64)}"
+    except Exception as err:  # noqa: BLE001 - the submitter's code
+        raise SubmitError(f"the {what} fails on probe observations ({first_line(err)})") from None
