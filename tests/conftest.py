@@ -34,6 +34,12 @@ def _in_tmp_dir(tmp_path, monkeypatch):
     monkeypatch.chdir(tmp_path)
 
 
+def e2e_after_first(values: list) -> list:
+    """Parametrize values: the first in the default tier (a smoke check of the path on every
+    change), the others marked ``e2e`` (``.ci/run`` runs them right after the default tier)."""
+    return [values[0], *(pytest.param(v, marks=pytest.mark.e2e) for v in values[1:])]
+
+
 def rollout(env, actions, seed: int = 0, reset_options=None):
     """Observations, rewards and flags of a fixed action sequence (stops at the episode's end)."""
     obs, _ = env.reset(seed=seed, options=reset_options)

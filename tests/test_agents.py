@@ -6,7 +6,7 @@ import json
 
 import numpy as np
 import pytest
-from conftest import stopping_at
+from conftest import e2e_after_first, stopping_at
 
 torch = pytest.importorskip("torch")
 
@@ -65,7 +65,7 @@ def _checkpoint(run_dir):
     return read_checkpoint(run_dir / CHECKPOINT)
 
 
-@pytest.mark.parametrize("algo", ALGOS)
+@pytest.mark.parametrize("algo", e2e_after_first(ALGOS))
 def test_every_algorithm_trains_through_the_cli(tmp_path, algo, capsys):
     out = tmp_path / algo
     uncertainty = ["--uncertainty", "1d"] if algo in RANDOMISED else []
@@ -104,7 +104,7 @@ def test_every_algorithm_trains_through_the_cli(tmp_path, algo, capsys):
     assert "worst case" in capsys.readouterr().out
 
 
-@pytest.mark.parametrize("algo", ALGOS)
+@pytest.mark.parametrize("algo", e2e_after_first(ALGOS))
 def test_killed_and_resumed_run_ends_bit_identical(tmp_path, algo):
     extra = ["--uncertainty", "1d"] if algo in RANDOMISED else []
     extra += ["--phase-steps", "70"] if algo == "rarl" else []  # both phases before the cut

@@ -15,7 +15,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from conftest import policy_arrays, stopping_at
+from conftest import e2e_after_first, policy_arrays, stopping_at
 
 torch = pytest.importorskip("torch")
 
@@ -134,7 +134,7 @@ def test_rehearsal_reads_static_inputs_as_a_replayed_graph_would():
     assert not Update(fn, "cpu").static  # the default on a CPU: inputs go straight in
 
 
-@pytest.mark.parametrize("algo", ["td3", "sac", "m2td3", "nrmdp"])
+@pytest.mark.parametrize("algo", e2e_after_first(["td3", "sac", "m2td3", "nrmdp"]))
 def test_the_rehearsed_cuda_graph_path_trains_and_resumes_as_eager(tmp_path, algo):
     eager = train(_config(tmp_path, algo, "eager", compile=False))
     with graphs.settings(rehearse=True):
