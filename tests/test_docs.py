@@ -116,6 +116,7 @@ def test_every_rrls_command_of_the_recipes_parses():
     assert {"train", "evaluate", "benchmark", "submit", "report"} <= set(seen)
 
 
+@pytest.mark.e2e
 def test_the_comparison_recipe_runs_and_writes_latex_beside_the_reference(tmp_path, monkeypatch):
     pytest.importorskip("scipy")
     from rrls.cli import main
@@ -186,6 +187,7 @@ def test_the_tutorials_index_lists_every_tutorial():
         assert f"[`{name}`]({name})" in index, name
 
 
+@pytest.mark.e2e
 @pytest.mark.skipif(
     importlib.util.find_spec("mkdocs") is None, reason='needs the docs extra: pip install ".[docs]"'
 )
