@@ -52,7 +52,7 @@ from rrls.evaluation import MLPPolicy, evaluate, resolve_uncertainty
 from rrls.evaluation.engine import run as engine_run
 from rrls.evaluation.lanes import (
     LANES,
-    RolloutSpec,
+    Rollouts,
     clear_env_cache,
     episode_seeds,
     make_rollout_envs,
@@ -160,7 +160,7 @@ def threaded_rate(task: str, policy, mesh: int, workers: int, threads: int) -> f
     (the same episodes as ``engine``: no policy checks, no result table)."""
     box = resolve_uncertainty(task, "3d")
     points = box.mesh(mesh)
-    spec = RolloutSpec(task, "robust", box.names, points, episode_seeds(0, len(points), 1))
+    spec = Rollouts(task, "robust", box.names, points, episode_seeds(0, len(points), 1))
     start = time.perf_counter()
     try:
         cols = engine_run(spec, policy, workers=workers, threads=threads, progress=False)
@@ -177,7 +177,7 @@ def breakdown(task: str, policy, mesh: int, episodes) -> tuple[float, float, flo
 
     box = resolve_uncertainty(task, "3d")
     points = box.mesh(mesh)
-    spec = RolloutSpec(task, "robust", box.names, points, episode_seeds(0, len(points), 1))
+    spec = Rollouts(task, "robust", box.names, points, episode_seeds(0, len(points), 1))
     in_policy = [0.0]
 
     def timed(obs: np.ndarray) -> np.ndarray:

@@ -40,8 +40,11 @@ _LAZY = {
     "register_task": "rrls.registry",
     "load_task_plugins": "rrls.registry",
     "TaskSpec": "rrls.registry",
-    "ParamSpec": "rrls.params",
+    "Parameter": "rrls.params",
+    "ParamSpec": "rrls.params",  # deprecated: Parameter's former name (warns)
 }
+#: lazy names kept for old code, left out of ``__all__`` (``import *`` would warn)
+_DEPRECATED = ("ParamSpec",)
 
 
 def make_wrapped_env(cls_env: Any, wrapper: Any, **kwargs: Any) -> Any:
@@ -69,4 +72,4 @@ register_envs()
 
 # every public name once (UncertaintySet and get_uncertainty_set are also lazy names)
 _EAGER = ["UncertaintySet", "__version__", "get_uncertainty_set", "make_wrapped_env"]
-__all__ = list(dict.fromkeys([*_EAGER, "register_envs", *_LAZY]))
+__all__ = [n for n in dict.fromkeys([*_EAGER, "register_envs", *_LAZY]) if n not in _DEPRECATED]

@@ -1,6 +1,6 @@
 """Physical parameters as data.
 
-A :class:`ParamSpec` is one row of a task's parameter table: the user-facing name (kept from the
+A :class:`Parameter` is one row of a task's parameter table: the user-facing name (kept from the
 original RRLS code), the MuJoCo field it writes and the body, geom, joint or actuator it
 targets, looked up *by name* in the compiled model. Adding a parameter to a task means adding a
 row; the generic robust environment (:mod:`rrls.envs.base`) knows how to read, validate and write
@@ -51,9 +51,11 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Literal, NamedTuple
+from typing import TYPE_CHECKING, Any, Literal, NamedTuple
 
 import numpy as np
+
+from rrls.deprecation import warn_deprecated
 
 if TYPE_CHECKING:  # mujoco is imported lazily: `import rrls` must stay cheap
     import mujoco
@@ -167,7 +169,7 @@ def kind_fields(kinds: object) -> frozenset[str] | None:
 
 
 @dataclass(frozen=True)
-class ParamSpec:
+class Parameter:
     """One physical parameter: ``name`` writes ``field`` of ``target``.
 
     ``target`` is a body name (``"<body>/child"`` for the only child body of a named body: Ant's
@@ -346,64 +348,64 @@ def actuator_id(model: mujoco.MjModel, ref: str) -> int:
 
 
 # -- rows for common kinds ------------------------------------------------------------------------
-def mass_params(parts: dict[str, str]) -> tuple[ParamSpec, ...]:
+def mass_params(parts: dict[str, str]) -> tuple[Parameter, ...]:
     """``<part>mass`` rows for ``{part name: body reference}``."""
-    return tuple(ParamSpec(f"{part}mass", "body_mass", body) for part, body in parts.items())
+    return tuple(Parameter(f"{part}mass", "body_mass", body) for part, body in parts.items())
 
 
-def force_params(parts: dict[str, str], planar: bool) -> tuple[ParamSpec, ...]:
+def force_params(parts: dict[str, str], planar: bool) -> tuple[Parameter, ...]:
     """``<part>force_x/_y/_z`` rows for ``{part name: body reference}``.
 
     On planar tasks every joint moves in the world x-z plane, so a force along world y does
     nothing: there ``_y`` writes the vertical axis (world z) and ``_z`` is an alias of ``_y``.
     """
-    rows: list[ParamSpec] = []
+    rows: list[Parameter] = []
     for part, body in parts.items():
-        rows.append(ParamSpec(f"{part}force_x", "xfrc_applied", body, 0))
+        rows.append(Parameter(f"{part}force_x", "xfrc_applied", body, 0))
         if planar:
-            rows.append(ParamSpec(f"{part}force_y", "xfrc_applied", body, 2, (f"{part}force_z",)))
+            rows.append(Parameter(f"{part}force_y", "xfrc_applied", body, 2, (f"{part}force_z",)))
         else:
-            rows.append(ParamSpec(f"{part}force_y", "xfrc_applied", body, 1))
-            rows.append(ParamSpec(f"{part}force_z", "xfrc_applied", body, 2))
+            rows.append(Parameter(f"{part}force_y", "xfrc_applied", body, 1))
+            rows.append(Parameter(f"{part}force_z", "xfrc_applied", body, 2))
     return tuple(rows)
 
 
-def friction_params(parts: dict[str, str]) -> tuple[ParamSpec, ...]:
+def friction_params(parts: dict[str, str]) -> tuple[Parameter, ...]:
     """``<part>friction`` rows (sliding friction of every geom of the body)."""
-    return tuple(ParamSpec(f"{p}friction", "body_friction", b) for p, b in parts.items())
+    return tuple(Parameter(f"{p}friction", "body_friction", b) for p, b in parts.items())
 
 
-def com_params(parts: dict[str, str], planar: bool) -> tuple[ParamSpec, ...]:
+def com_params(parts: dict[str, str], planar: bool) -> tuple[Parameter, ...]:
     """``<part>com_x/_y/_z`` rows: centre-of-mass offsets in the body frame (m).
 
     Planar tasks get ``_x`` and ``_z`` only (an offset out of the x-z plane changes nothing).
     """
     axes = ((0, "x"), (2, "z")) if planar else ((0, "x"), (1, "y"), (2, "z"))
     return tuple(
-        ParamSpec(f"{p}com_{a}", "body_ipos", b, k) for p, b in parts.items() for k, a in axes
+        Parameter(f"{p}com_{a}", "body_ipos", b, k) for p, b in parts.items() for k, a in axes
     )
 
 
 def joint_params(
     joints: dict[str, str], kinds: tuple[str, ...] = ("damping", "armature", "frictionloss")
-) -> tuple[ParamSpec, ...]:
+) -> tuple[Parameter, ...]:
     """``<part>damping`` / ``<part>armature`` / ``<part>frictionloss`` rows for
     ``{part name: hinge or slide joint name}``."""
     return tuple(
-        ParamSpec(f"{p}{kind}", f"dof_{kind}", j)  # type: ignore[arg-type]
+        Parameter(f"{p}{kind}", f"dof_{kind}", j)  # type: ignore[arg-type]
         for kind in kinds
         for p, j in joints.items()
     )
 
 
-def gear_params(actuators: dict[str, str]) -> tuple[ParamSpec, ...]:
+def gear_params(actuators: dict[str, str]) -> tuple[Parameter, ...]:
     """``<part>gear`` rows for ``{part name: actuator name or the joint it drives}``."""
-    return tuple(ParamSpec(f"{p}gear", "actuator_gear", a) for p, a in actuators.items())
+    return tuple(Parameter(f"{p}gear", "actuator_gear", a) for p, a in actuators.items())
 
 
-GRAVITY = ParamSpec("gravity", "opt_gravity")
-TIMESTEP = ParamSpec("timestep", "opt_timestep")
-VISCOSITY = ParamSpec("viscosity", "opt_viscosity")
+GRAVITY = Parameter("gravity", "opt_gravity")
+TIMESTEP = Parameter("timestep", "opt_timestep")
+VISCOSITY = Parameter("viscosity", "opt_viscosity")
 
 
 def physics_params(
@@ -413,7 +415,7 @@ def physics_params(
     planar: bool = False,
     friction: bool = True,
     com: dict[str, str] | None = None,
-) -> tuple[ParamSpec, ...]:
+) -> tuple[Parameter, ...]:
     """Every kind beyond masses, for a task's parts: per-body friction (unless ``friction`` is
     False: a model without contacts) and centre-of-mass offsets, joint damping / armature / dry
     friction, actuator gear, gravity and timestep.
@@ -430,7 +432,7 @@ def physics_params(
     )
 
 
-def check_bounds(specs: tuple[ParamSpec, ...], box: object) -> None:
+def check_bounds(specs: tuple[Parameter, ...], box: object) -> None:
     """Refuse a box (``names``, ``low``, ``high``) whose bounds are not physical values.
 
     So a set such as ``torsomass in (-1, 2)`` fails where it is built, not episodes later.
@@ -466,9 +468,20 @@ __all__ = [
     "mass_params",
     "names_of",
     "ORIGINAL_FIELDS",
-    "ParamSpec",
+    "Parameter",
     "physics_params",
     "SETCONST_FIELDS",
     "TIMESTEP",
     "VISCOSITY",
 ]
+
+
+def __getattr__(name: str) -> Any:
+    """``ParamSpec``: :class:`Parameter`'s former name (deprecated: it read as
+    ``typing.ParamSpec``, and as one of the unrelated ``*Spec`` classes of rrls)."""
+    if name == "ParamSpec":
+        warn_deprecated(
+            "rrls.params.ParamSpec is deprecated; use rrls.params.Parameter (the same class)"
+        )
+        return Parameter
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

@@ -1,6 +1,6 @@
 """The task registry: :func:`register_task` turns a Gymnasium MuJoCo env into an rrls task.
 
-A task is data: which env it is built on, its parameter table (:class:`~rrls.params.ParamSpec`
+A task is data: which env it is built on, its parameter table (:class:`~rrls.params.Parameter`
 rows naming bodies, geoms, joints and actuators), its force table and its uncertainty sets.
 Registering it checks every row against the compiled model (a bad name fails here, listing the
 valid ones), stores it in :data:`TASKS` and registers its Gymnasium ids; the env classes
@@ -42,7 +42,7 @@ from typing import Any
 from gymnasium.envs.registration import registry
 
 from rrls.gym_ids import register_ids, task_ids, unregister_ids
-from rrls.params import ParamSpec, force_params
+from rrls.params import Parameter, force_params
 from rrls.uncertainty import UncertaintySet
 
 Bounds = dict[str, tuple[float, float]]
@@ -63,8 +63,8 @@ class TaskSpec:
     name: str  #: class-name stem: "Hopper" -> RobustHopper, ForceHopper
     v5_id: str | None  #: the Gymnasium id it is built on (None: built from ``env_class``)
     planar: bool  #: every joint moves in the world x-z plane (forces' ``_y`` is vertical)
-    params: tuple[ParamSpec, ...]  #: robust env parameters (masses, friction, ...)
-    forces: tuple[ParamSpec, ...]  #: force env parameters
+    params: tuple[Parameter, ...]  #: robust env parameters (masses, friction, ...)
+    forces: tuple[Parameter, ...]  #: force env parameters
     sets: dict[str, Bounds] = field(default_factory=dict)  #: "1d", "2d", "3d", "rarl"
     #: env family of each set: "robust" (parameters of ``params``) or "force" (of ``forces``)
     families: dict[str, str] = field(default_factory=dict)
@@ -118,7 +118,7 @@ class TaskSpec:
             f"robust parameters: {robust}; force parameters: {forces}"
         )
 
-    def specs(self, family: str) -> tuple[ParamSpec, ...]:
+    def specs(self, family: str) -> tuple[Parameter, ...]:
         return self.params if family == "robust" else self.forces
 
 
@@ -207,9 +207,9 @@ def register_task(
     key: str,
     env: str | type,
     *,
-    params: Sequence[ParamSpec] = (),
+    params: Sequence[Parameter] = (),
     sets: Mapping[str, Mapping[str, tuple[float, float]]] | None = None,
-    forces: Sequence[ParamSpec] | None = None,
+    forces: Sequence[Parameter] | None = None,
     name: str | None = None,
     planar: bool = False,
     env_kwargs: Mapping[str, Any] | None = None,
@@ -223,7 +223,7 @@ def register_task(
 
     ``key``: lower-case letters and digits, used in ids (``rrls/robust-<key>-v0``) and the CLI.
     ``env``: a Gymnasium id (``"Swimmer-v5"``) or a ``MujocoEnv`` subclass. ``params``: the
-    robust env's :class:`ParamSpec` rows (see :mod:`rrls.params` for ``mass_params``,
+    robust env's :class:`Parameter` rows (see :mod:`rrls.params` for ``mass_params``,
     ``physics_params``, ...). ``forces``: the force env's rows (default: a force on the body of
     every ``body_mass`` row, ``<part>force_x/_y/_z``). ``sets``: ``{set name: {parameter:
     (low, high)}}``; each set's env family is found from the tables (a set mixing robust
@@ -296,9 +296,9 @@ def register_task(
 def _build_spec(
     key: Any,
     env: Any,
-    params: Sequence[ParamSpec],
+    params: Sequence[Parameter],
     sets: Mapping[str, Mapping[str, tuple[float, float]]] | None,
-    forces: Sequence[ParamSpec] | None,
+    forces: Sequence[Parameter] | None,
     name: str | None,
     planar: bool,
     env_kwargs: Mapping[str, Any] | None,
@@ -335,9 +335,9 @@ def _build_spec(
     if not name.isidentifier():
         raise ValueError(f"class name stem must be an identifier, got {name!r}")
     params = tuple(params)
-    bad = [p for p in params if not isinstance(p, ParamSpec)]
+    bad = [p for p in params if not isinstance(p, Parameter)]
     if bad:
-        raise ValueError(f"params must be ParamSpec rows, got {bad[0]!r}")
+        raise ValueError(f"params must be Parameter rows, got {bad[0]!r}")
     if forces is None:
         parts = {p.name.removesuffix("mass"): p.target for p in params if p.field == "body_mass"}
         forces = force_params(parts, planar)

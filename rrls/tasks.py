@@ -16,7 +16,7 @@ from __future__ import annotations
 from rrls.params import (
     ALL_GEOMS,
     VISCOSITY,
-    ParamSpec,
+    Parameter,
     force_params,
     mass_params,
     physics_params,
@@ -31,7 +31,7 @@ from rrls.registry import (
     register_task,
 )
 
-WORLD_FRICTION = ParamSpec("worldfriction", "geom_friction", ALL_GEOMS)
+WORLD_FRICTION = Parameter("worldfriction", "geom_friction", ALL_GEOMS)
 
 
 def _rarl(*names: str) -> Bounds:
@@ -52,7 +52,7 @@ def _task(
     aliases: tuple[str, ...] = (),
     max_episode_steps: int | None = 1000,
     contacts: bool = True,
-    extra: tuple[ParamSpec, ...] = (),
+    extra: tuple[Parameter, ...] = (),
     com: dict[str, str] | None = None,
     paper: bool = False,
 ) -> TaskSpec:

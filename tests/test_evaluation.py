@@ -170,7 +170,7 @@ def test_results_do_not_depend_on_the_work_split_or_chunk_size(tmp_path):
     policy = _policy("hopper")
     box = resolve_uncertainty("hopper", "2d")
     points = box.mesh(3)
-    spec = lanes.RolloutSpec(
+    spec = lanes.Rollouts(
         "hopper", "robust", box.names, points, episode_seeds(4, len(points), 3), 200
     )
     runs = [

@@ -97,6 +97,35 @@ def test_legacy_names_work_and_warn(module: str, name: str, new: str | None):
     assert value is new_value
 
 
+@pytest.mark.parametrize(
+    ("module", "old", "new"),
+    [
+        ("rrls.params", "ParamSpec", "Parameter"),
+        ("rrls.evaluation.lanes", "RolloutSpec", "Rollouts"),
+    ],
+)
+def test_renamed_classes_keep_their_old_names_with_a_warning(module: str, old: str, new: str):
+    mod = importlib.import_module(module)
+    with pytest.warns(DeprecationWarning, match=f"{old} is deprecated; use {module}.{new}"):
+        value = getattr(mod, old)
+    assert value is getattr(mod, new) and old not in mod.__all__ and new in mod.__all__
+    with pytest.raises(AttributeError, match="no attribute 'NoSuchName'"):
+        mod.NoSuchName  # noqa: B018 - the module's own AttributeError stays
+
+
+def test_rrls_exports_parameter_and_keeps_paramspec_out_of_all():
+    import warnings
+
+    import rrls
+    from rrls.params import Parameter
+
+    assert rrls.Parameter is Parameter and "Parameter" in rrls.__all__
+    assert "ParamSpec" not in rrls.__all__
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", DeprecationWarning)
+        assert rrls.ParamSpec is Parameter  # old code still runs
+
+
 def test_check_protocol_still_checks():
     from rrls.envs import RobustAnt
     from rrls.interface import is_modified_params_env

@@ -53,12 +53,12 @@ def test_the_fresh_means_are_the_plain_evaluation_at_those_points_and_seeds():
     from dataclasses import replace
 
     from rrls.evaluation import engine
-    from rrls.evaluation.lanes import RolloutSpec
+    from rrls.evaluation.lanes import Rollouts
 
     result = evaluate(wobbly(), "invertedpendulum", protocol=PROTOCOL, workers=1)
     out = recheck(wobbly(), "invertedpendulum", PROTOCOL, result.episodes, Recheck(1, 4))
     (p,) = out["recheck"]["points"]
-    spec = RolloutSpec.from_plan(PROTOCOL.plan("invertedpendulum"), PROTOCOL)
+    spec = Rollouts.from_plan(PROTOCOL.plan("invertedpendulum"), PROTOCOL)
     one = replace(spec, points=spec.points[[p]], seeds=recheck_seeds(3, np.array([p]), 4))
     cols = engine.run(one, wobbly(), workers=1, progress=False)
     assert out["recheck"]["fresh_means"] == [pytest.approx(cols["return"].mean())]

@@ -21,7 +21,7 @@ from rrls import registry
 from rrls.cli import main
 from rrls.envs import FORCE_ENVS, ROBUST_ENVS, get_uncertainty_set, resolve
 from rrls.evaluation import evaluate, search_worst_case
-from rrls.params import ParamSpec, body_id, joint_params, mass_params
+from rrls.params import Parameter, body_id, joint_params, mass_params
 from rrls.registry import TASKS, validate_task
 from rrls.wrappers import DomainRandomization
 
@@ -132,11 +132,11 @@ def test_evaluate_rows_equal_the_plain_gymnasium_loop_and_search_runs():
             "no body named 'nobody' in the model; valid bodies: world, torso, thigh, leg, foot",
         ),
         (
-            dict(params=(ParamSpec("kneedamping", "dof_damping", "knee"),)),
+            dict(params=(Parameter("kneedamping", "dof_damping", "knee"),)),
             "valid joints: rootx, rootz, rooty, thigh_joint, leg_joint, foot_joint",
         ),
         (
-            dict(params=(ParamSpec("kneegear", "actuator_gear", "knee"),)),
+            dict(params=(Parameter("kneegear", "actuator_gear", "knee"),)),
             "valid: thigh_joint, leg_joint, foot_joint",
         ),
         (
@@ -148,7 +148,7 @@ def test_evaluate_rows_equal_the_plain_gymnasium_loop_and_search_runs():
             "torsomass is a mass and must be > 0, got -1.0",
         ),
         (
-            dict(params=(ParamSpec("g", "opt_timestep"),), sets={"1d": {"g": (0.001, 5.0)}}),
+            dict(params=(Parameter("g", "opt_timestep"),), sets={"1d": {"g": (0.001, 5.0)}}),
             "g must be <= 0.1 (timestep)",
         ),
         (dict(params=mass_params({"torso": "torso"}) * 2), "duplicate parameter names"),
@@ -301,7 +301,7 @@ def test_centre_of_mass_rows_on_simple_bodies_are_refused_at_registration():
             "badpusher",
             "Pusher-v5",
             name="BadPusher",
-            params=(ParamSpec("objectcom_x", "body_ipos", "object"),),
+            params=(Parameter("objectcom_x", "body_ipos", "object"),),
         )
     assert "badpusher" not in TASKS
 

@@ -121,7 +121,7 @@ def test_evaluation_leaves_no_cached_envs_behind():
     evaluate(MLPPolicy.random(4, 1, (8,)), "invertedpendulum", "1d", mesh=2, episodes=1)
     assert lanes._cache() == {}
     assert not hasattr(engine, "_WORKER") and not hasattr(engine, "spec_for")
-    assert "env_kwargs" not in lanes.RolloutSpec.__dataclass_fields__
+    assert "env_kwargs" not in lanes.Rollouts.__dataclass_fields__
 
 
 def test_fast_stepper_only_for_the_exact_default_classes():
@@ -284,7 +284,7 @@ def test_an_evaluation_in_another_thread_keeps_its_envs():
 
     from rrls.evaluation import MLPPolicy, evaluate, lanes
 
-    spec = lanes.RolloutSpec("invertedpendulum", "robust", (), np.zeros((1, 0)), np.zeros((1, 1)))
+    spec = lanes.Rollouts("invertedpendulum", "robust", (), np.zeros((1, 0)), np.zeros((1, 1)))
     mine = lanes.make_rollout_envs(spec, 2)
     other = threading.Thread(
         target=lambda: evaluate(

@@ -9,7 +9,7 @@ import pytest
 from rrls.envs import FORCE_ENVS, ROBUST_ENVS
 from rrls.evaluation import MLPPolicy, engine, resolve_uncertainty
 from rrls.evaluation.kernels import FastStepper, GenericStepper, LaneSteps, make_stepper
-from rrls.evaluation.lanes import RolloutSpec, episode_seeds
+from rrls.evaluation.lanes import Rollouts, episode_seeds
 
 LANES = 7  # not a multiple of the thread counts: uneven shares
 
@@ -98,7 +98,7 @@ def test_engine_rows_do_not_depend_on_threads():
     task = "hopper"
     box = resolve_uncertainty(task, "3d")
     points = box.mesh(2)
-    spec = RolloutSpec(task, "robust", box.names, points, episode_seeds(0, len(points), 2), 200)
+    spec = Rollouts(task, "robust", box.names, points, episode_seeds(0, len(points), 2), 200)
     env = ROBUST_ENVS[task]()
     policy = MLPPolicy.random(
         env.observation_space.shape[0], env.action_space.shape[0], hidden=(16,), seed=0

@@ -19,7 +19,7 @@ import numpy as np
 from gymnasium.utils import EzPickle
 
 from rrls.envs.paper import NO_SETCONST
-from rrls.params import SETCONST_FIELDS, ParamSpec, kind_fields
+from rrls.params import SETCONST_FIELDS, Parameter, kind_fields
 from rrls.tasks import TaskSpec
 
 _FORCES = "xfrc_applied"
@@ -89,7 +89,7 @@ class ModifiedParamsMixin:
     """
 
     task: ClassVar[TaskSpec]
-    param_specs: ClassVar[tuple[ParamSpec, ...]]
+    param_specs: ClassVar[tuple[Parameter, ...]]
     #: built on the paper's physics (the original code's env and writes: rrls.envs.paper)
     paper: ClassVar[bool] = False
     #: the class of the same task and family on the paper's physics (None: there is none)
@@ -288,7 +288,7 @@ class ModifiedParamsMixin:
             updates[spec.name] = float(value)
         return updates
 
-    def _read(self, spec: ParamSpec) -> float:
+    def _read(self, spec: Parameter) -> float:
         idx = self._rows[spec.name][1]
         model, field = self.model, spec.field
         if field == "body_mass":
@@ -316,7 +316,7 @@ class ModifiedParamsMixin:
             return float(model.opt.viscosity)
         return float(self.data.xfrc_applied[idx[0], spec.component])
 
-    def _write(self, spec: ParamSpec, idx: np.ndarray, value: float) -> None:
+    def _write(self, spec: Parameter, idx: np.ndarray, value: float) -> None:
         model, field = self.model, spec.field
         if field == "body_mass":
             b = idx[0]

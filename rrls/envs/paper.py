@@ -18,7 +18,7 @@ each row of each paper env changes exactly those model entries.
 
 from __future__ import annotations
 
-from rrls.params import ParamSpec, force_params
+from rrls.params import Parameter, force_params
 from rrls.registry import TaskSpec
 
 #: tasks whose original code writes ``worldfriction`` to the floor geom only (``geom_friction[0,
@@ -28,19 +28,19 @@ FLOOR_FRICTION = {"hopper": "rrls/envs/hopper.py:137", "walker": "rrls/envs/walk
 NO_SETCONST = frozenset({"body_mass"})
 
 
-def paper_specs(task: TaskSpec, kind: str) -> tuple[ParamSpec, ...]:
+def paper_specs(task: TaskSpec, kind: str) -> tuple[Parameter, ...]:
     """The rows of ``task``'s paper env of family ``kind`` ("robust" or "force")."""
     if kind == "force":
         return _world_axis_forces(task.forces)
     rows = []
     for spec in task.params:
         if spec.name == "worldfriction" and task.key in FLOOR_FRICTION:
-            spec = ParamSpec("worldfriction", "geom_friction", "floor")
+            spec = Parameter("worldfriction", "geom_friction", "floor")
         rows.append(spec)
     return tuple(rows)
 
 
-def _world_axis_forces(forces: tuple[ParamSpec, ...]) -> tuple[ParamSpec, ...]:
+def _world_axis_forces(forces: tuple[Parameter, ...]) -> tuple[Parameter, ...]:
     """``<part>force_x/_y/_z`` on the world axes for every part of ``forces`` (in their order)."""
     parts = {
         s.name.removesuffix("force_x"): s.target

@@ -157,7 +157,7 @@ def _evaluate(
 
     from rrls.evaluation import engine, evaldir
     from rrls.evaluation.chunks import CHUNK
-    from rrls.evaluation.lanes import RolloutSpec, episode_seeds, make_rollout_envs
+    from rrls.evaluation.lanes import Rollouts, episode_seeds, make_rollout_envs
     from rrls.evaluation.policies import as_policy
     from rrls.evaluation.prepared import PreparedPolicy
 
@@ -165,7 +165,7 @@ def _evaluate(
     seeds = episode_seeds(protocol.seed, 1, episodes)
     # the first lane's env (the game's checks: a nominal set, context in the TC game) gives the
     # episode length; the spec with it keys the same cached envs
-    spec = RolloutSpec(game.task, "game", (), np.zeros((1, 0)), seeds, 1, game=game)
+    spec = Rollouts(game.task, "game", (), np.zeros((1, 0)), seeds, 1, game=game)
     env = make_rollout_envs(spec, 1)[0]
     spec = replace(spec, max_episode_steps=_episode_steps(env))
     players = TwoPlayers(

@@ -30,7 +30,7 @@ from threadpoolctl import threadpool_limits
 from rrls._proc import cores, die_with_parent
 from rrls._progress import progress_bar
 from rrls.evaluation.chunks import CHUNK, chunk_path, load_chunk, remove_leftovers, save_chunk
-from rrls.evaluation.lanes import LANES, Finished, RolloutSpec, make_rollout_envs, run_rows
+from rrls.evaluation.lanes import LANES, Finished, Rollouts, make_rollout_envs, run_rows
 from rrls.evaluation.scheduling import WorkPlan, plan_work, shared_bounds, steal_horizon, take_row
 
 __all__ = ["default_workers", "run"]
@@ -42,7 +42,7 @@ def default_workers() -> int:
 
 
 def run(
-    spec: RolloutSpec,
+    spec: Rollouts,
     policy: Callable[[np.ndarray], Any],
     workers: int | None = None,
     lanes: int = LANES,
@@ -121,7 +121,7 @@ def run(
 
 
 def _run_processes(
-    spec: RolloutSpec,
+    spec: Rollouts,
     policy: Callable,
     todo: np.ndarray,
     plan: WorkPlan,
@@ -177,7 +177,7 @@ def _run_processes(
 
 
 def _worker_main(
-    spec: RolloutSpec,
+    spec: Rollouts,
     policy: Callable,
     rows: np.ndarray,
     bounds: Any,

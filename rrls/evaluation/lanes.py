@@ -17,11 +17,13 @@ from typing import Any
 
 import numpy as np
 
+from rrls.deprecation import warn_deprecated
+
 __all__ = [
     "LANES",
     "Finished",
     "PolicyError",
-    "RolloutSpec",
+    "Rollouts",
     "clear_env_cache",
     "episode_seeds",
     "make_rollout_envs",
@@ -36,8 +38,9 @@ class PolicyError(ValueError):
 
 
 @dataclass
-class RolloutSpec:
-    """What to roll out: ``points[p]`` × ``seeds[p, e]``, for ``task`` with env family ``kind``."""
+class Rollouts:
+    """The episodes to roll out: ``points[p]`` × ``seeds[p, e]``, for ``task`` with env family
+    ``kind`` (what the engine runs; a protocol planned for a task makes one, ``from_plan``)."""
 
     task: str
     kind: str  # "robust" (parameter sets) or "force" (the RARL force set)
@@ -52,7 +55,7 @@ class RolloutSpec:
     game: Any = None
 
     @classmethod
-    def from_plan(cls, plan: Any, protocol: Any) -> RolloutSpec:
+    def from_plan(cls, plan: Any, protocol: Any) -> Rollouts:
         """What the engine rolls out for a planned protocol (``Protocol.plan``): every point ×
         its episodes' seeds."""
         return cls(
@@ -106,7 +109,7 @@ def _cache() -> dict[tuple[str, str, Any, bool, Any], list[Any]]:
     return _LOCAL.envs
 
 
-def make_rollout_envs(spec: RolloutSpec, n: int) -> list[Any]:
+def make_rollout_envs(spec: Rollouts, n: int) -> list[Any]:
     """Bare envs of the spec's family and physics (in the spec's stack of wrappers, if any);
     every lane is reset before use."""
     from rrls.envs import FAMILY_ENVS, paper_class
@@ -138,7 +141,7 @@ Finished = list[tuple[int, float, int, bool, bool]]  # (row, return, length, ter
 
 
 def run_rows(
-    spec: RolloutSpec,
+    spec: Rollouts,
     policy: Callable[[np.ndarray], Any],
     next_row: Callable[[int], int],
     on_finished: Callable[[Finished], None],
@@ -224,7 +227,7 @@ def _quiet_mujoco() -> Iterator[None]:
 
 
 def _loop(
-    spec: RolloutSpec,
+    spec: Rollouts,
     policy: Callable[[np.ndarray], Any],
     stepper: Any,
     fill: Callable[[], None],
@@ -288,7 +291,7 @@ def _check_actions(
     live: np.ndarray,
     lane_row: np.ndarray,
     lengths: np.ndarray,
-    spec: RolloutSpec,
+    spec: Rollouts,
     act_dim: int,
     who: str = "policy",
 ) -> None:
@@ -312,3 +315,15 @@ def _check_actions(
             f"{who} returned non-finite actions {actions[j].tolist()} at {spec.describe(r)}, "
             f"step {lengths[live[j]]}"
         )
+
+
+def __getattr__(name: str) -> Any:
+    """``RolloutSpec``: :class:`Rollouts`'s former name (deprecated: it is no specification, and
+    was one of several unrelated ``*Spec`` classes of rrls)."""
+    if name == "RolloutSpec":
+        warn_deprecated(
+            "rrls.evaluation.lanes.RolloutSpec is deprecated; use rrls.evaluation.lanes.Rollouts "
+            "(the same class)"
+        )
+        return Rollouts
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

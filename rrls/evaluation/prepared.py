@@ -23,7 +23,7 @@ from typing import Any
 
 import numpy as np
 
-from rrls.evaluation.lanes import PolicyError, RolloutSpec, make_rollout_envs
+from rrls.evaluation.lanes import PolicyError, Rollouts, make_rollout_envs
 from rrls.evaluation.policies import as_policy, is_batch_invariant, policy_fingerprint
 
 __all__ = ["PreparedPolicy", "policy_record", "prepare", "prepare_policy"]
@@ -70,7 +70,7 @@ def prepare(policy: Any, task: str, protocol: Any = None, view: Any = None) -> P
     if protocol is None:
         protocol = Protocol.for_policy(getattr(policy, "metadata", None), task)
     plan = protocol.plan(task, policy_view(policy) if view is None else view)
-    return prepare_policy(policy, RolloutSpec.from_plan(plan, protocol), stacklevel=3)
+    return prepare_policy(policy, Rollouts.from_plan(plan, protocol), stacklevel=3)
 
 
 def prepare_policy(policy: Any, spec: Any, stacklevel: int = 3) -> PreparedPolicy:

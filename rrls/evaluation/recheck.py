@@ -61,14 +61,14 @@ def recheck(
     Returns ``worst_case_rechecked`` (the lowest fresh mean), ``worst_case_q`` (the quantile of
     the mesh's point means), the rechecked points and the settings, for ``result.json``."""
     from rrls.evaluation import engine
-    from rrls.evaluation.lanes import RolloutSpec
+    from rrls.evaluation.lanes import Rollouts
     from rrls.evaluation.metrics import point_means
     from rrls.evaluation.prepared import prepare
 
     how = how or Recheck()
     prepared = prepare(policy, task, protocol)
     plan = protocol.plan(task)
-    spec = RolloutSpec.from_plan(plan, protocol)
+    spec = Rollouts.from_plan(plan, protocol)
     means = point_means(episodes)
     if len(means) != len(spec.points):
         raise ValueError(

@@ -122,7 +122,7 @@ def _search(
     size = int(popsize or max(8, 5 * dim))
     size = min(size, budget)
     common = lanes.episode_seeds(protocol.seed, 1, episodes)  # the same for every candidate
-    probe = lanes.RolloutSpec(
+    probe = lanes.Rollouts(
         key,
         kind,
         box.names,
@@ -142,7 +142,7 @@ def _search(
         run = box.clip(points[: max(0, left)])
         if len(run):
             seeds = np.repeat(common, len(run), axis=0)
-            spec = lanes.RolloutSpec(
+            spec = lanes.Rollouts(
                 key, kind, box.names, run, seeds, max_episode_steps, stack, plan.paper
             )
             table = rollout_table(spec, policy, workers)

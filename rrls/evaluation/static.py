@@ -128,7 +128,7 @@ def evaluate(
     if workers == 0:  # 0: in this process, as every rrls command reads it (= one worker)
         workers = 1
     check_sizes(workers=workers, batch_size=batch_size)
-    spec = lanes.RolloutSpec.from_plan(plan, protocol)
+    spec = lanes.Rollouts.from_plan(plan, protocol)
     try:  # the engine's env cache lives only as long as this evaluation
         return _evaluate(
             policy,
@@ -238,7 +238,7 @@ class Evaluator:
 
     def __init__(self, task: str, protocol: Protocol, view: Any = None) -> None:
         self.plan = protocol.plan(task, view)
-        self.spec = lanes.RolloutSpec.from_plan(self.plan, protocol)
+        self.spec = lanes.Rollouts.from_plan(self.plan, protocol)
 
     def __call__(self, policy: Callable[[np.ndarray], Any]) -> EvaluationResult:
         """``policy``'s rows on one worker (``policy``: batch-invariant, e.g. ``MLPPolicy``)."""
