@@ -43,10 +43,17 @@ def test_the_built_in_learners_satisfy_the_typed_protocol():
 
 
 def test_the_device_resident_methods_are_where_they_work():
-    """TD3's and SAC's learners (so DR and SAC-DR) have the device-resident loop's methods;
-    M2TD3 and NR-MDP, which subclass TD3's learner with transitions of their own, mark them
-    absent, and RARL never had them."""
+    """TD3's and SAC's learners (so DR and SAC-DR), NR-MDP's (the executed action) and RARL's
+    (the joint action of the twin's force game) have the device-resident loop's methods;
+    M2TD3, which subclasses TD3's learner with transitions of its own, marks them absent."""
     from rrls.agents import ALGOS, DeviceLearnerProtocol, algorithm
 
     has = {name: issubclass(algorithm(name).Learner, DeviceLearnerProtocol) for name in ALGOS}
-    assert {name for name, yes in has.items() if yes} == {"td3", "dr", "sac", "sacdr"}
+    assert {name for name, yes in has.items() if yes} == {
+        "td3",
+        "dr",
+        "sac",
+        "sacdr",
+        "nrmdp",
+        "rarl",
+    }

@@ -24,6 +24,13 @@ paper's 256-256 networks. The reference evaluates the critic at ``s`` but feeds 
 ``s'`` in the policy losses; here both use ``s`` (the paper's objective). The final adversary is
 saved (``adversary.npz``) for the dynamic evaluation (paper Table 6).
 
+On the MuJoCo Warp twin the game stays on the device (``draw_ahead``, ``act_tensor``, ``put``,
+``update_drawn``: ``rrls.agents.learner.DeviceLearnerProtocol``): ``act_tensor`` returns the
+executed action (``ProbabilisticActionRobust``'s mixture, or for PR-MDP its coin drawn a block
+ahead), which the twin steps and the replay stores, and ``update_drawn`` is ``update`` on drawn
+inputs (the same losses in the same order). ``normalize_obs`` stays on the CPU path (its
+statistics are updated on the host at every step).
+
 Opt-in, two defaults of the reference's ``DDPG`` (``ddpg.py:42``) the TD3 core leaves off:
 ``normalize_obs`` (its running state standardisation, pooled over features as its code computes
 it: ``PooledStats``) and ``critic_weight_decay`` (its Adam L2 term on the critic, 1e-2).
@@ -42,7 +49,7 @@ from rrls.agents.envs import task_env
 from rrls.agents.graphs import Update, adam, load_optimizer
 from rrls.agents.hparams import hp
 from rrls.agents.nets import Actor, NumpyActor, deterministic, polyak, to_mlp_policy
-from rrls.agents.streams import Generators, RunSeeds
+from rrls.agents.streams import Generators, NumpyGenerators, RunSeeds
 from rrls.agents.td3 import Learner as TD3Learner
 from rrls.agents.td3 import TD3Config, cat
 
@@ -85,14 +92,11 @@ def make_env(task: str, uncertainty: Any, config: Config, paper: bool = False) -
 
 
 class Learner(TD3Learner):
-    """TD3's learner (the protagonist: acting, buffer, critic) plus the adversaries' policies."""
-
-    # not TD3's device-resident methods (its transitions and updates are its own): None marks
-    # them absent, so ``isinstance(learner, DeviceLearnerProtocol)`` is False, as for ``__hash__``
-    draw_ahead = act_tensor = put = update_drawn = None  # type: ignore[assignment]
+    """TD3's learner (the protagonist: acting, buffer, critic) plus the adversaries' policies.
+    ``env``: the game (``make_env``), or a bare env (the twin's), whose box both players share."""
 
     def __init__(self, env: Any, config: Config, seeds: list[RunSeeds], device: Any) -> None:
-        space = env.action_space.spaces[0]
+        space = getattr(env.action_space, "spaces", (env.action_space,))[0]
         super().__init__(_Protagonist(env, space), config, seeds, device)
         obs_dim, hidden = env.observation_space.shape[0], config.hidden
         init = Generators(seeds, "adversary.init")
@@ -111,6 +115,7 @@ class Learner(TD3Learner):
             self.agent.critic_opt = adam(critic, lr, device, weight_decay=decay)
         self.stats = PooledStats(len(seeds), device) if config.normalize_obs else None
         self._update = Update(self._compute, device)
+        self.seeds, self.coins = seeds, None  # PR-MDP's coins on the device, drawn ahead
 
     def act(self, obs: np.ndarray) -> list[Any]:
         """The protagonist explores with noise, the adversary acts without (as the reference)."""
@@ -125,13 +130,65 @@ class Learner(TD3Learner):
             self.stats.update(obs)
 
     def update(self, step: int) -> dict[str, torch.Tensor]:
-        size, turn = self.config.batch_size, None
+        size = self.config.batch_size
+        draws = {"idx": self.buffer.draw(size)}
+        draws.update({"mine": self.agent.draw(size), "theirs": self.agent.draw(size)})
+        return self.update_drawn(step, draws)
+
+    def update_drawn(self, step: int, draws: dict[str, torch.Tensor]) -> dict[str, torch.Tensor]:
+        """The update of ``step`` on given random inputs (``idx``, ``mine``, ``theirs``): the
+        critic, then the turn's policy step (the schedule counts policy steps)."""
+        turn = None
         if step % self.config.policy_frequency == 0:
             self.policy_steps += 1
             turn = "adversary" if self.policy_steps % (self.config.ratio + 1) == 0 else "actor"
-        draws = {"idx": self.buffer.draw(size)}
-        draws.update({"mine": self.agent.draw(size), "theirs": self.agent.draw(size)})
-        return self._update(turn, draws)
+        return self._update(turn, {name: draws[name] for name in ("idx", "mine", "theirs")})
+
+    # -- the device-resident loop: the executed action, the replay and the updates on the
+    # device, every random input drawn a block of steps ahead (``docs/algorithms.md``)
+    def draw_ahead(self, steps: int) -> dict[str, torch.Tensor]:
+        """The next ``steps`` env steps' random inputs, ``(steps, K, ...)`` on the device: TD3's
+        (exploration noise, replay indices), both players' target smoothing noise (one draw of
+        ``2 B`` rows a step, split as ``update``'s two draws) and PR-MDP's coin."""
+        if self.stats is not None:
+            raise ValueError(
+                "normalize_obs updates its statistics on the host at every step: train NR-MDP "
+                "with it on the CPU (or without it on the twin)"
+            )
+        size, device = self.config.batch_size, self.agent.device
+        noise = [rng.normal(0.0, self.sigma, (steps, len(self.sigma))) for rng in self.rngs]
+        eps = self.agent.draw_ahead(steps, 2 * size)
+        draws = {
+            "noise": torch.from_numpy(np.stack(noise, 1).astype(np.float32)).to(device),
+            "idx": self.buffer.draw_ahead(steps, size),
+            "mine": eps[:, :, :size],
+            "theirs": eps[:, :, size:],
+        }
+        if self.config.mode == "pr":
+            if self.coins is None:
+                self.coins = NumpyGenerators(self.seeds, "adversary.coin")
+            coin = np.stack([rng.random(steps) for rng in self.coins], 1) < self.alpha
+            draws["coin"] = torch.from_numpy(coin).to(device)
+        return draws
+
+    def act_tensor(self, obs: torch.Tensor, draws: dict[str, torch.Tensor]) -> torch.Tensor:
+        """The executed action on the device, ``(K, obs) -> (K, act)``: the protagonist's
+        ``clip(π(s) + noise)`` mixed with the adversary's ``π̄(s)`` as the env mixes them."""
+        if self._act is None:
+            self._act = self._update.sibling(self._act_on_device)
+        inputs = {"obs": obs, "noise": draws["noise"]}
+        if self.config.mode == "pr":
+            inputs["coin"] = draws["coin"]
+        return self._act(None, inputs)
+
+    def _act_on_device(self, _variant: None, x: dict[str, torch.Tensor]) -> torch.Tensor:
+        """``act_tensor``'s device work: ``ProbabilisticActionRobust.step``'s executed action."""
+        mine = super()._act_on_device(None, x)
+        with torch.no_grad():
+            theirs = self.opponent(x["obs"].unsqueeze(1)).squeeze(1)
+        if self.config.mode == "nr":
+            return (1.0 - self.alpha) * mine + self.alpha * theirs
+        return torch.where(x["coin"].unsqueeze(1), theirs, mine)
 
     @torch.no_grad()
     def target(self, data: dict[str, torch.Tensor], eps_mine, eps_theirs) -> torch.Tensor:

@@ -35,6 +35,12 @@ the protagonist maximises the reward, the adversary ``-reward``. Both act at eve
   earlier game (``R`` in normalised units towards a target point). The saved policies record
   the game, so the dynamic and static evaluations replay it.
 - The final adversary is saved (``adversary.npz``) for the dynamic evaluation (paper Table 6).
+- **On the MuJoCo Warp twin** (the force set, ``WarpTwin(..., adversary=True)``): the game stays
+  on the device (``rrls.agents.learner.DeviceLearnerProtocol``). ``act_tensor`` returns the
+  joint action, the protagonist's then the adversary's, which the twin splits (the adversary's
+  columns become each world's ``xfrc_applied``); ``put`` stores each player's part, the
+  adversary's with ``-reward``; ``update_drawn`` is ``update`` on drawn inputs (the same
+  players, in the same order). TC-RMDP's game stays on the CPU (its parameters move on the host).
 """
 
 from __future__ import annotations
@@ -200,6 +206,7 @@ class Learner(_Learner):
         ]
         self.rngs = [NumpyGenerators(seeds, name + "explore") for name in PLAYERS]
         self._update = Update(self._compute, device)
+        self._act: Any = None  # ``act_tensor``'s ``Update``, made on first use
         # the game the policies record (the set: the run's ``uncertainty``); the dynamic
         # evaluation (``evaluate_run_dynamic``) reads it back to replay the same game, the
         # static one the protagonist's view
@@ -257,7 +264,63 @@ class Learner(_Learner):
         for i in learning:  # the protagonist's draws first, as its update comes first
             draws[f"idx{i}"] = self.buffers[i].draw(size)
             draws[f"eps{i}"] = self.players[i].draw(size)
-        return self._update((learning, step % self.config.policy_frequency == 0), draws)
+        return self.update_drawn(step, draws)
+
+    def update_drawn(self, step: int, draws: dict[str, torch.Tensor]) -> dict[str, torch.Tensor]:
+        """The update of ``step`` on given random inputs (``idx<i>``, ``eps<i>`` of player
+        ``i``; those of a player not learning at ``step`` are left unused)."""
+        learning = self.learning(step)
+        inputs = {f"{name}{i}": draws[f"{name}{i}"] for i in learning for name in ("idx", "eps")}
+        return self._update((learning, step % self.config.policy_frequency == 0), inputs)
+
+    # -- the device-resident loop on the twin's force game: acting, storing and updating on
+    # device tensors, every random input drawn a block of steps ahead (``docs/algorithms.md``)
+    def draw_ahead(self, steps: int) -> dict[str, torch.Tensor]:
+        """The next ``steps`` env steps' random inputs, ``(steps, K, ...)`` on the device, for
+        both players whether they learn at that step or not (row ``t`` is step ``t``'s):
+        exploration noise from their ``"explore"`` streams (the CPU path's), replay indices and
+        smoothing noise from their ``".ahead"`` streams."""
+        if self.config.tc:
+            raise ValueError("TC-RMDP's game moves its parameters on the host: train it on the CPU")
+        size, draws = self.config.batch_size, {}
+        for i, (player, rngs, space) in enumerate(zip(self.players, self.rngs, self.spaces)):
+            sigma = (space.high - space.low) / 2 * self.config.exploration_noise
+            noise = np.stack([rng.normal(0.0, sigma, (steps, len(sigma))) for rng in rngs], 1)
+            draws[f"noise{i}"] = torch.from_numpy(noise.astype(np.float32)).to(player.device)
+            draws[f"idx{i}"] = self.buffers[i].draw_ahead(steps, size)
+            draws[f"eps{i}"] = player.draw_ahead(steps, size)
+        return draws
+
+    def act_tensor(self, obs: torch.Tensor, draws: dict[str, torch.Tensor]) -> torch.Tensor:
+        """Both players' actions on the device, ``(K, obs) -> (K, act + adversary)``: each
+        ``clip(π_i(s) + noise_i)`` as ``act``, the protagonist's columns first."""
+        if self._act is None:
+            self._act = self._update.sibling(self._act_on_device)
+        return self._act(None, {"obs": obs, "noise0": draws["noise0"], "noise1": draws["noise1"]})
+
+    def _act_on_device(self, _variant: None, x: dict[str, torch.Tensor]) -> torch.Tensor:
+        """``act_tensor``'s device work."""
+        parts = []
+        with torch.no_grad():
+            for i, player in enumerate(self.players):
+                seen = x["obs"][:, self.slices[i]].unsqueeze(1)
+                action = player.actor(seen).squeeze(1) + x[f"noise{i}"]
+                parts.append(action.clamp(player.low, player.high))
+        return torch.cat(parts, 1)
+
+    def put(self, obs, actions, rewards, next_obs, terminated) -> None:
+        """``observe`` for device tensors: each player's columns of the joint action, the
+        adversary's transition with ``-reward`` (zero-sum)."""
+        split = self.spaces[0].shape[0]
+        parts = (actions[:, :split], actions[:, split:])
+        for i, (buffer, sign) in enumerate(zip(self.buffers, (1.0, -1.0))):
+            buffer.put(
+                obs=obs[:, self.slices[i]],
+                action=parts[i],
+                reward=sign * rewards,
+                next_obs=next_obs[:, self.slices[i]],
+                terminated=terminated,
+            )
 
     def _compute(self, variant: tuple[tuple[int, ...], bool], x: dict[str, torch.Tensor]) -> dict:
         """The device work of an update: each learning player's TD3 step, the protagonist's

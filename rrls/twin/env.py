@@ -16,6 +16,11 @@ are computed once by CPU MuJoCo, so a reset never leaves the device; training gi
 ``pool_seed=0``: one pool for every run, so a run's draws depend on its own seed alone, not on
 its group); neither: the nominal model.
 
+The adversary's forces (RARL's game on its force set, ``adversary=True``): the action is the
+protagonist's then the adversary's, ``(n, nu + dim)``; each step the adversary's ``[-1, 1]``
+columns are mapped onto the set's box with ``DynamicAdversarial``'s arithmetic and written into
+that world's ``xfrc_applied`` row before the physics, inside the step (no host round trip).
+
 Autoreset is Gymnasium's ``SAME_STEP`` mode: a world that ends returns its first observation of
 the next episode, its last one in ``info["final_obs"]``. Arrays stay on the device:
 ``array="torch"`` returns torch tensors sharing the device memory (and takes torch actions
@@ -94,6 +99,7 @@ class WarpTwin(VectorEnv):
         nconmax: int = 32,
         njmax: int = 160,
         max_episode_steps: int | None = None,
+        adversary: bool = False,
         **env_kwargs: Any,
     ) -> None:
         key = get_task(task).key
@@ -117,6 +123,8 @@ class WarpTwin(VectorEnv):
             raise ValueError(f"num_envs must be a positive integer, got {num_envs!r}")
         if points is not None and domain_randomization:
             raise ValueError("give fixed points or domain_randomization=True, not both")
+        if adversary and (points is not None or domain_randomization):
+            raise ValueError("adversary=True: the adversary sets the forces, give no points or DR")
         self._wp, self._mjw, self._k = wp, mjw, kernels
         self.task, self.array = TWIN_TASKS[key], array
         self.resolved = resolve(key, uncertainty or default_set(key))
@@ -130,6 +138,7 @@ class WarpTwin(VectorEnv):
         self.max_episode_steps = max_episode_steps or get_task(key).max_episode_steps or 1000
         self.single_observation_space = self.cpu.observation_space
         self.single_action_space = self.cpu.action_space
+        self.adversary_dim = self._adversary(adversary)
         self.observation_space = gym.vector.utils.batch_space(self.single_observation_space, n)
         self.action_space = gym.vector.utils.batch_space(self.single_action_space, n)
         pool_from = seed if pool_seed is None else pool_seed
@@ -163,6 +172,39 @@ class WarpTwin(VectorEnv):
             rng = np.random.default_rng(np.random.SeedSequence(entropy, spawn_key=(POOL_KEY,)))
             return np.asarray(self.box.sample(rng, size), dtype=np.float64).reshape(size, dim)
         return np.asarray(self.box.nominal, dtype=np.float64).reshape(1, dim)
+
+    def _adversary(self, on: bool) -> int:
+        """With ``on``, the joint action space and each force's flat ``xfrc_applied`` slot (found
+        by writing the force on the CPU env and seeing where it lands); the adversary's width."""
+        if not on:
+            return 0
+        if self.resolved.family != "force":
+            raise ValueError(
+                f"adversary=True plays the force set (uncertainty 'rarl'), not {self.box.label!r}: "
+                "an adversary moving masses or friction every step would need the derived "
+                "constants recomputed on the device at every step"
+            )
+        box, cpu = self.box, self.cpu
+        slots = []
+        for name in box.names:
+            cpu.set_params(**{name: 1.0})
+            hit = np.flatnonzero(np.asarray(cpu.data.xfrc_applied).ravel())
+            cpu.reset_params()
+            if len(hit) != 1:
+                raise RuntimeError(f"force {name!r} writes {len(hit)} xfrc_applied entries")
+            slots.append(int(hit[0]))
+        # DynamicAdversarial.params_of: lo + ((a + 1) * (hi - lo)) / 2 in float32, the span
+        # rounded once from float64 as numpy rounds a Python float against a float32 array
+        self.force_slots = np.array(slots, dtype=np.int32)
+        self.force_low = np.asarray(box.low, dtype=np.float32)
+        self.force_span = (np.asarray(box.high, np.float64) - box.low).astype(np.float32)
+        agent = self.single_action_space
+        self.single_action_space = gym.spaces.Box(
+            np.concatenate([agent.low, -np.ones(box.dim)]).astype(np.float32),
+            np.concatenate([agent.high, np.ones(box.dim)]).astype(np.float32),
+            dtype=np.float32,
+        )
+        return box.dim
 
     def _formula(self, f: Any) -> Any:
         t, c = self.task, constants(self.cpu, self.task)
@@ -236,6 +278,14 @@ class WarpTwin(VectorEnv):
             self.x_before = wp.zeros(n, dtype=float)
             self.point = wp.array(np.arange(n, dtype=np.int32) % len(self.pool_points), dtype=int)
             self.action = wp.zeros((n, self.nu), dtype=float)
+            # the step's input: the action itself, or with an adversary the joint action
+            self.joint = self.action
+            if self.adversary_dim:
+                self.joint = wp.zeros((n, self.nu + self.adversary_dim), dtype=float)
+                self.slots = wp.array(self.force_slots, dtype=int)
+                self.low = wp.array(self.force_low, dtype=float)
+                self.span = wp.array(self.force_span, dtype=float)
+                self.xfrc = _floats(self.d.xfrc_applied, n)
             self.seeds = wp.zeros(n, dtype=int)
 
     def _seed(self, seed: int | Sequence[int]) -> None:
@@ -289,6 +339,13 @@ class WarpTwin(VectorEnv):
         launches on fixed arrays, so on a GPU it is captured once in a CUDA graph."""
         wp, k, n = self._wp, self._k, self.num_envs
         action = self.action
+        if self.adversary_dim:  # the protagonist's columns, then the adversary's forces
+            wp.launch(k.split_action, (n, self.nu), [self.joint, action])
+            wp.launch(
+                k.write_forces,
+                (n, self.adversary_dim),
+                [self.joint, self.nu, self.slots, self.low, self.span, self.xfrc],
+            )
         wp.launch(k.begin_step, (n, self.nu), [action, self.d.qpos, self.d.ctrl, self.x_before])
         for _ in range(self.formula.frame_skip):
             self._mjw.step(self.m, self.d)
@@ -347,21 +404,19 @@ class WarpTwin(VectorEnv):
         )
 
     def _actions(self, actions: Any) -> None:
-        """Copy the actions into the twin's action array (on the device: a device copy)."""
-        wp = self._wp
+        """Copy the actions into the twin's input array (on the device: a device copy)."""
+        wp, shape = self._wp, self.joint.shape
         if type(actions).__module__.startswith("torch"):
             actions = wp.from_torch(actions.detach().float().contiguous())
         if isinstance(actions, wp.array):
-            if actions.shape != self.action.shape:
-                raise ValueError(
-                    f"actions have shape {actions.shape}; expected {self.action.shape}"
-                )
-            wp.copy(self.action, actions)
+            if actions.shape != shape:
+                raise ValueError(f"actions have shape {actions.shape}; expected {shape}")
+            wp.copy(self.joint, actions)
             return
         a = np.asarray(actions, dtype=np.float32)
-        if a.shape != (self.num_envs, self.nu):
-            raise ValueError(f"actions have shape {a.shape}; expected ({self.num_envs}, {self.nu})")
-        self.action.assign(a)
+        if a.shape != shape:
+            raise ValueError(f"actions have shape {a.shape}; expected {shape}")
+        self.joint.assign(a)
 
     def _out(self, a: Any, dtype: Any = None) -> Any:
         if self.array == "warp":

@@ -51,6 +51,30 @@ def begin_step(
         x_before[w] = qpos[w, 0]
 
 
+@wp.kernel
+def split_action(joint: wp.array2d(dtype=float), action: wp.array2d(dtype=float)):
+    """The protagonist's columns of a joint action (RARL's game on the twin)."""
+    w, j = wp.tid()
+    action[w, j] = joint[w, j]
+
+
+@wp.kernel
+def write_forces(
+    joint: wp.array2d(dtype=float),
+    nu: int,
+    slots: wp.array(dtype=int),
+    low: wp.array(dtype=float),
+    span: wp.array(dtype=float),
+    xfrc: wp.array2d(dtype=float),
+):
+    """The adversary's column ``i`` of world ``w`` as the force it sets, into that world's
+    ``xfrc_applied`` (flat slot ``body * 6 + axis``): ``DynamicAdversarial.params_of``'s
+    ``lo + ((clip(a, -1, 1) + 1) * (hi - lo)) / 2`` in float32."""
+    w, i = wp.tid()
+    a = wp.clamp(joint[w, nu + i], -1.0, 1.0)
+    xfrc[w, slots[i]] = low[i] + ((a + 1.0) * span[i]) / 2.0
+
+
 @wp.func
 def healthy(
     f: Formula, qpos: wp.array2d(dtype=float), qvel: wp.array2d(dtype=float), w: int
@@ -231,4 +255,6 @@ __all__ = [
     "healthy",
     "observe",
     "reset_worlds",
+    "split_action",
+    "write_forces",
 ]

@@ -115,16 +115,16 @@ def constants(env: Any, task: TwinTask) -> Constants:
 
 
 def not_on_twin(algo: str) -> str | None:
-    """Why no twin path trains ``algo`` (its row says it trains an adversary acting at every
-    step, which the twin's loop does not wire), or None."""
+    """Why no twin path trains ``algo``, or None. An adversary mixing into the action (NR-MDP)
+    trains device-resident: its learner returns the executed action. One moving the dynamics
+    (RARL) needs the twin built with ``adversary=True`` (the force set), which the training
+    loops do not build yet."""
     from rrls.algorithms import algorithm_info
 
     info = algorithm_info(algo)
-    if info is None or not info.adversary:
+    if info is None or not info.adversary or info.set_use != "adversary":
         return None
-    if info.set_use == "adversary":
-        return "its adversary moves the dynamics at every step (not wired to the twin yet)"
-    return "its adversary's actions mix into every step (not wired to the twin yet)"
+    return "its adversary moves the dynamics at every step (not wired to the twin yet)"
 
 
 def check_twin(algo: str, task: str, physics: str) -> None:
