@@ -1,25 +1,22 @@
-"""The one collection loop every algorithm runs: an algorithm only brings its ``Learner``
-(``rrls.agents.learner``: act, observe, update, state_dict, load_state_dict, export).
+"""The entry points of training (``train``, ``train_group``): every algorithm runs here, bringing
+only its ``Learner`` (``rrls.agents.learner``: act, observe, update, state_dict,
+load_state_dict, export).
 
-The loop owns what algorithms share, written once: the environments and their seeding, the
-uniformly random warm-up, acting, time limits (an episode truncated at ``max_episode_steps``
-bootstraps, a terminated one does not, and no transition crosses a reset), when updates start,
-periodic evaluation, checkpoints (each run's slice of the learner's state, taken every
-``checkpoint_every`` steps and at Ctrl-C, at the end of the step it came in, mid-episode: the
-episode in progress is replayed on resume, so the resumed run continues bit for bit), logs and
-the export of the final policies.
+What is set up here, once per group of runs: the runs' directories (locked, resumed or fresh:
+``rrls.agents.run``), the group's check (runs differ only in seed and directory), resumed runs
+grouped by step, the process's threads, the envs (CPU envs in this process or in workers, or
+the MuJoCo Warp twin with ``--simulator warp``), the memory check and the learner (compiled or
+not, its state loaded on resume). Then one driver (``rrls.agents.driver``) owns the run's
+cadence, whichever collector steps the envs: ``rrls.agents.stepwise`` (CPU envs, and the
+twin's envs for learners without the device methods) or ``rrls.agents.resident`` (the twin's
+device-resident blocks).
 
 Every generator of a run is a child of ``SeedSequence(seed)`` (``rrls.agents.streams``): the
-loop's ``"env"`` (first reset) and ``"warmup"`` streams, the learner's own.
-
-On the MuJoCo Warp twin (``--simulator warp``), a learner with the device-resident methods runs
-``rrls.agents.resident``'s blocks of steps instead of this step-by-step loop (the rest, the
-run's files, checkpoints, logs and evaluations, is shared).
+collectors' ``"env"`` (first reset) and ``"warmup"`` streams, the learner's own.
 """
 
 from __future__ import annotations
 
-import json
 import multiprocessing
 import os
 import signal
@@ -33,15 +30,16 @@ import torch
 
 from rrls._io import DirectoryLock
 from rrls.agents import graphs, resident
-from rrls.agents.config import Diverged, TrainConfig
+from rrls.agents.config import TrainConfig
+from rrls.agents.driver import Collector, Driver
 from rrls.agents.envs import env_factory, make_envs
 from rrls.agents.hparams import check_memory
-from rrls.agents.learner import check_runs_first, run_slice, stack_runs
+from rrls.agents.learner import stack_runs
 from rrls.agents.lookup import Algorithm, ResolvedRun, resolve_run
-from rrls.agents.run import Run, StepBoundary, active_ctrl_c, export_policies
-from rrls.agents.streams import RunSeeds, rng_state, set_rng_state
+from rrls.agents.run import Run, active_ctrl_c
+from rrls.agents.stepwise import StepCollector, uniform
+from rrls.agents.streams import RunSeeds
 from rrls.agents.threads import process_settings
-from rrls.schema import loads_json
 
 
 def train(
@@ -128,68 +126,22 @@ def _check_group(resolved: list[ResolvedRun]) -> None:
         raise ValueError("runs trained together need one directory each (--out)")
 
 
-class _Episode:
-    """How run ``k``'s current episode began and what it did: a checkpoint taken mid-episode
-    replays it (same generator, same reset, same actions: the same physics) on resume."""
-
-    def __init__(self, env_rng: str, seed: int | None, options: dict | None) -> None:
-        self.env_rng, self.seed, self.options = env_rng, seed, options
-        self.actions: list[Any] = []
-        self.ret, self.length = 0.0, 0
-
-    def state(self, obs: np.ndarray) -> dict[str, Any]:
-        parts: list[torch.Tensor] = []
-        tuples = bool(self.actions) and isinstance(self.actions[0], tuple)
-        if self.actions:
-            columns = zip(*self.actions) if tuples else [self.actions]
-            parts = [torch.as_tensor(np.stack(c)) for c in columns]
-        return {
-            "env_rng": self.env_rng,
-            "seed": self.seed,
-            "options": json.dumps(self.options),
-            "tuple": tuples,
-            "actions": parts,
-            "obs": torch.as_tensor(np.asarray(obs)),
-        }
-
-
-def _begin(envs: Any, k: int, seed: int | None, options: dict | None) -> tuple:
-    state, obs = envs.begin(k, seed, options)  # one round trip to an env worker, not two
-    return obs, _Episode(state, seed, options)
-
-
-def _options(saved: dict[str, Any], path: Path) -> Any:
-    """The reset options of the episode a checkpoint was taken in (JSON in the checkpoint)."""
-    return loads_json(saved["options"], f"{path}: the episode's reset options")
-
-
-def _replay(envs: Any, k: int, saved: dict[str, Any], path: Path) -> tuple:
-    """Re-run the episode a checkpoint was taken in, up to the checkpoint."""
-    envs.set_rng_state(k, saved["env_rng"])
-    obs, episode = _begin(envs, k, saved["seed"], _options(saved, path))
-    parts = [p.numpy() for p in saved["actions"]]
-    for i in range(len(parts[0]) if parts else 0):
-        action = tuple(p[i] for p in parts) if saved["tuple"] else parts[0][i]
-        obs, reward, *_ = envs.step_one(k, action)
-        episode.actions.append(action)
-        episode.ret += reward
-        episode.length += 1
-    if not np.array_equal(obs, saved["obs"].numpy()):
-        raise RuntimeError(
-            f"cannot resume from {path}: replaying the episode in progress did not reproduce "
-            "its state (the physics differs from the machine that wrote the checkpoint)"
-        )
-    return obs, episode
-
-
 def _train_together(group: ResolvedRun, runs, states, on_episode, threads) -> None:
-    """The collection loop of one group of runs at the same step."""
+    """One group of runs at the same step: its envs, then its learner and driver."""
     first, algo, hyper = runs[0].config, group.algorithm, group.hyper
     make = env_factory(algo, first, hyper)
     template = make()  # spaces and metadata; the group's envs may live in worker processes
     check_group_memory(hyper, template, len(runs), first.steps - runs[0].step)
     if resident.trains_on_device(first, algo.Learner):  # the twin, without leaving the device
-        envs: Any = resident.make_twin(first, [run.config.seed for run in runs])
+        seeds = [run.config.seed for run in runs]
+        envs: Any = resident.make_twin(
+            first.task,
+            first.algo,
+            seeds,
+            first.training_set(),
+            first.device,
+            max_episode_steps=first.max_episode_steps,
+        )
     elif first.simulator == "warp":  # the twin, each episode begun on the run's CPU env
         from rrls.agents.twin_envs import TwinEnvs
 
@@ -280,152 +232,68 @@ def compiles(config: TrainConfig, learning_starts: int, step: int) -> bool:
     return config.steps - max(step, learning_starts) >= COMPILE_MIN_UPDATES
 
 
-def uniform(space: Any, rng: np.random.Generator) -> Any:
-    """A uniformly random action of a ``Box`` (or of each ``Box`` of a ``Tuple``) space."""
-    if hasattr(space, "spaces"):
-        return tuple(uniform(s, rng) for s in space.spaces)
-    return rng.uniform(space.low, space.high).astype(np.float32)
-
-
 def _collect(
     algo: Algorithm,
-    hyper,
-    runs,
-    states,
-    on_episode,
-    threads,
-    template,
-    envs,
+    hyper: Any,
+    runs: list[Run],
+    states: list[dict[str, Any] | None],
+    on_episode: Callable[[int, int, float], None] | None,
+    threads: Any,
+    template: Any,
+    envs: Any,
 ) -> None:
+    """Build the group's learner (its state loaded on resume) and drive its collector."""
     first = runs[0].config
-    seeds = [RunSeeds(run.config.seed) for run in runs]
-    warmup = [s.numpy("warmup") for s in seeds]
+    seeds = [run.config.seed for run in runs]
     learning_starts = int(getattr(hyper, "learning_starts", 0))
     # the learner's updates read these when made; a learner made elsewhere keeps the defaults
     compiled = compiles(first, learning_starts, runs[0].step)
     with graphs.settings(graphs=first.cuda_graphs, compile=compiled):
-        learner = algo.Learner(template, hyper, seeds, torch.device(first.device))
-    metas = [run.metadata(template) for run in runs]
-
-    observations, episodes = [], []
+        streams = [RunSeeds(s) for s in seeds]
+        learner = algo.Learner(template, hyper, streams, torch.device(first.device))
     if any(state is not None for state in states):
         learner.load_state_dict(stack_runs([state["learner"] for state in states]))
+    collector: Collector
     if resident.trains_on_device(first, algo.Learner):
-        resident.collect(learner, envs, runs, states, on_episode, threads, learning_starts)
-        return
-    for k, (run, state) in enumerate(zip(runs, states)):
-        if state is None:
-            options = learner.episode_options(k, 0)
-            obs, episode = _begin(envs, k, seeds[k].integer("env"), options)
-        elif not getattr(envs, "replays", True):  # the twin: start that episode again
-            set_rng_state(warmup[k], state["warmup"])
-            saved = state["episode"]
-            envs.set_rng_state(k, saved["env_rng"])
-            options = _options(saved, run.checkpoint_path)
-            obs, episode = _begin(envs, k, saved["seed"], options)
-        else:  # restore the loop's generator, then replay the episode in progress
-            set_rng_state(warmup[k], state["warmup"])
-            obs, episode = _replay(envs, k, state["episode"], run.checkpoint_path)
-        observations.append(obs)
-        episodes.append(episode)
-    obs = np.stack(observations)
-
-    def checkpoint(interrupted: bool = False) -> None:
-        """Every run's checkpoint of the loop's state at the end of a step."""
-        state = learner.state_dict()
-        check_runs_first(state, group)  # a wrong layout: one line now, not at resume
-        for k, run in enumerate(runs):
-            slice_k = {
-                "learner": run_slice(state, k),
-                "warmup": rng_state(warmup[k]),
-                "episode": episodes[k].state(obs[k]),
-            }
-            run.save(slice_k, interrupted)
-
-    step, steps, group = runs[0].step, first.steps, len(runs)
-    bar = runs[0].progress(group)
-    ctrl_c = StepBoundary()  # Ctrl-C: a checkpoint at the end of its step, then stop
-    try:
-        ctrl_c.hold()
-        while step < steps:
-            if step < learning_starts:
-                actions = [uniform(template.action_space, rng) for rng in warmup]
-            else:
-                actions = learner.act(obs)
-                _check_actions(actions, step + 1, runs)
-            results = envs.step(actions)
-            next_obs = np.stack([r[0] for r in results])
-            rewards = np.array([r[1] for r in results], dtype=np.float64)
-            terminated = np.array([r[2] for r in results], dtype=bool)
-            step += 1
-            for run in runs:
-                run.step = step
-            # a truncated transition keeps terminated=0: its target bootstraps from next_obs
-            learner.observe(obs, actions, rewards, next_obs, terminated, [r[3] for r in results])
-
-            if step > learning_starts:
-                losses = learner.update(step)
-                if step % 1000 == 0:
-                    values = {name: v.cpu().tolist() for name, v in losses.items()}
-                    for k, run in enumerate(runs):
-                        run.log({f"losses/{n}": v[k] for n, v in values.items()})
-            if runs[0].eval_due():
-                for k, run in enumerate(runs):
-                    run.evaluate(export_policies(learner, k, metas[k])["policy"])
-
-            for k, episode in enumerate(episodes):
-                episode.actions.append(actions[k])
-                episode.ret += rewards[k]
-                episode.length += 1
-                if terminated[k] or episode.length >= first.max_episode_steps:
-                    # no transition crosses this reset
-                    extra = learner.episode_end(k, episode.ret, episode.length)
-                    runs[k].episode_end(episode.ret, episode.length, **extra)
-                    if on_episode is not None:
-                        on_episode(k, step, episode.ret)
-                    options = learner.episode_options(k, step)
-                    again = (
-                        seeds[k].integer("env") if getattr(learner, "same_start", False) else None
-                    )
-                    next_obs[k], episodes[k] = _begin(envs, k, again, options)
-                    threads.poll()
-            obs = next_obs
-
-            if runs[0].checkpoint_due():
-                checkpoint()
-                runs[0].check_stop()
-            bar.update(group)
-            if ctrl_c.requested:  # Ctrl-C came during this step: keep its end, then stop
-                if runs[0].saved_step != step:
-                    checkpoint(interrupted=True)
-                raise KeyboardInterrupt
-    finally:
-        ctrl_c.release()
-        bar.close()
-    for k, run in enumerate(runs):
-        run.finish(
-            export_policies(learner, k, metas[k]), {"steps": run.step, "episodes": run.episodes}
+        device = torch.device(first.device)
+        collector = resident.BlockCollector(
+            envs, learner, seeds, learning_starts, first.algo, device
         )
+    else:
+        paths = [run.checkpoint_path for run in runs]
+        collector = StepCollector(
+            envs,
+            learner,
+            template.action_space,
+            seeds,
+            learning_starts,
+            first.max_episode_steps,
+            paths,
+            first.algo,
+        )
+    driver = Driver(
+        learner,
+        collector,
+        group=len(runs),
+        steps=first.steps,
+        starts=learning_starts,
+        runs=runs,
+        metas=[run.metadata(template) for run in runs],
+        step=runs[0].step,
+        on_episode=on_episode,
+        threads=threads,
+    )
+    driver.run(states)
 
 
-def _finite(action: Any) -> bool:
-    if isinstance(action, (tuple, list)) and action and not np.isscalar(action[0]):
-        return all(_finite(part) for part in action)  # a two-player action: (agent, adversary)
-    try:
-        return bool(np.all(np.isfinite(np.asarray(action, dtype=np.float64))))
-    except (TypeError, ValueError):
-        return True  # not numbers: the env says what is wrong with it
-
-
-def _check_actions(actions: Any, step: int, runs: list[Run]) -> None:
-    """Stop at the first NaN/inf action a learner returns (MuJoCo would warn, reset its state
-    and go on, and the run would end with a NaN policy written as if trained)."""
-    for k, action in enumerate(actions):
-        if not _finite(action):
-            config = runs[k].config
-            raise Diverged(
-                f"training stopped at step {step}: {config.algo} returned a non-finite action "
-                f"for seed {config.seed} ({np.asarray(action, dtype=object).tolist()}); nothing "
-                "was written past the last checkpoint (the learner diverged: lower its learning "
-                "rate or check its update)"
-            )
+__all__ = [
+    "COMPILE_MIN_UPDATES",
+    "COMPILE_PAYS_ON",
+    "check_group_memory",
+    "compiles",
+    "env_workers",
+    "make_envs",
+    "train",
+    "train_group",
+    "uniform",
+]

@@ -6,12 +6,12 @@ run keeps the paper's protocol of one env per run: its world resets on its own, 
 draws a new point of the set at every episode (from the twin's pool). The policies it returns
 are evaluated where rrls evaluates everything, on CPU MuJoCo.
 
-A lean loop over ``rrls.agents.resident`` (the device-resident blocks of steps that
-``rrls train --simulator warp`` also runs: nothing read back inside a block, each run's random
-inputs drawn a block ahead from its own generators), without run directories, checkpoints or
-periodic evaluations: for measuring the twin's throughput and for scripts. ``rrls train
---simulator warp`` adds those, and M2TD3 (through each run's CPU env). The adversarial games
-(RARL, NR-MDP: an adversary acting every step) are refused by both.
+The training driver of ``rrls train`` (``rrls.agents.driver``) with the twin's device-resident
+collector (``rrls.agents.resident``: nothing read back inside a block, each run's random inputs
+drawn a block ahead from its own generators), without run directories, so without loss logs,
+checkpoints or periodic evaluations: for measuring the twin's throughput and for scripts.
+``rrls train --simulator warp`` adds those, and M2TD3 (through each run's CPU env). The
+adversarial games (RARL, NR-MDP: an adversary acting every step) are refused by both.
 """
 
 from __future__ import annotations
@@ -22,9 +22,10 @@ from typing import Any
 
 import torch
 
+from rrls.agents.driver import Driver
 from rrls.agents.learner import DeviceLearnerProtocol
 from rrls.agents.lookup import algorithm
-from rrls.agents.resident import BLOCK, Worlds, check_finite, ended, twin_stream
+from rrls.agents.resident import BLOCK, BlockCollector, make_twin
 from rrls.agents.streams import RunSeeds
 from rrls.algorithms import algorithm_info, warmup
 from rrls.twin.tasks import not_on_twin
@@ -79,8 +80,6 @@ def train_on_twin(
     """Train ``len(seeds)`` runs of ``algo`` on ``task``'s twin, world ``k`` for seed ``k``;
     ``on_progress(step, returns)`` every ``progress_every`` steps; random inputs drawn ``block``
     steps ahead (see the module's docstring)."""
-    from rrls.twin import WarpTwin
-
     why = twin_refusal(algo)
     if why is not None:
         raise ValueError(f"{algo} does not train on the Warp twin here: {why}")
@@ -91,45 +90,35 @@ def train_on_twin(
             raise ValueError(f"{name} must be a positive integer, got {value!r}")
     info = algorithm(algo)
     config = info.Config(**(hyper or {}))
-    run_seeds = [RunSeeds(s) for s in seeds]
-    twin = WarpTwin(
-        task,
-        len(seeds),
-        uncertainty,
-        domain_randomization=algorithm_info(algo).set_use == "random",
-        seed=[s.integer("env") for s in run_seeds],
-        device=device,
-        array="torch",
-        **{"pool_seed": 0, **(twin_options or {})},
-    )
+    twin = make_twin(task, algo, list(seeds), uncertainty, device, **(twin_options or {}))
     dev = torch.device(device)
-    learner = info.Learner(twin.cpu, config, run_seeds, dev)
+    learner = info.Learner(twin.cpu, config, [RunSeeds(s) for s in seeds], dev)
     if not isinstance(learner, DeviceLearnerProtocol):
         twin.close()
         raise ValueError(
             f"{algo}'s learner has no device-resident methods (draw_ahead, act_tensor, put, "
             "update_drawn; docs/algorithms.md): train it with rrls train --simulator warp"
         )
-    worlds = Worlds(twin, dev, [s.numpy("warmup") for s in run_seeds])
     starts = int(getattr(config, "learning_starts", warmup(algo)))
     returns: list[list[float]] = [[] for _ in seeds]
+    collector = BlockCollector(twin, learner, list(seeds), starts, algo, dev, block)
+    driver = Driver(
+        learner,
+        collector,
+        group=len(seeds),
+        steps=steps,
+        starts=starts,
+        on_episode=lambda k, step, ret: returns[k].append(ret),
+        on_progress=None if on_progress is None else (lambda step: on_progress(step, returns)),
+        progress_every=progress_every,
+    )
     start = time.perf_counter()
-    with twin_stream(twin, dev):
-        worlds.start()
-        done = 0
-        while done < steps:
-            # a block ends at every progress point, where the host reads the returns
-            n = min(block, steps - done, progress_every - done % progress_every)
-            out = worlds.block(learner, done, n, starts)
-            check_finite(out, done, list(seeds), algo)
-            for _, w, ret, _ in ended(out):
-                returns[w].append(ret)
-            done += n
-            if on_progress is not None and done % progress_every == 0:
-                on_progress(done, returns)
-    wall = time.perf_counter() - start
-    policies = [learner.export(w)["policy"] for w in range(len(seeds))]
-    twin.close()
+    try:
+        driver.run([None] * len(seeds))
+        wall = time.perf_counter() - start
+        policies = [learner.export(w)["policy"] for w in range(len(seeds))]
+    finally:
+        twin.close()
     return TwinTraining(policies, returns, steps, wall)
 
 

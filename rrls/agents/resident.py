@@ -1,15 +1,16 @@
 """Training without leaving the device: ``K`` runs on the MuJoCo Warp twin (run ``k`` on world
 ``k``), for learners with the device-resident methods (``DeviceLearnerProtocol``: TD3, DR, SAC,
-SAC-DR). What ``rrls train --simulator warp`` runs for them, and the library loop
-``rrls.agents.on_twin.train_on_twin``.
+SAC-DR). The twin's collector (``BlockCollector``) that the training driver
+(``rrls.agents.driver``) runs for them in ``rrls train --simulator warp`` and in the library loop
+``rrls.agents.on_twin.train_on_twin``; ``make_twin``, the one place their twin is built.
 
 Observations, actions, rewards, the replay and the updates stay on the device. The host takes
-part once per *block* of steps (``BLOCK``, shortened to end at every checkpoint, periodic
-evaluation and loss log): it draws the block's random inputs from each run's own generators
-(``draw_ahead``; the loop's warm-up actions from the ``"warmup"`` stream) and uploads them once,
-then reads back the block's episode ends, non-finite actions and last losses once. So a run's
-numbers depend neither on its group nor on the block size, and nothing is read back inside a
-block (``tests/test_twin_resident.py`` counts it).
+part once per *block* of steps (``BLOCK``, shortened by the driver to end at every checkpoint,
+periodic evaluation, loss log and progress point): it draws the block's random inputs from
+each run's own generators (``draw_ahead``; the warm-up actions from the ``"warmup"`` stream)
+and uploads them once, then reads back the block's episode ends, non-finite actions and last
+losses once. So a run's numbers depend neither on its group nor on the block size, and nothing
+is read back inside a block (``tests/test_twin_resident.py`` counts it).
 
 Episodes are the twin's own: each world resets itself at termination and at the time limit,
 its first state and DR point drawn from its seed and episode count (``WarpTwin``); DR draws
@@ -31,16 +32,14 @@ import numpy as np
 import torch
 
 from rrls.agents.config import Diverged
-from rrls.agents.learner import DeviceLearnerProtocol, check_runs_first, run_slice
-from rrls.agents.run import export_policies
+from rrls.agents.driver import Advance
+from rrls.agents.learner import DeviceLearnerProtocol
 from rrls.agents.streams import RunSeeds, rng_state, set_rng_state
 from rrls.algorithms import algorithm_info
 
 #: env steps drawn ahead and run without reading back (a block also ends at every checkpoint,
-#: periodic evaluation and loss log)
+#: periodic evaluation and loss log: ``rrls.agents.driver``)
 BLOCK = 64
-#: the loop logs the learner's losses every this many steps (as the CPU loop does)
-LOSS_EVERY = 1000
 
 
 def twin_stream(twin: Any, device: torch.device) -> Any:
@@ -142,25 +141,38 @@ def check_finite(block: Block, first: int, seeds: list[int], algo: str) -> None:
         )
 
 
-def make_twin(config: Any, seeds: list[int]) -> Any:
-    """The group's twin: world ``k`` seeded from run ``k``'s ``"env"`` stream, DR (a new point
-    per episode per world) for an algorithm whose row says it trains on random points."""
+def quiet_warp() -> None:
+    """Warp's default logs a line per kernel module load: a training log keeps its own lines."""
     import warp as wp
 
+    if wp.config.log_level == wp.LOG_INFO:
+        wp.config.log_level = wp.LOG_WARNING
+
+
+def make_twin(
+    task: str,
+    algo: str,
+    seeds: list[int],
+    uncertainty: Any,
+    device: str,
+    **options: Any,
+) -> Any:
+    """The group's twin, the one place it is built for a device-resident run: world ``k``
+    seeded from run ``k``'s ``"env"`` stream, DR (a new point per episode per world, from a
+    pool of points drawn with ``pool_seed`` 0) for an algorithm whose row says it trains on
+    random points; ``options``: the rest of ``WarpTwin``'s (``max_episode_steps``...)."""
     from rrls.twin import WarpTwin
 
-    if wp.config.log_level == wp.LOG_INFO:  # warp's default: a line per kernel module load
-        wp.config.log_level = wp.LOG_WARNING  # a training log keeps its own lines
+    quiet_warp()
     return WarpTwin(
-        config.task,
+        task,
         len(seeds),
-        config.training_set(),
-        domain_randomization=algorithm_info(config.algo).set_use == "random",
+        uncertainty,
+        domain_randomization=algorithm_info(algo).set_use == "random",
         seed=[RunSeeds(s).integer("env") for s in seeds],
-        pool_seed=0,
-        device=config.device,
+        device=device,
         array="torch",
-        max_episode_steps=config.max_episode_steps,
+        **{"pool_seed": 0, **options},
     )
 
 
@@ -174,85 +186,64 @@ def trains_on_device(config: Any, learner: type) -> bool:
     )
 
 
-def collect(
-    learner: Any, twin: Any, runs: list[Any], states: list, on_episode, threads, starts: int
-) -> None:
-    """The collection loop of ``runs`` (one group, at the same step) on ``twin``'s worlds;
-    ``learner`` is built and its state loaded (``rrls.agents.loop``); ``starts``: the random
-    warm-up's length."""
-    first = runs[0].config
-    device, group = torch.device(first.device), len(runs)
-    seeds = [RunSeeds(run.config.seed) for run in runs]
-    warmup = [s.numpy("warmup") for s in seeds]
-    metas = [run.metadata(twin.cpu) for run in runs]
-    worlds = Worlds(twin, device, warmup)
-    resumed = states[0] is not None
-    step, steps = runs[0].step, first.steps
-    bar = runs[0].progress(group)
-    try:
-        with twin_stream(twin, device):
-            if resumed:  # the loop's streams as saved; the episodes in progress begin again
-                for k, state in enumerate(states):
-                    set_rng_state(warmup[k], state["warmup"])
-                counts = [
-                    state.get("twin_episode", runs[k].episodes + 1)
-                    for k, state in enumerate(states)
-                ]
-                worlds.start(np.array(counts))
-            else:
-                worlds.start()
-            while step < steps:
-                due = [runs[0].steps_to_checkpoint(), runs[0].steps_to_eval()]
-                n = min(BLOCK, steps - step, LOSS_EVERY - step % LOSS_EVERY, *filter(None, due))
-                block = worlds.block(learner, step, n, starts)
-                check_finite(block, step, [r.config.seed for r in runs], first.algo)
-                for j, k, ret, length in ended(block):
-                    runs[k].step = step + j + 1
-                    extra = learner.episode_end(k, ret, length)
-                    runs[k].episode_end(ret, length, **extra)
-                    if on_episode is not None:
-                        on_episode(k, step + j + 1, ret)
-                step += n
-                for run in runs:
-                    run.step = step
-                threads.poll()
-                if step > starts and step % LOSS_EVERY == 0 and block.losses:
-                    values = {name: v.cpu().tolist() for name, v in block.losses.items()}
-                    for k, run in enumerate(runs):
-                        run.log({f"losses/{name}": v[k] for name, v in values.items()})
-                if runs[0].eval_due():
-                    for k, run in enumerate(runs):
-                        run.evaluate(export_policies(learner, k, metas[k])["policy"])
-                if runs[0].checkpoint_due():
-                    state = learner.state_dict()
-                    check_runs_first(state, group)
-                    counts = twin.episodes()
-                    for k, run in enumerate(runs):
-                        run.save(
-                            {
-                                "learner": run_slice(state, k),
-                                "warmup": rng_state(warmup[k]),
-                                "twin_episode": int(counts[k]),
-                            }
-                        )
-                    runs[0].check_stop()
-                bar.update(group * n)
-    finally:
-        bar.close()
-    for k, run in enumerate(runs):
-        run.finish(
-            export_policies(learner, k, metas[k]), {"steps": run.step, "episodes": run.episodes}
-        )
+class BlockCollector:
+    """The twin's collector for the driver (``rrls.agents.driver``): ``K`` runs on ``twin``'s
+    worlds in blocks of up to ``block`` steps (default ``BLOCK``); ``learner`` is built (and its
+    state loaded); ``starts``: the random warm-up's length; ``seeds``, ``algo``: named in
+    ``Diverged``."""
+
+    def __init__(
+        self,
+        twin: Any,
+        learner: Any,
+        seeds: list[int],
+        starts: int,
+        algo: str,
+        device: torch.device,
+        block: int | None = None,
+    ) -> None:
+        self.twin, self.learner, self.seeds = twin, learner, seeds
+        self.starts, self.algo, self.device = starts, algo, device
+        self.block = BLOCK if block is None else block
+        self.warmup = [RunSeeds(s).numpy("warmup") for s in seeds]
+        self.worlds = Worlds(twin, device, self.warmup)
+
+    def running(self) -> contextlib.AbstractContextManager[Any]:
+        return twin_stream(self.twin, self.device)
+
+    def start(self, states: list[dict[str, Any] | None]) -> None:
+        """A fresh reset, or the loop's streams as saved and the episodes in progress begun
+        again (each world's episode count: the same first state and point)."""
+        if states[0] is None:
+            self.worlds.start()
+            return
+        for k, state in enumerate(states):
+            set_rng_state(self.warmup[k], state["warmup"])
+        # a checkpoint without the count: the run's episodes so far, the next one in progress
+        counts = [state.get("twin_episode", int(state["episodes"]) + 1) for state in states]
+        self.worlds.start(np.array(counts))
+
+    def advance(self, step: int, n: int) -> Advance:
+        block = self.worlds.block(self.learner, step, n, self.starts)
+        check_finite(block, step, self.seeds, self.algo)
+        return Advance(ended(block), block.losses)
+
+    def next_episode(self, k: int, step: int) -> None:
+        """Nothing: each world resets itself."""
+
+    def state(self, k: int) -> dict[str, Any]:
+        return {"warmup": rng_state(self.warmup[k]), "twin_episode": int(self.twin.episodes()[k])}
 
 
 __all__ = [
     "BLOCK",
     "Block",
+    "BlockCollector",
     "Worlds",
     "check_finite",
-    "collect",
     "ended",
     "make_twin",
+    "quiet_warp",
     "trains_on_device",
     "twin_stream",
 ]

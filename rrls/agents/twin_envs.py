@@ -1,8 +1,8 @@
 """The envs of a group of runs on the MuJoCo Warp twin (``rrls train --simulator warp``) for
 learners without the device-resident methods (M2TD3, whose learner chooses each episode's point;
 TD3, DR, SAC and SAC-DR run in ``rrls.agents.resident`` instead): the same interface as
-``rrls.agents.envs.LocalEnvs``, so the training loop, its checkpoints, logs, periodic
-evaluations and run files are the CPU path's, unchanged.
+``rrls.agents.envs.LocalEnvs``, so the CPU envs' collector (``rrls.agents.stepwise``) steps them
+and the driver's checkpoints, logs, periodic evaluations and run files are the CPU path's.
 
 Run ``k`` owns world ``k`` and a CPU env of its own. An episode starts on the CPU env (reset
 with the run's seed and the learner's options: DR's draw, M2TD3's chosen point), and the world
@@ -23,6 +23,7 @@ from typing import Any
 
 import numpy as np
 
+from rrls.agents.resident import quiet_warp
 from rrls.agents.streams import rng_state, set_rng_state
 
 #: the largest episode the twin counts to: the loop truncates, the twin never does
@@ -38,12 +39,9 @@ class TwinEnvs:
     def __init__(
         self, make: Callable[[], Any], n: int, task: str, uncertainty: Any, device: str
     ) -> None:
-        import warp as wp
-
         from rrls.twin import WarpTwin
 
-        if wp.config.log_level == wp.LOG_INFO:  # warp's default: a line per kernel module load
-            wp.config.log_level = wp.LOG_WARNING  # a training log keeps its own lines
+        quiet_warp()
         self.cpu = [make() for _ in range(n)]
         # built over the training set: a parameter the twin cannot vary is refused here
         self.twin = WarpTwin(task, n, uncertainty, device=device, max_episode_steps=_NO_LIMIT)
