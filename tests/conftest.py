@@ -37,7 +37,7 @@ def _in_tmp_dir(tmp_path, monkeypatch):
 def e2e_after_first(values: list) -> list:
     """Parametrize values: the first in the default tier (a smoke check of the path on every
     change), the others marked ``e2e`` (``.ci/run`` runs them right after the default tier)."""
-    return [values[0], *(pytest.param(v, marks=pytest.mark.e2e) for v in values[1:])]
+    return [*values[:1], *(pytest.param(v, marks=pytest.mark.e2e) for v in values[1:])]
 
 
 def rollout(env, actions, seed: int = 0, reset_options=None):
