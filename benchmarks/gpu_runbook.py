@@ -1,242 +1,319 @@
-"""What a machine with a CUDA GPU runs first: the CUDA tests, the GPU speed table and the Hopper
-reference at the largest budget that fits, in ~35 minutes, writing only small files to OUT_DIR.
+"""The GPU runbook: what one lease of a GPU machine measures in a single command of at most ten
+minutes, set-up included, keeping every figure it measured if the lease cuts it short.
 
-    python3 benchmarks/gpu_runbook.py OUT_DIR                 # on the GPU machine
-    python3 benchmarks/gpu_runbook.py OUT_DIR --device cpu --tiny   # the dry run (the test suite)
+On the GPU machine ``benchmarks/gpu_payload.py device`` starts it, once the wheels the machine
+lacks have arrived in pieces small enough for the ``run`` calls (docs/gpu.md: the exact calls):
 
-1. the CUDA tests (``tests/test_group.py -k "cuda or worker"``: CUDA graphs against the eager
-   update, compiled too, and the env workers) -> ``tests.log``;
-2. the GPU speed table (``benchmarks/train_speed.py --groups --ks 1 8 32 --algos td3 m2td3
-   --device cuda``), against the targets of ``docs/protocol.md`` -> ``speed.md``;
-3. the Warp twin (``--no-twin`` skips it; needs the ``warp`` extra): MuJoCo Warp's physics
-   alone and the twin's whole step at 32 to 8 192 worlds, the per-task, per-kind check against
-   CPU MuJoCo, K = 1, 32, 128 TD3 runs trained on it and a sim-to-sim check of one trained
-   policy, and ``rrls train --simulator warp`` at K = 1, 32, 128 (TD3, M2TD3) against the CPU
-   path -> ``warp_speed.log``, ``twin_speed.log``, ``twin_check/``, ``twin_train/``,
-   ``twin_loop_speed.md``;
-4. two short probes of the five baselines' groups trained at once (5 seeds of Hopper 3D each, as
-   ``rrls benchmark --device cuda`` packs them) give seconds per learning step; with the
-   evaluation's upper bound (every episode at full length, on all the machine's cores), the
-   largest budget of ``MENU`` whose whole ``hopper`` preset (5 seeds) fits ``--minutes`` is run
-   with ``rrls benchmark``, then ``rrls report`` writes its report, figures and reference file
-   -> ``hopper-<steps>/`` (run files without checkpoints);
-5. ``runbook.md``: the machine, each step's command, wall time and outcome.
+    python3 benchmarks/gpu_runbook.py OUT --deadline 540                           # the lease
+    python3 benchmarks/gpu_runbook.py OUT --device cpu --simulator mujoco --tiny   # the dry run
 
-On a short lease, ``--no-preset`` skips step 4 (the longest).
+Its rows, most wanted first (so a deadline cuts the least wanted):
 
-A step that fails is recorded and the next one still runs; the exit status is 1 if any failed.
+1. ``machine``: Python, torch and whether it sees CUDA, the GPU, warp, mujoco-warp, MuJoCo;
+   on ``--device cuda`` without CUDA it stops there (exit 2);
+2. ``loop``: the device-resident training loop (``rrls train --simulator warp``, TD3) on Hopper
+   at K = 1, 32, 128, 256 runs in one process;
+3. ``baseline``: the paper's five baselines at K = 10 on Hopper, then on HalfCheetah; those the
+   twin refuses (RARL, NR-MDP: an adversary acting every step) give a ``refused: <reason>``
+   row, in the twin's own words, without starting a process;
+4. ``loop`` on HalfCheetah at K = 1, 32, 128, 256;
+5. ``estimate``: the paper's protocol (``--preset paper``, 10 seeds packed K = 10 per process)
+   on one GPU, recomputed from these rows with ``rrls.experiments.gpu_estimate``; each cell is
+   marked ``measured``, ``extrapolated`` (a twin task not measured: the mean of Hopper's and
+   HalfCheetah's rows) or ``stored`` (no twin path or no row: the stored H100 figures of
+   ``rrls benchmark --dry-run --device cuda``), beside that stored estimate.
+
+A rate is the loop's own clock: ``charts/steps_per_second`` of run 0's episode ends gives the
+time at each end, and the rate is taken between the first end after ``--window-after`` steps
+(the warm-up and the first updates, which capture the CUDA graphs, are before it) and the last,
+times K. Every row is printed and appended to ``OUT/rows.jsonl`` (flushed and synced) the moment
+it exists, and ``OUT/rows.md`` is rewritten after it. Each step runs in its own process group
+under a timeout, the smaller of ``--step-timeout`` and what ``--deadline`` leaves: one that
+exceeds it is killed and written as ``timed out``, one that fails as ``failed: <last line>``,
+and the next step runs; steps the deadline leaves under ``MIN_STEP_S`` for are ``skipped``.
 """
 
 from __future__ import annotations
 
 import argparse
+import csv
 import json
 import os
 import platform
-import shutil
+import signal
 import subprocess
 import sys
 import tempfile
 import time
+from collections.abc import Callable
+from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 ROOT = Path(__file__).resolve().parents[1]
-MENU = (1_000_000, 500_000, 200_000, 100_000, 50_000)  # steps per run, largest first
-TINY_MENU = (400, 200)
-SEEDS = 5  # the dry run: 1
-ALGOS = ("td3", "dr", "m2td3", "rarl", "nrmdp")  # the dry run: TINY_ALGOS
-TINY_ALGOS = ("td3", "rarl")  # one learner, one two-player game (the dynamic evaluation)
-SMALL = 5_000_000  # bytes: run files above this (checkpoints, replay buffers) stay out of OUT
+KS = (1, 32, 128, 256)  # the device-resident loop's sweep (TD3)
+PACK = 10  # the baselines' K: the paper's 10 seeds in one process
+TASKS = ("hopper", "halfcheetah")
+MIN_STEP_S = 20.0  # a step with less time left than this is skipped, not started
+#: the dry run: one sweep row, one baseline trained (DR) and a row for each the twin refuses
+TINY = dict(ks=(1,), pack=2, tasks=("hopper",), algos=("dr",))
+TINY.update(steps=60, starts=20, window_after=20)
 
 
-class Book:
-    """``runbook.md``: one section per step, written as the steps finish (a killed runbook
-    keeps what it had)."""
+@dataclass
+class Step:
+    """One row to measure: a process (``command``) or a refusal (``refused``, no process)."""
+
+    kind: str  # "loop" or "baseline"
+    algo: str
+    task: str
+    k: int
+    command: list[str] | None = None
+    runs: Path | None = None  # the run directories it writes (run 0's scalars give the rate)
+    after: int = 0  # the rate's window starts at the first episode end after this step
+    refused: str | None = None
+
+
+class Rows:
+    """``rows.jsonl`` (one JSON object a line, appended, flushed and synced as each row is
+    measured: a runbook killed mid-step keeps every earlier row) and ``rows.md``."""
 
     def __init__(self, out: Path) -> None:
-        self.path = out / "runbook.md"
-        self.failed: list[str] = []
-        self.path.write_text(f"# GPU runbook\n\n{machine()}\n")
+        out.mkdir(parents=True, exist_ok=True)
+        self.jsonl, self.md = out / "rows.jsonl", out / "rows.md"
+        self.rows: list[dict[str, Any]] = []
 
-    def step(self, title: str, command: list[str], log: Path, timeout: float) -> bool:
-        start = time.perf_counter()
-        with log.open("w") as f:
-            try:
-                code = subprocess.run(
-                    command, cwd=ROOT, stdout=f, stderr=subprocess.STDOUT, timeout=timeout
-                ).returncode
-            except subprocess.TimeoutExpired:
-                code = "timeout"
-        wall = time.perf_counter() - start
-        ok = code == 0
-        if not ok:
-            self.failed.append(title)
-        tail = log.read_text().strip().splitlines()[-3:]
-        self.write(
-            f"## {title}: {'ok' if ok else f'FAILED ({code})'} in {wall:.0f} s\n\n"
-            f"`{' '.join(command)}` -> `{log.name}`\n\n" + "".join(f"    {line}\n" for line in tail)
+    def add(self, row: dict[str, Any]) -> None:
+        self.rows.append(row)
+        with self.jsonl.open("a") as f:
+            f.write(json.dumps(row) + "\n")
+            f.flush()
+            os.fsync(f.fileno())
+        print(line(row), flush=True)
+        self.md.write_text("# GPU runbook rows\n\n" + "".join(f"- {line(r)}\n" for r in self.rows))
+
+
+def line(row: dict[str, Any]) -> str:
+    """One row, readable."""
+    if row["kind"] == "machine":
+        return "machine: " + ", ".join(f"{k} {v}" for k, v in row.items() if k != "kind")
+    if row["kind"] == "estimate" and "wall_h" in row:
+        return (
+            f"estimate ({row['protocol']}, K = {row['pack']}): {row['wall_h']:.1f} h on one GPU "
+            f"from these rows (training {row['train_h']:.1f} h; cells {row['sources']}) against "
+            f"{row['stored_wall_h']:.1f} h from the stored H100 figures"
         )
-        return ok
+    what = f"{row['kind']} {row['algo']} {row['task']} K={row['k']}: {row['status']}"
+    if row["status"] == "ok" and "env_steps_per_s" in row:
+        what += (
+            f", {row['env_steps_per_s']:,.0f} env steps/s ({row['per_run']:,.1f} per run, "
+            f"steps {row['window'][0]}-{row['window'][1]})"
+        )
+    return what + (f" in {row['wall_s']:.0f} s" if "wall_s" in row else "")
 
-    def write(self, text: str) -> None:
-        with self.path.open("a") as f:
-            f.write(f"\n{text}")
-        print(text, flush=True)
 
+def machine(device: str) -> dict[str, Any]:
+    """What the machine has: a missing package or a torch without CUDA is said, not raised."""
+    from importlib.metadata import PackageNotFoundError, version
 
-def machine() -> str:
-    lines = [f"- python {platform.python_version()}, {platform.platform()}"]
+    row: dict[str, Any] = {"kind": "machine", "python": platform.python_version()}
+    row["cpus"] = os.cpu_count()
     try:
         import torch
 
-        lines.append(f"- torch {torch.__version__}, CUDA available: {torch.cuda.is_available()}")
-        if torch.cuda.is_available():
-            lines.append(f"- GPU: {torch.cuda.get_device_name(0)}")
-    except ImportError:
-        lines.append("- torch not installed")
-    lines.append(f"- {os.cpu_count()} CPUs")
-    return "\n".join(lines) + "\n"
+        row["torch"] = torch.__version__
+        row["cuda"] = bool(torch.cuda.is_available())
+        if row["cuda"]:
+            row["gpu"] = torch.cuda.get_device_name(0)
+    except ImportError as err:
+        row["torch"] = f"missing ({err})"
+        row["cuda"] = False
+    for name in ("warp-lang", "mujoco-warp", "mujoco", "gymnasium"):
+        try:
+            row[name] = version(name)
+        except PackageNotFoundError:
+            row[name] = "missing"
+    row["device"] = device
+    return row
 
 
-def seconds_per_step(
-    device: str, steps: tuple[int, int], seeds: int, tmp: Path, algos: tuple[str, ...] = ALGOS
-) -> float:
-    """Wall seconds per learning step of the whole preset: the five baselines' groups (``seeds``
-    runs each, Hopper 3D) trained at once as ``rrls benchmark`` runs them, at two budgets."""
-    walls = []
-    for n in steps:
-        start = time.perf_counter()
-        procs = []
-        for algo in algos:
-            command = [sys.executable, "-m", "rrls", "train", "--algo", algo, "--task", "hopper"]
-            command += ["--uncertainty", "3d", "--seeds", f"0-{seeds - 1}", "--steps", str(n)]
-            command += ["--learning-starts", "100", "--eval-every", "0", "--device", device]
-            command += ["--out", str(tmp / f"probe-{algo}-{n}"), "--overwrite"]
-            procs.append(subprocess.Popen(command, cwd=ROOT, stdout=subprocess.DEVNULL))
-        if any(p.wait() for p in procs):
-            raise RuntimeError("a probe run failed")
-        walls.append(time.perf_counter() - start)
-    return max(walls[1] - walls[0], 1e-6) / (steps[1] - steps[0])
+def rate_from_scalars(path: Path, after: int) -> tuple[float, tuple[int, int]]:
+    """Env steps/s of one run between its first episode end after step ``after`` and its last,
+    from the loop's own ``charts/steps_per_second`` (steps since the start / seconds since the
+    start, logged at each episode end). Fewer than two ends after ``after``: the whole run's."""
+    with path.open(newline="") as f:
+        ends = [
+            (int(r["step"]), float(r["value"]))
+            for r in csv.DictReader(f)
+            if r["metric"] == "charts/steps_per_second" and float(r["value"]) > 0
+        ]
+    if not ends:
+        raise ValueError(f"{path}: no episode ended, no rate")
+    late = [(s, s / v) for s, v in ends if s > after]  # (step, seconds since the start)
+    if len(late) < 2 or late[-1][1] <= late[0][1]:
+        step, value = ends[-1]
+        return value, (0, step)
+    (s0, t0), (s1, t1) = late[0], late[-1]
+    return (s1 - s0) / (t1 - t0), (s0, s1)
 
 
-def choose(per_step: float, minutes: float, menu: tuple[int, ...], eval_s: float) -> int:
-    """The largest budget whose training (the five groups at once) and evaluation fit."""
-    for steps in menu:
-        if steps * per_step + eval_s <= minutes * 60:
-            return steps
-    return menu[-1]
+def run_step(step: Step, timeout: float) -> dict[str, Any]:
+    """Run one step in its own process group; a timeout kills the whole group."""
+    row: dict[str, Any] = {"kind": step.kind, "algo": step.algo, "task": step.task, "k": step.k}
+    if step.refused is not None:
+        return {**row, "status": f"refused: {step.refused}"}
+    assert step.command is not None
+    row["command"] = " ".join(step.command)
+    start = time.perf_counter()
+    proc = subprocess.Popen(
+        step.command,
+        cwd=ROOT,
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.PIPE,
+        text=True,
+        start_new_session=True,
+    )
+    try:
+        _, err = proc.communicate(timeout=timeout)
+    except subprocess.TimeoutExpired:
+        os.killpg(proc.pid, signal.SIGKILL)
+        proc.communicate()
+        return {**row, "status": f"timed out after {timeout:.0f} s", "wall_s": timeout}
+    row["wall_s"] = time.perf_counter() - start
+    if proc.returncode != 0:
+        last = (err or "").strip().splitlines()[-1:] or [f"exit status {proc.returncode}"]
+        return {**row, "status": f"failed: {last[0][:300]}"}
+    if step.runs is not None:
+        try:
+            per_run, window = rate_from_scalars(step.runs / "seed0" / "scalars.csv", step.after)
+        except (OSError, ValueError) as exc:
+            return {**row, "status": f"failed: {exc}"}
+        row.update(per_run=per_run, env_steps_per_s=per_run * step.k, window=list(window))
+    return {**row, "status": "ok"}
 
 
-def copy_small(bench: Path, dest: Path) -> None:
-    """The benchmark's report, reference and run files, without checkpoints."""
-    for path in bench.rglob("*"):
-        if path.is_file() and path.stat().st_size <= SMALL and "checkpoint" not in path.name:
-            target = dest / path.relative_to(bench)
-            target.parent.mkdir(parents=True, exist_ok=True)
-            shutil.copy2(path, target)
+def run_steps(steps: list[Step], rows: Rows, deadline: float, step_timeout: float) -> None:
+    """Each step under the smaller of ``step_timeout`` and what is left before ``deadline``
+    (a ``time.monotonic()`` instant); the rows as they come."""
+    for step in steps:
+        left = deadline - time.monotonic()
+        if step.refused is None and left < MIN_STEP_S:
+            head = {"kind": step.kind, "algo": step.algo, "task": step.task, "k": step.k}
+            rows.add({**head, "status": f"skipped: {max(left, 0):.0f} s left before the deadline"})
+            continue
+        rows.add(run_step(step, min(step_timeout, left)))
 
 
-def twin_steps(book: Book, args: argparse.Namespace, py: str) -> None:
-    """The Warp twin (the ``warp`` extra): physics alone and the whole step per world count,
-    each world against CPU MuJoCo, and K stacked TD3 runs trained on it (with a sim-to-sim
-    check of one trained policy)."""
-    d, tiny = args.device, args.tiny
-    worlds = ["2"] if tiny else ["32", "256", "1024", "4096", "8192"]
-    physics = [py, "benchmarks/warp_speed.py", "--device", d, "--worlds", *worlds]
-    physics += ["--steps", "2", "--tasks", "hopper"] if tiny else []
-    book.step("Warp twin: physics alone", physics, args.out / "warp_speed.log", 600)
-    whole = [py, "benchmarks/twin_speed.py", "--device", d, "--worlds", *worlds]
-    whole += ["--steps", "2", "--tasks", "hopper"] if tiny else []
-    book.step("Warp twin: the whole step", whole, args.out / "twin_speed.log", 600)
-    check = [py, "benchmarks/twin_check.py", str(args.out / "twin_check"), "--device", d]
-    check += ["--no-curves"] + (["--tasks", "invertedpendulum"] if tiny else [])
-    book.step("Warp twin vs CPU MuJoCo", check, args.out / "twin_check.log", 900)
-    train = [py, "benchmarks/twin_train.py", str(args.out / "twin_train"), "--device", d]
-    if tiny:
-        train += ["--ks", "1", "--window", "5", "--speed-starts", "10"]
-        train += ["--train-steps", "30", "--starts", "10"]
-        train += ["--points", "1"]
-    book.step("training on the twin", train, args.out / "twin_train.log", 900)
-    loop = [py, "benchmarks/twin_loop_speed.py", "--device", d]
-    loop += ["--ks", "1", "--steps", "100", "--starts", "20", "--algos", "td3"] if tiny else []
-    book.step("rrls train --simulator warp", loop, args.out / "twin_loop_speed.md", 900)
+def plan(args: argparse.Namespace, tmp: Path) -> list[Step]:
+    """The steps, most wanted first: the TD3 sweep on the first task, the baselines on each
+    task, then the sweep on the other tasks."""
+    from rrls.algorithms import paper_five
+    from rrls.twin.tasks import not_on_twin
+
+    ks, pack, tasks = args.ks, args.pack, args.tasks
+    algos = paper_five()
+    if args.algos:  # the dry run: these, and those the twin refuses (rows without a process)
+        algos = tuple(a for a in algos if a in args.algos or not_on_twin(a))
+
+    def train(kind: str, algo: str, task: str, k: int) -> Step:
+        why = not_on_twin(algo)
+        if why is not None:
+            return Step(kind, algo, task, k, refused=f"the Warp twin does not train {algo}: {why}")
+        runs = tmp / f"{kind}-{algo}-{task}-{k}"
+        command = [sys.executable, "-m", "rrls", "train", "--algo", algo, "--task", task]
+        command += ["--uncertainty", "3d", "--seeds", f"0-{k - 1}", "--steps", str(args.steps)]
+        command += ["--learning-starts", str(args.starts), "--eval-every", "0"]
+        command += ["--checkpoint-every", str(10 * args.steps), "--device", args.device]
+        command += ["--simulator", args.simulator, "--out", str(runs), "--overwrite"]
+        return Step(kind, algo, task, k, command, runs, after=args.window_after)
+
+    steps = [train("loop", "td3", tasks[0], k) for k in ks]
+    for task in tasks:
+        steps += [train("baseline", algo, task, pack) for algo in algos]
+    for task in tasks[1:]:
+        steps += [train("loop", "td3", task, k) for k in ks]
+    return steps
+
+
+def measured_rate(rows: list[dict[str, Any]]) -> tuple[Callable[..., Any], dict[str, str]]:
+    """``gpu_estimate``'s rate from the rows, and where each cell's figure came from."""
+    from rrls.experiments.gpu_estimate import stored_rate
+    from rrls.twin.tasks import TWIN_TASKS, not_on_twin
+
+    ok = {
+        (r["algo"], r["task"], r["k"]): r["env_steps_per_s"]
+        for r in rows
+        if r.get("status") == "ok" and "env_steps_per_s" in r
+    }
+    sources: dict[str, str] = {}
+
+    def rate(algo: str, task: str, k: int) -> tuple[float, bool]:
+        cell = f"{algo}/{task}"
+        if (algo, task, k) in ok:
+            sources[cell] = "measured"
+            return ok[(algo, task, k)], True
+        near = [v for (a, t, kk), v in ok.items() if a == algo and kk == k]
+        if near and task in TWIN_TASKS and not_on_twin(algo) is None:
+            sources[cell] = "extrapolated"
+            return sum(near) / len(near), False
+        sources[cell] = "stored"
+        return stored_rate(algo, k)
+
+    return rate, sources
+
+
+def paper_estimate(rows: list[dict[str, Any]], pack: int = PACK) -> dict[str, Any]:
+    """The paper's protocol on one GPU from the measured rows, beside the stored figures'."""
+    from rrls.experiments.gpu_estimate import gpu_estimate
+    from rrls.experiments.spec import make_spec
+
+    spec = make_spec("paper")
+    rate, sources = measured_rate(rows)
+    est, stored = gpu_estimate(spec, pack, rate=rate), gpu_estimate(spec, pack)
+    counts = {s: list(sources.values()).count(s) for s in ("measured", "extrapolated", "stored")}
+    return {
+        "kind": "estimate",
+        "protocol": "paper",
+        "pack": pack,
+        "wall_h": est["wall_s"] / 3600,
+        "train_h": est["train_s"] / 3600,
+        "eval_h": est["eval_s"] / 3600,
+        "stored_wall_h": stored["wall_s"] / 3600,
+        "sources": ", ".join(f"{n} {s}" for s, n in counts.items() if n),
+        "cells": sources,
+    }
 
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("out", type=Path, metavar="OUT_DIR")
-    parser.add_argument("--device", default="cuda", help="cuda (default) or cpu (a dry run)")
-    parser.add_argument("--minutes", type=float, default=20.0, help="the Hopper preset's budget")
-    parser.add_argument("--tiny", action="store_true", help="tiny sizes: the CPU dry run")
-    parser.add_argument(
-        "--no-preset", dest="preset", action="store_false", help="skip the Hopper preset step"
-    )
-    parser.add_argument(
-        "--no-twin", dest="twin", action="store_false", help="skip the Warp twin's steps"
-    )
+    parser.add_argument("--device", default="cuda", help="cuda (default) or cpu (the dry run)")
+    parser.add_argument("--simulator", default="warp", help="warp (default) or mujoco")
+    parser.add_argument("--tiny", action="store_true", help="the CPU dry run's sizes")
+    parser.add_argument("--deadline", type=float, default=540.0, help="seconds for all steps")
+    parser.add_argument("--step-timeout", type=float, default=150.0, help="seconds per step")
+    parser.add_argument("--steps", type=int, default=2_000, help="env steps per run")
+    parser.add_argument("--starts", type=int, default=500, help="random steps before learning")
+    parser.add_argument("--window-after", type=int, default=1_000, help="the rate's window start")
     args = parser.parse_args(argv)
-    args.out.mkdir(parents=True, exist_ok=True)
-    book = Book(args.out)
-    py = sys.executable
-    # the GPU's own tests and the env workers' (many cores here); the rest of the file is CPU
-    # work that CI runs anyway (on the first H100, all of it took over 200 s of the lease)
-    tests = [py, "-m", "pytest", "-q", "-rs", "tests/test_group.py", "-k", "cuda or worker"]
-    tests += ["--collect-only"] if args.tiny else []  # the dry run: the command, not the GPU
-    book.step("CUDA tests", tests, args.out / "tests.log", 1200)
-    speed = [py, "benchmarks/train_speed.py", "--groups", "--algos", "td3", "m2td3"]
-    speed += ["--device", args.device, "--ks", *(["1"] if args.tiny else ["1", "8", "32"])]
-    if args.tiny:
-        speed += ["--group-steps", "5", "--group-warmup", "5", "--process-steps", "5"]
-        speed += ["--learning-starts", "20"]
-    seeds = 1 if args.tiny else SEEDS
-    book.step("GPU speed table", speed, args.out / "speed.md", 900)
-    if args.twin:
-        twin_steps(book, args, py)
-    if not args.preset:
-        book.write(f"## done: {len(book.failed)} step(s) failed {book.failed}\n")
-        return 1 if book.failed else 0
-
-    from rrls.experiments.cpu_estimate import estimate
-    from rrls.experiments.spec import make_spec
-
-    menu = TINY_MENU if args.tiny else MENU
+    sizes: dict[str, Any] = dict(ks=KS, pack=PACK, tasks=TASKS, algos=None)
+    for name, value in {**sizes, **(TINY if args.tiny else {})}.items():
+        setattr(args, name, value)
+    deadline = time.monotonic() + args.deadline
+    rows = Rows(args.out)
+    found = machine(args.device)
+    rows.add(found)
+    if args.device.startswith("cuda") and not found["cuda"]:
+        print("no CUDA device seen by torch: nothing measured", flush=True)
+        return 2
     with tempfile.TemporaryDirectory(prefix="rrls-runbook-") as tmp:
-        try:
-            probes, algos = ((150, 200), TINY_ALGOS) if args.tiny else ((1000, 3000), ALGOS)
-            per_step = seconds_per_step(args.device, probes, seeds, Path(tmp), algos)
-        except RuntimeError as err:
-            book.failed.append("probe")
-            book.write(f"## probe: FAILED ({err}); the smallest budget is used\n")
-            per_step = float("inf")
-        spec = make_spec("hopper", seeds=seeds, steps=menu[-1])
-        eval_s = estimate(spec, jobs=os.cpu_count() or 1)["eval_s"] / (os.cpu_count() or 1)
-        steps = choose(per_step, args.minutes, menu, eval_s)
-        book.write(
-            f"## budget\n\n{per_step * 1e3:.2f} ms per learning step of the five baselines' "
-            f"{seeds}-seed groups at once; "
-            f"evaluation <= {eval_s / 60:.1f} min on {os.cpu_count()} CPUs: {steps:,} steps "
-            f"per run (menu {', '.join(f'{m:,}' for m in menu)}; {args.minutes:g} min)\n"
-        )
-        bench = Path(tmp) / f"hopper-{steps}"
-        command = [py, "-m", "rrls", "benchmark", "--preset", "hopper", "--out", str(bench)]
-        command += ["--seeds", f"0-{seeds - 1}", "--steps", str(steps), "--device", args.device]
-        if args.tiny:
-            command += ["--learning-starts", "100", "--mesh", "2", "--episodes", "1"]
-            command += ["--eval-every", "0", "--algos", ",".join(TINY_ALGOS)]
-        ran = book.step("Hopper preset", command, args.out / "hopper.log", 3600)
-        if ran:
-            report = [py, "-m", "rrls", "report", str(bench), "--export-reference"]
-            report += [
-                str(bench / "reference.json"),
-                "--label",
-                f"rrls hopper preset on {args.device} ({seeds} seeds x {steps:,} steps)",
-            ]
-            book.step("report and reference", report, args.out / "report.log", 600)
-        copy_small(bench, args.out / bench.name)
-    summary = {"failed": book.failed, "steps": steps, "seconds_per_step": per_step}
-    (args.out / "runbook.json").write_text(json.dumps(summary, indent=2) + "\n")
-    book.write(f"## done: {len(book.failed)} step(s) failed {book.failed}\n")
-    return 1 if book.failed else 0
+        run_steps(plan(args, Path(tmp)), rows, deadline, args.step_timeout)
+    try:
+        rows.add(paper_estimate(rows.rows, args.pack))
+    except (ImportError, KeyError, ValueError, ZeroDivisionError) as exc:  # the rows stand
+        rows.add({"kind": "estimate", "algo": "-", "task": "-", "k": 0, "status": f"failed: {exc}"})
+        return 1
+    return 0
 
 
 if __name__ == "__main__":

@@ -18,18 +18,22 @@ ONE process training K runs of a cell together. What is measured and what is ext
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from typing import Any
 
 from rrls.experiments.cpu_estimate import REPORT_S, STARTUP_S, estimate
 from rrls.experiments.spec import Spec
 
-__all__ = ["GPU_RECORD", "describe", "gpu_estimate"]
+__all__ = ["GPU_RECORD", "Rate", "describe", "gpu_estimate", "stored_rate"]
+
+#: ``rate(algo, task, k) -> (aggregated env steps/s, measured)``: where a group's rate comes from
+Rate = Callable[[str, str, int], tuple[float, bool]]
 
 #: where the figures come from
 GPU_RECORD = "docs/results/gpu/h100-2026-11-25.md"
 
 
-def _rate(algo: str, k: int) -> tuple[float, bool]:
+def stored_rate(algo: str, k: int) -> tuple[float, bool]:
     """Aggregated env steps/s of a group of ``k`` runs of ``algo``, and whether measured (its
     row's ``gpu_steps_per_s``, measured on one H100; a row without them: TD3's)."""
     from rrls.algorithms import TD3_GPU, algorithm_info
@@ -49,21 +53,25 @@ def _rate(algo: str, k: int) -> tuple[float, bool]:
     return table[lo] * (1 - w) + table[hi] * w, False
 
 
-def gpu_estimate(spec: Spec, pack: int, cpu_cores: int = 16) -> dict[str, Any]:
+def gpu_estimate(
+    spec: Spec, pack: int, cpu_cores: int = 16, rate: Rate | None = None
+) -> dict[str, Any]:
     """Seconds on one GPU: ``train_s`` (groups of ``pack`` seeds of a cell, one after another),
     ``eval_s`` (the final evaluations on ``cpu_cores``), ``wall_s``, and ``measured`` (whether
-    every rate used was measured rather than interpolated, extrapolated or borrowed)."""
+    every rate used was measured rather than interpolated, extrapolated or borrowed). ``rate``
+    replaces the stored H100 figures (``benchmarks/gpu_runbook.py`` passes the rates it has
+    just measured on the machine, per task)."""
     pack = max(1, min(pack, len(spec.seeds)))
     train, measured = 0.0, True
     groups = 0
     for algo in spec.algos:
-        for _task in spec.tasks:
+        for task in spec.tasks:
             for start in range(0, len(spec.seeds), pack):
                 k = min(pack, len(spec.seeds) - start)
-                rate, exact = _rate(algo, k)
+                per_s, exact = rate(algo, task, k) if rate else stored_rate(algo, k)
                 measured &= exact
                 learning = spec.steps - spec.warmup(algo)
-                train += STARTUP_S + k * learning / rate + spec.warmup(algo) / 2_000.0
+                train += STARTUP_S + k * learning / per_s + spec.warmup(algo) / 2_000.0
                 groups += 1
     evals = estimate(spec, 1)["eval_s"] / max(1, cpu_cores)
     return {
