@@ -509,7 +509,7 @@ def test_a_paper_physics_benchmark_trains_evaluates_and_records_it(tmp_path, cap
     args = [*SMOKE, "--algos", "rarl", "--workers", "1", "--out", str(out), "--rate-limit", "0.1"]
     args += ["--observe", "oracle"]
     assert main([*args, "--physics", "paper"]) == 0
-    assert json.loads((out / "benchmark.json").read_text())["physics"] == "paper"
+    assert json.loads((out / "benchmark.json").read_text())["protocol"]["physics"] == "paper"
     (run,) = (out / "runs").iterdir()
     assert json.loads((run / "run.json").read_text())["config"]["physics"] == "paper"
     summary = json.loads((run / "eval" / "summary.json").read_text())
@@ -540,7 +540,7 @@ def test_benchmark_rate_limit_is_rarls_alone_and_checked():
     assert spec.hyperparameters("rarl")["observe"] == "stacked"
     with pytest.raises(SpecError, match="--observe stacked is a protagonist of TC-RMDP's game"):
         make_spec("smoke", observe="stacked")
-    old = {k: v for k, v in make_spec("smoke", rate_limit=0.05).to_json().items()}
+    old = make_spec("smoke", rate_limit=0.05).flat_json()  # benchmark.json as it was then
     del old["rate_game"], old["observe"]
     assert Spec.from_json(old).rate_game == "target"
     assert Spec.from_json({**old, "rate_limit": None}).rate_game == "tc"
@@ -551,7 +551,8 @@ def test_a_split_benchmark_trains_inside_and_reports_in_and_out_of_distribution(
     out = tmp_path / "split"
     args = [*SMOKE, "--algos", "td3,dr", "--workers", "1", "--mesh", "3", "--out", str(out)]
     assert main([*args, "--split", "Extrapolation"]) == 0
-    assert json.loads((out / "benchmark.json").read_text())["split"] == "extrapolation:0.5"
+    stored = json.loads((out / "benchmark.json").read_text())["protocol"]
+    assert stored["split"] == "extrapolation:0.5"
     run = out / "runs" / "dr-invertedpendulum-1d-seed0"
     assert json.loads((run / "run.json").read_text())["config"]["split"] == "extrapolation:0.5"
     result = json.loads((run / "result.json").read_text())

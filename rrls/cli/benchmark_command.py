@@ -152,6 +152,15 @@ def add_parser(sub: argparse._SubParsersAction) -> argparse.ArgumentParser:
         help="final evaluation: episodes per point (default: the preset's; paper 5)",
     )
     b.add_argument(
+        "--protocol",
+        metavar="FILE",
+        help="the evaluation protocol, a JSON file as Protocol.to_json writes it (set, mesh, "
+        "episodes, seed, physics, split, disruptors, schedule, max_episode_steps, ...; fields "
+        "left out take Protocol's defaults): it replaces the preset's protocol whole, and "
+        "--uncertainty, --mesh, --episodes, --physics, --split, --rate-limit, --recheck "
+        "override it. Its max_episode_steps truncates the training's episodes too",
+    )
+    b.add_argument(
         "--recheck",
         metavar="KxE",
         type=recheck_value,

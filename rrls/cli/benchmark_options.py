@@ -68,6 +68,7 @@ def spec_from(args: argparse.Namespace) -> tuple:
         observe=getattr(args, "observe", None),
         split=getattr(args, "split", None),
         recheck=getattr(args, "recheck", None),
+        protocol=getattr(args, "protocol", None),
     )
     jobs = args.workers or (None if args.backend == "ray" else default_jobs())
     return spec, jobs

@@ -321,10 +321,7 @@ class Protocol:
             check_box(kw["split"], SPLIT_SCHEMA, "protocol", "split")
             kw["split"] = Split.from_json(kw["split"])
         if kw.get("schedule") is not None:
-            raise ValueError(
-                "a protocol over a schedule family is recorded as JSON but not rebuilt from it: "
-                "pass the ScheduleFamily again (Protocol(..., schedule=family))"
-            )
+            kw["schedule"] = _schedule_family(kw["schedule"])
         pairs = kw.get("disruptors", ())
         if isinstance(pairs, list) and all(isinstance(p, list) and len(p) == 2 for p in pairs):
             pairs = tuple((n, tuple(v) if isinstance(v, list) else v) for n, v in pairs)
@@ -372,6 +369,24 @@ class Protocol:
             in_dist = _split_mask(split, mesh_box, points, self.schedule)
             settings["split"] = split.to_json()
         return Plan(mesh_box, resolved, stack, points, in_dist, steps, self.paper, settings)
+
+
+def _schedule_family(data: Any) -> Any:
+    """The ``ScheduleFamily`` its JSON (``{"kind": ..., "grid": {field: [values]}}``) names."""
+    from rrls.wrappers import ScheduleFamily
+
+    if not (
+        isinstance(data, Mapping)
+        and set(data) == {"kind", "grid"}
+        and isinstance(data["kind"], str)
+        and isinstance(data["grid"], Mapping)
+        and all(isinstance(v, list) for v in data["grid"].values())
+    ):
+        raise ValueError(
+            'schedule must be null or {"kind": a schedule, "grid": {field: [values]}}, got '
+            f"{data!r:.80}"
+        )
+    return ScheduleFamily(data["kind"], **data["grid"])
 
 
 def _stack(

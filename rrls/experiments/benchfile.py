@@ -26,37 +26,45 @@ NAME = "benchmark.json"
 LOCK = ".benchmark.lock"
 
 _STEPS = integer(1, 10**12)
-#: ``benchmark.json``: ``Spec``'s fields as they are stored (every one optional: a field added
+#: the template run's fields, as every format stores them
+_TRAINING = {
+    "algos": array(string(), max_items=1_000),
+    "tasks": array(string(), max_items=1_000),
+    "seeds": array(integer(0, MAX_SEED), max_items=MAX_SEEDS),
+    "steps": _STEPS,
+    "learning_starts": integer(0, 10**12, null=True),
+    "eval_every": integer(0, 10**12),
+    "eval_episodes": integer(1, MAX_EPISODES),
+    "eval_mesh": integer(0, MAX_MESH_POINTS),
+    "learning_rate": number(0, low_open=True, null=True),
+    "normalize_omega": boolean(),
+    "hidden": array(integer(1, 1_000_000), max_items=64),
+    "batch_size": integer(1, 10**8, null=True),
+    "checkpoint_every": _STEPS,
+    "preset": string(),
+    "device": string(),
+    "observe": string(choices=OBSERVE),
+    "simulator": string(choices=SIMULATORS),
+}
+#: ``benchmark.json``: ``Spec``'s fields, the protocol as ``Protocol.to_json`` writes it (which
+#: ``Protocol.from_json`` checks field by field); every other field optional (a field added
 #: after a file was written takes its default)
-SPEC_SCHEMA = Schema(
+SPEC_SCHEMA = Schema({**_TRAINING, "protocol": obj()})
+#: a ``benchmark.json`` written before it held the protocol whole: the protocol's fields flat
+#: beside the template run's (``eval_seed``: the protocol's seed); read as the same benchmark
+FLAT_SCHEMA = Schema(
     {
-        "algos": array(string(), max_items=1_000),
-        "tasks": array(string(), max_items=1_000),
+        **_TRAINING,
         "uncertainty": string(),
-        "seeds": array(integer(0, MAX_SEED), max_items=MAX_SEEDS),
-        "steps": _STEPS,
-        "learning_starts": integer(0, 10**12, null=True),
-        "eval_every": integer(0, 10**12),
-        "eval_episodes": integer(1, MAX_EPISODES),
-        "eval_mesh": integer(0, MAX_MESH_POINTS),
         "mesh": integer(1, MAX_MESH_POINTS),
         "endpoint": boolean(null=True),
         "episodes": integer(1, MAX_EPISODES),
         "dynamic_episodes": integer(1, MAX_EPISODES),
-        "learning_rate": number(0, low_open=True, null=True),
-        "normalize_omega": boolean(),
-        "hidden": array(integer(1, 1_000_000), max_items=64),
-        "batch_size": integer(1, 10**8, null=True),
-        "checkpoint_every": _STEPS,
         "eval_seed": integer(0, MAX_SEED),
-        "preset": string(),
-        "device": string(),
         "physics": string(choices=tuple(ALIASES)),
         "rate_limit": number(0, low_open=True, null=True),
         "rate_game": string(choices=RATE_GAMES),
-        "observe": string(choices=OBSERVE),
         "split": string(null=True),
-        "simulator": string(choices=SIMULATORS),
         "recheck": obj(null=True),
     }
 )
@@ -66,23 +74,31 @@ def spec_path(root: str | Path) -> Path:
     return Path(root) / NAME
 
 
-def read_spec_json(root: str | Path) -> dict[str, Any]:
-    """The stored protocol as a JSON object (``FileNotFoundError`` if there is none,
-    ``DamagedFile`` if its bytes are not those written)."""
+def read_stored_json(root: str | Path) -> dict[str, Any]:
+    """The file as it is stored (``FileNotFoundError`` if there is none, ``DamagedFile`` if its
+    bytes are not those written)."""
     return rundir.read_checked_json(spec_path(root))
 
 
 def read_spec(root: str | Path) -> Spec:
-    """The stored ``Spec``; a file that is not one is a ``SpecError`` naming it."""
-    data = read_spec_json(root)
+    """The stored ``Spec`` (a file of any earlier format migrated); a file that is not one is
+    a ``SpecError`` naming it."""
+    data = read_stored_json(root)
+    schema = SPEC_SCHEMA if isinstance(data, dict) and "protocol" in data else FLAT_SCHEMA
     try:
-        SPEC_SCHEMA.check(data, str(spec_path(root)))
+        schema.check(data, str(spec_path(root)))
     except SchemaError as err:
         raise SpecError(str(err)) from None
     try:
         return Spec.from_json(data)
     except (ValueError, TypeError, KeyError, AttributeError) as err:
         raise SpecError(f"{spec_path(root)} is not a benchmark spec ({err})") from None
+
+
+def read_spec_json(root: str | Path) -> dict[str, Any]:
+    """The stored benchmark as its readers take it (the report, reference files): its fields
+    flat, whatever the format it was written in (``Spec.flat_json``)."""
+    return read_spec(root).flat_json()
 
 
 def stored_fingerprints(root: str | Path) -> dict[str, str]:

@@ -196,6 +196,8 @@ def _train(spec: Spec, runs: list[RunKey], outs: list[Path], progress: list[Prog
             checkpoint_every=spec.checkpoint_every,
             threads=1,
             physics=spec.physics,
+            # the protocol's episode limit is the training's too (None: the task's)
+            max_episode_steps=spec.protocol.max_episode_steps,
             simulator=spec.simulator,
             progress=False,
             hyper=spec.hyperparameters(run.algo),

@@ -226,6 +226,23 @@ def _split_table(summary: dict[str, Any]) -> list[str]:
     return [*lines, ""]
 
 
+def _beyond_the_paper(spec: dict[str, Any]) -> list[str]:
+    """The report's line on what the benchmark's protocol adds to the paper's evaluation
+    (disruptors, a schedule, an episode limit: ``Spec.flat_json`` names them when given), so
+    that no one reads its numbers as the paper's."""
+    parts = []
+    if spec.get("disruptors"):
+        parts.append("disruptors " + ", ".join(f"`{n}` {v}" for n, v in spec["disruptors"]))
+    if spec.get("schedule"):
+        grid = ", ".join(f"{k} {v}" for k, v in spec["schedule"]["grid"].items())
+        parts.append(f"a `{spec['schedule']['kind']}` schedule meshed over {grid}")
+    if spec.get("max_episode_steps"):
+        parts.append(f"episodes of at most {spec['max_episode_steps']:,} steps (training too)")
+    if not parts:
+        return []
+    return [f"- evaluated under {'; '.join(parts)}: not the paper's static evaluation"]
+
+
 def _markdown(
     summary: dict[str, Any], paper: dict[str, Any], figures: list[tuple[str, Path]], out: Path
 ) -> str:
@@ -264,6 +281,7 @@ def _markdown(
                 "twins, float32), evaluated on CPU MuJoCo: each run is another draw of its "
                 "algorithm than a CPU-trained one"
             )
+        lines += _beyond_the_paper(spec)
     if summary.get("versions"):
         lines.append(
             "- versions: " + ", ".join(f"{k} {'/'.join(v)}" for k, v in summary["versions"].items())

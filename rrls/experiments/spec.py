@@ -1,33 +1,28 @@
 """What a benchmark is: a grid of runs (algorithm × task × seed) sharing one protocol.
 
-A ``Spec`` is written to ``DIR/benchmark.json``. Re-running over the same directory must use the
-same *protocol* (steps, mesh, episodes, set, hyper-parameters): anything else would mix numbers
-that are not comparable, so it is refused with the fields that differ. The *grid* (algorithms,
+A ``Spec`` is a template run plus its ``Protocol``, written to ``DIR/benchmark.json`` (the
+protocol as ``Protocol.to_json`` writes it; ``rrls.experiments.benchfile``). Re-running over
+the same directory must use the same settings (steps, hyper-parameters, every field of the
+protocol): anything else would mix numbers that are not comparable, so it is refused with the
+fields that differ. The *grid* (algorithms,
 tasks, seeds) may grow: the stored spec becomes the union and only the new runs are trained.
 """
 
 from __future__ import annotations
 
-from dataclasses import asdict, dataclass, fields
-from functools import cached_property
+from collections.abc import Mapping
+from dataclasses import dataclass, fields, replace
+from os import PathLike
 from typing import Any
 
-from rrls.algorithms import (
-    ALGORITHMS,
-    algorithm_info,
-    algorithm_key,
-    built_in,
-    paper_five,
-    warmup,
-)
-from rrls.evaluation.protocol import Protocol, check_episodes
-from rrls.physics import SIMULATORS, V5, is_paper, physics_label
+from rrls.algorithms import ALGORITHMS, algorithm_info, algorithm_key, built_in, warmup
+from rrls.evaluation.protocol import Protocol, Recheck, check_episodes
+from rrls.experiments.presets import ALGOS, PAPER_TASKS, PRESETS
+from rrls.physics import SIMULATORS, is_paper
 
-ALGOS = paper_five()  # the paper's five (the presets' default)
 # every built-in algorithm (rrls.algorithms, the table); plug-ins are accepted by name (entry
 # point group "rrls.algorithms", or a registered row) or as package.module:Learner
 BUILT_IN = built_in()
-PAPER_TASKS = ("ant", "halfcheetah", "hopper", "humanoidstandup", "walker")
 GRID = ("algos", "tasks", "seeds")  # may grow between invocations
 #: do not change the numbers' meaning (device: docs/performance.md; recheck: statistics beside)
 LABELS = ("preset", "device", "recheck")
@@ -37,15 +32,32 @@ class SpecError(ValueError):
     """A benchmark specification that cannot run (the CLI prints it on one line, exit 2)."""
 
 
-@dataclass(frozen=True)
+#: the ``Protocol``'s fields a ``Spec`` also takes flat (presets, options, ``benchmark.json``
+#: files written before it held the protocol whole), under those files' names: the protocol's
+#: ``seed`` is ``eval_seed`` there, beside the grid's training ``seeds``
+PROTOCOL_NAMES = {
+    **{name: name for name in Protocol.__dataclass_fields__ if name != "seed"},
+    "eval_seed": "seed",
+}
+#: the protocol's fields a benchmark.json written before they could be given never held: the
+#: flat view (and the benchmark fingerprint) names them only when they are not their default
+LATER = {"disruptors": [], "schedule": None, "context": False, "max_episode_steps": None}
+
+
+@dataclass(frozen=True, init=False)
 class Spec:
-    """One benchmark: every run trains, evaluates over the mesh, and (RARL, NR-MDP) plays its
-    own adversary. ``uncertainty`` is the evaluation set and the training set of DR and M2TD3;
-    RARL trains against its force adversary (the paper's), TD3 and NR-MDP ignore it."""
+    """One benchmark: a template run (the grid and the training settings) and the ``Protocol``
+    every run and submitted policy is evaluated under. Every run trains, is evaluated over the
+    protocol's mesh, and (RARL, NR-MDP) plays its own adversary. The protocol's set is the
+    evaluation set and the training set of DR and M2TD3; RARL trains against its force adversary
+    (the paper's), TD3 and NR-MDP ignore it.
+
+    ``Spec(protocol=Protocol(...), ...)`` or, as presets and options give it, the protocol's
+    fields flat (``Spec(mesh=2, eval_seed=0, ...)``, ``replace(spec, mesh=3)``): they replace
+    those of ``protocol``. Read back, ``spec.mesh`` and the others are the protocol's."""
 
     algos: tuple[str, ...] = ALGOS
     tasks: tuple[str, ...] = PAPER_TASKS
-    uncertainty: str = "3d"
     seeds: tuple[int, ...] = tuple(range(10))
     steps: int = 5_000_000
     #: random warm-up steps of every run; None: each algorithm's own (its row in
@@ -54,50 +66,92 @@ class Spec:
     eval_every: int = 50_000  # periodic nominal evaluation during training (curves)
     eval_episodes: int = 5
     eval_mesh: int = 0  # >0: periodic evaluations also over a coarse mesh (eval/worst_case)
-    mesh: int = 10
-    #: whether the mesh reaches the set's upper bounds (``np.linspace``); False is the paper's
-    #: mesh (``np.arange`` from the lower bound in steps of (high - low) / mesh, the upper bound
-    #: never reached); None: the physics' default (False on the paper's physics, else True:
-    #: what a benchmark.json written before this field evaluated on)
-    endpoint: bool | None = None
-    episodes: int = 5
-    dynamic_episodes: int = 10
     learning_rate: float | None = None  # None: the paper's 3e-4
     normalize_omega: bool = False
     hidden: tuple[int, ...] = (256, 256)
     batch_size: int | None = None  # None: the paper's (TD3 256, M2TD3 100)
     checkpoint_every: int = 50_000
-    eval_seed: int = 0
     preset: str = "paper"
     device: str = "cpu"
-    #: which physics trains and evaluates every run (``rrls.physics``: v5 or paper)
-    physics: str = V5
-    #: RARL plays TC-RMDP's game: its adversary moves each parameter by at most this much per
-    #: step, in raw parameter units (``rrls.wrappers.tc_rmdp``); None: RARL's own game
-    rate_limit: float | None = None
-    #: the rate-limited game: ``tc`` (the authors') or ``target`` (rrls's earlier one; what a
-    #: benchmark.json written before ``rate_game`` existed played)
-    rate_game: str = "tc"
     #: the RARL protagonist of the TC-RMDP game: vanilla, stacked or oracle
     observe: str = "vanilla"
-    #: a train/test split of the set (``extrapolation:F``): every run trains on the inner box,
-    #: the evaluation covers the whole set and the report gives in/out of distribution apart
-    split: str | None = None
     #: what steps the training envs: ``mujoco`` (CPU MuJoCo) or ``warp`` (the task's MuJoCo
     #: Warp twin on ``device``); every evaluation stays on CPU MuJoCo
     simulator: str = "mujoco"
-    #: each run's worst case also rechecked with fresh episodes (``rrls.evaluation.recheck``);
-    #: None: not computed. Not binding: it adds statistics and changes none of the mesh's rows
-    recheck: Any = None
+    #: the final evaluation's protocol. Its set is a set's name, which every run also trains
+    #: on; its ``physics`` trains and evaluates every run; its ``split`` (``extrapolation:F``)
+    #: trains every run on the inner box; its ``rate_limit`` makes RARL play TC-RMDP's game
+    #: (``rate_game``: ``tc``, the authors', or ``target``, rrls's earlier one); its
+    #: ``max_episode_steps`` truncates training episodes too; its ``recheck`` is not binding
+    #: (it adds statistics and changes none of the mesh's rows). The endpoint ``None``: the
+    #: physics' default (False on the paper's physics, else True)
+    protocol: Protocol = Protocol()
 
-    def __post_init__(self) -> None:
-        if isinstance(self.recheck, dict):
-            from rrls.evaluation.recheck import Recheck
+    def __init__(
+        self, *, protocol: Protocol | Mapping[str, Any] | None = None, **given: Any
+    ) -> None:
+        flat = {PROTOCOL_NAMES[k]: given.pop(k) for k in list(given) if k in PROTOCOL_NAMES}
+        if flat.get("split") == "":  # no split, as a benchmark.json may say it
+            flat["split"] = None
+        own = {f.name: f for f in fields(self) if f.name != "protocol"}
+        unknown = sorted(set(given) - set(own))
+        if unknown:
+            raise TypeError(f"Spec got unknown field(s) {', '.join(unknown)}")
+        for name, f in own.items():
+            object.__setattr__(self, name, given.get(name, f.default))
+        try:
+            if protocol is None:
+                protocol = Protocol()
+            elif not isinstance(protocol, Protocol):
+                protocol = Protocol.from_json(protocol)
+            object.__setattr__(self, "protocol", protocol.replace(**flat) if flat else protocol)
+        except (TypeError, ValueError) as err:
+            raise SpecError(str(err)) from None
 
-            try:
-                object.__setattr__(self, "recheck", Recheck.from_json(self.recheck))
-            except (TypeError, ValueError) as err:
-                raise SpecError(str(err)) from None
+    # the protocol's fields, read as before the spec held it whole (the runs' names, training)
+    @property
+    def uncertainty(self) -> str:
+        return self.protocol.uncertainty
+
+    @property
+    def mesh(self) -> int:
+        return self.protocol.mesh
+
+    @property
+    def endpoint(self) -> bool | None:
+        return self.protocol.endpoint
+
+    @property
+    def episodes(self) -> int:
+        return self.protocol.episodes
+
+    @property
+    def dynamic_episodes(self) -> int:
+        return self.protocol.dynamic_episodes
+
+    @property
+    def eval_seed(self) -> int:
+        return self.protocol.seed
+
+    @property
+    def physics(self) -> str:
+        return self.protocol.physics
+
+    @property
+    def split(self) -> str | None:
+        return self.protocol.split
+
+    @property
+    def rate_limit(self) -> float | None:
+        return self.protocol.rate_limit
+
+    @property
+    def rate_game(self) -> str:
+        return self.protocol.rate_game
+
+    @property
+    def recheck(self) -> Recheck | None:
+        return self.protocol.recheck
 
     def runs(self) -> list[RunKey]:
         """Every (algorithm, task, seed) of the grid, in a stable order: seed by seed, so that a
@@ -108,25 +162,6 @@ class Spec:
         """The set a run trains on: ``uncertainty`` for every algorithm (paper §5 trains every
         baseline on the 3D set; RARL's adversary then picks the parameters every step)."""
         return self.uncertainty
-
-    @cached_property
-    def protocol(self) -> Protocol:
-        """The final evaluation's protocol, built once: what every run and submitted policy of
-        this benchmark is evaluated under (the mesh, the dynamic evaluation's episodes, the
-        rate-limited game); ``benchmark.json`` stores its fields flat beside the grid's."""
-        return Protocol(
-            self.uncertainty,
-            mesh=self.mesh,
-            endpoint=self.endpoint,
-            episodes=self.episodes,
-            seed=self.eval_seed,
-            physics=self.physics,
-            split=self.split or None,
-            dynamic_episodes=self.dynamic_episodes,
-            rate_limit=self.rate_limit,
-            rate_game=self.rate_game,
-            recheck=self.recheck,
-        )
 
     def hyperparameters(self, algo: str) -> dict[str, Any]:
         """The preset's overrides of ``algo``'s paper hyper-parameters (``TrainConfig.hyper``)."""
@@ -148,18 +183,36 @@ class Spec:
         steps = warmup(algo) if self.learning_starts is None else self.learning_starts
         return min(steps, self.steps)
 
+    def flat_json(self) -> dict[str, Any]:
+        """The benchmark with its protocol's fields flat, as ``benchmark.json`` held it before it
+        stored the protocol whole (``eval_seed``; disruptors, schedule, context and the episode
+        limit only when given): what the report and reference files read, and what the
+        benchmark fingerprint names, so that a benchmark written then keeps its fingerprint."""
+        proto = self.protocol.to_json()
+        out = {k: list(v) if isinstance(v, tuple) else v for k, v in self.to_json().items()}
+        del out["protocol"]
+        for name, key in PROTOCOL_NAMES.items():
+            if key in proto and not (name in LATER and proto[key] == LATER[name]):
+                out[name] = proto[key]
+        return out
+
     def binding_fields(self) -> dict[str, Any]:
         """The fields two invocations over one directory must agree on (``simulator`` only
         when it is not CPU MuJoCo: a benchmark.json written before it reads as the same)."""
-        out = {k: v for k, v in self.to_json().items() if k not in GRID + LABELS}
+        out = {k: v for k, v in self.flat_json().items() if k not in GRID + LABELS}
         if out.get("simulator") == "mujoco":
             del out["simulator"]
         return out
 
     def to_json(self) -> dict[str, Any]:
-        out = {k: list(v) if isinstance(v, tuple) else v for k, v in asdict(self).items()}
-        if out["recheck"] is None:  # a benchmark.json written before it reads the same
-            del out["recheck"]
+        """``benchmark.json``: the template run's fields, and the protocol as its own JSON."""
+        out: dict[str, Any] = {
+            f.name: list(v) if isinstance(v, tuple) else v
+            for f in fields(self)
+            if f.name != "protocol"
+            for v in (getattr(self, f.name),)
+        }
+        out["protocol"] = self.protocol.to_json()
         return out
 
     def fingerprints(self) -> dict[str, str]:
@@ -175,12 +228,14 @@ class Spec:
         }
 
     @classmethod
-    def from_json(cls, data: dict[str, Any]) -> Spec:
-        known = {f.name for f in fields(cls)}
-        kw = {k: tuple(v) if isinstance(v, list) else v for k, v in data.items() if k in known}
-        kw["physics"] = physics_label(kw.get("physics"))  # older labels read as today's
-        if kw.get("rate_limit") is not None and "rate_game" not in kw:
-            kw["rate_game"] = "target"  # written before TC-RMDP's game: rrls's earlier one
+    def from_json(cls, data: Mapping[str, Any]) -> Spec:
+        """The inverse of ``to_json``; a file without ``protocol`` is one written before the
+        benchmark held its protocol whole (its fields flat, every earlier format) and reads as
+        the same benchmark."""
+        kw = {k: tuple(v) if isinstance(v, list) else v for k, v in data.items()}
+        if "protocol" not in kw:
+            if kw.get("rate_limit") is not None and "rate_game" not in kw:
+                kw["rate_game"] = "target"  # written before TC-RMDP's game: rrls's earlier one
         return cls(**kw)
 
 
@@ -194,104 +249,6 @@ class RunKey:
 
     def name(self, uncertainty: str) -> str:
         return f"{self.algo}-{self.task}-{uncertainty}-seed{self.seed}"
-
-
-PRESETS: dict[str, dict[str, Any]] = {
-    # Seconds, for tests: every code path (5 algorithms, curves, mesh, dynamic evaluation).
-    "smoke": dict(
-        algos=ALGOS,
-        tasks=("invertedpendulum",),
-        uncertainty="1d",
-        seeds=(0,),
-        steps=300,
-        learning_starts=100,
-        eval_every=150,
-        eval_episodes=1,
-        mesh=2,
-        episodes=1,
-        dynamic_episodes=1,
-        learning_rate=1e-3,
-        normalize_omega=True,
-        hidden=(16, 16),
-        batch_size=32,
-        checkpoint_every=100,
-    ),
-    # ~18 minutes on 2 cores (a reduced protocol, NOT the paper's): InvertedPendulum, whose
-    # nominal task TD3 learns on every seed within 25 k steps with 64-64 networks and Adam at
-    # 1e-3 (measured per seed, docs/results/quick/README.md), 3 seeds x 30 k steps, so every
-    # normalised score is against a TD3 that balances the pole.
-    "quick": dict(
-        algos=ALGOS,
-        tasks=("invertedpendulum",),
-        uncertainty="1d",
-        seeds=(0, 1, 2),
-        steps=30_000,
-        learning_starts=1_000,
-        eval_every=2_500,
-        eval_episodes=5,
-        eval_mesh=3,  # curves of the worst case too (3 pole masses, 1 episode each)
-        mesh=10,
-        episodes=5,
-        dynamic_episodes=10,
-        learning_rate=1e-3,
-        normalize_omega=True,
-        hidden=(64, 64),
-        checkpoint_every=10_000,
-    ),
-    # A locomotion reference on rrls's physics, produced on 2-core machines in pieces: Hopper,
-    # the paper's 3D set, its five baselines and hyper-parameters (256-256, batch 256, Adam 3e-4,
-    # 25 k random steps), 3 seeds x 200 k steps (the paper: 10 x 5 M), the paper's mesh
-    # (10 points per dimension) with 2 episodes per point (the paper: 5). 20-25 min a TD3 run on
-    # an idle core (7.7 h for the 15 runs); docs/results/hopper/ is its shipped result,
-    # `--reference hopper` its numbers.
-    "hopper": dict(
-        algos=ALGOS,
-        tasks=("hopper",),
-        uncertainty="3d",
-        seeds=(0, 1, 2),
-        steps=200_000,
-        eval_every=10_000,
-        eval_episodes=5,
-        mesh=10,
-        endpoint=False,
-        episodes=2,
-        dynamic_episodes=10,
-        checkpoint_every=25_000,
-    ),
-    # The locomotion reference where the agents have learned: HalfCheetah (the paper's widest
-    # robust gap, its Table 7), the paper's 3D set (world friction 0.1-4, torso mass 0.1-7,
-    # back-thigh mass 0.1-3), its five baselines and hyper-parameters, 5 seeds x 300 k steps (TD3
-    # measured first on 2 seeds: nominal return >= 4 000 by then, docs/results/halfcheetah/),
-    # the paper's mesh (10 points per dimension, np.arange) x 5 episodes, as the paper.
-    "halfcheetah": dict(
-        algos=ALGOS,
-        tasks=("halfcheetah",),
-        uncertainty="3d",
-        seeds=(0, 1, 2, 3, 4),
-        steps=300_000,
-        eval_every=10_000,
-        eval_episodes=5,
-        mesh=10,
-        endpoint=False,
-        episodes=5,
-        dynamic_episodes=10,
-        checkpoint_every=25_000,
-    ),
-    # The paper's protocol (§5): 5 algorithms × 5 tasks × 10 seeds, 5 M steps, 3D set, mesh 10.
-    "paper": dict(
-        algos=ALGOS,
-        tasks=PAPER_TASKS,
-        uncertainty="3d",
-        seeds=tuple(range(10)),
-        steps=5_000_000,
-        eval_every=50_000,
-        eval_episodes=5,
-        mesh=10,
-        endpoint=False,
-        episodes=5,
-        dynamic_episodes=10,
-    ),
-}
 
 
 def _csv(value: str, what: str) -> tuple[str, ...]:
@@ -310,6 +267,8 @@ def make_spec(preset: str = "paper", **overrides: Any) -> Spec:
     """The preset with explicit options on top (``None`` means "not given"), validated.
 
     ``algos``/``tasks`` may be comma-separated strings; ``seeds`` is a count (seeds 0..N-1).
+    ``protocol`` (a ``Protocol``, its JSON object or a file holding it) replaces the preset's
+    protocol whole; the protocol's fields given flat (``mesh``...) then override it.
     """
     if preset not in PRESETS:
         raise SpecError(f"unknown preset {preset!r}; valid: {', '.join(PRESETS)}")
@@ -337,25 +296,48 @@ def make_spec(preset: str = "paper", **overrides: Any) -> Spec:
         longest = max(warmup(a) for a in algos) if first is None else first
         if longest > given["steps"] // 5:
             given["learning_starts"] = min(longest, given["steps"] // 5)
+    if "protocol" in given:  # the whole protocol: the preset's fields of it give way
+        values = {k: v for k, v in values.items() if k not in PROTOCOL_NAMES}
+        if isinstance(given["protocol"], (str, PathLike)):
+            given["protocol"] = read_protocol(given["protocol"])
     values.update(given)
-    try:
-        values["physics"] = physics_label(values.get("physics"))
-    except ValueError as err:
-        raise SpecError(str(err)) from None
+    _check_options(values)
     values["tasks"] = tuple(dict.fromkeys(_task_key(t) for t in values["tasks"]))
     values["algos"] = tuple(dict.fromkeys(algorithm_key(a) for a in values["algos"]))
-    if values.get("split"):  # canonical (extrapolation:0.5), so two spellings are one protocol
+    spec = Spec(**values)
+    if spec.split:  # canonical (extrapolation:0.5), so two spellings are one protocol
         from rrls.envs import training_split
 
         try:
-            values["split"] = training_split(
-                values["tasks"][0], values["uncertainty"], values["split"]
-            )
-        except ValueError as err:
+            split = training_split(spec.tasks[0], spec.uncertainty, spec.split)
+        except (TypeError, ValueError) as err:
             raise SpecError(str(err)) from None
-    spec = Spec(**values)
+        spec = replace(spec, split=split)
     validate(spec)
     return spec
+
+
+def _check_options(values: Mapping[str, Any]) -> None:
+    """Refuse the protocol's counts and rate limit as the options that give them are named
+    (``--mesh``), before the ``Protocol`` refuses them by its own field names."""
+    for name in ("mesh", "episodes", "dynamic_episodes"):
+        value = values.get(name)
+        if isinstance(value, int) and value < 1:
+            raise SpecError(f"--{name.replace('_', '-')} must be >= 1, got {value}")
+    rate = values.get("rate_limit")
+    if rate is not None and not (isinstance(rate, (int, float)) and 0 < rate < float("inf")):
+        raise SpecError(f"--rate-limit must be a finite number > 0, got {rate!r}")
+
+
+def read_protocol(path: str | PathLike[str]) -> Protocol:
+    """The ``Protocol`` in a JSON file (``Protocol.to_json``'s object: ``rrls benchmark
+    --protocol FILE``); a file that is not one is a ``SpecError`` naming it."""
+    from rrls.schema import read_json
+
+    try:
+        return Protocol.from_json(read_json(path))
+    except (OSError, TypeError, ValueError) as err:
+        raise SpecError(f"--protocol {path}: {err}") from None
 
 
 def _task_key(task: str) -> str:
@@ -381,6 +363,7 @@ def validate(spec: Spec) -> None:
         raise SpecError(f"unknown algorithm {bad[0]!r}; valid: {valid}, or package.module:Learner")
     if not spec.algos or not spec.tasks:
         raise SpecError("a benchmark needs at least one algorithm and one task")
+    check_protocol(spec.protocol)
     for task in spec.tasks:
         key = _task_key(task)
         if is_paper(spec.physics) and get_task(key).paper_id is None:
@@ -393,15 +376,15 @@ def validate(spec: Spec) -> None:
                 get_uncertainty_set(key, name)
             except ValueError as err:
                 raise SpecError(str(err)) from None
-        try:  # the final evaluation's size, refused now rather than after the training
+        try:  # the final evaluation (its size, disruptors, schedule), refused now, not after
+            spec.protocol.plan(key)  # the training
             box = get_uncertainty_set(key, spec.uncertainty)
-            check_episodes(box.mesh_size(spec.mesh), spec.episodes)
             check_episodes(1, spec.dynamic_episodes)
             if spec.eval_mesh:
                 check_episodes(box.mesh_size(spec.eval_mesh), spec.eval_episodes)
-        except ValueError as err:
+        except (TypeError, ValueError) as err:
             raise SpecError(f"{key}: {err}") from None
-    for name in ("steps", "mesh", "episodes", "dynamic_episodes", "eval_episodes"):
+    for name in ("steps", "eval_episodes"):  # the protocol's counts: checked by the Protocol
         if getattr(spec, name) < 1:
             raise SpecError(f"--{name.replace('_', '-')} must be >= 1, got {getattr(spec, name)}")
     for name in ("learning_starts", "eval_every", "eval_mesh"):
@@ -419,9 +402,7 @@ def validate(spec: Spec) -> None:
                 training_split(_task_key(task), spec.uncertainty, spec.split)
             except ValueError as err:
                 raise SpecError(str(err)) from None
-    if spec.rate_limit is not None:
-        if not (isinstance(spec.rate_limit, (int, float)) and 0 < spec.rate_limit < float("inf")):
-            raise SpecError(f"--rate-limit must be a finite number > 0, got {spec.rate_limit!r}")
+    if spec.rate_limit is not None:  # (a finite number > 0: the Protocol checks it)
         movers = [a.name for a in ALGORITHMS.values() if a.set_use == "adversary"]
         if not set(movers) & set(spec.algos):
             raise SpecError(
@@ -448,4 +429,23 @@ def validate(spec: Spec) -> None:
     if spec.observe != "vanilla" and (spec.rate_limit is None or spec.rate_game != "tc"):
         raise SpecError(
             f"--observe {spec.observe} is a protagonist of TC-RMDP's game: add --rate-limit R"
+        )
+
+
+def check_protocol(protocol: Protocol) -> None:
+    """Refuse a protocol a benchmark cannot train for: its set and split must be named (every
+    run trains on them), and no ``context`` (rrls's training shows its policies no context:
+    they would be evaluated on observations they never saw)."""
+    if not isinstance(protocol.uncertainty, str):
+        raise SpecError(
+            "a benchmark's protocol names its uncertainty set (1d, 2d, 3d...: every run trains "
+            "on it), not an UncertaintySet"
+        )
+    if protocol.split is not None and not isinstance(protocol.split, str):
+        raise SpecError("a benchmark's protocol gives its split as text (extrapolation:0.5)")
+    if protocol.context:
+        raise SpecError(
+            "context=true: a benchmark's runs train without the set's parameters in their "
+            "observations, so they cannot be evaluated with them; evaluate a context-aware "
+            "policy with rrls.evaluation.evaluate(..., context=True)"
         )
