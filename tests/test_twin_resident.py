@@ -239,3 +239,61 @@ def test_the_docs_state_the_block_the_code_uses():
 
     twin = " ".join((Path(__file__).parents[1] / "docs" / "twin.md").read_text().split())
     assert f"once per block of {BLOCK} steps" in twin and f"(`block={BLOCK}`)" in twin
+
+
+@pytest.mark.warp
+@pytest.mark.e2e
+def test_rrls_train_on_the_twin_writes_the_same_run_whatever_the_block(tmp_path, monkeypatch):
+    """The driver's run files (curves, checkpoint, policy) of ``rrls train --simulator warp`` do
+    not depend on how many steps a block runs between the host's looks."""
+    from conftest import policy_arrays
+
+    from rrls.agents import TrainConfig, resident, train
+    from rrls.agents.run import read_checkpoint
+
+    def run(block: int):
+        monkeypatch.setattr(resident, "BLOCK", block)
+        return train(
+            TrainConfig(
+                algo="sac",
+                task="invertedpendulum",
+                seed=4,
+                steps=100,
+                out=str(tmp_path / f"block{block}"),
+                device="cpu",
+                simulator="warp",
+                checkpoint_every=45,  # at 45 and 90: inside blocks of 64, at block ends of 5
+                eval_every=70,
+                eval_episodes=1,
+                hyper={"learning_starts": STARTS, "batch_size": 16, "hidden": [16, 16]},
+            )
+        )
+
+    def curves(path):
+        rows = (path / "scalars.csv").read_text().splitlines()
+        return [r for r in rows if ",charts/steps_per_second," not in r]
+
+    whole, blocks = run(resident.BLOCK), run(5)
+    assert curves(whole) == curves(blocks) and any(",eval/" in r for r in curves(whole))
+    a, b = policy_arrays(whole), policy_arrays(blocks)
+    assert a.keys() == b.keys() and all(np.array_equal(a[k], b[k]) for k in a)
+    saved = [read_checkpoint(p / "checkpoint.pt") for p in (whole, blocks)]
+    assert saved[0]["step"] == saved[1]["step"] == 90
+    assert saved[0]["twin_episode"] == saved[1]["twin_episode"]
+    _same(saved[0]["learner"], saved[1]["learner"])
+
+
+def _same(a, b) -> None:
+    """Equal nested checkpoint contents, tensors bit for bit."""
+    if isinstance(a, dict):
+        assert a.keys() == b.keys()
+        for key in a:
+            _same(a[key], b[key])
+    elif isinstance(a, (list, tuple)):
+        assert len(a) == len(b)
+        for x, y in zip(a, b):
+            _same(x, y)
+    elif isinstance(a, torch.Tensor):
+        assert torch.equal(a, b)
+    else:
+        assert a == b
