@@ -157,16 +157,18 @@ pytest.importorskip("mujoco_warp")
 
 
 @pytest.mark.warp
-def test_each_world_takes_its_adversarys_force_as_the_cpu_game_does():
-    """Per world, the force written is the CPU game's value (bit for bit in float32) and the
-    state follows a CPU ``DynamicAdversarial`` from the same state within the twin's stated
-    tolerances, the adversary's actions out of ``[-1, 1]`` included (clipped as on the CPU)."""
+@pytest.mark.parametrize("uncertainty", ["rarl", "3d"])
+def test_each_world_takes_its_adversarys_point_as_the_cpu_game_does(uncertainty):
+    """Per world, the forces written are the CPU game's values (bit for bit in float32), the
+    masses and friction its model's (derived constants within float32), and the state follows a
+    CPU ``DynamicAdversarial`` from the same state within the twin's stated tolerances, the
+    adversary's actions out of ``[-1, 1]`` included (clipped as on the CPU)."""
     from rrls.envs import resolve
     from rrls.twin import WarpTwin
     from rrls.wrappers import DynamicAdversarial
 
-    worlds, resolved = 3, resolve("hopper", "rarl")
-    twin = WarpTwin("hopper", worlds, "rarl", adversary=True, device="cpu", seed=0)
+    worlds, resolved = 3, resolve("hopper", uncertainty)
+    twin = WarpTwin("hopper", worlds, uncertainty, adversary=True, device="cpu", seed=0)
     twin.reset()
     qpos, qvel = twin.state()
     games = []
@@ -177,30 +179,34 @@ def test_each_world_takes_its_adversarys_force_as_the_cpu_game_does():
         games.append(game)
     space, rng = twin.single_action_space, np.random.default_rng(0)
     nu = space.shape[0] - twin.adversary_dim
-    forces = []
+    seen = []
     for t in range(10):
         action = rng.uniform(1.3 * space.low, 1.3 * space.high, (worlds, space.shape[0]))
         action = action.astype(np.float32)
         _, reward, terminated, _, _ = twin.step(action)
-        pushed, (tq, tv) = twin.xfrc.numpy(), twin.state()
+        forces, (tq, tv) = twin.d.xfrc_applied.numpy().reshape(worlds, -1), twin.state()
+        mass, subtree = twin.m.body_mass.numpy(), twin.m.body_subtreemass.numpy()
         for w, game in enumerate(games):
             _, r, term, _, _ = game.step((action[w, :nu].astype(np.float64), action[w, nu:]))
-            data = game.unwrapped.data
-            np.testing.assert_array_equal(pushed[w], np.float32(data.xfrc_applied).ravel())
-            forces.append(pushed[w])
+            model, data = game.unwrapped.model, game.unwrapped.data
+            np.testing.assert_array_equal(forces[w], np.float32(data.xfrc_applied).ravel())
+            np.testing.assert_array_equal(mass[w], np.float32(model.body_mass))
+            np.testing.assert_allclose(subtree[w], model.body_subtreemass, rtol=1e-6)
+            seen.append(game.get_params())
             assert bool(term) == bool(terminated[w])
             tol = 1e-5 if t == 0 else 1e-4
             assert np.abs(tq[w] - data.qpos).max() < tol
             assert np.abs(tv[w] - data.qvel).max() < 100 * tol
             assert abs(float(reward[w]) - r) < 1e-3
-    assert np.abs(np.array(forces)).max() == 3.0  # the box's edge, from clipped actions
+    box = resolved.box  # the box's edges reached, from clipped actions
+    for name, lo, hi in zip(box.names, box.low, box.high):
+        values = [float(p[name]) for p in seen]
+        assert np.isclose(min(values), lo) and np.isclose(max(values), hi)
 
 
-def test_an_adversary_on_a_parameter_set_or_with_points_is_refused():
+def test_an_adversary_with_points_is_refused():
     from rrls.twin import WarpTwin
 
-    with pytest.raises(ValueError, match="force set"):
-        WarpTwin("invertedpendulum", 1, "2d", adversary=True, device="cpu")
     with pytest.raises(ValueError, match="no points or DR"):
         WarpTwin("invertedpendulum", 1, "rarl", adversary=True, domain_randomization=True)
 
@@ -245,17 +251,19 @@ class HostReads:
 STEPS = 40
 
 
-def _rarl_blocks(block: int) -> tuple[list, rarl.Learner]:
-    """RARL's force game for two runs on the twin, through the resident loop's blocks
+def _rarl_blocks(block: int, uncertainty: str) -> tuple[list, rarl.Learner]:
+    """RARL's game for two runs on the twin, through the resident loop's blocks
     (``rrls.agents.resident.Worlds``): what the training loops run once they build the twin
     with ``adversary=True``."""
     from rrls.agents.resident import Worlds, ended
     from rrls.twin import WarpTwin
 
-    learner = _rarl()
+    config = rarl.Config(**SMALL)
+    game = rarl.make_env("invertedpendulum", uncertainty, config)
+    learner = rarl.Learner(game, config, SEEDS, CPU)
     seeds = [s.integer("env") for s in SEEDS]
     twin = WarpTwin(
-        "invertedpendulum", 2, "rarl", adversary=True, seed=seeds, device="cpu", array="torch"
+        "invertedpendulum", 2, uncertainty, adversary=True, seed=seeds, device="cpu", array="torch"
     )
     worlds = Worlds(twin, CPU, [s.numpy("warmup") for s in SEEDS])
     worlds.start()
@@ -269,10 +277,14 @@ def _rarl_blocks(block: int) -> tuple[list, rarl.Learner]:
 
 
 @pytest.mark.warp
-def test_rarl_on_the_twin_reads_once_a_block_and_the_block_size_changes_nothing(monkeypatch):
-    whole, a = _rarl_blocks(STEPS)
+@pytest.mark.parametrize("uncertainty", ["rarl", "2d"])
+def test_rarl_on_the_twin_reads_once_a_block_and_the_block_size_changes_nothing(
+    uncertainty, monkeypatch
+):
+    """Forces, or masses whose derived constants ``set_const`` recomputes, at every step."""
+    whole, a = _rarl_blocks(STEPS, uncertainty)
     reads = HostReads(monkeypatch)
-    blocks, b = _rarl_blocks(7)
+    blocks, b = _rarl_blocks(7, uncertainty)
     monkeypatch.undo()
     inside = sorted(set(reads.at) - {0, *range(7, STEPS, 7), STEPS})
     assert not inside, f"host reads inside a block, at steps {inside}"

@@ -35,12 +35,13 @@ the protagonist maximises the reward, the adversary ``-reward``. Both act at eve
   earlier game (``R`` in normalised units towards a target point). The saved policies record
   the game, so the dynamic and static evaluations replay it.
 - The final adversary is saved (``adversary.npz``) for the dynamic evaluation (paper Table 6).
-- **On the MuJoCo Warp twin** (the force set, ``WarpTwin(..., adversary=True)``): the game stays
-  on the device (``rrls.agents.learner.DeviceLearnerProtocol``). ``act_tensor`` returns the
-  joint action, the protagonist's then the adversary's, which the twin splits (the adversary's
-  columns become each world's ``xfrc_applied``); ``put`` stores each player's part, the
-  adversary's with ``-reward``; ``update_drawn`` is ``update`` on drawn inputs (the same
-  players, in the same order). TC-RMDP's game stays on the CPU (its parameters move on the host).
+- **On the MuJoCo Warp twin** (``WarpTwin(..., adversary=True)``: the adversary's forces or
+  parameters written per world inside the step) the game stays on the device
+  (``rrls.agents.learner.DeviceLearnerProtocol``). ``act_tensor`` returns the joint action,
+  the protagonist's then the adversary's, which the twin splits (the adversary's columns
+  become each world's point); ``put`` stores each player's part, the adversary's with
+  ``-reward``; ``update_drawn`` is ``update`` on drawn inputs (the same players, in the same
+  order). TC-RMDP's game stays on the CPU (its parameters move on the host).
 """
 
 from __future__ import annotations

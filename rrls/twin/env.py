@@ -16,10 +16,12 @@ are computed once by CPU MuJoCo, so a reset never leaves the device; training gi
 ``pool_seed=0``: one pool for every run, so a run's draws depend on its own seed alone, not on
 its group); neither: the nominal model.
 
-The adversary's forces (RARL's game on its force set, ``adversary=True``): the action is the
-protagonist's then the adversary's, ``(n, nu + dim)``; each step the adversary's ``[-1, 1]``
-columns are mapped onto the set's box with ``DynamicAdversarial``'s arithmetic and written into
-that world's ``xfrc_applied`` row before the physics, inside the step (no host round trip).
+The adversary's point (RARL's game, ``adversary=True``): the action is the protagonist's then
+the adversary's, ``(n, nu + dim)``; each step the adversary's ``[-1, 1]`` columns are mapped onto
+the set's box with ``DynamicAdversarial``'s arithmetic and written into that world's fields
+before the physics (forces into its ``xfrc_applied`` row; masses, friction... into its model
+fields, the derived constants recomputed by MuJoCo Warp's ``set_const``), inside the step, with
+no host round trip (``rrls.twin.adversary``).
 
 Autoreset is Gymnasium's ``SAME_STEP`` mode: a world that ends returns its first observation of
 the next episode, its last one in ``info["final_obs"]``. Arrays stay on the device:
@@ -174,30 +176,18 @@ class WarpTwin(VectorEnv):
         return np.asarray(self.box.nominal, dtype=np.float64).reshape(1, dim)
 
     def _adversary(self, on: bool) -> int:
-        """With ``on``, the joint action space and each force's flat ``xfrc_applied`` slot (found
-        by writing the force on the CPU env and seeing where it lands); the adversary's width."""
+        """With ``on``, the joint action space and the entries each parameter writes
+        (``rrls.twin.adversary.probe``); the adversary's width."""
         if not on:
             return 0
-        if self.resolved.family != "force":
-            raise ValueError(
-                f"adversary=True plays the force set (uncertainty 'rarl'), not {self.box.label!r}: "
-                "an adversary moving masses or friction every step would need the derived "
-                "constants recomputed on the device at every step"
-            )
-        box, cpu = self.box, self.cpu
-        slots = []
-        for name in box.names:
-            cpu.set_params(**{name: 1.0})
-            hit = np.flatnonzero(np.asarray(cpu.data.xfrc_applied).ravel())
-            cpu.reset_params()
-            if len(hit) != 1:
-                raise RuntimeError(f"force {name!r} writes {len(hit)} xfrc_applied entries")
-            slots.append(int(hit[0]))
+        from rrls.twin.adversary import probe
+
+        box = self.box
+        self.writes = probe(self.cpu, box)
         # DynamicAdversarial.params_of: lo + ((a + 1) * (hi - lo)) / 2 in float32, the span
         # rounded once from float64 as numpy rounds a Python float against a float32 array
-        self.force_slots = np.array(slots, dtype=np.int32)
-        self.force_low = np.asarray(box.low, dtype=np.float32)
-        self.force_span = (np.asarray(box.high, np.float64) - box.low).astype(np.float32)
+        self.point_low = np.asarray(box.low, dtype=np.float32)
+        self.point_span = (np.asarray(box.high, np.float64) - box.low).astype(np.float32)
         agent = self.single_action_space
         self.single_action_space = gym.spaces.Box(
             np.concatenate([agent.low, -np.ones(box.dim)]).astype(np.float32),
@@ -282,11 +272,22 @@ class WarpTwin(VectorEnv):
             self.joint = self.action
             if self.adversary_dim:
                 self.joint = wp.zeros((n, self.nu + self.adversary_dim), dtype=float)
-                self.slots = wp.array(self.force_slots, dtype=int)
-                self.low = wp.array(self.force_low, dtype=float)
-                self.span = wp.array(self.force_span, dtype=float)
-                self.xfrc = _floats(self.d.xfrc_applied, n)
+                self._point_writes(targets)
             self.seeds = wp.zeros(n, dtype=int)
+
+    def _point_writes(self, targets: dict[str, Any]) -> None:
+        """The adversary's writes as device arrays, one launch's inputs per field."""
+        from rrls.twin.adversary import DERIVING
+
+        wp, n = self._wp, self.num_envs
+        low, span = (wp.array(a, dtype=float) for a in (self.point_low, self.point_span))
+        self.launches = []
+        for w in self.writes:
+            arrays = [wp.array(a, dtype=t) for a, t in zip((w.slot, w.param), (int, int))]
+            arrays += [wp.array(a, dtype=float) for a in (w.c0, w.c1)]
+            view = _floats(targets[w.field], n)
+            self.launches.append((len(w.slot), [low, span, *arrays, view]))
+        self.derive = any(w.field in DERIVING for w in self.writes)
 
     def _seed(self, seed: int | Sequence[int]) -> None:
         """World ``w``'s stream: ``SeedSequence(seed, spawn_key=(w,))`` whatever the count, or
@@ -339,13 +340,12 @@ class WarpTwin(VectorEnv):
         launches on fixed arrays, so on a GPU it is captured once in a CUDA graph."""
         wp, k, n = self._wp, self._k, self.num_envs
         action = self.action
-        if self.adversary_dim:  # the protagonist's columns, then the adversary's forces
+        if self.adversary_dim:  # the protagonist's columns, then the adversary's point
             wp.launch(k.split_action, (n, self.nu), [self.joint, action])
-            wp.launch(
-                k.write_forces,
-                (n, self.adversary_dim),
-                [self.joint, self.nu, self.slots, self.low, self.span, self.xfrc],
-            )
+            for entries, inputs in self.launches:
+                wp.launch(k.write_point, (n, entries), [self.joint, self.nu, *inputs])
+            if self.derive:  # mj_setConst's derived constants, per world
+                self._mjw.set_const(self.m, self.d)
         wp.launch(k.begin_step, (n, self.nu), [action, self.d.qpos, self.d.ctrl, self.x_before])
         for _ in range(self.formula.frame_skip):
             self._mjw.step(self.m, self.d)

@@ -59,20 +59,26 @@ def split_action(joint: wp.array2d(dtype=float), action: wp.array2d(dtype=float)
 
 
 @wp.kernel
-def write_forces(
+def write_point(
     joint: wp.array2d(dtype=float),
     nu: int,
-    slots: wp.array(dtype=int),
     low: wp.array(dtype=float),
     span: wp.array(dtype=float),
-    xfrc: wp.array2d(dtype=float),
+    slot: wp.array(dtype=int),
+    param: wp.array(dtype=int),
+    c0: wp.array(dtype=float),
+    c1: wp.array(dtype=float),
+    field: wp.array2d(dtype=float),
 ):
-    """The adversary's column ``i`` of world ``w`` as the force it sets, into that world's
-    ``xfrc_applied`` (flat slot ``body * 6 + axis``): ``DynamicAdversarial.params_of``'s
-    ``lo + ((clip(a, -1, 1) + 1) * (hi - lo)) / 2`` in float32."""
-    w, i = wp.tid()
+    """World ``w``'s entry ``e`` of one field at the adversary's point: its action column of
+    parameter ``param[e]`` mapped as ``DynamicAdversarial.params_of`` maps it, ``lo + ((clip(a,
+    -1, 1) + 1) * (hi - lo)) / 2`` in float32, then written as ``c0 + c1 * value``
+    (``rrls.twin.adversary``)."""
+    w, e = wp.tid()
+    i = param[e]
     a = wp.clamp(joint[w, nu + i], -1.0, 1.0)
-    xfrc[w, slots[i]] = low[i] + ((a + 1.0) * span[i]) / 2.0
+    value = low[i] + ((a + 1.0) * span[i]) / 2.0
+    field[w, slot[e]] = c0[e] + c1[e] * value
 
 
 @wp.func
@@ -256,5 +262,5 @@ __all__ = [
     "observe",
     "reset_worlds",
     "split_action",
-    "write_forces",
+    "write_point",
 ]

@@ -1,0 +1,94 @@
+"""The adversary's moves on the twin (RARL's game, ``WarpTwin(..., adversary=True)``): each
+step, each world's point is the adversary's action, written into that world's fields on the
+device.
+
+Why affine writes: every rrls parameter writes its model entries affinely, ``entry = c0 + c1 ·
+value`` (a mass its ``body_mass`` and, scaling the inertia, its ``body_inertia`` row; a friction
+its geoms' first coefficient; an offset ``ipos0 + value``; a force its ``xfrc_applied`` slot;
+gravity ``-value``). So the CPU env is *probed* once, each parameter set at its box's two ends,
+and the entries that move, with their ``c0`` and ``c1``, are what a kernel writes at every step:
+no per-kind code to drift from ``set_params``. Masses, inertias, offsets, armature and gear feed
+constants MuJoCo derives (``mj_setConst`` on the CPU); MuJoCo Warp's ``set_const`` recomputes
+them per world after the writes.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+#: fields whose entries a parameter writes (the rest of the twin's fields are derived)
+WRITTEN = (
+    "body_mass",
+    "body_inertia",
+    "body_ipos",
+    "geom_friction",
+    "dof_damping",
+    "dof_armature",
+    "dof_frictionloss",
+    "actuator_gear",
+    "timestep",
+    "gravity",
+    "xfrc_applied",
+)
+#: written fields that MuJoCo derives constants from (``set_const`` after writing them)
+DERIVING = ("body_mass", "body_inertia", "body_ipos", "dof_armature", "actuator_gear")
+
+
+@dataclass(frozen=True)
+class Writes:
+    """One field's writes: entry ``slot[e]`` (flat, per world) becomes ``c0[e] + c1[e] · v``,
+    ``v`` the value of parameter ``param[e]``."""
+
+    field: str
+    slot: np.ndarray
+    param: np.ndarray
+    c0: np.ndarray
+    c1: np.ndarray
+
+
+def fields64(cpu: Any) -> dict[str, np.ndarray]:
+    """The written fields of the CPU env as they stand, flat float64."""
+    model, data = cpu.model, cpu.data
+    got = {f: getattr(model, f) for f in WRITTEN if hasattr(model, f)}
+    got["timestep"] = np.array([model.opt.timestep])
+    got["gravity"] = np.array(model.opt.gravity)
+    got["xfrc_applied"] = np.array(data.xfrc_applied)
+    return {f: np.asarray(v, dtype=np.float64).ravel().copy() for f, v in got.items()}
+
+
+def probe(cpu: Any, box: Any) -> list[Writes]:
+    """Each parameter of ``box`` set alone at its low and high ends on ``cpu``: the entries that
+    move, and the line through both ends (``cpu`` is reset to its nominal model after)."""
+    rows: dict[str, list[tuple[int, int, float, float]]] = {}
+    for i, (name, lo, hi) in enumerate(zip(box.names, box.low, box.high)):
+        ends = []
+        for value in (float(lo), float(hi)):
+            cpu.set_params(**{name: value})
+            ends.append(fields64(cpu))
+            cpu.reset_params()
+        for field, at_lo in ends[0].items():
+            at_hi = ends[1][field]
+            for slot in np.flatnonzero(at_lo != at_hi):
+                c1 = (at_hi[slot] - at_lo[slot]) / (float(hi) - float(lo))
+                rows.setdefault(field, []).append((int(slot), i, at_lo[slot] - c1 * lo, c1))
+    out = []
+    for field, entries in rows.items():
+        slot, param, c0, c1 = (np.array(column) for column in zip(*entries))
+        if len(set(slot.tolist())) != len(slot):  # the CPU env's order of writes would decide
+            raise ValueError(f"parameters of {box.label!r} write the same {field} entries")
+        out.append(
+            Writes(
+                field,
+                slot.astype(np.int32),
+                param.astype(np.int32),
+                c0.astype(np.float32),
+                c1.astype(np.float32),
+            )
+        )
+    return out
+
+
+__all__ = ["DERIVING", "WRITTEN", "Writes", "fields64", "probe"]
