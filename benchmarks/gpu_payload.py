@@ -11,7 +11,7 @@ warp-lang (a 149 MB wheel) and mujoco-warp. So, here, once per set of versions:
 
 ``build`` downloads the pinned wheels for the GPU machine (``WHEELS``, CPython 3.12, manylinux
 x86-64), unpacks them into one site folder without what a CUDA run never loads (``DROP``: warp's
-CPU compiler, examples and tests), packs it as one tar.xz (about 80 MiB instead of 162 MiB of
+CPU compiler, examples and tests), packs it as one tar.xz (86 MiB instead of 162 MiB of
 wheels) and cuts it into pieces that fit beside the tree, each with its sha256 in
 ``manifest.json``. ``plan`` packs the pieces into as few calls as fit and prints them. Every
 call runs the same command, only its ``carry`` differs:
@@ -64,6 +64,8 @@ PIP_TAGS += [
 ]
 #: never loaded by a CUDA run: warp's CPU (LLVM) backend, its examples and tests
 DROP = ("warp/bin/warp-clang.so", "warp/examples/", "warp/tests/")
+#: what every ``run`` call runs (only its ``carry`` differs)
+COMMAND = "PYTHONUNBUFFERED=1 python3 benchmarks/gpu_payload.py device"
 
 
 def sha256(path: Path) -> str:
@@ -74,8 +76,9 @@ def sha256(path: Path) -> str:
     return digest.hexdigest()
 
 
-def tree_bytes(root: Path = ROOT) -> int:
-    """What every call carries anyway: tracked and untracked-not-ignored files, and shared/."""
+def tree_files(root: Path = ROOT) -> dict[Path, int]:
+    """What every call carries anyway, with sizes: tracked and untracked-not-ignored files, and
+    shared/."""
     listed = subprocess.run(
         ["git", "ls-files", "-z", "--cached", "--others", "--exclude-standard"],
         cwd=root,
@@ -85,7 +88,21 @@ def tree_bytes(root: Path = ROOT) -> int:
     paths = {root / os.fsdecode(p) for p in listed if p}
     if (root / "shared").is_dir():
         paths |= {p for p in (root / "shared").rglob("*")}
-    return sum(p.lstat().st_size for p in paths if p.is_file() and not p.is_symlink())
+    return {p: p.lstat().st_size for p in paths if p.is_file() and not p.is_symlink()}
+
+
+def tree_bytes(root: Path = ROOT) -> int:
+    return sum(tree_files(root).values())
+
+
+def biggest(root: Path = ROOT, depth: int = 3, n: int = 3) -> str:
+    """The tree's largest folders ``depth`` levels down: what to carry less of."""
+    sizes: dict[str, int] = {}
+    for path, size in tree_files(root).items():
+        folder = "/".join(path.relative_to(root).parts[:depth])
+        sizes[folder] = sizes.get(folder, 0) + size
+    top = sorted(sizes.items(), key=lambda kv: -kv[1])[:n]
+    return ", ".join(f"{name} {size / MIB:.1f} MiB" for name, size in top)
 
 
 def calls(pieces: list[dict[str, Any]], tree: int, limit: int = LIMIT) -> list[list[str]]:
@@ -189,7 +206,7 @@ def show_plan(gpu: Path, tree: int | None = None) -> int:
     try:
         plan = calls(manifest["pieces"], tree)
     except ValueError as err:
-        print(f"does not fit: {err}")
+        print(f"does not fit: {err}; the tree's largest: {biggest()}")
         return 1
     rel = gpu.relative_to(ROOT) if gpu.is_relative_to(ROOT) else gpu
     for i, names in enumerate(plan, 1):
@@ -201,7 +218,7 @@ def show_plan(gpu: Path, tree: int | None = None) -> int:
             f"{tree / MIB:.1f} MiB tree), timeout_s {600 if last else 120}"
             + (": installs, then the runbook" if last else "")
         )
-    print("command (every call): PYTHONUNBUFFERED=1 python3 benchmarks/gpu_payload.py device")
+    print(f"command (every call): {COMMAND}")
     return 0
 
 

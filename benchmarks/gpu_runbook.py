@@ -291,7 +291,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--simulator", default="warp", help="warp (default) or mujoco")
     parser.add_argument("--tiny", action="store_true", help="the CPU dry run's sizes")
     parser.add_argument("--deadline", type=float, default=540.0, help="seconds for all steps")
-    parser.add_argument("--step-timeout", type=float, default=150.0, help="seconds per step")
+    parser.add_argument("--step-timeout", type=float, default=240.0, help="seconds per step")
     parser.add_argument("--steps", type=int, default=2_000, help="env steps per run")
     parser.add_argument("--starts", type=int, default=500, help="random steps before learning")
     parser.add_argument("--window-after", type=int, default=1_000, help="the rate's window start")

@@ -8,6 +8,7 @@ import importlib.util
 import json
 import os
 import shutil
+import subprocess
 import sys
 import zipfile
 from pathlib import Path
@@ -126,3 +127,10 @@ def test_the_pinned_wheels_are_within_the_warp_extra(payload):
         req = requirements.Requirement(line)
         assert req.specifier.contains(pins[req.name]), (req, pins[req.name])
     assert pins["mujoco"] == pins["mujoco-core"]  # MuJoCo 4 refuses a mismatched core
+
+
+@pytest.mark.skipif(not (ROOT / ".git").exists(), reason="a git checkout")
+def test_the_pieces_cannot_be_committed_and_the_page_gives_the_command(payload):
+    ignored = subprocess.run(["git", "check-ignore", "-q", ".gpu/payload.part01"], cwd=ROOT)
+    assert ignored.returncode == 0  # .gpu/ is ignored: no wheel reaches git by accident
+    assert payload.COMMAND in (ROOT / "docs" / "gpu.md").read_text()
