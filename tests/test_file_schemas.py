@@ -124,6 +124,29 @@ def test_a_hostile_benchmark_json_is_refused_by_field(tmp_path, field, bad):
     one_line(err.value, "benchmark.json", f"'{field}")
 
 
+def test_the_flat_schema_declares_every_field_an_earlier_file_held():
+    from rrls.experiments.spec import LATER, PROTOCOL_NAMES
+
+    earlier = set(PROTOCOL_NAMES) - set(LATER)  # the protocol's fields files held flat
+    assert (
+        set(benchfile.FLAT_SCHEMA.fields)
+        == set(benchfile.SPEC_SCHEMA.fields) - {"protocol"} | earlier
+    )
+    for name, preset in PRESETS.items():  # every preset, written as then, reads back
+        spec = Spec(**{**preset, "preset": name})
+        assert Spec.from_json(benchfile.FLAT_SCHEMA.check(spec.flat_json(), name)) == spec
+
+
+@pytest.mark.parametrize(("field", "bad"), cases(benchfile.FLAT_SCHEMA))
+def test_a_hostile_flat_benchmark_json_is_refused_by_field(tmp_path, field, bad):
+    data = Spec(**PRESETS["smoke"]).flat_json()  # as benchmark.json held it before the protocol
+    data[field] = bad
+    rundir.write_checked_json(benchfile.spec_path(tmp_path), data)
+    with pytest.raises(SpecError) as err:
+        benchfile.read_spec(tmp_path)
+    one_line(err.value, "benchmark.json", f"'{field}")
+
+
 def test_a_benchmark_json_with_an_unknown_field_is_refused(tmp_path):
     data = {**Spec(**PRESETS["smoke"]).to_json(), "physic": "v5"}
     rundir.write_checked_json(benchfile.spec_path(tmp_path), data)
