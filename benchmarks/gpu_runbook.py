@@ -14,8 +14,8 @@ Its rows, most wanted first (so a deadline cuts the least wanted):
 2. ``loop``: the device-resident training loop (``rrls train --simulator warp``, TD3) on Hopper
    at K = 1, 32, 128, 256 runs in one process;
 3. ``baseline``: the paper's five baselines at K = 10 on Hopper, then on HalfCheetah; those the
-   twin refuses (RARL, NR-MDP: an adversary acting every step) give a ``refused: <reason>``
-   row, in the twin's own words, without starting a process;
+   twin refuses when it runs (``rrls.twin.tasks.not_on_twin``: an adversary not wired to the
+   twin) give a ``refused: <reason>`` row, in the twin's own words, without a process;
 4. ``loop`` on HalfCheetah at K = 1, 32, 128, 256;
 5. ``estimate``: the paper's protocol (``--preset paper``, 10 seeds packed K = 10 per process)
    on one GPU, recomputed from these rows with ``rrls.experiments.gpu_estimate``; each cell is

@@ -176,3 +176,29 @@ def test_the_dry_run_measures_refuses_and_estimates_on_a_cpu(tmp_path):
         assert status == f"refused: the Warp twin does not train {algo}: {not_on_twin(algo)}"
     assert rows[-1]["kind"] == "estimate" and rows[-1]["cells"]["dr/hopper"] == "measured"
     assert "estimate (paper, K = 2)" in (out / "rows.md").read_text()
+
+
+def test_the_plan_puts_the_most_wanted_rows_first_and_refuses_without_a_process(monkeypatch):
+    import argparse
+
+    import rrls.twin.tasks
+
+    runbook = _runbook()
+    monkeypatch.setattr(rrls.twin.tasks, "not_on_twin", lambda a: "no" if a == "nrmdp" else None)
+    args = argparse.Namespace(ks=runbook.KS, pack=10, tasks=runbook.TASKS, algos=None)
+    args.__dict__.update(steps=2000, starts=500, window_after=1000, device="cuda", simulator="warp")
+    steps = runbook.plan(args, Path("/tmp/x"))
+    order = [(s.kind, s.task, s.algo, s.k) for s in steps]
+    five = ("td3", "dr", "rarl", "nrmdp", "m2td3")
+    assert order[:4] == [("loop", "hopper", "td3", k) for k in (1, 32, 128, 256)]
+    assert sorted(order[4:9]) == sorted(("baseline", "hopper", a, 10) for a in five)
+    assert sorted(order[9:14]) == sorted(("baseline", "halfcheetah", a, 10) for a in five)
+    assert order[14:] == [("loop", "halfcheetah", "td3", k) for k in (1, 32, 128, 256)]
+    for s in steps:
+        if s.algo == "nrmdp":
+            assert s.command is None and s.refused == "the Warp twin does not train nrmdp: no"
+        else:
+            assert s.refused is None and s.command[2:4] == ["rrls", "train"]
+            assert "--simulator warp" in " ".join(s.command) and f"--seeds 0-{s.k - 1}" in " ".join(
+                s.command
+            )
