@@ -188,6 +188,7 @@ def build(args: argparse.Namespace) -> int:
                 part.write_bytes(block)
                 pieces.append({"name": part.name, "size": len(block), "sha256": sha256(part)})
         manifest = {
+            "python": PIP_TAGS[1],
             "wheels": {w.name: sha256(w) for w in found},
             "dropped": dropped,
             "payload": {"size": archive.stat().st_size, "sha256": sha256(archive)},
@@ -269,6 +270,9 @@ def device(args: argparse.Namespace) -> int:
     if not path.exists():
         raise SystemExit(f"no {path}: carry .gpu/manifest.json in every call")
     manifest = json.loads(path.read_text())
+    here = f"{sys.version_info.major}.{sys.version_info.minor}"
+    if manifest.get("python", here) != here:
+        print(f"the wheels are for Python {manifest['python']}, this is {here}", flush=True)
     missing = take_in(args.gpu_dir, args.store, manifest)
     have = len(manifest["pieces"]) - len(missing)
     print(f"{have}/{len(manifest['pieces'])} pieces in {args.store}", flush=True)

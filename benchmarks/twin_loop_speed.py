@@ -5,19 +5,22 @@ same command on CPU MuJoCo, for TD3 and M2TD3.
     python3 benchmarks/twin_loop_speed.py --device cuda --ks 1 32 128 --steps 3000
     python3 benchmarks/twin_loop_speed.py --device cpu --ks 1 --steps 100 --starts 20  # dry
 
-Each cell is one ``rrls train`` process; its rate is the runs' last logged
-``charts/steps_per_second`` (the loop's own clock over the steps after the warm-up and the first
-updates, which capture their CUDA graphs) times K. Prints a markdown table.
+Each cell is one ``rrls train`` process; its rate is the loop's own clock (run 0's
+``charts/steps_per_second`` at each episode end) between the first episode end after the
+warm-up and the first updates, which capture their CUDA graphs, and the last, times K
+(``gpu_runbook.rate_from_scalars``). Prints a markdown table.
 """
 
 from __future__ import annotations
 
 import argparse
-import csv
 import subprocess
 import sys
 import tempfile
 from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from gpu_runbook import rate_from_scalars
 
 
 def rate(algo: str, task: str, k: int, simulator: str, args: argparse.Namespace) -> float:
@@ -31,9 +34,9 @@ def rate(algo: str, task: str, k: int, simulator: str, args: argparse.Namespace)
         done = subprocess.run(command, capture_output=True, text=True)
         if done.returncode != 0:
             raise RuntimeError(done.stderr.strip().splitlines()[-1])
-        with open(out / "seed0" / "scalars.csv", newline="") as f:
-            rows = [r for r in csv.DictReader(f) if r["metric"] == "charts/steps_per_second"]
-        return k * float(rows[-1]["value"])
+        # the window starts after the first updates (learning starts plus one block of 64)
+        per_run, _ = rate_from_scalars(out / "seed0" / "scalars.csv", args.starts + 64)
+        return k * per_run
 
 
 def main() -> None:
