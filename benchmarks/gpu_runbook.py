@@ -2,7 +2,17 @@
 minutes, set-up included, keeping every figure it measured if the lease cuts it short.
 
 On the GPU machine ``benchmarks/gpu_payload.py device`` starts it, once the wheels the machine
-lacks have arrived in pieces small enough for the ``run`` calls (docs/gpu.md: the exact calls):
+lacks have arrived in pieces small enough for the ``run`` calls. Here, ``python3
+benchmarks/gpu_payload.py build`` then ``plan`` (it prints the calls for the tree as it is);
+for a tree of at most 20 MiB they are two, back to back (the machine keeps files ~30 s):
+
+    run(command="PYTHONUNBUFFERED=1 python3 benchmarks/gpu_payload.py device", timeout_s=120,
+        carry=[".gpu/manifest.json", ".gpu/payload.part01"])  # starts the machine; piece 1 in
+    run(command=<the same>, timeout_s=600,
+        carry=[".gpu/manifest.json", ".gpu/payload.part02"])  # installs; the runbook -> $OUT
+
+then ``$OUT/rows.jsonl`` and ``$OUT/rows.md`` come back, even from a call cut short
+(docs/gpu.md has the sizes). By hand:
 
     python3 benchmarks/gpu_runbook.py OUT --deadline 540                           # the lease
     python3 benchmarks/gpu_runbook.py OUT --device cpu --simulator mujoco --tiny   # the dry run
