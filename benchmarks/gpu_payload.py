@@ -7,6 +7,7 @@ CUDA, numpy, pandas, SciPy, matplotlib, pyarrow and tensorboard; it lacks MuJoCo
 warp-lang (a 149 MB wheel) and mujoco-warp. So, here, once per set of versions:
 
     python3 benchmarks/gpu_payload.py build    # -> .gpu/ (ignored): manifest.json, payload.partNN
+    python3 benchmarks/gpu_payload.py aside    # the shipped results beside the checkout
     python3 benchmarks/gpu_payload.py plan     # the calls: carry lists, MiB each, the command
 
 ``build`` downloads the pinned wheels for the GPU machine (``WHEELS``, CPython 3.12, manylinux
@@ -21,7 +22,8 @@ call runs the same command, only its ``carry`` differs:
 ``device`` moves each carried piece whose sha256 matches into ``STORE`` (outside the tree: it
 stays on the machine while it is warm, between back-to-back calls) and says which are still
 missing; once all are in, it checks the whole payload's sha256, unpacks it, and runs
-``benchmarks/gpu_runbook.py $OUT`` with what is left of ``--budget`` as its deadline.
+``benchmarks/gpu_runbook.py $OUT`` with what is left of ``--budget`` as its deadline. After the
+last call, ``gpu_payload.py back`` puts the shipped results back.
 """
 
 from __future__ import annotations
@@ -116,7 +118,8 @@ def calls(pieces: list[dict[str, Any]], tree: int, limit: int = LIMIT) -> list[l
             raise ValueError(
                 f"{piece['name']} is {piece['size'] / MIB:.1f} MiB but a call has "
                 f"{max(room, 0) / MIB:.1f} MiB beside the tree ({tree / MIB:.1f} MiB): "
-                "rebuild with a smaller --piece-mib or carry less in the tree"
+                "rebuild with a smaller --piece-mib or carry less in the tree (`gpu_payload.py "
+                "aside` moves the shipped results beside the checkout)"
             )
         if used + piece["size"] > room:
             out.append([])
@@ -294,6 +297,50 @@ def device(args: argparse.Namespace) -> int:
     return subprocess.run(command, cwd=ROOT, env=env).returncode
 
 
+#: what the runbook never reads and the tree carries most of: the shipped results (their runs'
+#: curves and policies), set beside the checkout for the calls and put back after
+ASIDE = ("docs/results",)
+#: kept in place: the GPU records the runbook's page links to
+KEEP = ("docs/results/gpu",)
+
+
+def aside_dir(root: Path = ROOT) -> Path:
+    return root.parent / f"{root.name}-aside"
+
+
+def set_aside(root: Path = ROOT) -> list[str]:
+    """Move ``ASIDE`` (but ``KEEP``) out of the tree, beside it, so that every call carries
+    megabytes less; ``put_back`` undoes it. Refused while an earlier set-aside is not back."""
+    target = aside_dir(root)
+    if target.exists() and any(target.iterdir()):
+        raise SystemExit(f"{target} holds an earlier set-aside: `gpu_payload.py back` first")
+    moved = []
+    for folder in ASIDE:
+        for path in sorted((root / folder).iterdir()) if (root / folder).is_dir() else []:
+            name = path.relative_to(root).as_posix()
+            if name in KEEP:
+                continue
+            (target / name).parent.mkdir(parents=True, exist_ok=True)
+            shutil.move(str(path), target / name)
+            moved.append(name)
+    return moved
+
+
+def put_back(root: Path = ROOT) -> list[str]:
+    """Move what ``set_aside`` moved back into the tree, then remove the folder beside it."""
+    target = aside_dir(root)
+    back = []
+    for folder in ASIDE:
+        for path in sorted((target / folder).iterdir()) if (target / folder).is_dir() else []:
+            name = path.relative_to(target).as_posix()
+            if (root / name).exists():
+                raise SystemExit(f"{root / name} exists: not overwritten; move it back by hand")
+            shutil.move(str(path), root / name)
+            back.append(name)
+    shutil.rmtree(target, ignore_errors=True)
+    return back
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--gpu-dir", type=Path, default=GPU_DIR, help="default: .gpu")
@@ -304,6 +351,8 @@ def main(argv: list[str] | None = None) -> int:
     pl = sub.add_parser("plan", help="print the run calls")
     for p in (b, pl):
         p.add_argument("--tree-mib", type=float, help="the tree's size (default: measured)")
+    sub.add_parser("aside", help="move the shipped results beside the checkout (before calls)")
+    sub.add_parser("back", help="put the shipped results back (after the calls)")
     d = sub.add_parser("device", help="on the GPU machine: take in, install, run the runbook")
     d.add_argument("--store", type=Path, default=STORE)
     d.add_argument("--out", type=Path, help="the runbook's folder (default: $OUT)")
@@ -315,6 +364,11 @@ def main(argv: list[str] | None = None) -> int:
     args.tree = None if tree_mib is None else int(tree_mib * MIB)
     if args.verb == "build":
         return build(args)
+    if args.verb in ("aside", "back"):
+        moved = set_aside() if args.verb == "aside" else put_back()
+        where = aside_dir()
+        print(f"{args.verb}: {len(moved)} folders ({where}); tree now {tree_bytes() / MIB:.1f} MiB")
+        return 0
     if args.verb == "plan":
         return show_plan(args.gpu_dir, args.tree)
     return device(args)

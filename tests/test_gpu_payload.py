@@ -134,3 +134,24 @@ def test_the_pieces_cannot_be_committed_and_the_page_gives_the_command(payload):
     ignored = subprocess.run(["git", "check-ignore", "-q", ".gpu/payload.part01"], cwd=ROOT)
     assert ignored.returncode == 0  # .gpu/ is ignored: no wheel reaches git by accident
     assert payload.COMMAND in (ROOT / "docs" / "gpu.md").read_text()
+
+
+def test_the_shipped_results_step_aside_and_come_back(tmp_path, payload):
+    """``aside`` moves docs/results (but the GPU records) beside the checkout; ``back`` restores
+    every file as it was; a second ``aside`` before ``back`` is refused."""
+    mod = payload
+    root = tmp_path / "repo"
+    for name in ("docs/results/hopper/runs/a.csv", "docs/results/gpu/h.md", "docs/index.md"):
+        (root / name).parent.mkdir(parents=True, exist_ok=True)
+        (root / name).write_text(name)
+    before = sorted(p.relative_to(root).as_posix() for p in root.rglob("*") if p.is_file())
+    assert mod.set_aside(root) == ["docs/results/hopper"]
+    assert not (root / "docs/results/hopper").exists() and (root / "docs/results/gpu/h.md").exists()
+    (mod.aside_dir(root) / "docs/results/extra").mkdir()
+    with pytest.raises(SystemExit, match="earlier set-aside"):
+        mod.set_aside(root)
+    (mod.aside_dir(root) / "docs/results/extra").rmdir()
+    assert mod.put_back(root) == ["docs/results/hopper"]
+    after = sorted(p.relative_to(root).as_posix() for p in root.rglob("*") if p.is_file())
+    assert after == before and (root / "docs/results/hopper/runs/a.csv").read_text().endswith("csv")
+    assert not mod.aside_dir(root).exists()
