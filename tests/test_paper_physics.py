@@ -178,12 +178,12 @@ def test_a_reference_of_other_physics_is_refused_for_a_paper_benchmark():
     from rrls.experiments.spec import SpecError, make_spec
 
     spec = make_spec("quick", physics="paper")
-    assert spec.physics == "paper" and spec.to_json()["physics"] == "paper"
+    assert spec.physics == "paper" and spec.to_json()["protocol"]["physics"] == "paper"
     quick = load_reference("quick")  # measured on v5 (its file says rrls-v5)
     with pytest.raises(ReferenceError, match="physics: 'v5' there, 'paper' here"):
         check_compatible(quick, spec.to_json())
     check_compatible(quick, make_spec("quick").to_json())  # same physics: accepted
-    old = {**make_spec("quick").to_json(), "physics": "v5"}  # an older label
+    old = {**make_spec("quick").flat_json(), "physics": "rrls-v5"}  # an older file, label
     check_compatible(quick, old)
     with pytest.raises(SpecError, match="task 'swimmer' has no paper physics"):
         make_spec("smoke", tasks="swimmer", uncertainty="1d", physics="paper")
