@@ -181,8 +181,9 @@ def uncertainty_set(folder: Path) -> str:
     """The benchmark's set per task: each parameter's bounds and the model's nominal value,
     inside the set or not (the task's XML as compiled, what an unperturbed env runs)."""
     from rrls.envs import ROBUST_ENVS, get_uncertainty_set
+    from rrls.experiments.benchfile import read_spec_json
 
-    spec = json.loads((folder / "benchmark.json").read_text())
+    spec = read_spec_json(folder)  # the protocol's fields flat, whatever the file's format
     lines = [
         "| task | parameter | set | model's nominal value | in the set |",
         "|---|---|---|---|---|",
