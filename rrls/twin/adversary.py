@@ -1,6 +1,6 @@
-"""The adversary's moves on the twin (RARL's game, ``WarpTwin(..., adversary=True)``): each
-step, each world's point is the adversary's action, written into that world's fields on the
-device.
+"""A point per world written on the device: the adversary's at every step (RARL's game,
+``WarpTwin(..., adversary=True)``), or a fresh uniform draw at every episode (DR with
+``pool=0``), into that world's fields, without a host round trip.
 
 Why affine writes: every rrls parameter writes its model entries affinely, ``entry = c0 + c1 ·
 value`` (a mass its ``body_mass`` and, scaling the inertia, its ``body_inertia`` row; a friction
@@ -91,4 +91,37 @@ def probe(cpu: Any, box: Any) -> list[Writes]:
     return out
 
 
-__all__ = ["DERIVING", "WRITTEN", "Writes", "fields64", "probe"]
+class PointWrites:
+    """``box``'s probed writes as device arrays: ``write(values, m, d)`` puts each world's point
+    (``values``, ``(n, dim)`` warp floats) into its fields, then recomputes the derived
+    constants if a written field feeds them. ``targets``: the fields, ``(n, width)`` views."""
+
+    def __init__(self, cpu: Any, box: Any, targets: dict[str, Any]) -> None:
+        import warp as wp
+
+        self.low = wp.array(np.asarray(box.low, dtype=np.float32), dtype=float)
+        # DynamicAdversarial.params_of: lo + ((a + 1) * (hi - lo)) / 2 in float32, the span
+        # rounded once from float64 as numpy rounds a Python float against a float32 array
+        span = (np.asarray(box.high, np.float64) - box.low).astype(np.float32)
+        self.span = wp.array(span, dtype=float)
+        self.launches = []
+        writes = probe(cpu, box)
+        for w in writes:
+            arrays = [wp.array(a, dtype=int) for a in (w.slot, w.param)]
+            arrays += [wp.array(a, dtype=float) for a in (w.c0, w.c1)]
+            self.launches.append((len(w.slot), [*arrays, targets[w.field]]))
+        self.derive = any(w.field in DERIVING for w in writes)
+
+    def write(self, values: Any, m: Any, d: Any) -> None:
+        import mujoco_warp as mjw
+        import warp as wp
+
+        from rrls.twin import kernels
+
+        for entries, inputs in self.launches:
+            wp.launch(kernels.write_point, (values.shape[0], entries), [values, *inputs])
+        if self.derive:  # mj_setConst's derived constants, per world
+            mjw.set_const(m, d)
+
+
+__all__ = ["DERIVING", "WRITTEN", "PointWrites", "Writes", "fields64", "probe"]

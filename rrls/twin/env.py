@@ -14,7 +14,8 @@ names); ``domain_randomization=True`` draws each world a new point at every rese
 a pool of ``pool`` points of the set drawn from the seed, or from ``pool_seed`` (the pool's fields
 are computed once by CPU MuJoCo, so a reset never leaves the device; training gives
 ``pool_seed=0``: one pool for every run, so a run's draws depend on its own seed alone, not on
-its group); neither: the nominal model.
+its group), or with ``pool=0`` uniformly from the whole box, from the world's own stream, the
+point's fields written on the device (``rrls.twin.adversary``); neither: the nominal model.
 
 The adversary's point (RARL's game, ``adversary=True``): the action is the protagonist's then
 the adversary's, ``(n, nu + dim)``; each step the adversary's ``[-1, 1]`` columns are mapped onto
@@ -144,8 +145,11 @@ class WarpTwin(VectorEnv):
         self.observation_space = gym.vector.utils.batch_space(self.single_observation_space, n)
         self.action_space = gym.vector.utils.batch_space(self.single_action_space, n)
         pool_from = seed if pool_seed is None else pool_seed
-        self.pool_points = self._pool(points, domain_randomization, pool, pool_from)
-        self.redraw = int(domain_randomization)
+        self.fresh = domain_randomization and pool == 0  # a point of the box per episode
+        self.pool_points = self._pool(
+            points, domain_randomization and not self.fresh, pool, pool_from
+        )
+        self.redraw = int(domain_randomization and not self.fresh)
         self.formula = self._formula(kernels.Formula())
         self._build(nconmax, njmax)
         self._seed(seed)
@@ -169,7 +173,10 @@ class WarpTwin(VectorEnv):
             return pts
         if dr:
             if not isinstance(size, int) or size < 1:
-                raise ValueError(f"pool must be a positive integer, got {size!r}")
+                raise ValueError(
+                    f"pool must be a positive integer (0: a point of the box per episode), "
+                    f"got {size!r}"
+                )
             entropy = int(seed) if isinstance(seed, (int, np.integer)) else [int(x) for x in seed]
             rng = np.random.default_rng(np.random.SeedSequence(entropy, spawn_key=(POOL_KEY,)))
             return np.asarray(self.box.sample(rng, size), dtype=np.float64).reshape(size, dim)
@@ -180,14 +187,7 @@ class WarpTwin(VectorEnv):
         (``rrls.twin.adversary.probe``); the adversary's width."""
         if not on:
             return 0
-        from rrls.twin.adversary import probe
-
         box = self.box
-        self.writes = probe(self.cpu, box)
-        # DynamicAdversarial.params_of: lo + ((a + 1) * (hi - lo)) / 2 in float32, the span
-        # rounded once from float64 as numpy rounds a Python float against a float32 array
-        self.point_low = np.asarray(box.low, dtype=np.float32)
-        self.point_span = (np.asarray(box.high, np.float64) - box.low).astype(np.float32)
         agent = self.single_action_space
         self.single_action_space = gym.spaces.Box(
             np.concatenate([agent.low, -np.ones(box.dim)]).astype(np.float32),
@@ -272,22 +272,13 @@ class WarpTwin(VectorEnv):
             self.joint = self.action
             if self.adversary_dim:
                 self.joint = wp.zeros((n, self.nu + self.adversary_dim), dtype=float)
-                self._point_writes(targets)
+            if self.adversary_dim or self.fresh:  # each world's point, written on the device
+                from rrls.twin.adversary import PointWrites
+
+                views = {f: _floats(t, n) for f, t in targets.items()}
+                self.writes = PointWrites(self.cpu, self.box, views)
+                self.values = wp.zeros((n, self.box.dim), dtype=float)
             self.seeds = wp.zeros(n, dtype=int)
-
-    def _point_writes(self, targets: dict[str, Any]) -> None:
-        """The adversary's writes as device arrays, one launch's inputs per field."""
-        from rrls.twin.adversary import DERIVING
-
-        wp, n = self._wp, self.num_envs
-        low, span = (wp.array(a, dtype=float) for a in (self.point_low, self.point_span))
-        self.launches = []
-        for w in self.writes:
-            arrays = [wp.array(a, dtype=t) for a, t in zip((w.slot, w.param), (int, int))]
-            arrays += [wp.array(a, dtype=float) for a in (w.c0, w.c1)]
-            view = _floats(targets[w.field], n)
-            self.launches.append((len(w.slot), [low, span, *arrays, view]))
-        self.derive = any(w.field in DERIVING for w in self.writes)
 
     def _seed(self, seed: int | Sequence[int]) -> None:
         """World ``w``'s stream: ``SeedSequence(seed, spawn_key=(w,))`` whatever the count, or
@@ -342,10 +333,10 @@ class WarpTwin(VectorEnv):
         action = self.action
         if self.adversary_dim:  # the protagonist's columns, then the adversary's point
             wp.launch(k.split_action, (n, self.nu), [self.joint, action])
-            for entries, inputs in self.launches:
-                wp.launch(k.write_point, (n, entries), [self.joint, self.nu, *inputs])
-            if self.derive:  # mj_setConst's derived constants, per world
-                self._mjw.set_const(self.m, self.d)
+            w = self.writes
+            point = [self.joint, self.nu, w.low, w.span, self.values]
+            wp.launch(k.adversary_point, (n, self.adversary_dim), point)
+            w.write(self.values, self.m, self.d)
         wp.launch(k.begin_step, (n, self.nu), [action, self.d.qpos, self.d.ctrl, self.x_before])
         for _ in range(self.formula.frame_skip):
             self._mjw.step(self.m, self.d)
@@ -380,6 +371,10 @@ class WarpTwin(VectorEnv):
     def _reset(self, mask: Any) -> None:
         wp, k, n = self._wp, self._k, self.num_envs
         self._mjw.reset_data(self.m, self.d, reset=mask)
+        if self.fresh:  # before reset_worlds counts the episode
+            w = self.writes
+            draw = [mask, self.seeds, self.episode, w.low, w.span, self.values]
+            wp.launch(k.draw_point, n, draw)
         wp.launch(
             k.reset_worlds,
             n,
@@ -399,6 +394,8 @@ class WarpTwin(VectorEnv):
         )
         for view, pool in self.fields:
             wp.launch(k.copy_point, view.shape, [mask, self.point, pool, view])
+        if self.fresh:
+            self.writes.write(self.values, self.m, self.d)
         wp.launch(
             k.observe, n, [self.formula, self.d.qpos, self.d.qvel, self.d.cfrc_ext, mask, self.obs]
         )
@@ -430,6 +427,8 @@ class WarpTwin(VectorEnv):
     # -- what a check or a log needs ----------------------------------------------------------
     def points(self) -> np.ndarray:
         """Each world's current point, ``(num_envs, dim)`` over ``box.names`` (a host copy)."""
+        if self.fresh or self.adversary_dim:
+            return self.values.numpy().astype(np.float64)
         return self.pool_points[self.point.numpy()]
 
     def state(self) -> tuple[np.ndarray, np.ndarray]:

@@ -59,26 +59,53 @@ def split_action(joint: wp.array2d(dtype=float), action: wp.array2d(dtype=float)
 
 
 @wp.kernel
-def write_point(
+def adversary_point(
     joint: wp.array2d(dtype=float),
     nu: int,
     low: wp.array(dtype=float),
     span: wp.array(dtype=float),
+    values: wp.array2d(dtype=float),
+):
+    """World ``w``'s point from the adversary's columns of its joint action, as
+    ``DynamicAdversarial.params_of`` maps them: ``lo + ((clip(a, -1, 1) + 1) * (hi - lo)) / 2``
+    in float32."""
+    w, i = wp.tid()
+    a = wp.clamp(joint[w, nu + i], -1.0, 1.0)
+    values[w, i] = low[i] + ((a + 1.0) * span[i]) / 2.0
+
+
+@wp.kernel
+def draw_point(
+    mask: wp.array(dtype=int),
+    seeds: wp.array(dtype=int),
+    episode: wp.array(dtype=int),
+    low: wp.array(dtype=float),
+    span: wp.array(dtype=float),
+    values: wp.array2d(dtype=float),
+):
+    """A resetting world's point for its next episode, uniform in the box, from the world's own
+    stream at that episode (past the draws of ``reset_worlds``'s noise)."""
+    w = wp.tid()
+    if mask[w] == 0:
+        return
+    state = wp.rand_init(seeds[w], episode[w] * 4099 + 2048)
+    for i in range(values.shape[1]):
+        values[w, i] = low[i] + wp.randf(state) * span[i]
+
+
+@wp.kernel
+def write_point(
+    values: wp.array2d(dtype=float),
     slot: wp.array(dtype=int),
     param: wp.array(dtype=int),
     c0: wp.array(dtype=float),
     c1: wp.array(dtype=float),
     field: wp.array2d(dtype=float),
 ):
-    """World ``w``'s entry ``e`` of one field at the adversary's point: its action column of
-    parameter ``param[e]`` mapped as ``DynamicAdversarial.params_of`` maps it, ``lo + ((clip(a,
-    -1, 1) + 1) * (hi - lo)) / 2`` in float32, then written as ``c0 + c1 * value``
-    (``rrls.twin.adversary``)."""
+    """World ``w``'s entry ``e`` of one field at its point: ``c0 + c1 * value`` of parameter
+    ``param[e]`` (``rrls.twin.adversary``)."""
     w, e = wp.tid()
-    i = param[e]
-    a = wp.clamp(joint[w, nu + i], -1.0, 1.0)
-    value = low[i] + ((a + 1.0) * span[i]) / 2.0
-    field[w, slot[e]] = c0[e] + c1[e] * value
+    field[w, slot[e]] = c0[e] + c1[e] * values[w, param[e]]
 
 
 @wp.func
@@ -255,7 +282,9 @@ def copy_point(
 __all__ = [
     "Formula",
     "begin_step",
+    "adversary_point",
     "copy_point",
+    "draw_point",
     "finish_step",
     "finite",
     "healthy",
