@@ -208,6 +208,7 @@ def test_files_respect_the_umask(tmp_path):
         os.umask(previous)
 
 
+@pytest.mark.e2e
 def test_workers_exit_with_their_killed_parent(tmp_path):
     """kill -9 of an evaluation must not leave its workers alive, blocked on a queue."""
     script = tmp_path / "slow.py"

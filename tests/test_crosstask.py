@@ -16,6 +16,8 @@ from rrls.experiments.benchfile import stored_fingerprints
 from rrls.experiments.crosstask import joined
 from rrls.experiments.store import build_store
 
+pytestmark = pytest.mark.e2e  # rrls report over two shipped references: a long run
+
 RESULTS = Path(__file__).resolve().parent.parent / "docs" / "results"
 TASKS = ("halfcheetah", "hopper")
 
