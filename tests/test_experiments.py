@@ -237,6 +237,7 @@ def test_killed_driver_leaves_no_process_and_rerun_gives_identical_numbers(smoke
         assert resumed["invertedpendulum"][algo] == whole["invertedpendulum"][algo]
 
 
+@pytest.mark.e2e
 @needs_torch
 def test_submitting_a_runs_policy_reproduces_its_numbers_in_the_report(smoke, tmp_path, capsys):
     """`rrls submit` evaluates under the benchmark's protocol: TD3's own run directory,
@@ -483,6 +484,7 @@ def test_progress_shows_counts_running_runs_and_failures(tmp_path, stream_type):
         assert "pending 1 running 2 done 0 failed 0" in text
 
 
+@pytest.mark.e2e
 @needs_torch
 def test_quickstart_is_the_quick_preset(tmp_path, capsys, monkeypatch):
     from rrls.experiments import spec as spec_module
@@ -502,6 +504,7 @@ def test_quickstart_is_the_quick_preset(tmp_path, capsys, monkeypatch):
     assert (tmp_path / "report" / "report.md").exists()
 
 
+@pytest.mark.e2e
 @needs_torch
 def test_a_paper_physics_benchmark_trains_evaluates_and_records_it(tmp_path, capsys):
     # (with RARL against TC-RMDP's rate-limited adversary: trained and evaluated in that game)
