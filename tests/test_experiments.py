@@ -17,6 +17,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 import pytest
+from conftest import e2e_after_first
 
 from rrls.algorithms import ALGORITHMS
 from rrls.cli import main
@@ -549,6 +550,7 @@ def test_benchmark_rate_limit_is_rarls_alone_and_checked():
     assert Spec.from_json({**old, "rate_limit": None}).rate_game == "tc"
 
 
+@pytest.mark.e2e
 @needs_torch
 def test_a_split_benchmark_trains_inside_and_reports_in_and_out_of_distribution(tmp_path):
     out = tmp_path / "split"
@@ -647,7 +649,7 @@ def test_a_benchmark_whose_runs_all_failed_says_so_without_a_report(tmp_path, ca
 
 
 @needs_torch
-@pytest.mark.parametrize("copied", ["result.json", "eval/episodes"])
+@pytest.mark.parametrize("copied", e2e_after_first(["result.json", "eval/episodes"]))
 def test_a_file_copied_from_another_run_is_refused_by_name(tmp_path, capsys, copied):
     import shutil
 
