@@ -99,10 +99,27 @@ def test_nrmdp_acts_on_the_device_as_the_env_executes(mode):
         assert coins.any() and not coins.all()
 
 
-def test_nrmdp_refuses_the_hosts_statistics_on_the_device():
-    learner, _ = _nrmdp(normalize_obs=True)
-    with pytest.raises(ValueError, match="normalize_obs .* host"):
-        learner.draw_ahead(1)
+def test_nrmdp_normalises_on_the_device_as_on_the_host():
+    """``normalize_obs``: the device's statistics follow every stored state as the host's do
+    (Tessler's pooled update, in float64), and both players act on the normalised state."""
+    (cpu, config), (dev, _) = _nrmdp(normalize_obs=True), _nrmdp(normalize_obs=True)
+    rng = np.random.default_rng(3)
+    draws = dev.draw_ahead(5)
+    for t in range(5):
+        obs, after = (rng.normal(1.0, 2.0, size=(2, 4)).astype(np.float32) for _ in range(2))
+        mine, theirs = (np.stack(p) for p in zip(*cpu.act(obs)))
+        executed = ((1.0 - config.alpha) * mine + config.alpha * theirs).astype(np.float32)
+        got = dev.act_tensor(torch.from_numpy(obs), {k: v[t] for k, v in draws.items()})
+        np.testing.assert_allclose(got.numpy(), executed, atol=1e-6)
+        reward, done = np.array([1.0, -1.0]), np.zeros(2)
+        cpu.observe(obs, None, reward, after, done, [{"executed_action": a} for a in executed])
+        dev.put(*(torch.from_numpy(x) for x in (obs, executed, reward, after, done)))
+    for name in ("mean", "var", "count"):
+        np.testing.assert_allclose(
+            dev.stats.state_dict()[name], cpu.stats.state_dict()[name], rtol=1e-12
+        )
+    assert dev.stats.std32[0, 0] > 1.5  # the stats moved
+    assert torch.equal(cpu.buffer.table[:, :5], dev.buffer.table[:, :5])
 
 
 # -- RARL -----------------------------------------------------------------------------------
@@ -336,12 +353,13 @@ def test_rarl_on_the_twin_reads_once_a_block_and_the_block_size_changes_nothing(
 
 @pytest.mark.warp
 def test_nrmdp_trains_on_the_twin_reading_once_a_block(monkeypatch):
-    """The library's twin loop (``train_on_twin``) trains NR-MDP, both players' policy steps
-    taken; a run's numbers do not depend on the block size."""
+    """The library's twin loop (``train_on_twin``) trains NR-MDP (its statistics on the
+    device too), both players' policy steps taken; a run's numbers do not depend on the block
+    size."""
     from rrls.agents.on_twin import train_on_twin
 
     def train(block: int, mode: str = "nr", steps: int = STEPS):
-        hyper = {**SMALL, "ratio": 1, "mode": mode, "alpha": 0.3}
+        hyper = {**SMALL, "ratio": 1, "mode": mode, "alpha": 0.3, "normalize_obs": mode == "nr"}
         return train_on_twin(
             "nrmdp",
             "invertedpendulum",

@@ -28,8 +28,9 @@ On the MuJoCo Warp twin the game stays on the device (``draw_ahead``, ``act_tens
 ``update_drawn``: ``rrls.agents.learner.DeviceLearnerProtocol``): ``act_tensor`` returns the
 executed action (``ProbabilisticActionRobust``'s mixture, or for PR-MDP its coin drawn a block
 ahead), which the twin steps and the replay stores, and ``update_drawn`` is ``update`` on drawn
-inputs (the same losses in the same order). ``normalize_obs`` stays on the CPU path (its
-statistics are updated on the host at every step).
+inputs (the same losses in the same order); with ``normalize_obs``, the statistics are updated
+on the device at every stored state (``PooledStats.update_tensor``: the same parallel update in
+float64) and read back only when saved or exported.
 
 Opt-in, two defaults of the reference's ``DDPG`` (``ddpg.py:42``) the TD3 core leaves off:
 ``normalize_obs`` (its running state standardisation, pooled over features as its code computes
@@ -150,11 +151,6 @@ class Learner(TD3Learner):
         """The next ``steps`` env steps' random inputs, ``(steps, K, ...)`` on the device: TD3's
         (exploration noise, replay indices), both players' target smoothing noise (one draw of
         ``2 B`` rows a step, split as ``update``'s two draws) and PR-MDP's coin."""
-        if self.stats is not None:
-            raise ValueError(
-                "normalize_obs updates its statistics on the host at every step: train NR-MDP "
-                "with it on the CPU (or without it on the twin)"
-            )
         size, device = self.config.batch_size, self.agent.device
         noise = [rng.normal(0.0, self.sigma, (steps, len(self.sigma))) for rng in self.rngs]
         eps = self.agent.draw_ahead(steps, 2 * size)
@@ -181,8 +177,16 @@ class Learner(TD3Learner):
             inputs["coin"] = draws["coin"]
         return self._act(None, inputs)
 
+    def put(self, obs, actions, rewards, next_obs, terminated) -> None:
+        """``observe`` for device tensors: the executed action stored, the stats following."""
+        super().put(obs, actions, rewards, next_obs, terminated)
+        if self.stats is not None:
+            self.stats.update_tensor(obs)
+
     def _act_on_device(self, _variant: None, x: dict[str, torch.Tensor]) -> torch.Tensor:
         """``act_tensor``'s device work: ``ProbabilisticActionRobust.step``'s executed action."""
+        if self.stats is not None:  # both players see the normalised state, as in ``act``
+            x = {**x, "obs": self.stats(x["obs"].unsqueeze(1)).squeeze(1)}
         mine = super()._act_on_device(None, x)
         with torch.no_grad():
             theirs = self.opponent(x["obs"].unsqueeze(1)).squeeze(1)
@@ -288,6 +292,7 @@ class PooledStats:
         self.count = np.full(runs, 1e-4)
         self.shift = torch.zeros(runs, 1, 1, device=device)
         self.scale = torch.ones(runs, 1, 1, device=device)
+        self.moments: torch.Tensor | None = None  # (mean, var, count) on the device, once used
         self._sync()
 
     def update(self, obs: np.ndarray) -> None:
@@ -300,6 +305,27 @@ class PooledStats:
         self.mean, self.var, self.count = self.mean + delta * n / total, m2 / total, total
         self._sync()
 
+    def update_tensor(self, obs: torch.Tensor) -> None:
+        """``update`` for ``(K, obs)`` device tensors (the device-resident loop): the same
+        parallel update in float64 on the device, the host's copies following on ``pull``."""
+        if self.moments is None:
+            moments = np.stack([self.mean, self.var, self.count])
+            self.moments = torch.from_numpy(moments).to(self.shift.device)
+        seen, n = obs.double(), obs.shape[1]
+        batch_mean, batch_var = seen.mean(1), seen.var(1, unbiased=False)
+        mean, var, count = self.moments
+        delta, total = batch_mean - mean, count + n
+        m2 = var * count + batch_var * n + delta**2 * count * n / total
+        self.moments = torch.stack([mean + delta * n / total, m2 / total, total])
+        self.shift.copy_(self.moments[0].float().view(-1, 1, 1))
+        self.scale.copy_(self.moments[1].float().sqrt().view(-1, 1, 1))
+
+    def pull(self) -> None:
+        """The host's copies of the device's statistics (one read; none if never used)."""
+        if self.moments is not None:
+            self.mean, self.var, self.count = self.moments.cpu().numpy().copy()
+            self._sync()
+
     def _sync(self) -> None:
         mean, std = self.mean.astype(np.float32), np.sqrt(self.var.astype(np.float32))
         self.shift.copy_(torch.from_numpy(mean).view(-1, 1, 1))  # in place: graphs read them
@@ -308,6 +334,7 @@ class PooledStats:
 
     def normalize(self, obs: np.ndarray) -> np.ndarray:
         """``(K, obs)`` states as the networks see them."""
+        self.pull()
         return ((np.asarray(obs, np.float32) - self.mean32) / self.std32).astype(np.float32)
 
     def __call__(self, obs: torch.Tensor) -> torch.Tensor:
@@ -317,6 +344,7 @@ class PooledStats:
     def fold(self, policy: Any, k: int) -> Any:
         """``policy`` of the normalised state as a policy of the raw one: ``((s - m) / σ) W + b
         = s (W / σ) + (b - (m / σ) Σ_i W_i)``, in float64 then stored in float32."""
+        self.pull()
         m, sd = float(self.mean32[k, 0]), float(self.std32[k, 0])
         w0, b0 = policy.weights[0].astype(np.float64), policy.biases[0].astype(np.float64)
         weights = [w0 / sd, *policy.weights[1:]]
@@ -326,11 +354,13 @@ class PooledStats:
         )
 
     def state_dict(self) -> dict[str, torch.Tensor]:
+        self.pull()
         return {n: torch.from_numpy(getattr(self, n).copy()) for n in ("mean", "var", "count")}
 
     def load_state_dict(self, state: dict[str, torch.Tensor]) -> None:
         for n in ("mean", "var", "count"):
             setattr(self, n, state[n].numpy().astype(np.float64).copy())
+        self.moments = None
         self._sync()
 
 
