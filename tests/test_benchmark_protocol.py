@@ -203,6 +203,7 @@ def test_a_protocol_file_that_is_not_one_is_one_line(tmp_path, capsys):
     assert not (tmp_path / "b").exists()
 
 
+@pytest.mark.e2e  # a training run: the end-to-end tier (.ci/run)
 @pytest.mark.skipif(importlib.util.find_spec("torch") is None, reason="training needs torch")
 def test_a_benchmark_trains_evaluates_and_reports_under_its_protocol(tmp_path, capsys):
     """Disruptors, a schedule and an episode limit from ``--protocol FILE``: HalfCheetah never
