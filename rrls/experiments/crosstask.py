@@ -7,8 +7,9 @@ cross-task tables join benchmarks rather than asking for one that holds every ta
 are joined as they are: each task comes from exactly one benchmark and is normalised by that
 benchmark's own TD3 and M2TD3 means, so the per-task cells are those of the task's own report.
 What the tasks must share is what makes their normalised scores the same statistic: the
-uncertainty set's name, the mesh, the physics and the simulator the runs trained on (a
-twin-trained reference is never mixed with a CPU-trained one). What may differ (the training
+uncertainty set's name, the mesh, the physics, the simulator the runs trained on (a
+twin-trained reference is never mixed with a CPU-trained one), and the protocol's disruptors,
+schedule and episode limit. What may differ (the training
 budget, the seeds, the episodes per point) is stated per task in the report, its captions and
 ``summary.json`` (``benchmark.by_task``).
 """
@@ -25,7 +26,18 @@ from rrls.experiments.store import TABLES, load_store
 __all__ = ["PER_TASK", "SHARED", "joined", "sources_lines"]
 
 #: the protocol fields every joined benchmark must share (the normalised score's meaning)
-SHARED = ("uncertainty", "mesh", "physics", "simulator", "split", "observe")
+SHARED = (
+    "uncertainty",
+    "mesh",
+    "endpoint",
+    "physics",
+    "simulator",
+    "split",
+    "observe",
+    "disruptors",
+    "schedule",
+    "max_episode_steps",
+)
 #: the fields that may differ between tasks, stated per task
 PER_TASK = ("steps", "seeds", "episodes", "dynamic_episodes", "eval_seed", "preset")
 
