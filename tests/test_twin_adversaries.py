@@ -7,6 +7,8 @@ reads nothing back before its end."""
 
 from __future__ import annotations
 
+import json
+
 import numpy as np
 import pytest
 import torch
@@ -383,3 +385,37 @@ def test_nrmdp_trains_on_the_twin_reading_once_a_block(monkeypatch):
         np.testing.assert_array_equal(x(obs), y(obs))
     longer = train(64, mode="pr", steps=200)  # a few hundred steps, PR-MDP's coin on the device
     assert all(len(r) > 1 for r in longer.returns)
+
+
+@pytest.mark.warp
+def test_rarl_trains_through_both_twin_paths_and_its_other_games_are_refused(tmp_path):
+    """``train_on_twin`` and ``rrls train --simulator warp`` build RARL's twin with the
+    adversary (``resident.make_twin``): both players learn, the block size changes nothing; the
+    game the twin does not play (TC-RMDP's rate-limited adversary) is one
+    line before a twin is built."""
+    from rrls.agents.on_twin import train_on_twin
+    from rrls.cli.app import main
+
+    def train(block: int):
+        return train_on_twin(
+            "rarl", "hopper", seeds=(0, 1), steps=STEPS, device="cpu", hyper=SMALL, block=block,
+            uncertainty="rarl", progress_every=STEPS,
+        )  # fmt: skip
+
+    whole, blocks = train(STEPS), train(7)
+    assert blocks.returns == whole.returns and sum(map(len, whole.returns)) > 0
+    obs = np.random.default_rng(0).normal(size=(5, 11))
+    for x, y in zip(whole.policies, blocks.policies, strict=True):
+        np.testing.assert_array_equal(x(obs), y(obs))
+    with pytest.raises(ValueError, match="with --rate-limit .* trains on CPU MuJoCo"):
+        hyper = {**SMALL, "rate_limit": 0.1}  # TC-RMDP, its observation variants with it
+        train_on_twin("rarl", "hopper", seeds=(0,), steps=5, device="cpu", hyper=hyper)
+    out = tmp_path / "rarl"
+    argv = ["train", "--algo", "rarl", "--task", "hopper", "--simulator", "warp", "--device"]
+    argv += ["cpu", "--steps", "40", "--learning-starts", "20", "--batch-size", "16"]
+    argv += ["--hidden", "16", "16", "--eval-every", "40", "--eval-episodes", "1"]
+    argv += ["--eval-mesh", "1", "--out", str(out)]
+    assert main(argv) == 0
+    run = json.loads((out / "run.json").read_text())
+    assert run["algorithm"] == "rarl" and run.get("simulator", "warp") == "warp"
+    assert (out / "policy.npz").is_file()

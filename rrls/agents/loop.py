@@ -140,6 +140,7 @@ def _train_together(group: ResolvedRun, runs, states, on_episode, threads) -> No
             seeds,
             first.training_set(),
             first.device,
+            hyper,
             max_episode_steps=first.max_episode_steps,
         )
     elif first.simulator == "warp":  # the twin, each episode begun on the run's CPU env

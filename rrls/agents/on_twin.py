@@ -32,8 +32,8 @@ from rrls.twin.tasks import not_on_twin
 
 
 def twin_refusal(algo: str) -> str | None:
-    """Why this library loop does not train ``algo`` (its row's ``set_use``), or None: an
-    adversary acting every step (no twin path), a learner choosing each episode's point
+    """Why this library loop does not train ``algo`` (its row's ``set_use``), or None: a
+    learner choosing each episode's point
     (``rrls train --simulator warp`` trains it: the CPU env of each run takes the learner's point
     at every reset and the world copies it), a name without a row."""
     info = algorithm_info(algo)
@@ -90,9 +90,15 @@ def train_on_twin(
             raise ValueError(f"{name} must be a positive integer, got {value!r}")
     info = algorithm(algo)
     config = info.Config(**(hyper or {}))
-    twin = make_twin(task, algo, list(seeds), uncertainty, device, **(twin_options or {}))
+    twin = make_twin(task, algo, list(seeds), uncertainty, device, config, **(twin_options or {}))
     dev = torch.device(device)
-    learner = info.Learner(twin.cpu, config, [RunSeeds(s) for s in seeds], dev)
+    # RARL's learner reads both players' spaces from its game's env; the others the twin's
+    game = info.make_env(task, uncertainty, config) if twin.adversary_dim else None
+    try:
+        learner = info.Learner(game or twin.cpu, config, [RunSeeds(s) for s in seeds], dev)
+    finally:
+        if game is not None:
+            game.close()
     if not isinstance(learner, DeviceLearnerProtocol):
         twin.close()
         raise ValueError(

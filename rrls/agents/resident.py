@@ -18,7 +18,9 @@ from the twin's pool of points of the set. A checkpoint holds each world's episo
 resumed run starts the episode in progress again from its first state and point, as any twin
 run, another draw of the same training (float32 physics on another device would not replay
 it). M2TD3, whose learner chooses each episode's point, trains through the CPU env of each run
-(``rrls.agents.twin_envs``); adversaries acting every step (RARL, NR-MDP) have no twin path.
+(``rrls.agents.twin_envs``). Adversaries acting every step train here too: NR-MDP's learner
+returns the executed action; RARL's twin takes both players' joint action and writes the
+adversary's point into each world inside the step (``make_twin``).
 """
 
 from __future__ import annotations
@@ -155,25 +157,43 @@ def make_twin(
     seeds: list[int],
     uncertainty: Any,
     device: str,
+    hyper: Any = None,
     **options: Any,
 ) -> Any:
     """The group's twin, the one place it is built for a device-resident run: world ``k``
     seeded from run ``k``'s ``"env"`` stream, DR (a new point per episode per world, from a
     pool of points drawn with ``pool_seed`` 0) for an algorithm whose row says it trains on
-    random points; ``options``: the rest of ``WarpTwin``'s (``max_episode_steps``...)."""
+    random points, the adversary's columns of the action written into each world inside the
+    step (``adversary=True``: RARL's game) for one whose row says an adversary moves the
+    dynamics; ``options``: the rest of ``WarpTwin``'s (``max_episode_steps``...)."""
     from rrls.twin import WarpTwin
 
+    use = algorithm_info(algo).set_use
+    if use == "adversary":
+        check_device_game(algo, hyper)
     quiet_warp()
     return WarpTwin(
         task,
         len(seeds),
         uncertainty,
-        domain_randomization=algorithm_info(algo).set_use == "random",
+        domain_randomization=use == "random",
+        adversary=use == "adversary",
         seed=[RunSeeds(s).integer("env") for s in seeds],
         device=device,
         array="torch",
         **{"pool_seed": 0, **options},
     )
+
+
+def check_device_game(algo: str, hyper: Any) -> None:
+    """The twin plays RARL's plain game, the adversary's point written inside the step. A
+    rate-limited adversary (TC-RMDP, with its observation variants: its parameters move on the
+    host) trains on CPU MuJoCo: refused in one line before the twin is built."""
+    if getattr(hyper, "rate_limit", None) is not None:
+        raise ValueError(
+            f"--simulator warp: {algo} with --rate-limit (TC-RMDP's game moves its parameters on "
+            "the host) trains on CPU MuJoCo (--simulator mujoco)"
+        )
 
 
 def trains_on_device(config: Any, learner: type) -> bool:

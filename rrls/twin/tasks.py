@@ -115,16 +115,12 @@ def constants(env: Any, task: TwinTask) -> Constants:
 
 
 def not_on_twin(algo: str) -> str | None:
-    """Why no twin path trains ``algo``, or None. An adversary mixing into the action (NR-MDP)
-    trains device-resident: its learner returns the executed action. One moving the dynamics
-    (RARL) needs the twin built with ``adversary=True`` (the force set), which the training
-    loops do not build yet."""
-    from rrls.algorithms import algorithm_info
-
-    info = algorithm_info(algo)
-    if info is None or not info.adversary or info.set_use != "adversary":
-        return None
-    return "its adversary moves the dynamics at every step (not wired to the twin yet)"
+    """Why no twin path trains ``algo``, or None: every built-in algorithm has one now. An
+    adversary mixing into the action (NR-MDP) trains device-resident, its learner returning the
+    executed action; one moving the dynamics (RARL) too, on a twin built with ``adversary=True``
+    (``rrls.agents.resident.make_twin``), its point written into each world inside the step.
+    Kept as the one place a future refusal of a whole algorithm would go."""
+    return None
 
 
 def check_twin(algo: str, task: str, physics: str) -> None:
