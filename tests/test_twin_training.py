@@ -8,6 +8,7 @@ import json
 import os
 import subprocess
 import sys
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -47,6 +48,32 @@ def test_a_benchmark_on_the_twin_is_another_protocol_and_a_cpu_one_is_unchanged(
     assert twin.binding_fields()["simulator"] == "warp"
     assert twin.fingerprints()["benchmark"] != cpu.fingerprints()["benchmark"]
     assert twin.fingerprints()["protocol"] == cpu.fingerprints()["protocol"]  # same evaluation
+
+
+def test_the_paper_preset_on_the_twin_trains_humanoidstandup_on_cpu_mujoco():
+    """A warp benchmark runs whole: the tasks without a twin (HumanoidStandup's PGS solver)
+    train on CPU MuJoCo beside the twin's; a benchmark with no twin task at all is refused."""
+    import importlib.util
+    from dataclasses import replace
+
+    from rrls.experiments.runner import plan
+    from rrls.experiments.spec import PRESETS, Spec, SpecError, validate
+
+    spec = replace(Spec(**PRESETS["paper"]), simulator="warp")
+    assert {t: spec.simulator_for(t) for t in spec.tasks} == {
+        "ant": "warp",
+        "halfcheetah": "warp",
+        "hopper": "warp",
+        "humanoidstandup": "mujoco",
+        "walker": "warp",
+    }
+    assert Spec(**PRESETS["paper"]).simulator_for("hopper") == "mujoco"
+    if importlib.util.find_spec("warp") and importlib.util.find_spec("mujoco_warp"):
+        validate(spec)
+        with pytest.raises(SpecError, match="PGS"):
+            validate(replace(spec, tasks=("humanoidstandup",)))
+    text = plan(Path("bench"), spec, 250, 0, 0, "local", 10)
+    assert "but humanoidstandup (no twin: CPU MuJoCo" in text
 
 
 pytest.importorskip("warp")

@@ -198,7 +198,7 @@ def _train(spec: Spec, runs: list[RunKey], outs: list[Path], progress: list[Prog
             physics=spec.physics,
             # the protocol's episode limit is the training's too (None: the task's)
             max_episode_steps=spec.protocol.max_episode_steps,
-            simulator=spec.simulator,
+            simulator=spec.simulator_for(run.task),
             progress=False,
             hyper=spec.hyperparameters(run.algo),
         )

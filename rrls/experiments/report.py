@@ -276,10 +276,14 @@ def _markdown(
                 "sets of five tasks). Numbers are not comparable with the paper's."
             )
         if spec.get("simulator", "mujoco") != "mujoco":
+            from rrls.twin.tasks import TWIN_TASKS
+
+            cpu = [t for t in spec["tasks"] if t not in TWIN_TASKS]
             lines.append(
                 f"- trained on the **{spec['simulator']}** simulator (the tasks' MuJoCo Warp "
                 "twins, float32), evaluated on CPU MuJoCo: each run is another draw of its "
                 "algorithm than a CPU-trained one"
+                + (f"; {', '.join(cpu)} (no twin) trained on CPU MuJoCo" if cpu else "")
             )
         lines += _beyond_the_paper(spec)
     if summary.get("versions"):

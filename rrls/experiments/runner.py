@@ -209,7 +209,19 @@ def plan(
         + (f", split {spec.split} (training on the inner box)" if spec.split else "")
         + (f", {jobs} workers" if jobs else "")
         + (f", up to {pack} seeds of a cell trained together per process" if pack > 1 else "")
+        + _simulators(spec)
         + estimate_line
+    )
+
+
+def _simulators(spec: Spec) -> str:
+    """Where a warp benchmark's runs train: its tasks without a twin on CPU MuJoCo."""
+    cpu = [t for t in spec.tasks if spec.simulator_for(t) != spec.simulator]
+    if not cpu:
+        return ""
+    return (
+        f"; trained on the Warp twin but {', '.join(cpu)} (no twin: CPU MuJoCo, beside the "
+        "twin's runs)"
     )
 
 
