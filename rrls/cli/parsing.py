@@ -64,6 +64,7 @@ PATH_ARGUMENTS = {
     "adversary": "--adversary",
     "reference": "--reference",
     "export_reference": "--export-reference",
+    "protocol": "--protocol",
 }
 
 
@@ -72,17 +73,18 @@ def refuse_link_loops(args: argparse.Namespace) -> None:
     in every command alike: left to the command, Python 3.11's ``Path.resolve`` raised a
     ``RuntimeError`` traceback and other calls said ``File exists`` or ``no such file``."""
     for dest, name in PATH_ARGUMENTS.items():
-        value = getattr(args, dest, None)
-        if not isinstance(value, str) or not value:
-            continue
-        try:
-            os.stat(value)
-        except OSError as err:
-            if err.errno == errno.ELOOP:
-                raise UsageError(
-                    f"{name} {value}: a loop of symbolic links (too many levels); valid: a "
-                    "path whose links end at a file or directory, or at nothing yet"
-                ) from None
+        given = getattr(args, dest, None)
+        for value in given if isinstance(given, list) else [given]:  # `report DIR DIR ...`
+            if not isinstance(value, str) or not value:
+                continue
+            try:
+                os.stat(value)
+            except OSError as err:
+                if err.errno == errno.ELOOP:
+                    raise UsageError(
+                        f"{name} {value}: a loop of symbolic links (too many levels); valid: a "
+                        "path whose links end at a file or directory, or at nothing yet"
+                    ) from None
 
 
 def task_keys() -> list[str]:
