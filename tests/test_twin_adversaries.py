@@ -353,6 +353,7 @@ def test_rarl_on_the_twin_reads_once_a_block_and_the_block_size_changes_nothing(
     assert b.buffers[1].size == STEPS  # the adversary stored every step
 
 
+@pytest.mark.e2e  # whole twin trainings: the long tier
 @pytest.mark.warp
 def test_nrmdp_trains_on_the_twin_reading_once_a_block(monkeypatch):
     """The library's twin loop (``train_on_twin``) trains NR-MDP (its statistics on the
@@ -387,6 +388,7 @@ def test_nrmdp_trains_on_the_twin_reading_once_a_block(monkeypatch):
     assert all(len(r) > 1 for r in longer.returns)
 
 
+@pytest.mark.e2e  # whole twin trainings: the long tier
 @pytest.mark.warp
 def test_rarl_trains_through_both_twin_paths_and_its_other_games_are_refused(tmp_path):
     """``train_on_twin`` and ``rrls train --simulator warp`` build RARL's twin with the
