@@ -108,3 +108,42 @@ def interrupt_rrls(
         proc.communicate()
         raise
     return subprocess.CompletedProcess(args, proc.returncode, out, err)
+
+
+class HostReads:
+    """The twin tests' host-read counter (a device-resident loop reads once a block): every
+    read of a tensor or warp array back to the host, with the twin's step count at each
+    (``WarpTwin.step`` counted by a wrapper)."""
+
+    def __init__(self, monkeypatch: pytest.MonkeyPatch) -> None:
+        import torch
+        import warp as wp
+
+        from rrls.twin import WarpTwin
+
+        self.steps, self.at = 0, []
+        for owner, name in (
+            (torch.Tensor, "cpu"),
+            (torch.Tensor, "numpy"),
+            (torch.Tensor, "item"),
+            (torch.Tensor, "tolist"),
+            (torch.Tensor, "__array__"),
+            (torch.Tensor, "__bool__"),
+            (torch.Tensor, "__float__"),
+            (wp.array, "numpy"),
+        ):
+            monkeypatch.setattr(owner, name, self.counted(getattr(owner, name)))
+        step = WarpTwin.step
+
+        def counted_step(twin, actions):
+            self.steps += 1
+            return step(twin, actions)
+
+        monkeypatch.setattr(WarpTwin, "step", counted_step)
+
+    def counted(self, method):
+        def read(*args, **kwargs):
+            self.at.append(self.steps)
+            return method(*args, **kwargs)
+
+        return read

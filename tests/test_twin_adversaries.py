@@ -12,6 +12,7 @@ import json
 import numpy as np
 import pytest
 import torch
+from conftest import HostReads
 
 from rrls.agents import nrmdp, rarl
 from rrls.agents.streams import RunSeeds
@@ -269,43 +270,6 @@ def test_an_adversary_with_points_is_refused():
 
     with pytest.raises(ValueError, match="no points or DR"):
         WarpTwin("invertedpendulum", 1, "rarl", adversary=True, domain_randomization=True)
-
-
-class HostReads:
-    """Counts every read of a tensor or warp array back to the host, and the twin's step count
-    at each (``WarpTwin.step`` counted by a wrapper)."""
-
-    def __init__(self, monkeypatch: pytest.MonkeyPatch) -> None:
-        import warp as wp
-
-        from rrls.twin import WarpTwin
-
-        self.steps, self.at = 0, []
-        for owner, name in (
-            (torch.Tensor, "cpu"),
-            (torch.Tensor, "numpy"),
-            (torch.Tensor, "item"),
-            (torch.Tensor, "tolist"),
-            (torch.Tensor, "__array__"),
-            (torch.Tensor, "__bool__"),
-            (torch.Tensor, "__float__"),
-            (wp.array, "numpy"),
-        ):
-            monkeypatch.setattr(owner, name, self.counted(getattr(owner, name)))
-        step = WarpTwin.step
-
-        def counted_step(twin, actions):
-            self.steps += 1
-            return step(twin, actions)
-
-        monkeypatch.setattr(WarpTwin, "step", counted_step)
-
-    def counted(self, method):
-        def read(*args, **kwargs):
-            self.at.append(self.steps)
-            return method(*args, **kwargs)
-
-        return read
 
 
 STEPS = 40

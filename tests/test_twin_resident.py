@@ -12,6 +12,8 @@ import torch
 pytest.importorskip("warp")
 pytest.importorskip("mujoco_warp")
 
+from conftest import HostReads
+
 from rrls.agents.graphs import settings
 from rrls.agents.on_twin import train_on_twin
 
@@ -33,48 +35,11 @@ def _train(algo: str, block: int, **kw):
     )
 
 
-class _HostReads:
-    """Counts every read of a tensor or warp array back to the host, and the twin's step count
-    at each (``WarpTwin.step`` counted by a wrapper)."""
-
-    def __init__(self, monkeypatch: pytest.MonkeyPatch) -> None:
-        import warp as wp
-
-        from rrls.twin import WarpTwin
-
-        self.steps, self.at = 0, []
-        for owner, name in (
-            (torch.Tensor, "cpu"),
-            (torch.Tensor, "numpy"),
-            (torch.Tensor, "item"),
-            (torch.Tensor, "tolist"),
-            (torch.Tensor, "__array__"),
-            (torch.Tensor, "__bool__"),
-            (torch.Tensor, "__float__"),
-            (wp.array, "numpy"),
-        ):
-            monkeypatch.setattr(owner, name, self._counted(getattr(owner, name)))
-        step = WarpTwin.step
-
-        def counted_step(twin, actions):
-            self.steps += 1
-            return step(twin, actions)
-
-        monkeypatch.setattr(WarpTwin, "step", counted_step)
-
-    def _counted(self, method):
-        def read(*args, **kwargs):
-            self.at.append(self.steps)
-            return method(*args, **kwargs)
-
-        return read
-
-
 @pytest.mark.warp
 @pytest.mark.parametrize("algo", ["td3", "sac"])
 def test_the_host_reads_once_a_block_and_the_block_size_changes_nothing(algo, monkeypatch):
     whole = _train(algo, block=STEPS)
-    reads = _HostReads(monkeypatch)
+    reads = HostReads(monkeypatch)
     with settings(rehearse=True):  # the CUDA-graph path's static inputs, without the capture
         blocks = _train(algo, block=7)
     monkeypatch.undo()
@@ -163,7 +128,7 @@ def test_rrls_train_on_the_twin_reads_back_only_at_checkpoints_and_evaluations(
             hyper={"learning_starts": STARTS, "batch_size": 16, "hidden": [16, 16]},
         )
 
-    reads = _HostReads(monkeypatch)
+    reads = HostReads(monkeypatch)
     run = train(config("whole"))
     monkeypatch.undo()
     inside = sorted(set(reads.at) - {0, 60, 120})
