@@ -32,7 +32,7 @@ _FRICTION = frozenset({"geom_friction", "body_friction"})
 #: kinds always reported in ``info`` (the original code's); others once they are set
 _INFO_FIELDS = frozenset({"body_mass", "geom_friction", "xfrc_applied"})
 #: model arrays a parameter may write: saved when the env is built, restored by reset_params
-_SAVED = (
+SAVED_FIELDS = (
     "body_mass",
     "body_inertia",
     "body_ipos",
@@ -130,7 +130,7 @@ class ModifiedParamsMixin:
         self._setconst = SETCONST_FIELDS - NO_SETCONST if self.paper else SETCONST_FIELDS
         if self.scale_inertia:  # a scaled inertia needs its derived constants, paper or not
             self._setconst = SETCONST_FIELDS
-        self._saved = {f: getattr(model, f).copy() for f in _SAVED}
+        self._saved = {f: getattr(model, f).copy() for f in SAVED_FIELDS}
         self._mass0 = self._saved["body_mass"]
         self._inertia0 = self._saved["body_inertia"]
         self._ipos0 = self._saved["body_ipos"]
@@ -383,4 +383,4 @@ class ModifiedParamsMixin:
         self.spec = state["spec"]
 
 
-__all__ = ["ModifiedParamsMixin", "mujoco_warnings_to_python"]
+__all__ = ["SAVED_FIELDS", "ModifiedParamsMixin", "mujoco_warnings_to_python"]

@@ -19,7 +19,11 @@ from typing import Any
 
 import numpy as np
 
-#: fields whose entries a parameter writes (the rest of the twin's fields are derived)
+from rrls.envs.base import SAVED_FIELDS
+
+#: fields whose entries a parameter writes (the rest of the twin's fields are derived): the
+#: model arrays the CPU env saves and restores, the options' and the adversary's forces
+WRITTEN = (*SAVED_FIELDS, "timestep", "gravity", "xfrc_applied")
 WRITTEN = (
     "body_mass",
     "body_inertia",
