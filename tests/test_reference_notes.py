@@ -33,3 +33,23 @@ def test_reference_notes_state_physics_versions_and_m2td3_share(task: str) -> No
     assert (
         f"M2TD3's learning steps: {learn:,} of {ref.steps:,} ({learn / ref.steps:.0%}" in ref.notes
     )
+
+
+@pytest.mark.parametrize("task", ["halfcheetah", "hopper"])
+def test_the_physics_sections_count_is_the_files(task: str) -> None:
+    """The page's "in progress: N of M runs" and the runs' cost are read from
+    paper_physics.csv and runs/."""
+    import csv
+    import re
+
+    folder = ROOT / "docs" / "results" / task
+    with open(folder / "paper_physics.csv", newline="") as f:
+        seconds = [float(row["seconds"]) for row in csv.DictReader(f)]
+    measured = len(seconds)
+    runs = len(list(folder.glob("runs/*/result.json")))
+    page = (folder / "README.md").read_text()
+    heading = re.search(r"paper's physics \(in progress: (\d+) of (\d+) runs\)", page)
+    assert heading and (int(heading[1]), int(heading[2])) == (measured, runs)
+    assert f"{measured} of the {runs} runs" in page
+    cost = f"{min(seconds) / 60:.1f} to {max(seconds) / 60:.0f} CPU-minutes"
+    assert cost in " ".join(page.split()), cost
