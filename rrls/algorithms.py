@@ -6,8 +6,10 @@ A row says what the rest of rrls needs to know about an algorithm without loadin
 display name, whether it is one of the paper's five baselines, whether it trains an adversary
 (then the benchmark also plays it against its own adversary: the dynamic evaluation), how it
 meets the uncertainty set (which decides where it can train: the Warp twin), the benchmark
-options its ``Config`` takes, its measured training speeds (the benchmark's estimates), and
-where its ``Learner`` lives. Nothing else in rrls names an algorithm.
+options its ``Config`` takes and the learning rates ``--learning-rate`` sets, whether its mean
+anchors the paper's normalised score (TD3's 0, M2TD3's 1: ``normalisers``), its measured
+training speeds (the benchmark's estimates), and where its ``Learner`` lives. Nothing else in
+rrls names an algorithm.
 ``rrls.agents.algorithm(name)`` loads it. Plug-ins add rows with ``register_algorithm`` (an
 installed entry point of group ``rrls.algorithms`` is found without a row; it then reads as its
 own name).
@@ -16,11 +18,12 @@ own name).
 from __future__ import annotations
 
 from collections.abc import Callable, Iterable, Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
 
 __all__ = [
     "ALGORITHMS",
+    "ANCHORS",
     "ENTRY_POINTS",
     "SET_USES",
     "TD3_CPU",
@@ -30,6 +33,7 @@ __all__ = [
     "algorithm_key",
     "built_in",
     "display_name",
+    "normalisers",
     "paper_five",
     "plays_adversary",
     "plugin_entry_points",
@@ -44,6 +48,9 @@ ENTRY_POINTS = "rrls.algorithms"
 #: episode (domain randomization); a point the learner chooses per episode (M2TD3); an
 #: adversary moving the parameters at every step (RARL)
 SET_USES = ("nominal", "random", "chosen", "adversary")
+#: the values a row's mean may take in the paper's normalised score (v - v_0) / |v_1 - v_0|
+#: (Tables 4-5): its two anchors, one row each
+ANCHORS = (0.0, 1.0)
 #: learning steps per CPU-second of one single-threaded Hopper run, measured in CPU time (robust
 #: to a machine shared with other work) by ``python3 benchmarks/calibrate.py td3 m2td3 sac``:
 #: CPU seconds of ``rrls train --threads 1`` for 3 000 steps (1 000 random) minus those of 1 000
@@ -77,6 +84,14 @@ class AlgorithmInfo:
     #: random warm-up steps of its reference hyper-parameters (its ``Config`` default and what
     #: a preset that claims the paper's hyper-parameters gives it)
     learning_starts: int = 25_000
+    #: the ``Config`` fields the benchmark's ``--learning-rate`` sets; none unless a row names
+    #: them (a plug-in's ``Config`` and SAC's two rates are their own)
+    rate_fields: tuple[str, ...] = ()
+    #: its mean is this value of the paper's normalised score (one of ``ANCHORS``: TD3's 0,
+    #: M2TD3's 1); None: it does not normalise. Set by the table's own rows only (``_row``), not
+    #: a constructor argument: a plug-in's row, or a built-in's copied by ``dataclasses.replace``
+    #: (``benchmarks/authors_variants.py``), cannot add a third anchor
+    anchor: float | None = field(default=None, init=False)
     row: int = 100  # position in tables and figures (the paper's row order), then by name
 
     def __post_init__(self) -> None:
@@ -89,6 +104,13 @@ class AlgorithmInfo:
         if self.learner.count(":") != 1:
             raise ValueError(
                 f"algorithm {self.name!r}: learner {self.learner!r} must be package.module:Class"
+            )
+        if isinstance(self.rate_fields, str) or not all(
+            isinstance(f, str) and f.isidentifier() for f in self.rate_fields
+        ):
+            raise ValueError(
+                f"algorithm {self.name!r}: rate_fields {self.rate_fields!r} must be a tuple of "
+                "Config field names"
             )
 
     @property
@@ -115,15 +137,29 @@ def _rarl_options(spec: Any) -> dict[str, Any]:
     return options
 
 
-def _row(name: str, display: str, row: int, **flags: Any) -> AlgorithmInfo:
-    return AlgorithmInfo(name, display, f"rrls.agents.{name}:Learner", row=row, **flags)
+#: the one learning rate of TD3's ``Config`` (and of the learners built on it)
+_TD3_RATE = ("learning_rate",)
+
+
+def _row(
+    name: str, display: str, row: int, anchor: float | None = None, **flags: Any
+) -> AlgorithmInfo:
+    """A built-in row: its learner in ``rrls.agents``, TD3's one rate unless it says otherwise,
+    and its ``anchor`` of the normalised score (set here only: see ``AlgorithmInfo.anchor``)."""
+    flags.setdefault("rate_fields", _TD3_RATE)
+    info = AlgorithmInfo(name, display, f"rrls.agents.{name}:Learner", row=row, **flags)
+    if anchor is not None:
+        if anchor not in ANCHORS:
+            raise ValueError(f"algorithm {name!r}: anchor {anchor!r}; valid: {ANCHORS}")
+        object.__setattr__(info, "anchor", anchor)  # frozen, and no constructor argument
+    return info
 
 
 #: built-in rows, in the CLI's and the benchmark's order (the paper's five first)
 ALGORITHMS: dict[str, AlgorithmInfo] = {
     a.name: a
     for a in (
-        _row("td3", "TD3", 0, paper=True, gpu_steps_per_s=TD3_GPU),
+        _row("td3", "TD3", 0, paper=True, gpu_steps_per_s=TD3_GPU, anchor=0.0),
         _row("dr", "DR", 1, paper=True, set_use="random"),
         _row(
             "rarl",
@@ -143,15 +179,22 @@ ALGORITHMS: dict[str, AlgorithmInfo] = {
             2,
             paper=True,
             set_use="chosen",
+            anchor=1.0,
             learning_starts=100_000,
             options=_m2td3_options,
             cpu_steps_per_s=103.0,
             gpu_steps_per_s=((1, 435.0), (8, 1_172.0), (32, 2_200.0)),
         ),
-        # CleanRL's sac_continuous_action.py
-        _row("sac", "SAC", 5, learning_starts=5_000, cpu_steps_per_s=SAC_CPU),
+        # CleanRL's sac_continuous_action.py; its two rates (policy_lr, q_lr) are its own
+        _row("sac", "SAC", 5, learning_starts=5_000, cpu_steps_per_s=SAC_CPU, rate_fields=()),
         _row(
-            "sacdr", "SAC-DR", 6, set_use="random", learning_starts=5_000, cpu_steps_per_s=SAC_CPU
+            "sacdr",
+            "SAC-DR",
+            6,
+            set_use="random",
+            learning_starts=5_000,
+            cpu_steps_per_s=SAC_CPU,
+            rate_fields=(),
         ),
     )
 }
@@ -175,6 +218,13 @@ def built_in() -> tuple[str, ...]:
 def paper_five() -> tuple[str, ...]:
     """The paper's five baselines, in the benchmark's order (its presets' default grid)."""
     return tuple(a.name for a in ALGORITHMS.values() if a.paper)
+
+
+def normalisers() -> tuple[str, str]:
+    """The rows whose means are 0 and 1 of the paper's normalised score (Tables 4-5: TD3's and
+    M2TD3's): what every normalised cell, figure and caveat divides by, declared only here."""
+    zero, one = (next(n for n, a in ALGORITHMS.items() if a.anchor == v) for v in ANCHORS)
+    return zero, one
 
 
 def plugin_entry_points() -> dict[str, str]:

@@ -6,6 +6,8 @@ from __future__ import annotations
 
 from typing import Any
 
+from rrls.algorithms import display_name, normalisers
+
 __all__ = [
     "BUDGET",
     "BUDGET_NOTE",
@@ -33,14 +35,20 @@ FEW_SEEDS_TEX = (
     "$^{\\dagger}$ fewer than 3 seeds: not a confidence interval (one seed: its value alone)."
 )
 UNSTABLE = "§"  # marks a normalised cell whose normaliser is within the baselines' noise
+#: the normaliser as a reader sees it: the table's two anchors (``normalisers``) by display name,
+#: ``|one - zero|``, in LaTeX ``|v_one - v_zero|``
+_ZERO, _ONE = (display_name(a) for a in normalisers())
+_SPAN = f"|{_ONE} - {_ZERO}|"
+_TEX_SPAN = "$|v_{\\mathrm{" + _ONE + "}} - v_{\\mathrm{" + _ZERO + "}}|$"
 UNSTABLE_NOTE = (
-    f"{UNSTABLE} unstable normalisation: |M2TD3 - TD3| on this task is within the baselines' "
+    f"{UNSTABLE} unstable normalisation: {_SPAN} on this task is within the baselines' "
     "seed spread (or both failed alike), so the normalised score divides by noise; read the raw "
     "table."
 )
 UNSTABLE_TEX = (
-    "$^{\\S}$ unstable normalisation: $|v_{\\mathrm{M2TD3}} - v_{\\mathrm{TD3}}|$ within the "
-    "baselines' seed spread; read the raw table."
+    "$^{\\S}$ unstable normalisation: "
+    + _TEX_SPAN
+    + " within the baselines' seed spread; read the raw table."
 )
 #: a normaliser under this fraction of the baselines' magnitude means both failed alike
 RELATIVE_SPAN = 0.05
@@ -51,17 +59,18 @@ def few_seeds(cell: dict[str, Any] | None) -> bool:
     return bool(cell) and 0 < int(cell.get("n_seeds") or 0) < 3
 
 
-def check_normaliser(td3: float, td3_std: float, m2td3: float, m2td3_std: float) -> str | None:
-    """Why ``|m2td3 - td3|`` (seed means) cannot normalise, or None: within the baselines'
-    seed spread (the larger std), or under ``RELATIVE_SPAN`` of their magnitude."""
-    span = abs(m2td3 - td3)
-    spread = max(td3_std or 0.0, m2td3_std or 0.0)
+def check_normaliser(zero: float, zero_std: float, one: float, one_std: float) -> str | None:
+    """Why ``|one - zero|`` (the seed means of the normalised score's anchors,
+    ``rrls.algorithms.normalisers``) cannot normalise, or None: within the baselines' seed spread
+    (the larger std), or under ``RELATIVE_SPAN`` of their magnitude."""
+    span = abs(one - zero)
+    spread = max(zero_std or 0.0, one_std or 0.0)
     if span <= spread:
-        return f"|M2TD3 - TD3| = {span:.1f} is within the baselines' seed spread ({spread:.1f})"
-    scale = max(abs(td3), abs(m2td3))
+        return f"{_SPAN} = {span:.1f} is within the baselines' seed spread ({spread:.1f})"
+    scale = max(abs(zero), abs(one))
     if span < RELATIVE_SPAN * scale:
         return (
-            f"|M2TD3 - TD3| = {span:.1f} is under {RELATIVE_SPAN:.0%} of the baselines' "
+            f"{_SPAN} = {span:.1f} is under {RELATIVE_SPAN:.0%} of the baselines' "
             f"scores ({scale:.1f})"
         )
     return None
@@ -73,20 +82,23 @@ def is_unstable(summary: dict[str, Any], task: str, metric: str) -> bool:
 
 
 def unstable_normalisation(summary: dict[str, Any]) -> list[str]:
-    """One line per (task, criterion) whose normaliser ``|M2TD3 - TD3|`` divides by noise
+    """One line per (task, criterion) whose normaliser (the anchors' span) divides by noise
     (``check_normaliser``): the report flags it instead of dividing silently. Reads the
-    summary's ``unstable`` entries, else checks the benchmark's own TD3 and M2TD3 cells."""
+    summary's ``unstable`` entries, else checks the benchmark's own cells of the two anchors."""
     entries = summary.get("unstable")
     if entries is None:
         entries = []
+        zero_algo, one_algo = normalisers()
         for task in summary["tasks"]:
             cells = summary["results"].get(task, {})
             for criterion in ("worst_case", "average_case"):
-                td3 = (cells.get("td3") or {}).get(criterion) or {}
-                m2 = (cells.get("m2td3") or {}).get(criterion) or {}
-                if td3.get("mean") is None or m2.get("mean") is None:
+                zero = (cells.get(zero_algo) or {}).get(criterion) or {}
+                one = (cells.get(one_algo) or {}).get(criterion) or {}
+                if zero.get("mean") is None or one.get("mean") is None:
                     continue
-                reason = check_normaliser(td3["mean"], td3.get("std"), m2["mean"], m2.get("std"))
+                reason = check_normaliser(
+                    zero["mean"], zero.get("std"), one["mean"], one.get("std")
+                )
                 if reason:
                     entries.append({"task": task, "metric": criterion, "reason": reason})
     return [

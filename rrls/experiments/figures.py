@@ -17,6 +17,7 @@ from typing import Any
 
 import numpy as np
 
+from rrls.algorithms import display_name, normalisers
 from rrls.evaluation.metrics import SCORES
 from rrls.experiments import profiles, stats
 from rrls.experiments.caveats import FEW, few_seeds
@@ -38,8 +39,8 @@ from rrls.experiments.tables import Row, cell, label, table_rows
 __all__ = ["aggregate_figures", "marked", "row_colour"]
 
 TITLES = {"worst_case": "worst case", "average_case": "average case"}
-#: the unit of a normalised score: its two anchors
-NORMALISED = "0 = TD3, 1 = M2TD3"
+#: the unit of a normalised score: its two anchors (the algorithm table's), by display name
+NORMALISED = ", ".join(f"{v} = {display_name(a)}" for v, a in enumerate(normalisers()))
 
 
 def marked(summary: dict[str, Any], row: Row) -> str:
@@ -71,7 +72,7 @@ def _normalised(scores: Scores, tasks: list[str], rows: list[Row], metric: str) 
         for task in tasks:
             ref, x = scores.norm_refs(task, metric), _values(scores, row, task, metric)
             if ref is not None and len(x):
-                out.setdefault(row, []).append(stats.normalise(x, ref["td3"], ref["m2td3"]))
+                out.setdefault(row, []).append(stats.normalise(x, ref["zero"], ref["one"]))
     return out
 
 
@@ -144,8 +145,8 @@ def plot_profiles(
         ax.set_ylabel(axis_label("runs scoring above τ", "fraction"))
         ax.set_ylim(0, 1.02)
         ax.set_xlim(grid[0], grid[-1])
-        ax.axvline(0, color="grey", lw=0.6, ls=":")  # TD3
-        ax.axvline(1, color="grey", lw=0.6, ls=":")  # M2TD3's distance
+        ax.axvline(0, color="grey", lw=0.6, ls=":")  # the 0 anchor
+        ax.axvline(1, color="grey", lw=0.6, ls=":")  # the 1 anchor's distance
     shown = [ax for ax in axes[0] if ax.get_visible()]
     legend_outside(shown[-1])
     fig.tight_layout()
@@ -217,16 +218,18 @@ def plot_iqm(
 
 
 def _baselines(summary: dict[str, Any], scores: Scores) -> list[tuple[Row, dict[str, Any]]]:
-    """TD3 and M2TD3 as the Y of P(X > Y): the benchmark's runs, else the reference's row
-    (its per-seed values) where the benchmark has none; ``[(row, {task: per-seed worst
-    cases})]`` (TD3 as ``poi_over_td3_worst_case`` takes it: ``Scores.td3_seeds``)."""
+    """The normalised score's two anchors (``normalisers``) as the Y of P(X > Y): the
+    benchmark's runs, else the reference's row (its per-seed values) where the benchmark has
+    none; ``[(row, {task: per-seed worst cases})]`` (the 0 anchor as
+    ``poi_over_td3_worst_case`` takes it: ``Scores.zero_seeds``)."""
     tasks, out = summary["tasks"], []
     theirs = {r[1]: r for r in table_rows(summary, "raw_worst_case") if r[2] != "results"}
-    for algo in ("td3", "m2td3"):
+    zero = normalisers()[0]
+    for algo in normalisers():
         own = {t: scores.values(t, algo, "worst_case") for t in tasks}
         if any(len(v) for v in own.values()):
-            if algo == "td3":
-                own = {t: scores.td3_seeds(t) for t in tasks}
+            if algo == zero:
+                own = {t: scores.zero_seeds(t) for t in tasks}
             out.append(((label(summary, algo), algo, "results"), own))
         elif algo in theirs:
             row = theirs[algo]
@@ -235,9 +238,11 @@ def _baselines(summary: dict[str, Any], scores: Scores) -> list[tuple[Row, dict[
 
 
 def _poi_rows(summary: dict[str, Any], scores: Scores) -> list[dict[str, Any]]:
-    """Every algorithm X of the benchmark against each baseline Y: against TD3 the numbers
-    of the report's table (``poi_over_td3_worst_case``), against M2TD3 the same statistic."""
+    """Every algorithm X of the benchmark against each anchor Y: against the 0 anchor the
+    numbers of the report's table (``poi_over_td3_worst_case``), against the 1 anchor the same
+    statistic."""
     tasks, out = summary["tasks"], []
+    zero = normalisers()[0]
     for y_row, y_seeds in _baselines(summary, scores):
         for x in summary["algorithms"]:
             x_row = (label(summary, x), x, "results")
@@ -245,7 +250,7 @@ def _poi_rows(summary: dict[str, Any], scores: Scores) -> list[dict[str, Any]]:
                 continue
             if any(p["x"][1] == y_row[1] and p["y"][1] == x for p in out):
                 continue  # P(Y > X) = 1 - P(X > Y): already shown
-            if y_row[1] == "td3":
+            if y_row[1] == zero:
                 result = (summary["aggregate"].get(x) or {}).get("poi_over_td3_worst_case")
             else:
                 pairs = [
@@ -262,8 +267,8 @@ def _poi_rows(summary: dict[str, Any], scores: Scores) -> list[dict[str, Any]]:
 def plot_poi(
     summary: dict[str, Any], scores: Scores, path: Path, keep: dict[str, Any] | None = None
 ) -> tuple[str, Path] | None:
-    """P(X > Y) of the worst case for every algorithm X against TD3 and M2TD3 (the
-    reference's where the benchmark has none: a submissions-only report has its table, so its
+    """P(X > Y) of the worst case for every algorithm X against the normalised score's anchors
+    (the reference's where the benchmark has none: a submissions-only report has its table, so its
     figure), with 95 % CIs; a pair against a reference's row dashed, with an open marker."""
     pairs = _poi_rows(summary, scores)
     if not pairs:

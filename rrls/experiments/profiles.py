@@ -28,6 +28,7 @@ from typing import Any
 
 import numpy as np
 
+from rrls.algorithms import normalisers
 from rrls.experiments import stats
 
 __all__ = ["MIN_SEEDS", "N_RESAMPLES", "performance_profile", "poi_pairs", "taus"]
@@ -69,12 +70,13 @@ def performance_profile(
 
 
 def poi_pairs(
-    per_seed: dict[str, dict[str, np.ndarray]], baselines: Sequence[str] = ("td3", "m2td3")
+    per_seed: dict[str, dict[str, np.ndarray]], baselines: Sequence[str] | None = None
 ) -> list[dict[str, Any]]:
-    """P(X > Y) for every algorithm X against each of ``baselines`` Y present, over the tasks
-    where both have runs (``per_seed[algo][task]``: per-seed scores)."""
+    """P(X > Y) for every algorithm X against each of ``baselines`` Y present (default: the
+    normalised score's two anchors, ``rrls.algorithms.normalisers``), over the tasks where both
+    have runs (``per_seed[algo][task]``: per-seed scores)."""
     out = []
-    for y in baselines:
+    for y in normalisers() if baselines is None else baselines:
         if y not in per_seed:
             continue
         for x in per_seed:

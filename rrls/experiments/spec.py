@@ -180,11 +180,15 @@ class Spec:
             "learning_starts": self.warmup(algo),
             "hidden": tuple(self.hidden),
         }
-        if self.learning_rate is not None and algo in ALGOS:  # TD3's rate (SAC has two)
-            hyper["learning_rate"] = self.learning_rate
+        info = algorithm_info(algo)
+        # --learning-rate sets the Config fields its row names (rate_fields): TD3's one rate on
+        # the paper's five (presets.ALGOS, as before), none on SAC's rows (their two rates are
+        # their own) nor on a plug-in's (a registered row names none unless it says so; a name
+        # no row declares reads as a row of defaults: none)
+        if info is not None and self.learning_rate is not None:
+            hyper.update(dict.fromkeys(info.rate_fields, self.learning_rate))
         if self.batch_size is not None:
             hyper["batch_size"] = self.batch_size
-        info = algorithm_info(algo)
         if info is not None and info.options is not None:  # its own options (its row says)
             hyper.update(info.options(self))
         return hyper

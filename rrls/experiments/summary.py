@@ -4,12 +4,13 @@
   normalised scores, the dynamic return and the in/out-of-distribution scores; the same for a
   reference's rows (``reference_results``), so every table can put them beside the benchmark's;
 - **aggregates**: per algorithm, across tasks: the IQM of the normalised scores and the
-  probability of improvement over TD3 (stratified bootstrap CIs);
+  probability of improvement over the normalised score's 0 anchor (stratified bootstrap CIs);
 - **provenance**: the protocol, the versions, the submitted policies, where each task's
   normalisation came from and whether it is stable.
 
 The scores themselves are ``rrls.evaluation.metrics``' (one definition); the statistics are
-``rrls.experiments.stats``'.
+``rrls.experiments.stats``'; the two algorithms whose means are the normalised score's 0 and 1
+are the algorithm table's (``rrls.algorithms.normalisers``).
 """
 
 from __future__ import annotations
@@ -19,7 +20,7 @@ from typing import Any
 
 import numpy as np
 
-from rrls.algorithms import plays_adversary
+from rrls.algorithms import display_name, normalisers, plays_adversary
 from rrls.evaluation.metrics import (
     SCORES,
     SPLIT_SCORES,
@@ -36,7 +37,8 @@ from rrls.schema import SchemaError, loads_json
 
 __all__ = ["CONVENTIONS", "Scores", "reference_name", "summarise", "summarise_store"]
 
-#: algorithms evaluated against their own adversary (paper Table 6)
+#: the normalised score's anchors (0, 1) as a reader sees them: their display names
+_ZERO, _ONE = (display_name(a) for a in normalisers())
 
 CONVENTIONS = {
     "worst_case": "per run: min over mesh points of the mean return over the point's "
@@ -44,15 +46,16 @@ CONVENTIONS = {
     "(mean ± t(0.975, n-1)·s/√n, s with ddof=1: honest at 3-5 seeds, where a percentile "
     "bootstrap cannot leave the values' range)",
     "average_case": "per run: mean over mesh points of the per-point mean return",
-    "normalised": "(v - v_TD3) / |v_M2TD3 - v_TD3| with v_TD3, v_M2TD3 the seed means on "
-    "the task (this benchmark's runs; without them, the reference file's means — see "
+    "normalised": f"(v - v_{_ZERO}) / |v_{_ONE} - v_{_ZERO}| with v_{_ZERO}, v_{_ONE} the seed "
+    "means on the task (this benchmark's runs; without them, the reference file's means — see "
     "'normalisation'); applied to each seed, then mean/std over seeds (= normalising the "
     "seed mean, as the paper's Tables 4-5 do)",
     "aggregate": "IQM over all (task, seed) normalised scores with a stratified bootstrap "
     "CI (seeds resampled within tasks); mean_over_tasks/std_over_tasks: the paper's "
     "'Average' column",
-    "poi_over_td3_worst_case": "P(algorithm's worst case > TD3's) for random seeds, "
-    "averaged over tasks (TD3: this benchmark's runs, else the reference's per-seed "
+    # the key names its baseline as summary.json has always spelled it
+    "poi_over_td3_worst_case": f"P(algorithm's worst case > {_ZERO}'s) for random seeds, "
+    f"averaged over tasks ({_ZERO}: this benchmark's runs, else the reference's per-seed "
     "values); stratified bootstrap CI",
     "split": "with a train/test split of the set: worst/average case over the "
     "in-distribution (training part) and out-of-distribution (test part) mesh points "
@@ -61,8 +64,8 @@ CONVENTIONS = {
     "cell: mean/std over seeds (paper Table 6)",
     "bootstrap": f"scipy.stats.bootstrap, percentile, {stats.N_RESAMPLES} resamples, "
     "generator seeded from the cell's name",
-    "unstable_normalisation": "a task's normaliser |v_M2TD3 - v_TD3| within the two baselines' "
-    "seed spread (max std), or under 5% of their magnitude (both failed alike): its "
+    "unstable_normalisation": f"a task's normaliser |v_{_ONE} - v_{_ZERO}| within the two "
+    "baselines' seed spread (max std), or under 5% of their magnitude (both failed alike): its "
     "normalised scores divide by noise and are flagged",
 }
 
@@ -108,41 +111,45 @@ class Scores:
         return self.reference.cell(task, self.uncertainty, algo, metric)
 
     def norm_refs(self, task: str, metric: str) -> dict[str, Any] | None:
-        """``{td3, m2td3, td3_std, m2td3_std, source}`` normalising ``task``: the benchmark's
-        seed means, else the reference's, else None (no normalised score)."""
-        td3, m2td3 = self.values(task, "td3", metric), self.values(task, "m2td3", metric)
-        if len(td3) and len(m2td3) and td3.mean() != m2td3.mean():
+        """``{zero, one, zero_std, one_std, source}`` normalising ``task``: the seed means (and
+        stds) of the score's two anchors (``rrls.algorithms.normalisers``), the benchmark's, else
+        the reference's, else None (no normalised score)."""
+        zero, one = (self.values(task, a, metric) for a in normalisers())
+        if len(zero) and len(one) and zero.mean() != one.mean():
             return {
-                "td3": float(td3.mean()),
-                "m2td3": float(m2td3.mean()),
-                "td3_std": float(td3.std()),
-                "m2td3_std": float(m2td3.std()),
+                "zero": float(zero.mean()),
+                "one": float(one.mean()),
+                "zero_std": float(zero.std()),
+                "one_std": float(one.std()),
                 "source": "benchmark",
             }
-        r_td3, r_m2td3 = (self.reference_row(task, a, metric) for a in ("td3", "m2td3"))
-        if r_td3 is not None and r_m2td3 is not None and r_td3["mean"] != r_m2td3["mean"]:
+        r_zero, r_one = (self.reference_row(task, a, metric) for a in normalisers())
+        if r_zero is not None and r_one is not None and r_zero["mean"] != r_one["mean"]:
             return {
-                "td3": float(r_td3["mean"]),
-                "m2td3": float(r_m2td3["mean"]),
-                "td3_std": float(r_td3.get("std") or 0.0),
-                "m2td3_std": float(r_m2td3.get("std") or 0.0),
+                "zero": float(r_zero["mean"]),
+                "one": float(r_one["mean"]),
+                "zero_std": float(r_zero.get("std") or 0.0),
+                "one_std": float(r_one.get("std") or 0.0),
                 "source": "reference",
             }
         return None
 
-    def td3_seeds(self, task: str) -> np.ndarray:
-        """TD3's per-seed worst cases: the benchmark's, else the reference's when it has them."""
-        own = self.values(task, "td3", "worst_case")
+    def zero_seeds(self, task: str) -> np.ndarray:
+        """The 0 anchor's per-seed worst cases (the Y of ``poi_over_td3_worst_case``): the
+        benchmark's, else the reference's when it has them."""
+        zero = normalisers()[0]
+        own = self.values(task, zero, "worst_case")
         if len(own):
             return own
-        row = self.reference_row(task, "td3", "worst_case")
+        row = self.reference_row(task, zero, "worst_case")
         return np.asarray(row["values"] if row and row.get("values") else [], dtype=float)
 
 
 def summarise(root: str | Path, reference: Any = None) -> dict[str, Any]:
     """Everything ``summary.json`` holds, computed from the store. ``reference``: a
     ``rrls.experiments.reference.Reference`` (already checked against the benchmark) that
-    normalises the tasks without their own TD3 and M2TD3 runs and whose rows the tables show."""
+    normalises the tasks without their own runs of the normalised score's anchors and whose rows
+    the tables show."""
     from rrls.experiments import benchfile
     from rrls.experiments.store import load_store
 
@@ -169,7 +176,7 @@ def summarise_store(
     results, missing = cells(scores, tasks, algos, expected if spec else None)
     refs = {t: {m: scores.norm_refs(t, m) for m in SCORES} for t in tasks}
     # a reference trained with another budget (shown only when asked) is normalised by its own
-    # TD3 and M2TD3: this benchmark's would mix budgets in one score
+    # anchors' means: this benchmark's would mix budgets in one score
     own_norm = bool(spec) and reference is not None and reference.steps != spec.get("steps")
     return {
         "benchmark": spec,
@@ -190,7 +197,9 @@ def summarise_store(
         if reference is None
         else {
             **_reference_summary(reference, tasks, uncertainty),
-            "normalised_by": "its own TD3 and M2TD3" if own_norm else "this report's normalisers",
+            "normalised_by": f"its own {_ZERO} and {_ONE}"
+            if own_norm
+            else "this report's normalisers",
         },
         "reference_results": None
         if reference is None
@@ -226,7 +235,7 @@ def cells(
                 x, ref = scores.values(task, algo, m), refs[m]
                 cell["normalised"][m] = (
                     stats.describe(
-                        stats.normalise(x, ref["td3"], ref["m2td3"]),
+                        stats.normalise(x, ref["zero"], ref["one"]),
                         stats.rng_for(task, algo, m, "n"),
                     )
                     if len(x) and ref is not None
@@ -246,7 +255,9 @@ def cells(
 
 
 def aggregates(scores: Scores, tasks: list[str], algos: list[str]) -> dict[str, Any]:
-    """Per algorithm: the normalised scores' IQM over (task, seed) and P(improvement over TD3)."""
+    """Per algorithm: the normalised scores' IQM over (task, seed) and P(improvement over the
+    score's 0 anchor)."""
+    zero = normalisers()[0]
     out: dict[str, Any] = {}
     for algo in algos:
         agg: dict[str, Any] = {}
@@ -255,14 +266,14 @@ def aggregates(scores: Scores, tasks: list[str], algos: list[str]) -> dict[str, 
             for task in tasks:
                 ref, x = scores.norm_refs(task, m), scores.values(task, algo, m)
                 if len(x) and ref is not None:
-                    per_task.append(stats.normalise(x, ref["td3"], ref["m2td3"]))
+                    per_task.append(stats.normalise(x, ref["zero"], ref["one"]))
             agg[f"normalised_{m}"] = stats.aggregate_iqm(per_task, stats.rng_for(algo, m, "agg"))
             agg[f"normalised_{m}"]["min_seeds"] = min((len(x) for x in per_task), default=0)
-        if algo != "td3":
+        if algo != zero:
             pairs = [
-                (scores.values(t, algo, "worst_case"), scores.td3_seeds(t))
+                (scores.values(t, algo, "worst_case"), scores.zero_seeds(t))
                 for t in tasks
-                if len(scores.values(t, algo, "worst_case")) and len(scores.td3_seeds(t))
+                if len(scores.values(t, algo, "worst_case")) and len(scores.zero_seeds(t))
             ]
             poi = stats.aggregate_poi(pairs, stats.rng_for(algo, "poi"))
             poi["min_seeds"] = min((min(len(x), len(y)) for x, y in pairs), default=0)
@@ -332,9 +343,9 @@ def unstable(refs: dict[str, dict[str, dict[str, Any] | None]]) -> list[dict[str
         for metric, ref in by_metric.items():
             if ref is None:
                 continue
-            reason = check_normaliser(ref["td3"], ref["td3_std"], ref["m2td3"], ref["m2td3_std"])
+            reason = check_normaliser(ref["zero"], ref["zero_std"], ref["one"], ref["one_std"])
             if reason:
-                span = abs(ref["m2td3"] - ref["td3"])
+                span = abs(ref["one"] - ref["zero"])
                 out.append(
                     {"task": task, "metric": metric, "source": ref["source"], "span": span}
                     | {"reason": reason}
@@ -347,7 +358,7 @@ def reference_cells(
 ) -> dict[str, Any]:
     """The reference's cells for the benchmark's tasks, shaped like ``results``' (the raw
     scores, their normalised scores with this report's normalisers, or with the reference's own
-    TD3 and M2TD3 means when ``own_normaliser``, the dynamic return), so a table shows them as
+    anchors' means when ``own_normaliser``, the dynamic return), so a table shows them as
     rows. A cell's CI needs the reference's per-seed values."""
     ref = scores.reference
     out: dict[str, Any] = {}
@@ -374,23 +385,23 @@ def reference_cells(
 
 
 def _own_norm(scores: Scores, task: str, metric: str) -> dict[str, Any] | None:
-    """The reference's own TD3 and M2TD3 means on ``task`` (None without both, or equal)."""
-    td3, m2td3 = (scores.reference_row(task, a, metric) for a in ("td3", "m2td3"))
-    if td3 is None or m2td3 is None or td3["mean"] == m2td3["mean"]:
+    """The reference's own means of the two anchors on ``task`` (None without both, or equal)."""
+    zero, one = (scores.reference_row(task, a, metric) for a in normalisers())
+    if zero is None or one is None or zero["mean"] == one["mean"]:
         return None
-    return {"td3": float(td3["mean"]), "m2td3": float(m2td3["mean"])}
+    return {"zero": float(zero["mean"]), "one": float(one["mean"])}
 
 
 def _row_cell(row: dict[str, Any], norm: dict[str, Any] | None, rng: Any) -> dict[str, Any]:
     """A reference row as a cell: its mean, std and seeds, the CI from its per-seed values
-    when it has them; normalised (an affine map) by ``norm``'s TD3 and M2TD3 means."""
+    when it has them; normalised (an affine map) by ``norm``'s anchors' means."""
     mean, std = float(row["mean"]), None if row.get("std") is None else float(row["std"])
     values = np.asarray(row.get("values") or [], dtype=float)
     if norm is not None:
-        td3, m2td3 = norm["td3"], norm["m2td3"]
-        mean = float(normalized_score(mean, td3, m2td3))
-        std = None if std is None else normalized_std(std, td3, m2td3)
-        values = stats.normalise(values, td3, m2td3) if len(values) else values
+        zero, one = norm["zero"], norm["one"]
+        mean = float(normalized_score(mean, zero, one))
+        std = None if std is None else normalized_std(std, zero, one)
+        values = stats.normalise(values, zero, one) if len(values) else values
     described = stats.describe(values, rng) if len(values) else {}
     n = row.get("n_seeds") or len(values) or None
     return {
