@@ -61,8 +61,10 @@ RUN_FILES = (CHECKPOINT, POLICY, ADVERSARY, RUN_JSON, SCALARS)
 
 _SEAL = b"\nrrls-sha256:"
 _OPEN = Schema({}, open=True)
-#: ``run.json``: the policy's metadata (open: an algorithm may add its own), the configuration
-#: and hyper-parameters, the run's summary; the fields rrls reads are typed
+#: ``run.json``: the policy's metadata (open: an algorithm may add its own), the run's settings
+#: (``config``, its ``hyper`` every resolved hyper-parameter; files written before hold the
+#: resolved ones as ``hyperparameters`` beside it: ``migrate_run_json``), the run's summary;
+#: the fields rrls reads are typed
 RUN_SCHEMA = Schema(
     {
         "algorithm": string(required=True),
@@ -219,13 +221,25 @@ def write_checked_table(path: Path, frame: Any) -> Path:
 
 
 def read_run_json(run_dir: Path) -> dict[str, Any]:
-    """A finished training run's ``run.json``, checked against its schema: a damaged or
-    foreign file is a one-line ``DamagedFile`` naming it (``FileNotFoundError`` if absent)."""
+    """A finished training run's ``run.json``, checked against its schema, in today's form
+    (``migrate_run_json``): a damaged or foreign file is a one-line ``DamagedFile`` naming it
+    (``FileNotFoundError`` if absent)."""
     path = Path(run_dir) / RUN_JSON
     try:
-        return RUN_SCHEMA.check(read_checked_json(path), str(path))
+        return migrate_run_json(RUN_SCHEMA.check(read_checked_json(path), str(path)))
     except SchemaError as err:
         raise DamagedFile(f"{err} ({_ADVICE})") from None
+
+
+def migrate_run_json(data: dict[str, Any]) -> dict[str, Any]:
+    """``run.json`` in today's form: the run's settings once, under ``config``, its ``hyper``
+    every resolved hyper-parameter. A file written before (``config.hyper`` held only the
+    overrides, ``hyperparameters`` beside it the resolved ones) reads as the same run."""
+    if "hyperparameters" not in data:
+        return data
+    out = {k: v for k, v in data.items() if k != "hyperparameters"}
+    out["config"] = {**(data.get("config") or {}), "hyper": data["hyperparameters"]}
+    return out
 
 
 def finished_steps(run_dir: Path) -> int | None:
@@ -295,6 +309,7 @@ __all__ = [
     "DamagedFile",
     "ERROR",
     "finished_steps",
+    "migrate_run_json",
     "POLICY",
     "PROGRESS",
     "read_checked",

@@ -507,7 +507,7 @@ def test_nrmdp_adversary_lowers_the_shared_critics_value_more_than_a_random_one(
         run = _train_ip(tmp_path, "nrmdp", "1d", steps, seed, checkpoint_every=steps)
         state = _checkpoint(run)
         assert state["step"] == steps
-        config = nrmdp.Config(**json.loads((run / "run.json").read_text())["hyperparameters"])
+        config = nrmdp.Config(**json.loads((run / "run.json").read_text())["config"]["hyper"])
         env = nrmdp.make_env("invertedpendulum", None, config)
         learner = nrmdp.Learner(env, config, [RunSeeds(seed)], "cpu")
         learner.load_state_dict(stack_runs([state["learner"]]))
@@ -538,7 +538,7 @@ def test_rarl_trains_against_a_rate_limited_adversary_and_is_evaluated_in_that_g
     assert meta["rate_game"] == "tc" and meta["omniscient"] is True  # the authors' defaults
     assert meta["observe"] == "vanilla" and meta["obs_dim"] == 2 + 4 + 1  # [ψ01, s] and a
     assert MLPPolicy.load(out / "policy.npz").obs_dim == 4
-    assert json.loads((out / "run.json").read_text())["hyperparameters"]["rate_limit"] == 0.05
+    assert json.loads((out / "run.json").read_text())["config"]["hyper"]["rate_limit"] == 0.05
     result = evaluate_run_dynamic(out, episodes=1)
     assert "rate_limit=0.05, rate_game=tc" in result.env_id
     # the training game: each parameter moves at most 0.05 per step, in raw units

@@ -48,6 +48,7 @@ def smoke(tmp_path_factory) -> Path:
     return out
 
 
+@pytest.mark.e2e
 @needs_torch
 def test_an_exported_reference_says_where_it_came_from(smoke, tmp_path):
     from rrls.experiments.exported import export_reference
@@ -64,7 +65,8 @@ def test_an_exported_reference_says_where_it_came_from(smoke, tmp_path):
     hyper = prov["hyperparameters"]
     assert set(hyper) == {"td3", "dr", "rarl", "nrmdp", "m2td3"}
     run = json.loads(next((smoke / "runs").glob("m2td3-*/run.json")).read_text())
-    assert hyper["m2td3"] == run["hyperparameters"] and hyper["td3"]["hidden"] == [16, 16]
+    assert hyper["m2td3"] == run["config"]["hyper"] and hyper["td3"]["hidden"] == [16, 16]
+    assert "hyperparameters" not in run  # the run described once: its settings' hyper
     assert load_reference(tmp_path / "ref.json").notes.endswith(f"from {smoke.name}")
     # each row names the seed of each value, in JSON and CSV alike; a row whose seeds and
     # values disagree is refused
@@ -93,6 +95,7 @@ def test_an_exported_reference_says_where_it_came_from(smoke, tmp_path):
     assert prov["trained_otherwise"] == {"m2td3": {"learning_starts": 9}}
 
 
+@pytest.mark.e2e
 @needs_torch
 def test_the_report_lists_every_run_with_its_final_nominal_return(smoke):
     table = pd.read_csv(smoke / "report" / "tables" / "per_run.csv")
@@ -106,6 +109,7 @@ def test_the_report_lists_every_run_with_its_final_nominal_return(smoke):
     assert md.index("## Per run") < md.index("## Dynamic evaluation")
 
 
+@pytest.mark.e2e
 @needs_torch
 def test_smoke_benchmark_writes_store_and_report(smoke):
     runs = sorted(p.parent.name for p in smoke.glob("runs/*/result.json"))
@@ -147,6 +151,7 @@ def test_smoke_benchmark_writes_store_and_report(smoke):
     assert (smoke / "report" / "figures" / "curves_episode_return.png").stat().st_size > 5_000
 
 
+@pytest.mark.e2e
 @needs_torch
 def test_rerun_skips_finished_runs_and_gives_the_same_summary(smoke, capsys):
     before = (smoke / "report" / "summary.json").read_bytes()
@@ -164,6 +169,7 @@ def test_rerun_skips_finished_runs_and_gives_the_same_summary(smoke, capsys):
     assert (smoke / "report" / "summary.json").read_bytes() == before
 
 
+@pytest.mark.e2e
 @needs_torch
 def test_other_protocol_is_refused_naming_the_difference(smoke, capsys):
     assert main([*SMOKE, "--out", str(smoke), "--steps", "400", "--mesh", "3"]) == 2
@@ -171,6 +177,7 @@ def test_other_protocol_is_refused_naming_the_difference(smoke, capsys):
     assert len(err.splitlines()) == 1 and "steps" in err and "mesh" in err
 
 
+@pytest.mark.e2e
 @needs_torch
 def test_adding_seeds_extends_the_benchmark(smoke, tmp_path):
     stored = Spec.from_json(json.loads((smoke / "benchmark.json").read_text()))
@@ -446,6 +453,7 @@ def test_partial_report_names_the_missing_cells(tmp_path):
     assert "## Missing cells" in (tmp_path / "report" / "report.md").read_text()
 
 
+@pytest.mark.e2e
 def test_bootstrap_cis_are_reproducible_for_a_seed(tmp_path):
     _paper_store(tmp_path)
     first, second = summarise(tmp_path), summarise(tmp_path)
@@ -528,7 +536,7 @@ def test_a_paper_physics_benchmark_trains_evaluates_and_records_it(tmp_path, cap
     result = json.loads((run / "result.json").read_text())
     assert result["physics"] == "paper" and result["dynamic_env"].endswith("[paper]")
     assert "rate_limit=0.1, rate_game=tc, observe=oracle" in result["dynamic_env"]
-    hyper = json.loads((run / "run.json").read_text())["hyperparameters"]
+    hyper = json.loads((run / "run.json").read_text())["config"]["hyper"]
     assert (hyper["rate_limit"], hyper["rate_game"], hyper["observe"]) == (0.1, "tc", "oracle")
     assert "protagonist_view" in summary  # the static evaluation showed it [s, ψ01] too
     capsys.readouterr()
@@ -619,6 +627,7 @@ def test_a_dry_run_prints_the_plan_and_writes_nothing(tmp_path, capsys):
     assert "report/" in text and "dry run: nothing written" in text
 
 
+@pytest.mark.e2e
 @needs_torch
 def test_committed_runs_resume_a_benchmark_on_a_fresh_machine(smoke, tmp_path, capsys):
     """What a reference produced in pieces relies on: the small files `collect_runs.py` keeps
@@ -638,6 +647,7 @@ def test_committed_runs_resume_a_benchmark_on_a_fresh_machine(smoke, tmp_path, c
     assert (fresh / "report" / "report.md").exists()
 
 
+@pytest.mark.e2e
 @needs_torch
 def test_a_benchmark_whose_runs_all_failed_says_so_without_a_report(tmp_path, capsys):
     out = tmp_path / "bench"
@@ -655,6 +665,7 @@ def test_a_benchmark_whose_runs_all_failed_says_so_without_a_report(tmp_path, ca
     assert len(lines) == 1 and "no run has finished (2 failed" in lines[0], lines
 
 
+@pytest.mark.e2e
 @needs_torch
 @pytest.mark.parametrize("copied", e2e_after_first(["result.json", "eval/episodes"]))
 def test_a_file_copied_from_another_run_is_refused_by_name(tmp_path, capsys, copied):

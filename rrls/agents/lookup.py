@@ -23,6 +23,7 @@ __all__ = [
     "algorithm",
     "hyperparameters",
     "resolve_run",
+    "warm_up",
 ]
 
 #: what the training loop calls on a learner (``rrls.agents.learner``)
@@ -119,3 +120,11 @@ def hyperparameters(config: Any) -> Any:
             f"valid: {', '.join(sorted(valid))}"
         )
     return cls(**config.hyper)
+
+
+def warm_up(hyper: Any) -> int:
+    """The run's uniformly random steps before learning starts: its ``Config``'s
+    ``learning_starts`` (the built-ins' default is their row's, ``rrls.algorithms.warmup``); a
+    plug-in whose ``Config`` declares none gets none (it acts from its first step). The one rule
+    the CPU loop and the twin's both read."""
+    return int(getattr(hyper, "learning_starts", 0))

@@ -35,7 +35,7 @@ from rrls.agents.driver import Collector, Driver
 from rrls.agents.envs import env_factory, make_envs
 from rrls.agents.hparams import check_memory
 from rrls.agents.learner import stack_runs
-from rrls.agents.lookup import Algorithm, ResolvedRun, resolve_run
+from rrls.agents.lookup import Algorithm, ResolvedRun, resolve_run, warm_up
 from rrls.agents.run import Run, active_ctrl_c
 from rrls.agents.stepwise import StepCollector, uniform
 from rrls.agents.streams import RunSeeds
@@ -246,7 +246,7 @@ def _collect(
     """Build the group's learner (its state loaded on resume) and drive its collector."""
     first = runs[0].config
     seeds = [run.config.seed for run in runs]
-    learning_starts = int(getattr(hyper, "learning_starts", 0))
+    learning_starts = warm_up(hyper)
     # the learner's updates read these when made; a learner made elsewhere keeps the defaults
     compiled = compiles(first, learning_starts, runs[0].step)
     with graphs.settings(graphs=first.cuda_graphs, compile=compiled):

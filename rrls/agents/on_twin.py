@@ -24,10 +24,10 @@ import torch
 
 from rrls.agents.driver import Driver
 from rrls.agents.learner import DeviceLearnerProtocol
-from rrls.agents.lookup import algorithm
+from rrls.agents.lookup import algorithm, warm_up
 from rrls.agents.resident import BLOCK, BlockCollector, make_twin
 from rrls.agents.streams import RunSeeds
-from rrls.algorithms import algorithm_info, warmup
+from rrls.algorithms import algorithm_info
 from rrls.twin.tasks import not_on_twin
 
 
@@ -105,7 +105,7 @@ def train_on_twin(
             f"{algo}'s learner has no device-resident methods (draw_ahead, act_tensor, put, "
             "update_drawn; docs/algorithms.md): train it with rrls train --simulator warp"
         )
-    starts = int(getattr(config, "learning_starts", warmup(algo)))
+    starts = warm_up(config)
     returns: list[list[float]] = [[] for _ in seeds]
     collector = BlockCollector(twin, learner, list(seeds), starts, algo, dev, block)
     driver = Driver(

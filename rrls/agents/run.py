@@ -446,8 +446,9 @@ class Run:
             self.dir / rundir.RUN_JSON,
             {
                 **policies["policy"].metadata,
-                "config": jsonable(asdict(self.config)),
-                "hyperparameters": jsonable(asdict(self.hyper)),
+                # the run described once: its settings with the algorithm's resolved Config
+                # (every hyper-parameter, not only the overrides), as resume compares them
+                "config": jsonable({**asdict(self.config), "hyper": asdict(self.hyper)}),
                 **summary,
             },
         )

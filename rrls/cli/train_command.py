@@ -123,7 +123,7 @@ def _warm_up(run_dir: Any) -> int | None:
     from rrls.rundir import read_run_json
 
     try:
-        hyper = read_run_json(run_dir).get("hyperparameters") or {}
+        hyper = read_run_json(run_dir)["config"]["hyper"]
         return int(hyper["learning_starts"])
     except (OSError, ValueError, KeyError, TypeError):
         return None

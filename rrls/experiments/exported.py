@@ -131,10 +131,11 @@ def provenance(root: Path, spec: dict[str, Any], algos: list[str]) -> dict[str, 
     # leaves them to each algorithm's own table (its null batch size, learning rate, warm-up)
     hyper: dict[str, list[Any]] = {}
     for run in runs.values():
-        if run.get("hyperparameters"):
+        resolved = (run.get("config") or {}).get("hyper")
+        if resolved:
             seen = hyper.setdefault(run["algorithm"], [])
-            if run["hyperparameters"] not in seen:
-                seen.append(run["hyperparameters"])
+            if resolved not in seen:
+                seen.append(resolved)
     out = {
         "preset": spec.get("preset"),
         "physics": spec.get("physics"),
