@@ -134,6 +134,7 @@ def test_rehearsal_reads_static_inputs_as_a_replayed_graph_would():
     assert not Update(fn, "cpu").static  # the default on a CPU: inputs go straight in
 
 
+@pytest.mark.e2e
 @pytest.mark.parametrize("algo", e2e_after_first(["td3", "sac", "m2td3", "nrmdp"]))
 def test_the_rehearsed_cuda_graph_path_trains_and_resumes_as_eager(tmp_path, algo):
     eager = train(_config(tmp_path, algo, "eager", compile=False))

@@ -25,6 +25,9 @@ from rrls.experiments.spec import RunKey, make_spec
 from rrls.experiments.store import build_store, write_result
 from rrls.rundir import SCALARS, write_checked_table
 
+#: the long end-to-end tier (.ci/run runs it after the default suite)
+pytestmark = pytest.mark.e2e
+
 pytest.importorskip("scipy")
 pytest.importorskip("matplotlib")
 

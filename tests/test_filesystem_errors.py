@@ -81,6 +81,7 @@ def test_benchmark_into_a_read_only_directory(readonly, capsys):
     assert "read-only" in one_line(capsys)
 
 
+@pytest.mark.e2e
 def test_train_on_a_full_disk(tiny, capsys):
     pytest.importorskip("torch")
     code = main([*TRAIN, "--steps", "2000", "--checkpoint-every", "500", "--out", str(tiny / "r")])
@@ -97,6 +98,7 @@ def test_evaluate_on_a_full_disk(tiny, policy, capsys):
     assert code == 2 and "disk is full" in one_line(capsys)
 
 
+@pytest.mark.e2e
 def test_a_report_of_a_read_only_benchmark(tmp_path, readonly, capsys):
     pytest.importorskip("torch")
     bench = tmp_path / "bench"
@@ -167,6 +169,7 @@ COMMANDS = {
 }  # fmt: skip
 
 
+@pytest.mark.e2e
 @pytest.mark.parametrize("command", sorted(COMMANDS))
 @pytest.mark.parametrize("where", ["read-only", "full"])
 def test_every_command_on_a_read_only_or_full_file_system(

@@ -17,6 +17,9 @@ from pathlib import Path
 
 import pytest
 
+#: the long end-to-end tier (.ci/run runs it after the default suite)
+pytestmark = pytest.mark.e2e
+
 ROOT = Path(__file__).resolve().parents[1]
 PY = sys.executable
 

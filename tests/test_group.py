@@ -27,6 +27,9 @@ from rrls.agents import Interrupted, TrainConfig, train  # noqa: E402
 from rrls.agents.loop import train_group  # noqa: E402
 from rrls.agents.streams import RunSeeds  # noqa: E402
 
+#: the long end-to-end tier (.ci/run runs it after the default suite)
+pytestmark = pytest.mark.e2e
+
 ALGOS = ["td3", "dr", "rarl", "nrmdp", "m2td3", "sac", "sacdr"]
 TOL = 1e-5  # |alone - in a group| per parameter, after each update (measured: 0.0)
 # ... and after a whole 400-step run of 12-12 networks. Measured on AMD EPYC (AVX2): SAC-DR

@@ -19,6 +19,9 @@ torch = pytest.importorskip("torch")
 from rrls.agents.run import INTERRUPTED_KEY, Run, read_checkpoint  # noqa: E402
 from rrls.cli import main  # noqa: E402
 
+#: the long end-to-end tier (.ci/run runs it after the default suite)
+pytestmark = pytest.mark.e2e
+
 ROOT = Path(__file__).resolve().parent.parent
 TRAIN = ["train", "--algo", "td3", "--task", "invertedpendulum", "--steps", "400"]
 TRAIN += ["--hidden", "16", "16", "--batch-size", "32", "--learning-starts", "100"]

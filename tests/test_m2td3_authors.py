@@ -14,6 +14,9 @@ from rrls.agents.streams import RunSeeds  # noqa: E402
 from rrls.cli import main  # noqa: E402
 from rrls.rundir import CHECKPOINT  # noqa: E402
 
+#: the long end-to-end tier (.ci/run runs it after the default suite)
+pytestmark = pytest.mark.e2e
+
 AUTHORS = ["--no-clip-exploration", "--same-start"]
 
 

@@ -17,6 +17,9 @@ torch = pytest.importorskip("torch")
 
 from rrls.cli import main  # noqa: E402
 
+#: the long end-to-end tier (.ci/run runs it after the default suite)
+pytestmark = pytest.mark.e2e
+
 EXAMPLES = Path(__file__).resolve().parents[1] / "docs" / "examples"
 SMALL = ["--hidden", "16", "16", "--batch-size", "32", "--learning-starts", "100"]
 

@@ -7,10 +7,12 @@ import pickle
 from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
+import pytest
 
 from rrls.evaluation.policies import MLPPolicy
 
 
+@pytest.mark.e2e
 def test_concurrent_calls_give_the_lone_calls_bits():
     policy = MLPPolicy.random(11, 3, hidden=(256, 256), seed=0)
     rng = np.random.default_rng(1)

@@ -17,6 +17,9 @@ pytest.importorskip("scipy")
 from rrls import rundir  # noqa: E402
 from rrls.cli import main  # noqa: E402
 
+#: the long end-to-end tier (.ci/run runs it after the default suite)
+pytestmark = pytest.mark.e2e
+
 SMALL = ["--hidden", "8", "8", "--batch-size", "16", "--learning-starts", "50"]
 
 

@@ -25,6 +25,9 @@ from rrls._progress import (
     terminal_shape,
 )
 
+#: the long end-to-end tier (.ci/run runs it after the default suite)
+pytestmark = pytest.mark.e2e
+
 ROOT = Path(__file__).resolve().parent.parent
 POLICY = "import numpy as np\n\ndef zeros(obs):\n    return np.zeros((len(obs), 1))\n"
 EVALUATE = ["evaluate", "pol:zeros", "--task", "invertedpendulum", "--uncertainty", "1d"]

@@ -44,6 +44,7 @@ def test_calling_the_module_rrls_evaluate_warns_and_evaluates():
     assert rrls.evaluate.evaluate is function
 
 
+@pytest.mark.e2e
 def test_the_evaluation_function_in_a_fresh_interpreter_warns_nothing():
     code = (
         "import numpy as np, rrls, rrls.evaluation\n"

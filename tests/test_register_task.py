@@ -279,6 +279,7 @@ def test_entry_point_task_is_found_by_name(plugin):
     assert rrls.tasks.get_task("plugintask").name == "PluginTask"  # loads the entry points
 
 
+@pytest.mark.e2e
 @needs_torch
 def test_benchmark_on_an_entry_point_task(plugin, tmp_path, capsys):
     out = tmp_path / "bench"

@@ -235,6 +235,7 @@ def test_the_palette_never_repeats_for_ten_or_more_algorithms():
     assert "#1f77b4" not in picked.values()  # not matplotlib's tab10
 
 
+@pytest.mark.e2e
 def test_figures_are_bounded_by_the_set_and_written_as_pdf_too(tmp_path):
     pytest.importorskip("matplotlib")
     from rrls.experiments.plots import set_bounds

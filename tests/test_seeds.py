@@ -55,6 +55,7 @@ def _assert_same_policy(a: Path, b: Path) -> None:
         np.testing.assert_allclose(wa[name], wb[name], rtol=0, atol=1e-5, err_msg=name)
 
 
+@pytest.mark.e2e
 def test_seeds_train_together_with_the_numbers_of_each_seed_alone(tmp_path, capsys):
     assert main([*TINY, "--seeds", "0-1"]) == 0
     out = capsys.readouterr().out
@@ -99,6 +100,7 @@ def _results(root: Path) -> dict[str, dict]:
     return out
 
 
+@pytest.mark.e2e
 def test_packed_benchmark_gives_the_numbers_of_unpacked_runs(tmp_path):
     from rrls.experiments.pipeline import execute_group
     from rrls.experiments.runner import benchmark

@@ -64,6 +64,7 @@ def test_a_module_attribute_policy_imports_from_the_current_directory(tmp_path):
     assert (tmp_path / "out" / "summary.json").is_file()
 
 
+@pytest.mark.e2e
 def test_rrls_commands_drop_the_shipped_xmls_deprecation_but_user_code_sees_it(tmp_path):
     import os
     import subprocess

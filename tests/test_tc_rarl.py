@@ -54,6 +54,7 @@ def test_rarl_trains_the_stacked_and_oracle_protagonists(tmp_path, observe):
     assert f"observe={observe}" in evaluate_run_dynamic(tmp_path / observe, episodes=1).env_id
 
 
+@pytest.mark.e2e
 def test_a_killed_and_resumed_tc_run_ends_bit_identical(tmp_path):
     # the episode in progress is replayed: uniform start, moves and the stacked history
     extra = ["--uncertainty", "2d", "--rate-limit", "0.01", "--observe", "stacked"]

@@ -42,6 +42,7 @@ def _cli(out, algo, steps=200, *extra):
 
 
 # -- options come from the dataclasses ------------------------------------------------------------
+@pytest.mark.e2e
 def test_every_algorithm_option_reaches_its_learner(tmp_path, capsys):
     assert (
         _cli(tmp_path / "pr", "nrmdp", 200, "--mode", "pr", "--alpha", "0.3", "--ratio", "3") == 0
@@ -98,6 +99,7 @@ def test_bad_train_options_get_one_line_and_exit_2(tmp_path, capsys, option, val
 
 
 # -- run directories ---------------------------------------------------------------------------
+@pytest.mark.e2e
 def test_finished_runs_bad_checkpoints_and_killed_writes(tmp_path, capsys):
     out = tmp_path / "run"
     assert _cli(out, "td3", 200) == 0
@@ -288,6 +290,7 @@ def test_the_update_schedule_gives_the_adversary_one_policy_step_in_ratio_plus_o
 
 
 # -- adversaries saved, and played against (paper Table 6) ------------------------------------
+@pytest.mark.e2e
 def test_adversary_is_saved_and_evaluate_dynamic_plays_against_it(tmp_path, capsys):
     from rrls.evaluation import MLPPolicy, evaluate_dynamic, evaluate_run_dynamic
 

@@ -10,6 +10,9 @@ from pathlib import Path
 
 import pytest
 
+#: the long end-to-end tier (.ci/run runs it after the default suite)
+pytestmark = pytest.mark.e2e
+
 REPO = Path(__file__).resolve().parents[1]
 TUTORIALS = REPO / "docs" / "tutorials"
 

@@ -10,6 +10,8 @@ import pytest
 pytest.importorskip("warp")
 pytest.importorskip("mujoco_warp")
 
+from conftest import e2e_after_first
+
 from rrls.envs import resolve
 from rrls.twin import DIVERGES, REFUSED, TWIN_TASKS, WarpTwin
 from rrls.twin.check import TWIN_KINDS, divergence, kind_set
@@ -24,7 +26,7 @@ def twin(task: str, n: int = 4, **kwargs):
     return WarpTwin(task, n, device="cpu", **kwargs)
 
 
-@pytest.mark.parametrize("task", [t for t in TWIN_TASKS if t not in DIVERGES])
+@pytest.mark.parametrize("task", e2e_after_first([t for t in TWIN_TASKS if t not in DIVERGES]))
 def test_each_world_follows_cpu_mujoco_at_its_own_point(task):
     d = divergence(task, default_set(task), worlds=4, steps=10)
     assert d.qpos[0] < QPOS_1, d.qpos
@@ -33,6 +35,7 @@ def test_each_world_follows_cpu_mujoco_at_its_own_point(task):
     assert d.termination_mismatches == 0
 
 
+@pytest.mark.e2e
 def test_the_ant_agrees_until_its_feet_land_and_parts_after_as_documented():
     d = divergence("ant", "3d", worlds=4, steps=10)
     assert d.qpos[:2].max() < QPOS_1, d.qpos  # in the air
@@ -40,7 +43,7 @@ def test_the_ant_agrees_until_its_feet_land_and_parts_after_as_documented():
     assert "contact" in DIVERGES["ant"]
 
 
-@pytest.mark.parametrize("kind", TWIN_KINDS)
+@pytest.mark.parametrize("kind", e2e_after_first(list(TWIN_KINDS)))
 def test_every_parameter_kind_reaches_its_world(kind):
     d = divergence("hopper", kind_set("hopper", kind), worlds=4, steps=10)
     assert d.qpos[0] < QPOS_1 and np.nanmax(d.qpos) < QPOS_10, d.qpos

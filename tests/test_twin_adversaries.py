@@ -17,6 +17,9 @@ from conftest import HostReads
 from rrls.agents import nrmdp, rarl
 from rrls.agents.streams import RunSeeds
 
+#: the long end-to-end tier (.ci/run runs it after the default suite)
+pytestmark = pytest.mark.e2e
+
 SMALL = {"learning_starts": 20, "batch_size": 16, "hidden": (16, 16), "policy_frequency": 1}
 SEEDS = [RunSeeds(0), RunSeeds(1)]
 CPU = torch.device("cpu")

@@ -17,6 +17,9 @@ from conftest import HostReads
 from rrls.agents.graphs import settings
 from rrls.agents.on_twin import train_on_twin
 
+#: the long end-to-end tier (.ci/run runs it after the default suite)
+pytestmark = pytest.mark.e2e
+
 STEPS, STARTS = 60, 20
 HYPER = {"learning_starts": STARTS, "batch_size": 16, "hidden": (16, 16)}
 
