@@ -24,7 +24,7 @@ Its rows, most wanted first (so a deadline cuts the least wanted):
 2. ``loop``: the device-resident training loop (``rrls train --simulator warp``, TD3) on Hopper
    at K = 1, 32, 128, 256 runs in one process;
 3. ``baseline``: the paper's five baselines at K = 10 on Hopper, then on HalfCheetah; those the
-   twin refuses when it runs (``rrls.twin.tasks.not_on_twin``: an adversary not wired to the
+   twin refuses when it runs (``rrls.twin.catalog.not_on_twin``: an adversary not wired to the
    twin) give a ``refused: <reason>`` row, in the twin's own words, without a process;
 4. ``loop`` on HalfCheetah at K = 1, 32, 128, 256;
 5. ``estimate``: the paper's protocol (``--preset paper``, 10 seeds packed K = 10 per process)
@@ -218,7 +218,7 @@ def plan(args: argparse.Namespace, tmp: Path) -> list[Step]:
     """The steps, most wanted first: the TD3 sweep on the first task, the baselines on each
     task, then the sweep on the other tasks."""
     from rrls.algorithms import paper_five
-    from rrls.twin.tasks import not_on_twin
+    from rrls.twin.catalog import not_on_twin
 
     ks, pack, tasks = args.ks, args.pack, args.tasks
     algos = paper_five()
@@ -248,7 +248,7 @@ def plan(args: argparse.Namespace, tmp: Path) -> list[Step]:
 def measured_rate(rows: list[dict[str, Any]]) -> tuple[Callable[..., Any], dict[str, str]]:
     """``gpu_estimate``'s rate from the rows, and where each cell's figure came from."""
     from rrls.experiments.gpu_estimate import stored_rate
-    from rrls.twin.tasks import TWIN_TASKS, not_on_twin
+    from rrls.twin.catalog import TWIN_TASKS, not_on_twin
 
     ok = {
         (r["algo"], r["task"], r["k"]): r["env_steps_per_s"]

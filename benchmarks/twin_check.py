@@ -4,7 +4,7 @@
     python3 benchmarks/twin_check.py OUT --device cuda             # on a GPU
 
 Table (``check.csv``): for every twin task and every parameter kind it has, 4 worlds at 4 points
-of a box around the nominal value of that kind's parameters (``rrls.twin.check.kind_set``),
+of a box around the nominal value of that kind's parameters (``rrls.twin.agreement.kind_set``),
 random actions; the largest ``|qpos - qpos_cpu|`` after 1 and 10 env steps, ``|qvel - ...|``
 after 10, the largest reward difference over the 10 steps and the worlds whose termination
 differed.
@@ -26,7 +26,7 @@ from pathlib import Path
 import numpy as np
 
 from rrls.twin import TWIN_TASKS
-from rrls.twin.check import TWIN_KINDS, divergence, kind_set
+from rrls.twin.agreement import TWIN_KINDS, divergence, kind_set
 from rrls.twin.env import default_set
 
 HORIZON = 1000

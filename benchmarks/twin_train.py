@@ -28,7 +28,7 @@ import numpy as np
 from rrls.agents.on_twin import train_on_twin
 from rrls.envs import resolve
 from rrls.twin import WarpTwin
-from rrls.twin.check import cpu_env_at
+from rrls.twin.agreement import cpu_env_at
 from rrls.twin.env import default_set
 
 STARTS = 1000

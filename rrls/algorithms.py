@@ -74,7 +74,7 @@ class AlgorithmInfo:
     paper: bool = False  # one of the paper's five baselines (its default grid)
     adversary: bool = False  # trains an adversary: the benchmark's dynamic evaluation plays it
     set_use: str = "nominal"  # how a run meets the uncertainty set (SET_USES)
-    #: the benchmark options (``Spec`` fields) its ``Config`` takes beyond the shared ones, as
+    #: the benchmark options (``Benchmark`` fields) its ``Config`` takes beyond the shared ones, as
     #: ``Config`` keywords: ``options(spec) -> {field: value}``
     options: Callable[[Any], dict[str, Any]] | None = None
     cpu_steps_per_s: float = TD3_CPU  # see TD3_CPU

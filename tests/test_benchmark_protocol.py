@@ -18,7 +18,7 @@ from rrls.cli import main
 from rrls.evaluation import Protocol, evaldir
 from rrls.experiments import benchfile, store
 from rrls.experiments.reference import check_compatible, load_reference
-from rrls.experiments.spec import PRESETS, Spec, SpecError, make_spec
+from rrls.experiments.spec import PRESETS, Benchmark, SpecError, make_spec
 from rrls.physics import physics_label
 from rrls.wrappers import ScheduleFamily
 
@@ -102,15 +102,15 @@ def test_a_flat_benchmark_json_reads_into_a_protocol_and_back(folder, tmp_path):
 
 def test_every_earlier_format_reads_as_the_benchmark_it_was():
     flat = make_spec("smoke").flat_json()
-    spec = Spec.from_json(flat)
+    spec = Benchmark.from_json(flat)
     assert spec == make_spec("smoke")
     # before endpoint, simulator, recheck, rate_game and today's physics labels existed
     oldest = {k: v for k, v in flat.items() if k not in ("endpoint", "simulator", "rate_game")}
-    assert Spec.from_json({**oldest, "physics": "rrls-v5"}) == spec
-    before_tc = Spec.from_json({**oldest, "algos": ["rarl"], "rate_limit": 0.1})
+    assert Benchmark.from_json({**oldest, "physics": "rrls-v5"}) == spec
+    before_tc = Benchmark.from_json({**oldest, "algos": ["rarl"], "rate_limit": 0.1})
     assert before_tc.protocol.rate_game == "target"  # rrls's earlier game, as it was played
-    assert Spec.from_json({**flat, "split": ""}).protocol.split is None
-    rechecked = Spec.from_json({**flat, "recheck": {"worst": 3, "episodes": 4}})
+    assert Benchmark.from_json({**flat, "split": ""}).protocol.split is None
+    rechecked = Benchmark.from_json({**flat, "recheck": {"worst": 3, "episodes": 4}})
     assert (rechecked.recheck.worst, rechecked.recheck.episodes) == (3, 4)
 
 
@@ -125,16 +125,16 @@ def test_the_shipped_references_compare_with_the_migrated_benchmarks():
 
 def test_a_spec_holds_a_protocol_and_takes_its_fields_flat():
     proto = Protocol("1d", mesh=3, episodes=2, seed=7, max_episode_steps=40)
-    spec = Spec(protocol=proto, algos=("td3",), tasks=("invertedpendulum",))
+    spec = Benchmark(protocol=proto, algos=("td3",), tasks=("invertedpendulum",))
     assert spec.protocol is proto and spec.eval_seed == 7 and spec.uncertainty == "1d"
-    assert Spec(protocol=proto, mesh=5).protocol == proto.replace(mesh=5)
+    assert Benchmark(protocol=proto, mesh=5).protocol == proto.replace(mesh=5)
     assert replace(spec, eval_seed=4).protocol == proto.replace(seed=4)
-    assert Spec(protocol=proto.to_json()) == Spec(protocol=proto)
-    assert Spec(**PRESETS["smoke"]).protocol.mesh == 2
+    assert Benchmark(protocol=proto.to_json()) == Benchmark(protocol=proto)
+    assert Benchmark(**PRESETS["smoke"]).protocol.mesh == 2
     with pytest.raises(SpecError, match="mesh must be an integer"):
-        Spec(mesh=0)
+        Benchmark(mesh=0)
     with pytest.raises(TypeError, match="unknown field"):
-        Spec(seed=3)  # the protocol's seed is eval_seed here, beside the training seeds
+        Benchmark(seed=3)  # the protocol's seed is eval_seed here, beside the training seeds
     with pytest.raises(AttributeError):
         spec.mesh = 4  # type: ignore[misc]
 

@@ -31,7 +31,7 @@ from rrls.experiments.cpu_estimate import (
 )
 from rrls.experiments.report import make_report, paper_results, summarise
 from rrls.experiments.runner import Display, plan
-from rrls.experiments.spec import Spec, SpecError, make_spec
+from rrls.experiments.spec import Benchmark, SpecError, make_spec
 
 needs_torch = pytest.mark.skipif(
     importlib.util.find_spec("torch") is None, reason="training needs torch (rrls[train])"
@@ -180,7 +180,7 @@ def test_other_protocol_is_refused_naming_the_difference(smoke, capsys):
 @pytest.mark.e2e
 @needs_torch
 def test_adding_seeds_extends_the_benchmark(smoke, tmp_path):
-    stored = Spec.from_json(json.loads((smoke / "benchmark.json").read_text()))
+    stored = Benchmark.from_json(json.loads((smoke / "benchmark.json").read_text()))
     grown = reconcile(smoke, make_spec("smoke", algos="td3,dr", seeds=3))
     assert grown.seeds == (0, 1, 2) and grown.algos == stored.algos
     with pytest.raises(SpecError, match="episodes"):
@@ -561,8 +561,8 @@ def test_benchmark_rate_limit_is_rarls_alone_and_checked():
         make_spec("smoke", observe="stacked")
     old = make_spec("smoke", rate_limit=0.05).flat_json()  # benchmark.json as it was then
     del old["rate_game"], old["observe"]
-    assert Spec.from_json(old).rate_game == "target"
-    assert Spec.from_json({**old, "rate_limit": None}).rate_game == "tc"
+    assert Benchmark.from_json(old).rate_game == "target"
+    assert Benchmark.from_json({**old, "rate_limit": None}).rate_game == "tc"
 
 
 @pytest.mark.e2e

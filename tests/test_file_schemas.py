@@ -24,7 +24,7 @@ from rrls.experiments.reference import (
     ReferenceError,
     load_reference,
 )
-from rrls.experiments.spec import PRESETS, Spec, SpecError
+from rrls.experiments.spec import PRESETS, Benchmark, SpecError
 from rrls.schema import Field, Schema, SchemaError, TableSchema, integer, number, string
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -108,15 +108,15 @@ def test_table_headers_are_checked():
 
 # --- benchmark.json -------------------------------------------------------------------------
 def test_the_spec_schema_declares_every_spec_field():
-    assert set(benchfile.SPEC_SCHEMA.fields) == {f.name for f in fields(Spec)}
+    assert set(benchfile.SPEC_SCHEMA.fields) == {f.name for f in fields(Benchmark)}
     for name, preset in PRESETS.items():  # every preset writes a file that reads back
-        spec = Spec(**{**preset, "preset": name})
+        spec = Benchmark(**{**preset, "preset": name})
         benchfile.SPEC_SCHEMA.check(spec.to_json(), name)
 
 
 @pytest.mark.parametrize(("field", "bad"), cases(benchfile.SPEC_SCHEMA))
 def test_a_hostile_benchmark_json_is_refused_by_field(tmp_path, field, bad):
-    data = Spec(**PRESETS["smoke"]).to_json()
+    data = Benchmark(**PRESETS["smoke"]).to_json()
     data[field] = bad
     rundir.write_checked_json(benchfile.spec_path(tmp_path), data)
     with pytest.raises(SpecError) as err:
@@ -133,13 +133,15 @@ def test_the_flat_schema_declares_every_field_an_earlier_file_held():
         == set(benchfile.SPEC_SCHEMA.fields) - {"protocol"} | earlier
     )
     for name, preset in PRESETS.items():  # every preset, written as then, reads back
-        spec = Spec(**{**preset, "preset": name})
-        assert Spec.from_json(benchfile.FLAT_SCHEMA.check(spec.flat_json(), name)) == spec
+        spec = Benchmark(**{**preset, "preset": name})
+        assert Benchmark.from_json(benchfile.FLAT_SCHEMA.check(spec.flat_json(), name)) == spec
 
 
 @pytest.mark.parametrize(("field", "bad"), cases(benchfile.FLAT_SCHEMA))
 def test_a_hostile_flat_benchmark_json_is_refused_by_field(tmp_path, field, bad):
-    data = Spec(**PRESETS["smoke"]).flat_json()  # as benchmark.json held it before the protocol
+    data = Benchmark(
+        **PRESETS["smoke"]
+    ).flat_json()  # as benchmark.json held it before the protocol
     data[field] = bad
     rundir.write_checked_json(benchfile.spec_path(tmp_path), data)
     with pytest.raises(SpecError) as err:
@@ -148,7 +150,7 @@ def test_a_hostile_flat_benchmark_json_is_refused_by_field(tmp_path, field, bad)
 
 
 def test_a_benchmark_json_with_an_unknown_field_is_refused(tmp_path):
-    data = {**Spec(**PRESETS["smoke"]).to_json(), "physic": "v5"}
+    data = {**Benchmark(**PRESETS["smoke"]).to_json(), "physic": "v5"}
     rundir.write_checked_json(benchfile.spec_path(tmp_path), data)
     with pytest.raises(SpecError, match="unknown field 'physic'"):
         benchfile.read_spec(tmp_path)
@@ -254,9 +256,9 @@ def test_a_csv_reference_reads_as_its_json_and_is_checked_the_same(tmp_path):
 
 # --- runs bound to their benchmark's protocol ----------------------------------------------
 def test_a_protocol_fingerprint_names_its_fields():
-    spec = Spec(**PRESETS["smoke"])
+    spec = Benchmark(**PRESETS["smoke"])
     a = spec.fingerprints()
-    assert a == Spec.from_json(json.loads(json.dumps(spec.to_json()))).fingerprints()
+    assert a == Benchmark.from_json(json.loads(json.dumps(spec.to_json()))).fingerprints()
     assert set(a) == {"protocol", "benchmark"} and all(len(v) == 16 for v in a.values())
     # the grid and the labels may change within one benchmark; the protocol may not
     from dataclasses import replace
@@ -268,7 +270,7 @@ def test_a_protocol_fingerprint_names_its_fields():
 
 
 def _benchmark_with_one_run(root: Path, result: dict[str, Any]) -> Path:
-    spec = Spec(
+    spec = Benchmark(
         **{**PRESETS["smoke"], "algos": ("td3",), "tasks": ("hopper",), "uncertainty": "3d"}
     )
     benchfile.write_spec(root, spec)
@@ -294,7 +296,7 @@ def test_a_result_from_another_protocol_is_refused_by_the_store_and_the_report(t
     import subprocess
     import sys
 
-    spec = Spec(
+    spec = Benchmark(
         **{**PRESETS["smoke"], "algos": ("td3",), "tasks": ("hopper",), "uncertainty": "3d"}
     )
     own = spec.fingerprints()

@@ -157,7 +157,7 @@ def test_the_estimate_marks_measured_extrapolated_and_stored_cells():
 def test_the_dry_run_measures_refuses_and_estimates_on_a_cpu(tmp_path):
     pytest.importorskip("torch")
     from rrls.algorithms import paper_five
-    from rrls.twin.tasks import not_on_twin
+    from rrls.twin.catalog import not_on_twin
 
     runbook = _runbook()
     out = tmp_path / "out"
@@ -184,10 +184,10 @@ def test_the_dry_run_measures_refuses_and_estimates_on_a_cpu(tmp_path):
 def test_the_plan_puts_the_most_wanted_rows_first_and_refuses_without_a_process(monkeypatch):
     import argparse
 
-    import rrls.twin.tasks
+    import rrls.twin.catalog
 
     runbook = _runbook()
-    monkeypatch.setattr(rrls.twin.tasks, "not_on_twin", lambda a: "no" if a == "nrmdp" else None)
+    monkeypatch.setattr(rrls.twin.catalog, "not_on_twin", lambda a: "no" if a == "nrmdp" else None)
     args = argparse.Namespace(ks=runbook.KS, pack=10, tasks=runbook.TASKS, algos=None)
     args.__dict__.update(steps=2000, starts=500, window_after=1000, device="cuda", simulator="warp")
     steps = runbook.plan(args, Path("/tmp/x"))

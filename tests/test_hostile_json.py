@@ -20,7 +20,7 @@ from rrls.cli import main
 from rrls.evaluation import EvaluationResult, MLPPolicy
 from rrls.experiments import benchfile, store
 from rrls.experiments.reference import ReferenceError, load_reference
-from rrls.experiments.spec import PRESETS, Spec
+from rrls.experiments.spec import PRESETS, Benchmark
 from rrls.schema import (
     MAX_JSON_BYTES,
     MAX_JSON_DEPTH,
@@ -188,8 +188,8 @@ def test_a_deep_budget_in_the_store_is_refused():
 # --- each command that reads one -------------------------------------------------------------
 def _benchmark(root: Path) -> Path:
     """A benchmark of one TD3 run on hopper, written as rrls writes it (no training)."""
-    spec = Spec(**{**PRESETS["smoke"], "algos": ("td3",), "tasks": ("hopper",)})
-    spec = Spec(**{**spec.to_json(), "uncertainty": "3d"})
+    spec = Benchmark(**{**PRESETS["smoke"], "algos": ("td3",), "tasks": ("hopper",)})
+    spec = Benchmark(**{**spec.to_json(), "uncertainty": "3d"})
     benchfile.write_spec(root, spec)
     run = root / "runs" / "td3-hopper-3d-seed0"
     (run / "eval").mkdir(parents=True)

@@ -103,6 +103,7 @@ def test_legacy_names_work_and_warn(module: str, name: str, new: str | None):
     [
         ("rrls.params", "ParamSpec", "Parameter"),
         ("rrls.evaluation.lanes", "RolloutSpec", "Rollouts"),
+        ("rrls.experiments.spec", "Spec", "Benchmark"),
     ],
 )
 def test_renamed_classes_keep_their_old_names_with_a_warning(module: str, old: str, new: str):
@@ -215,3 +216,19 @@ def test_mesh_keyword_and_its_deprecated_alias():
     assert len(generate(RobustHopper, bounds, 3)) == 3  # the original positional call: silent
     with pytest.warns(DeprecationWarning):
         assert len(generate(RobustHopper, bounds, nb_mesh_dim=3)) == 3
+
+
+@pytest.mark.parametrize(
+    ("old", "new", "name"),
+    [
+        ("rrls.twin.tasks", "rrls.twin.catalog", "TWIN_TASKS"),
+        ("rrls.twin.check", "rrls.twin.agreement", "divergence"),
+    ],
+)
+def test_the_twins_renamed_modules_import_under_their_old_names_with_a_warning(old, new, name):
+    import sys
+
+    sys.modules.pop(old, None)
+    with pytest.warns(DeprecationWarning, match=f"{old} is deprecated; use {new}"):
+        module = importlib.import_module(old)
+    assert getattr(module, name) is getattr(importlib.import_module(new), name)

@@ -28,11 +28,11 @@ SCRIPT = textwrap.dedent(
     from rrls.evaluation import MLPPolicy, evaluate
     from rrls.experiments import benchfile, store
     from rrls.experiments.reference import load_reference
-    from rrls.experiments.spec import PRESETS, Spec, validate
+    from rrls.experiments.spec import PRESETS, Benchmark, validate
 
     env = gym.make("rrls/robust-hopper-v0")
     env.reset(seed=0)
-    validate(Spec(**{**PRESETS["smoke"], "split": "extrapolation:0.5"}))
+    validate(Benchmark(**{**PRESETS["smoke"], "split": "extrapolation:0.5"}))
     spec = benchfile.read_spec(sys.argv[1] + "/docs/results/hopper")
     assert spec.fingerprints()["protocol"]
     load_reference("hopper")

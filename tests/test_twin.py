@@ -14,7 +14,7 @@ from conftest import e2e_after_first
 
 from rrls.envs import resolve
 from rrls.twin import DIVERGES, REFUSED, TWIN_TASKS, WarpTwin
-from rrls.twin.check import TWIN_KINDS, divergence, kind_set
+from rrls.twin.agreement import TWIN_KINDS, divergence, kind_set
 from rrls.twin.env import default_set
 
 pytestmark = pytest.mark.warp

@@ -234,7 +234,7 @@ def test_dr_draws_a_point_of_the_box_per_episode_and_world_on_the_device():
     written on the device; each world follows a CPU env at its point within the tolerances."""
     from rrls.envs import resolve
     from rrls.twin import WarpTwin
-    from rrls.twin.check import cpu_env_at
+    from rrls.twin.agreement import cpu_env_at
 
     resolved = resolve("hopper", "3d")
     box = resolved.box

@@ -13,7 +13,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from rrls.twin.tasks import check_twin
+from rrls.twin.catalog import check_twin
 
 TRAIN = ["train", "--task", "hopper", "--simulator", "warp", "--device", "cpu"]
 TRAIN += ["--learning-starts", "30", "--checkpoint-every", "30", "--eval-every", "30"]
@@ -40,9 +40,9 @@ def test_what_the_twin_cannot_train_is_refused_saying_why():
 def test_a_benchmark_on_the_twin_is_another_protocol_and_a_cpu_one_is_unchanged():
     from dataclasses import replace
 
-    from rrls.experiments.spec import PRESETS, Spec
+    from rrls.experiments.spec import PRESETS, Benchmark
 
-    cpu = Spec(**PRESETS["smoke"])
+    cpu = Benchmark(**PRESETS["smoke"])
     assert "simulator" not in cpu.binding_fields()  # benchmark.json files written before: the same
     twin = replace(cpu, simulator="warp")
     assert twin.binding_fields()["simulator"] == "warp"
@@ -57,9 +57,9 @@ def test_the_paper_preset_on_the_twin_trains_humanoidstandup_on_cpu_mujoco():
     from dataclasses import replace
 
     from rrls.experiments.runner import plan
-    from rrls.experiments.spec import PRESETS, Spec, SpecError, validate
+    from rrls.experiments.spec import PRESETS, Benchmark, SpecError, validate
 
-    spec = replace(Spec(**PRESETS["paper"]), simulator="warp")
+    spec = replace(Benchmark(**PRESETS["paper"]), simulator="warp")
     assert {t: spec.simulator_for(t) for t in spec.tasks} == {
         "ant": "warp",
         "halfcheetah": "warp",
@@ -67,7 +67,7 @@ def test_the_paper_preset_on_the_twin_trains_humanoidstandup_on_cpu_mujoco():
         "humanoidstandup": "mujoco",
         "walker": "warp",
     }
-    assert Spec(**PRESETS["paper"]).simulator_for("hopper") == "mujoco"
+    assert Benchmark(**PRESETS["paper"]).simulator_for("hopper") == "mujoco"
     if importlib.util.find_spec("warp") and importlib.util.find_spec("mujoco_warp"):
         validate(spec)
         with pytest.raises(SpecError, match="PGS"):

@@ -12,7 +12,7 @@ from rrls.algorithms import ENTRY_POINTS, built_in
 from rrls.envs import training_split
 from rrls.physics import SIMULATORS, is_paper, physics_label
 from rrls.tasks import benchmark_set
-from rrls.twin.tasks import check_twin
+from rrls.twin.catalog import check_twin
 
 __all__ = ["Diverged", "Interrupted", "TrainConfig", "benchmark_set", "training_split"]
 

@@ -28,7 +28,7 @@ from rrls.agents.lookup import algorithm, warm_up
 from rrls.agents.resident import BLOCK, BlockCollector, make_twin
 from rrls.agents.streams import RunSeeds
 from rrls.algorithms import algorithm_info
-from rrls.twin.tasks import not_on_twin
+from rrls.twin.catalog import not_on_twin
 
 
 def twin_refusal(algo: str) -> str | None:

@@ -24,7 +24,7 @@ from rrls.experiments.pipeline import (
     run_dir,
     run_ok,
 )
-from rrls.experiments.spec import RunKey, Spec
+from rrls.experiments.spec import Benchmark, RunKey
 
 
 # --- local backend: one spawned process per group ----------------------------------------------
@@ -47,7 +47,7 @@ def _group_main(root: str, spec_json: dict[str, Any], keys: list[tuple[str, str,
 
 def run_local(
     root: Path,
-    spec: Spec,
+    spec: Benchmark,
     keys: list[RunKey],
     jobs: int,
     on_event: Status,
@@ -110,7 +110,7 @@ LOCK_WAIT_S = 300.0
 
 def run_ray(
     root: Path,
-    spec: Spec,
+    spec: Benchmark,
     keys: list[RunKey],
     jobs: int | None,
     address: str | None,
@@ -214,6 +214,6 @@ def _ray_run(
     """``execute_recorded`` in a Ray worker; ``lock_wait`` > 0 (a group submitted again after
     its node died): first wait that long at most for its run directories' locks."""
     if lock_wait > 0:
-        spec = Spec.from_json(spec_json)
+        spec = Benchmark.from_json(spec_json)
         wait_for_locks([run_dir(Path(root), spec, RunKey(*key)) for key in keys], lock_wait)
     return execute_recorded(root, spec_json, keys)

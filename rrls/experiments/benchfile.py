@@ -14,7 +14,7 @@ from typing import Any
 from rrls import rundir
 from rrls._io import waiting_lock
 from rrls.evaluation.protocol import MAX_EPISODES
-from rrls.experiments.spec import Spec, SpecError
+from rrls.experiments.spec import Benchmark, SpecError
 from rrls.physics import ALIASES, SIMULATORS
 from rrls.schema import Schema, SchemaError, array, boolean, integer, number, obj, string
 from rrls.seeds import MAX_SEED, MAX_SEEDS
@@ -46,7 +46,7 @@ _TRAINING = {
     "observe": string(choices=OBSERVE),
     "simulator": string(choices=SIMULATORS),
 }
-#: ``benchmark.json``: ``Spec``'s fields, the protocol as ``Protocol.to_json`` writes it (which
+#: ``benchmark.json``: ``Benchmark``'s fields, the protocol as ``Protocol.to_json`` writes it (which
 #: ``Protocol.from_json`` checks field by field); every other field optional (a field added
 #: after a file was written takes its default)
 SPEC_SCHEMA = Schema({**_TRAINING, "protocol": obj()})
@@ -80,8 +80,8 @@ def read_stored_json(root: str | Path) -> dict[str, Any]:
     return rundir.read_checked_json(spec_path(root))
 
 
-def read_spec(root: str | Path) -> Spec:
-    """The stored ``Spec`` (a file of any earlier format migrated); a file that is not one is
+def read_spec(root: str | Path) -> Benchmark:
+    """The stored ``Benchmark`` (a file of any earlier format migrated); a file that is not one is
     a ``SpecError`` naming it."""
     data = read_stored_json(root)
     schema = SPEC_SCHEMA if isinstance(data, dict) and "protocol" in data else FLAT_SCHEMA
@@ -90,23 +90,23 @@ def read_spec(root: str | Path) -> Spec:
     except SchemaError as err:
         raise SpecError(str(err)) from None
     try:
-        return Spec.from_json(data)
+        return Benchmark.from_json(data)
     except (ValueError, TypeError, KeyError, AttributeError) as err:
         raise SpecError(f"{spec_path(root)} is not a benchmark spec ({err})") from None
 
 
 def read_spec_json(root: str | Path) -> dict[str, Any]:
     """The stored benchmark as its readers take it (the report, reference files): its fields
-    flat, whatever the format it was written in (``Spec.flat_json``)."""
+    flat, whatever the format it was written in (``Benchmark.flat_json``)."""
     return read_spec(root).flat_json()
 
 
 def stored_fingerprints(root: str | Path) -> dict[str, str]:
-    """The stored benchmark's fingerprints (``Spec.fingerprints``), none without a spec."""
+    """The stored benchmark's fingerprints (``Benchmark.fingerprints``), none without a spec."""
     return read_spec(root).fingerprints() if spec_path(root).exists() else {}
 
 
-def write_spec(root: str | Path, spec: Spec) -> Path:
+def write_spec(root: str | Path, spec: Benchmark) -> Path:
     """Write (and seal) ``spec`` as the directory's protocol; hold :func:`locked` around the
     read that it updates."""
     return rundir.write_checked_json(spec_path(root), spec.to_json())
@@ -131,7 +131,7 @@ def reporting(root: str | Path) -> Iterator[None]:
         yield
 
 
-def reconcile(out: Path, spec: Spec) -> Spec:
+def reconcile(out: Path, spec: Benchmark) -> Benchmark:
     """The spec to store in ``out``: ``spec`` itself, or the union with the stored one.
 
     Refuses (``SpecError``) a directory whose stored protocol differs, naming the fields.

@@ -6,7 +6,7 @@ project's machines, then the wall time with ``jobs`` runs at a time. Its GPU cou
 from __future__ import annotations
 
 from rrls.algorithms import TD3_CPU, algorithm_info, plays_adversary
-from rrls.experiments.spec import Spec
+from rrls.experiments.spec import Benchmark
 
 __all__ = [
     "ENV_STEPS_PER_S",
@@ -44,7 +44,7 @@ ENV_STEPS_PER_S = {
 }
 
 
-def estimate(spec: Spec, jobs: int, max_episode_steps: int = 1000) -> dict[str, float]:
+def estimate(spec: Benchmark, jobs: int, max_episode_steps: int = 1000) -> dict[str, float]:
     """Seconds of compute (one core) and wall time with ``jobs`` parallel runs — an estimate
     from measured speeds (±30 %; evaluation episodes counted at full length: an upper bound)."""
     from rrls.envs import get_uncertainty_set

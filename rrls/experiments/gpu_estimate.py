@@ -22,7 +22,7 @@ from collections.abc import Callable
 from typing import Any
 
 from rrls.experiments.cpu_estimate import REPORT_S, STARTUP_S, estimate
-from rrls.experiments.spec import Spec
+from rrls.experiments.spec import Benchmark
 
 __all__ = ["GPU_RECORD", "Rate", "describe", "gpu_estimate", "stored_rate"]
 
@@ -54,7 +54,7 @@ def stored_rate(algo: str, k: int) -> tuple[float, bool]:
 
 
 def gpu_estimate(
-    spec: Spec, pack: int, cpu_cores: int = 16, rate: Rate | None = None
+    spec: Benchmark, pack: int, cpu_cores: int = 16, rate: Rate | None = None
 ) -> dict[str, Any]:
     """Seconds on one GPU: ``train_s`` (groups of ``pack`` seeds of a cell, one after another),
     ``eval_s`` (the final evaluations on ``cpu_cores``), ``wall_s``, and ``measured`` (whether
@@ -84,7 +84,7 @@ def gpu_estimate(
     }
 
 
-def describe(spec: Spec, pack: int) -> str:
+def describe(spec: Benchmark, pack: int) -> str:
     """The dry run's estimate line for ``--device cuda``."""
     from rrls.experiments.cpu_estimate import format_duration
 

@@ -30,12 +30,12 @@ from rrls import rundir
 from rrls._io import DirectoryLock, atomic_write_json
 from rrls._proc import THREAD_ENV
 from rrls.algorithms import plays_adversary
-from rrls.experiments.spec import RunKey, Spec
+from rrls.experiments.spec import Benchmark, RunKey
 from rrls.experiments.stages import run_dynamic, run_evaluation
 from rrls.schema import Schema, integer, number, read_json, string
 
 
-def run_dir(root: Path, spec: Spec, key: RunKey) -> Path:
+def run_dir(root: Path, spec: Benchmark, key: RunKey) -> Path:
     return Path(root) / "runs" / key.name(spec.uncertainty)
 
 
@@ -55,7 +55,7 @@ def groups(keys: list[RunKey], pack: int) -> list[tuple[RunKey, ...]]:
     ]
 
 
-def default_pack(spec: Spec, pack: int | None) -> int:
+def default_pack(spec: Benchmark, pack: int | None) -> int:
     """Runs per group: ``pack`` if given, else every seed of a cell on CUDA (the GPU updates
     them at once) and 1 on CPU (a process per run already uses every core)."""
     if pack is not None:
@@ -85,7 +85,7 @@ def execute_group(
     os.environ.update(THREAD_ENV)  # before numpy/torch load here (a no-op if already loaded)
     from threadpoolctl import threadpool_limits
 
-    spec = Spec.from_json(spec_json)
+    spec = Benchmark.from_json(spec_json)
     runs = [RunKey(*key) for key in keys]
     outs = [run_dir(Path(root), spec, run) for run in runs]
     results: dict[int, dict[str, Any]] = {}
@@ -112,7 +112,9 @@ def execute_group(
     return [results[i] for i in range(len(runs))]
 
 
-def _group_stages(spec: Spec, runs: list[RunKey], outs: list[Path]) -> dict[int, BaseException]:
+def _group_stages(
+    spec: Benchmark, runs: list[RunKey], outs: list[Path]
+) -> dict[int, BaseException]:
     """The stages of ``runs`` (training shared, the rest per run); returns each failed run's
     error (its traceback is in its ``error.txt``)."""
 
@@ -176,7 +178,9 @@ def _write_error(out: Path) -> None:
     (out / rundir.ERROR).write_text(traceback.format_exc())
 
 
-def _train(spec: Spec, runs: list[RunKey], outs: list[Path], progress: list[ProgressFile]) -> None:
+def _train(
+    spec: Benchmark, runs: list[RunKey], outs: list[Path], progress: list[ProgressFile]
+) -> None:
     """Train ``runs`` (one cell) together, resuming each from its checkpoint."""
     from rrls.agents import TrainConfig, train_group
 
@@ -209,7 +213,7 @@ def _train(spec: Spec, runs: list[RunKey], outs: list[Path], progress: list[Prog
     )
 
 
-def _evaluate(spec: Spec, run: RunKey, out: Path) -> dict[str, Any]:
+def _evaluate(spec: Benchmark, run: RunKey, out: Path) -> dict[str, Any]:
     from rrls.evaluation import MLPPolicy
 
     policy = MLPPolicy.load(out / rundir.POLICY)
@@ -217,7 +221,7 @@ def _evaluate(spec: Spec, run: RunKey, out: Path) -> dict[str, Any]:
     return run_evaluation(spec, run.algo, run.task, run.seed, policy, out, 1, False, trained)
 
 
-def _dynamic(spec: Spec, run: RunKey, out: Path) -> dict[str, Any]:
+def _dynamic(spec: Benchmark, run: RunKey, out: Path) -> dict[str, Any]:
     """The run's protagonist against its own final adversary, in the game it trained in (the
     adversary's metadata names it: RARL's, or NR-MDP's with its alpha)."""
     from rrls.evaluation import MLPPolicy
@@ -294,7 +298,7 @@ def execute_recorded(
     except GroupFailed:
         raise
     except BaseException:
-        spec = Spec.from_json(spec_json)
+        spec = Benchmark.from_json(spec_json)
         for key in keys:
             out = run_dir(Path(root), spec, RunKey(*key))
             if not (out / rundir.RESULT).exists():
@@ -305,14 +309,14 @@ def execute_recorded(
 Status = Callable[[RunKey, str, str], None]  # (run, "running" | "done" | "failed", detail)
 
 
-def run_ok(root: Path, spec: Spec, key: RunKey, group_ok: bool) -> bool:
+def run_ok(root: Path, spec: Benchmark, key: RunKey, group_ok: bool) -> bool:
     """Whether ``key`` ended well: its group did, or it wrote no error (a failed group may
     still have finished some of its runs)."""
     return group_ok or not (run_dir(root, spec, key) / rundir.ERROR).exists()
 
 
 def finish_run(
-    root: Path, spec: Spec, key: RunKey, ok: bool, on_event: Status, detail: str = ""
+    root: Path, spec: Benchmark, key: RunKey, ok: bool, on_event: Status, detail: str = ""
 ) -> None:
     out = run_dir(root, spec, key)
     if ok and (out / rundir.RESULT).exists():

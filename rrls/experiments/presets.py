@@ -1,5 +1,5 @@
-"""The benchmark presets: each a ``Spec``'s fields, the protocol's flat as ``make_spec`` and
-``Spec(**preset)`` take them (``rrls benchmark --preset``; explicit options override)."""
+"""The benchmark presets: each a ``Benchmark``'s fields, the protocol's flat as ``make_spec`` and
+``Benchmark(**preset)`` take them (``rrls benchmark --preset``; explicit options override)."""
 
 from __future__ import annotations
 

@@ -351,7 +351,7 @@ def _missing(value: Any) -> bool:
 # --- a benchmark and a reference --------------------------------------------------------------
 def benchmark_protocol(spec: dict[str, Any]) -> dict[str, Any]:
     """What a reference must share with a benchmark (``benchmark.json``'s content, its
-    protocol whole or, as ``Spec.flat_json`` gives it, flat)."""
+    protocol whole or, as ``Benchmark.flat_json`` gives it, flat)."""
     if isinstance(spec.get("protocol"), dict):
         spec = {**spec, **spec["protocol"]}
     physics = physics_label(spec.get("physics"))

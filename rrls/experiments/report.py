@@ -228,7 +228,7 @@ def _split_table(summary: dict[str, Any]) -> list[str]:
 
 def _beyond_the_paper(spec: dict[str, Any]) -> list[str]:
     """The report's line on what the benchmark's protocol adds to the paper's evaluation
-    (disruptors, a schedule, an episode limit: ``Spec.flat_json`` names them when given), so
+    (disruptors, a schedule, an episode limit: ``Benchmark.flat_json`` names them when given), so
     that no one reads its numbers as the paper's."""
     parts = []
     if spec.get("disruptors"):
@@ -276,7 +276,7 @@ def _markdown(
                 "sets of five tasks). Numbers are not comparable with the paper's."
             )
         if spec.get("simulator", "mujoco") != "mujoco":
-            from rrls.twin.tasks import TWIN_TASKS
+            from rrls.twin.catalog import TWIN_TASKS
 
             cpu = [t for t in spec["tasks"] if t not in TWIN_TASKS]
             lines.append(

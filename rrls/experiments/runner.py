@@ -13,7 +13,7 @@ from rrls.experiments.backends import run_local, run_ray
 from rrls.experiments.benchfile import reconcile
 from rrls.experiments.cpu_estimate import estimate, format_duration
 from rrls.experiments.pipeline import default_pack, groups, read_progress, run_dir
-from rrls.experiments.spec import RunKey, Spec
+from rrls.experiments.spec import Benchmark, RunKey
 
 
 class Display:
@@ -24,7 +24,7 @@ class Display:
     def __init__(
         self,
         root: Path,
-        spec: Spec,
+        spec: Benchmark,
         keys: list[RunKey],
         done_before: int,
         slots: int,
@@ -143,14 +143,14 @@ class Display:
             self._bar.close()
 
 
-def pending_runs(root: Path, spec: Spec) -> tuple[list[RunKey], int]:
+def pending_runs(root: Path, spec: Benchmark) -> tuple[list[RunKey], int]:
     """(runs without ``result.json``, number of finished runs)."""
     keys = spec.runs()
     todo = [k for k in keys if not (run_dir(root, spec, k) / rundir.RESULT).exists()]
     return todo, len(keys) - len(todo)
 
 
-def kept_runs(root: Path, spec: Spec) -> str:
+def kept_runs(root: Path, spec: Benchmark) -> str:
     """What an interrupted benchmark keeps of ``spec``'s grid in ``root``, read from the run
     directories: the finished runs, and of the others those trained (their evaluation goes on)
     or with a checkpoint (their training goes on); the rest start over."""
@@ -182,7 +182,7 @@ def kept_runs(root: Path, spec: Spec) -> str:
 
 
 def plan(
-    root: Path, spec: Spec, todo: int, finished: int, jobs: int, backend: str, pack: int = 1
+    root: Path, spec: Benchmark, todo: int, finished: int, jobs: int, backend: str, pack: int = 1
 ) -> str:
     """What is about to run, and the compute estimate (printed before anything starts)."""
     est = estimate(spec, jobs or 1)
@@ -214,7 +214,7 @@ def plan(
     )
 
 
-def _simulators(spec: Spec) -> str:
+def _simulators(spec: Benchmark) -> str:
     """Where a warp benchmark's runs train: its tasks without a twin on CPU MuJoCo."""
     cpu = [t for t in spec.tasks if spec.simulator_for(t) != spec.simulator]
     if not cpu:
@@ -227,7 +227,7 @@ def _simulators(spec: Spec) -> str:
 
 def benchmark(
     out: str | Path,
-    spec: Spec,
+    spec: Benchmark,
     jobs: int,
     backend: str = "local",
     ray_address: str | None = None,
@@ -254,7 +254,7 @@ def benchmark(
 
 def _benchmark(
     root: Path,
-    spec: Spec,
+    spec: Benchmark,
     jobs: int,
     backend: str,
     ray_address: str | None,

@@ -1,6 +1,6 @@
 """What a benchmark is: a grid of runs (algorithm × task × seed) sharing one protocol.
 
-A ``Spec`` is a template run plus its ``Protocol``, written to ``DIR/benchmark.json`` (the
+A ``Benchmark`` is a template run plus its ``Protocol``, written to ``DIR/benchmark.json`` (the
 protocol as ``Protocol.to_json`` writes it; ``rrls.experiments.benchfile``). Re-running over
 the same directory must use the same settings (steps, hyper-parameters, every field of the
 protocol): anything else would mix numbers that are not comparable, so it is refused with the
@@ -16,9 +16,28 @@ from os import PathLike
 from typing import Any
 
 from rrls.algorithms import ALGORITHMS, algorithm_info, algorithm_key, built_in, warmup
+from rrls.deprecation import warn_deprecated
 from rrls.evaluation.protocol import Protocol, Recheck, check_episodes
 from rrls.experiments.presets import ALGOS, PAPER_TASKS, PRESETS
 from rrls.physics import SIMULATORS, is_paper
+
+__all__ = [
+    "ALGOS",
+    "BUILT_IN",
+    "GRID",
+    "LABELS",
+    "LATER",
+    "PAPER_TASKS",
+    "PRESETS",
+    "PROTOCOL_NAMES",
+    "Benchmark",
+    "RunKey",
+    "SpecError",
+    "check_protocol",
+    "make_spec",
+    "read_protocol",
+    "validate",
+]
 
 # every built-in algorithm (rrls.algorithms, the table); plug-ins are accepted by name (entry
 # point group "rrls.algorithms", or a registered row) or as package.module:Learner
@@ -32,7 +51,7 @@ class SpecError(ValueError):
     """A benchmark specification that cannot run (the CLI prints it on one line, exit 2)."""
 
 
-#: the ``Protocol``'s fields a ``Spec`` also takes flat (presets, options, ``benchmark.json``
+#: the ``Protocol``'s fields a ``Benchmark`` also takes flat (presets, options, ``benchmark.json``
 #: files written before it held the protocol whole), under those files' names: the protocol's
 #: ``seed`` is ``eval_seed`` there, beside the grid's training ``seeds``
 PROTOCOL_NAMES = {
@@ -45,15 +64,15 @@ LATER = {"disruptors": [], "schedule": None, "context": False, "max_episode_step
 
 
 @dataclass(frozen=True, init=False)
-class Spec:
+class Benchmark:
     """One benchmark: a template run (the grid and the training settings) and the ``Protocol``
     every run and submitted policy is evaluated under. Every run trains, is evaluated over the
     protocol's mesh, and (RARL, NR-MDP) plays its own adversary. The protocol's set is the
     evaluation set and the training set of DR and M2TD3; RARL trains against its force adversary
     (the paper's), TD3 and NR-MDP ignore it.
 
-    ``Spec(protocol=Protocol(...), ...)`` or, as presets and options give it, the protocol's
-    fields flat (``Spec(mesh=2, eval_seed=0, ...)``, ``replace(spec, mesh=3)``): they replace
+    ``Benchmark(protocol=Protocol(...), ...)`` or, as presets and options give it, the protocol's
+    fields flat (``Benchmark(mesh=2, eval_seed=0, ...)``, ``replace(spec, mesh=3)``): they replace
     those of ``protocol``. Read back, ``spec.mesh`` and the others are the protocol's."""
 
     algos: tuple[str, ...] = ALGOS
@@ -96,7 +115,7 @@ class Spec:
         own = {f.name: f for f in fields(self) if f.name != "protocol"}
         unknown = sorted(set(given) - set(own))
         if unknown:
-            raise TypeError(f"Spec got unknown field(s) {', '.join(unknown)}")
+            raise TypeError(f"Benchmark got unknown field(s) {', '.join(unknown)}")
         for name, f in own.items():
             object.__setattr__(self, name, given.get(name, f.default))
         try:
@@ -170,7 +189,7 @@ class Spec:
         MuJoCo for every run either way."""
         if self.simulator != "warp":
             return self.simulator
-        from rrls.twin.tasks import TWIN_TASKS
+        from rrls.twin.catalog import TWIN_TASKS
 
         return "warp" if task in TWIN_TASKS else "mujoco"
 
@@ -243,7 +262,7 @@ class Spec:
         }
 
     @classmethod
-    def from_json(cls, data: Mapping[str, Any]) -> Spec:
+    def from_json(cls, data: Mapping[str, Any]) -> Benchmark:
         """The inverse of ``to_json``; a file without ``protocol`` is one written before the
         benchmark held its protocol whole (its fields flat, every earlier format) and reads as
         the same benchmark."""
@@ -278,7 +297,7 @@ def _csv(value: str, what: str) -> tuple[str, ...]:
     return items
 
 
-def make_spec(preset: str = "paper", **overrides: Any) -> Spec:
+def make_spec(preset: str = "paper", **overrides: Any) -> Benchmark:
     """The preset with explicit options on top (``None`` means "not given"), validated.
 
     ``algos``/``tasks`` may be comma-separated strings; ``seeds`` is a count (seeds 0..N-1).
@@ -319,7 +338,7 @@ def make_spec(preset: str = "paper", **overrides: Any) -> Spec:
     _check_options(values)
     values["tasks"] = tuple(dict.fromkeys(_task_key(t) for t in values["tasks"]))
     values["algos"] = tuple(dict.fromkeys(algorithm_key(a) for a in values["algos"]))
-    spec = Spec(**values)
+    spec = Benchmark(**values)
     if spec.split:  # canonical (extrapolation:0.5), so two spellings are one protocol
         from rrls.envs import training_split
 
@@ -364,7 +383,7 @@ def _task_key(task: str) -> str:
         raise SpecError(str(err)) from None
 
 
-def validate(spec: Spec) -> None:
+def validate(spec: Benchmark) -> None:
     """Raise ``SpecError`` for anything that cannot run (before any process starts)."""
     from importlib.metadata import entry_points
 
@@ -433,7 +452,7 @@ def validate(spec: Spec) -> None:
     if spec.simulator not in SIMULATORS:
         raise SpecError(f"--simulator must be {' or '.join(SIMULATORS)}, got {spec.simulator!r}")
     if spec.simulator == "warp":  # the tasks without a twin train on CPU MuJoCo beside them
-        from rrls.twin.tasks import check_twin
+        from rrls.twin.catalog import check_twin
 
         keys = [_task_key(task) for task in spec.tasks]
         on_twin = [t for t in keys if spec.simulator_for(t) == "warp"] or keys[:1]
@@ -466,3 +485,15 @@ def check_protocol(protocol: Protocol) -> None:
             "observations, so they cannot be evaluated with them; evaluate a context-aware "
             "policy with rrls.evaluation.evaluate(..., context=True)"
         )
+
+
+def __getattr__(name: str) -> Any:
+    """``Spec``: :class:`Benchmark`'s former name (deprecated: one of four unrelated ``*Spec``
+    classes of rrls; a benchmark is what it describes)."""
+    if name == "Spec":
+        warn_deprecated(
+            "rrls.experiments.spec.Spec is deprecated; use rrls.experiments.spec.Benchmark "
+            "(the same class)"
+        )
+        return Benchmark
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

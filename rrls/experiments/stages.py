@@ -8,13 +8,13 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any
 
-from rrls.experiments.spec import Spec
+from rrls.experiments.spec import Benchmark
 
 __all__ = ["run_dynamic", "run_evaluation"]
 
 
 def run_evaluation(
-    spec: Spec,
+    spec: Benchmark,
     algo: str,
     task: str,
     seed: int,
@@ -67,7 +67,13 @@ def run_evaluation(
 
 
 def run_dynamic(
-    spec: Spec, task: str, policy: Any, adversary: Any, game: str, alpha: float | None, out: Path
+    spec: Benchmark,
+    task: str,
+    policy: Any,
+    adversary: Any,
+    game: str,
+    alpha: float | None,
+    out: Path,
 ) -> dict[str, Any]:
     """The dynamic evaluation (paper Table 6): ``policy`` against ``adversary`` in ``game``
     (``adversarial``: RARL's; ``nr``/``pr``: NR-/PR-MDP's with ``alpha``), under the protocol's

@@ -34,7 +34,7 @@ from typing import Any
 from rrls._io import json_bytes
 from rrls.evaluation.dynamic import GAME_SCHEMA, GAMES, check_adversary
 from rrls.experiments.changes import Changes
-from rrls.experiments.spec import RunKey, Spec
+from rrls.experiments.spec import Benchmark, RunKey
 from rrls.experiments.stages import run_dynamic, run_evaluation
 from rrls.experiments.store import write_result
 from rrls.experiments.submit_checks import (
@@ -102,7 +102,7 @@ class Checked:
     protocol, the adversary, each with its source record and identity (its actions)."""
 
     root: Path
-    spec: Spec
+    spec: Benchmark
     algo: str
     task: str  # the registry's key
     seed: int
@@ -152,7 +152,7 @@ class Submission:
 
 def create_benchmark(
     bench_dir: str | Path, preset: str, tasks: tuple[str, ...], **overrides: Any
-) -> Spec:
+) -> Benchmark:
     """An empty benchmark (no built-in algorithm to train) with ``preset``'s protocol on
     ``tasks`` (``overrides``: ``make_spec``'s options, e.g. ``mesh``, ``episodes``):
     submissions compare against a reference file (``rrls report --reference``), and
@@ -291,7 +291,7 @@ def check_submission(
     )
 
 
-def _benchmark(root: Path, key: str, preset: str | None, add_task: bool) -> Spec:
+def _benchmark(root: Path, key: str, preset: str | None, add_task: bool) -> Benchmark:
     """The benchmark submitted to: the stored one, or ``preset``'s when none is stored yet;
     with ``key`` added if it may join (written only once the submission is in)."""
     from rrls.experiments import benchfile
@@ -308,7 +308,7 @@ def _benchmark(root: Path, key: str, preset: str | None, add_task: bool) -> Spec
 
 def _checked_adversary(
     entry: Entry,
-    spec: Spec,
+    spec: Benchmark,
     key: str,
     obs_shape: tuple[int, ...],
     act_shape: tuple[int, ...],
@@ -469,7 +469,7 @@ def _existing(checked: Checked, overwrite: bool) -> Submission | None:
     return None
 
 
-def _grown_spec(root: Path, spec: Spec, key: str) -> Spec | None:
+def _grown_spec(root: Path, spec: Benchmark, key: str) -> Benchmark | None:
     """Under the lock: the benchmark to write with this submission — ``spec`` for a new one,
     the stored one (re-read now: another command may have added tasks or baselines meanwhile,
     nothing of theirs is lost) with ``key`` added, or None if it has ``key`` already."""

@@ -13,7 +13,7 @@ from typing import Any
 import numpy as np
 
 from rrls.algorithms import ALGORITHMS, plugin_entry_points
-from rrls.experiments.spec import BUILT_IN, Spec, SpecError
+from rrls.experiments.spec import BUILT_IN, Benchmark, SpecError
 from rrls.physics import is_paper
 
 __all__ = [
@@ -135,7 +135,7 @@ def check_shapes(
         )
 
 
-def check_new_task(root: Path, spec: Spec, key: str, add_task: bool) -> None:
+def check_new_task(root: Path, spec: Benchmark, key: str, add_task: bool) -> None:
     """Whether ``key`` may join ``spec``: only on purpose (``add_task``), and only in a
     submissions-only benchmark."""
     from rrls.envs import get_uncertainty_set
@@ -203,7 +203,7 @@ def check_declared_steps(meta: dict[str, Any]) -> None:
         )
 
 
-def load_spec(bench_dir: str | Path) -> Spec:
+def load_spec(bench_dir: str | Path) -> Benchmark:
     """The benchmark's protocol (``DIR/benchmark.json``), or ``SubmitError`` naming the file."""
     from rrls.experiments import benchfile
 
@@ -226,7 +226,7 @@ def load_spec(bench_dir: str | Path) -> Spec:
         raise SubmitError(str(err)) from None
 
 
-def preset_spec(preset: str, tasks: tuple[str, ...], **overrides: Any) -> Spec:
+def preset_spec(preset: str, tasks: tuple[str, ...], **overrides: Any) -> Benchmark:
     """``preset``'s protocol on ``tasks`` without built-in algorithms (nothing written)."""
     from dataclasses import replace
 

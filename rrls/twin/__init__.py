@@ -8,7 +8,7 @@ CPU MuJoCo. See :class:`WarpTwin`; ``rrls train --simulator warp`` trains on it.
 
 from __future__ import annotations
 
+from rrls.twin.catalog import DIVERGES, REFUSED, TWIN_TASKS, TwinTask
 from rrls.twin.env import WarpTwin
-from rrls.twin.tasks import DIVERGES, REFUSED, TWIN_TASKS, TwinTask
 
 __all__ = ["DIVERGES", "REFUSED", "TWIN_TASKS", "TwinTask", "WarpTwin"]

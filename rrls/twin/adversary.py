@@ -120,7 +120,7 @@ class PointWrites:
         import mujoco_warp as mjw
         import warp as wp
 
-        from rrls.twin import kernels
+        from rrls.twin import warp_kernels as kernels
 
         for entries, inputs in self.launches:
             wp.launch(kernels.write_point, (values.shape[0], entries), [values, *inputs])

@@ -43,7 +43,7 @@ from gymnasium.vector import AutoresetMode, VectorEnv
 from rrls.envs import resolve
 from rrls.extras import install_hint
 from rrls.registry import get_task
-from rrls.twin.tasks import REFUSED, TWIN_TASKS, UNSUPPORTED_FIELDS, constants
+from rrls.twin.catalog import REFUSED, TWIN_TASKS, UNSUPPORTED_FIELDS, constants
 from rrls.uncertainty import UncertaintySet
 
 #: MuJoCo Warp's batched model fields that rrls's kinds write or ``mj_setConst`` derives
@@ -118,7 +118,7 @@ class WarpTwin(VectorEnv):
                 f"the Warp twin needs the warp extra ({e}); {install_hint('warp')}"
             ) from e
 
-        from rrls.twin import kernels
+        from rrls.twin import warp_kernels as kernels
 
         if array not in ARRAYS:
             raise ValueError(f"array={array!r}; valid: {', '.join(ARRAYS)}")

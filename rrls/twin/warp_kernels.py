@@ -1,13 +1,13 @@
 """The twin's warp kernels: Gymnasium v5's observation, reward, termination and reset noise,
 one world per thread, and the copy of a world's parameter point into MuJoCo Warp's batched
-fields. The formulas' families are :data:`rrls.twin.tasks.TWIN_TASKS`; their numbers come in a
+fields. The formulas' families are :data:`rrls.twin.catalog.TWIN_TASKS`; their numbers come in a
 :class:`Formula` struct read from the CPU env."""
 
 from __future__ import annotations
 
 import warp as wp
 
-from rrls.twin.tasks import NO_TERMINATION, PENDULUM, Z_ANGLE, Z_ANGLE_STATE, Z_FINITE
+from rrls.twin.catalog import NO_TERMINATION, PENDULUM, Z_ANGLE, Z_ANGLE_STATE, Z_FINITE
 
 
 @wp.struct
