@@ -11,6 +11,7 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any
 
+from rrls.algorithms import display_name, normalisers
 from rrls.experiments.caveats import BUDGET, BUDGET_TEX_MARK, FEW_SEEDS_TEX, UNSTABLE_TEX
 from rrls.experiments.cells import tex_ci, tex_pm
 from rrls.experiments.names import task_name
@@ -72,10 +73,11 @@ def caption(
             )
             + "."
         )
+    zero, one = (tex_escape(display_name(a)) for a in normalisers())
     if normalised:
         text.append(
-            "Normalised score: $(v - v_{\\mathrm{TD3}}) / |v_{\\mathrm{M2TD3}} - "
-            "v_{\\mathrm{TD3}}|$ with the TD3 and M2TD3 seed means."
+            f"Normalised score: $(v - v_{{\\mathrm{{{zero}}}}}) / |v_{{\\mathrm{{{one}}}}} - "
+            f"v_{{\\mathrm{{{zero}}}}}|$ with the {zero} and {one} seed means."
         )
         text.append(
             "Average: mean over tasks of the means $\\pm$ mean of the stds."
@@ -100,7 +102,7 @@ def caption(
         text.append(
             f"Rows ``(ref.\\ {tex_escape(str(ref.get('name')))})'': "
             f"{tex_escape(str(ref.get('label')))}"
-            + (", normalised by its own TD3 and M2TD3." if own else ".")
+            + (f", normalised by its own {zero} and {one}." if own else ".")
         )
     if marks.get("few"):
         text.append(FEW_SEEDS_TEX)

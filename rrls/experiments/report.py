@@ -26,6 +26,7 @@ from importlib import resources
 from pathlib import Path
 from typing import Any
 
+from rrls.algorithms import normalisers
 from rrls.evaluation.metrics import SPLIT_SCORES
 from rrls.experiments.caveats import (
     FEW,
@@ -343,10 +344,11 @@ def _markdown(
         if "poi_over_td3_worst_case" in v
     ]
     if poi:
+        zero = display_name(normalisers()[0])
         lines += [
-            "## Probability of improvement over TD3 (worst case)",
+            f"## Probability of improvement over {zero} (worst case)",
             "",
-            "| algorithm | P(better than TD3) | 95% CI | tasks |",
+            f"| algorithm | P(better than {zero}) | 95% CI | tasks |",
             "|---|---|---|---|",
         ]
         for algo, p in poi:
@@ -413,10 +415,9 @@ def _normalisation_lines(summary: dict[str, Any]) -> list[str]:
         key = "reference" if "reference" in used else "benchmark" if "benchmark" in used else "-"
         sources.setdefault(key, []).append(task)
     lines = ["## Normalisation", ""]
+    pair = " and ".join(display_name(a) for a in normalisers())
     if sources.get("benchmark"):
-        lines.append(
-            f"- this benchmark's own TD3 and M2TD3 runs: {', '.join(sources['benchmark'])}"
-        )
+        lines.append(f"- this benchmark's own {pair} runs: {', '.join(sources['benchmark'])}")
     if sources.get("reference") and ref:
         spec = summary.get("benchmark") or {}
         budget = ""
@@ -432,7 +433,7 @@ def _normalisation_lines(summary: dict[str, Any]) -> list[str]:
         )
     if sources.get("-"):
         lines.append(
-            "- none (no finished TD3 and M2TD3 runs here"
+            f"- none (no finished {pair} runs here"
             + (" nor in the reference" if ref else "; `rrls report DIR --reference FILE`")
             + f"): {', '.join(sources['-'])}"
         )

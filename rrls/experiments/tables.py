@@ -22,7 +22,7 @@ from typing import Any
 
 import numpy as np
 
-from rrls.algorithms import plays_adversary
+from rrls.algorithms import normalisers, plays_adversary
 from rrls.experiments.caveats import BUDGET, budget_differs, few_seeds, is_unstable
 from rrls.experiments.cells import average, ci, pm, tied_best
 from rrls.experiments.latex import CELLS, PACKAGES, caption, fit, tex_escape
@@ -179,8 +179,9 @@ def _why_empty(summary: dict[str, Any], name: str) -> str:
             "run them to fill paper Table 6)"
         )
     if name.startswith("normalised"):
+        pair = " and ".join(display_name(a) for a in normalisers())
         return (
-            "no task could be normalised: it needs finished TD3 and M2TD3 runs here or a "
+            f"no task could be normalised: it needs finished {pair} runs here or a "
             "reference with them (`rrls report DIR --reference FILE`)"
         )
     return "no finished run"
