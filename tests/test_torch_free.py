@@ -1,5 +1,6 @@
 """The torch-free side stays torch-free: environments, wrappers, evaluation and the
-experiments' reading side (specs, references, the store, statistics) work in an interpreter
+experiments' reading side (specs, references, the store, statistics) and a run's settings
+(``TrainConfig``'s fields, which ``rrls benchmark``'s options are made of) work in an interpreter
 where ``import torch`` fails, so a user without the ``train`` extra loses nothing of them."""
 
 from __future__ import annotations
@@ -42,6 +43,12 @@ SCRIPT = textwrap.dedent(
     result = evaluate(MLPPolicy.random(4, 1, (8,), seed=0), "invertedpendulum", "1d", mesh=2,
                       episodes=1, workers=1)
     assert result.worst_case == result.worst_case
+    # a run's settings are read without torch: rrls benchmark's options are generated from them
+    import argparse, rrls.agents
+    from rrls.agents.config import TrainConfig
+    from rrls.cli import benchmark_command
+    sub = argparse.ArgumentParser().add_subparsers()
+    assert "--steps N" in benchmark_command.add_parser(sub).format_help()
     assert not [m for m in sys.modules if m == "torch" or m.startswith("torch.")]
     print("ok")
     """

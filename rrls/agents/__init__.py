@@ -10,31 +10,53 @@ holding its paper reference, its hyper-parameters (``Config``) and its ``Learner
 
 from __future__ import annotations
 
-from rrls.agents.config import Diverged, Interrupted, TrainConfig, benchmark_set
-from rrls.agents.envs import task_env
-from rrls.agents.hparams import hp
-from rrls.agents.learner import (
-    DeviceLearnerProtocol,
-    Learner,
-    LearnerProtocol,
-    StateLayoutError,
-)
-from rrls.agents.lookup import ResolvedRun, algorithm, hyperparameters, resolve_run
-from rrls.agents.loop import train, train_group
-from rrls.agents.nets import (
-    Actor,
-    Critic,
-    GaussianActor,
-    NumpyActor,
-    deterministic,
-    polyak,
-    to_mlp_policy,
-)
-from rrls.agents.replay import ReplayBuffer, transition_fields
-from rrls.agents.streams import Generators, NumpyGenerators, RunSeeds
+import importlib
+from typing import Any
+
 from rrls.algorithms import built_in
 
 ALGOS = built_in()  # the built-in algorithms' names (rrls.algorithms.ALGORITHMS is the table)
+
+#: where each public name lives, imported on first use (PEP 562): ``import rrls.agents`` and
+#: its torch-free modules (``rrls.agents.config``: a run's settings, read by ``rrls benchmark``'s
+#: options) do not import torch; ``from rrls.agents import train`` does
+_WHERE = {
+    **dict.fromkeys(["Diverged", "Interrupted", "TrainConfig", "benchmark_set"], "config"),
+    "task_env": "envs",
+    "hp": "hparams",
+    **dict.fromkeys(
+        ["DeviceLearnerProtocol", "Learner", "LearnerProtocol", "StateLayoutError"], "learner"
+    ),
+    **dict.fromkeys(["ResolvedRun", "algorithm", "hyperparameters", "resolve_run"], "lookup"),
+    **dict.fromkeys(["train", "train_group"], "loop"),
+    **dict.fromkeys(
+        [
+            "Actor",
+            "Critic",
+            "GaussianActor",
+            "NumpyActor",
+            "deterministic",
+            "polyak",
+            "to_mlp_policy",
+        ],
+        "nets",
+    ),
+    **dict.fromkeys(["ReplayBuffer", "transition_fields"], "replay"),
+    **dict.fromkeys(["Generators", "NumpyGenerators", "RunSeeds"], "streams"),
+}
+
+
+def __getattr__(name: str) -> Any:
+    if name in _WHERE:
+        value = getattr(importlib.import_module(f"rrls.agents.{_WHERE[name]}"), name)
+        globals()[name] = value  # once: later reads are plain attribute reads
+        return value
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+
+
+def __dir__() -> list[str]:
+    return sorted({*globals(), *_WHERE})
+
 
 __all__ = [
     # running

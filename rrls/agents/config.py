@@ -1,5 +1,6 @@
 """What every training run is configured by (``TrainConfig``: what, where, how long), the
-paper's default set of a task, and the exceptions a run stops with."""
+paper's default set of a task, and the exceptions a run stops with. Torch-free to import (a run
+is validated with it): ``rrls benchmark``'s options read its fields' help."""
 
 from __future__ import annotations
 
@@ -7,7 +8,6 @@ from dataclasses import asdict, dataclass, field
 from typing import Any
 
 from rrls.agents.hparams import check_limits, hp, jsonable, most_threads
-from rrls.agents.lookup import algorithm
 from rrls.algorithms import ENTRY_POINTS, built_in
 from rrls.envs import training_split
 from rrls.physics import SIMULATORS, is_paper, physics_label
@@ -32,8 +32,8 @@ class TrainConfig:
     uncertainty: str | None = hp(
         None,
         "the uncertainty set trained on (and evaluated over): any set the task declares (the "
-        "paper's tasks: 1d, 2d, 3d, rarl (forces)); default: the paper's benchmark set, 3d (2d "
-        "where the task has no 3d set)",
+        "paper's tasks: 1d, 2d, 3d, rarl (forces))",
+        default_text="the paper's benchmark set, 3d (2d where the task has no 3d set)",
     )
     split: str | None = hp(
         None,
@@ -42,7 +42,7 @@ class TrainConfig:
         "that trains on the set (DR, M2TD3, RARL, SAC-DR) sees only that box, and the "
         "evaluations still cover the whole set, the rest being out of distribution",
     )
-    steps: int = hp(5_000_000, "env steps")
+    steps: int = hp(5_000_000, "training env steps of a run: 30000, 1e4, 100k")
     seed: int = hp(0, "seed of every random draw: each purpose a child of SeedSequence(seed)")
     out: str | None = hp(None, "run directory (default runs/<algo>-<task>-<set>-seed<S>)")
     device: str = hp("cpu", "torch device: cpu, cuda or cuda:N")
@@ -106,6 +106,7 @@ class TrainConfig:
     hyper: dict[str, Any] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
+        from rrls.agents.lookup import algorithm  # torch: the fields are read without it
         from rrls.tasks import TASKS, get_task
 
         algorithm(self.algo)  # ValueError naming the valid ones

@@ -19,13 +19,18 @@ from rrls.cli.benchmark_options import (
     spec_from,
 )
 from rrls.cli.parsing import fail
+from rrls.cli.run_options import add_run_options
 from rrls.deprecation import DeprecatedOption
 from rrls.experiments.spec import ALGOS, BUILT_IN, PAPER_TASKS, PRESETS
 from rrls.extras import install_hint
-from rrls.physics import SIMULATORS
 from rrls.seeds import EXAMPLES
 
 NAME = "benchmark"
+#: what a benchmark adds to a run setting's help (the rest is the TrainConfig field's)
+NOTES = {
+    "physics": "training and evaluation; recorded as given in benchmark.json",
+    "device": "Ray: a quarter GPU per process",
+}
 
 
 def _plugins() -> str:
@@ -74,28 +79,10 @@ def add_parser(sub: argparse._SubParsersAction) -> argparse.ArgumentParser:
         + ")",
     )
     b.add_argument(
-        "--uncertainty",
-        metavar="SET",
-        help="evaluation set (and DR/M2TD3's training set): 1d, 2d, 3d (default: the preset's)",
-    )
-    b.add_argument(
         "--seeds",
         metavar="SEEDS",
         help=f"the training seeds, a list or range: {EXAMPLES} (default: the preset's). A bare "
         "N, once a count of seeds here, is refused: write 0-2 for three seeds, 3-3 for seed 3",
-    )
-    b.add_argument(
-        "--physics",
-        choices=["v5", "paper"],
-        help="v5 (default: Gymnasium v5, rrls's parameter semantics) or paper (the paper's "
-        "Gymnasium v5 envs, the original code's parameter writes, np.arange mesh) for training and "
-        "evaluation; recorded as given in benchmark.json",
-    )
-    b.add_argument(
-        "--simulator",
-        choices=list(SIMULATORS),
-        help="what steps the training envs: mujoco (default: CPU MuJoCo) or warp (each task's "
-        "MuJoCo Warp twin on --device, the warp extra); evaluations stay on CPU MuJoCo",
     )
     b.add_argument(
         "--rate-limit",
@@ -112,18 +99,13 @@ def add_parser(sub: argparse._SubParsersAction) -> argparse.ArgumentParser:
         help="with --rate-limit: RARL's protagonist is TC-RMDP's vanilla (the state; default), "
         "stacked (the previous state and action too) or oracle (the state and psi in [0, 1])",
     )
-    b.add_argument(
-        "--split",
-        metavar="extrapolation[:F]",
-        help="rrls's own extrapolation split: every run trains on the inner box of the set (a "
-        "centred fraction F of each axis, default 0.5), the evaluation covers the whole set and "
-        "rrls report gives in- and out-of-distribution worst/average case apart",
-    )
-    b.add_argument(
-        "--steps",
-        type=step_count,
-        metavar="N",
-        help="training steps per run: 30000, 1e4, 100k (default: the preset's)",
+    # a run's settings every run of the benchmark shares: rrls train's options, from the same
+    # TrainConfig fields (their help, type and choices), the default the preset's
+    add_run_options(
+        b,
+        ("uncertainty", "split", "physics", "simulator", "steps", "eval_every", "device"),
+        "the preset's",
+        NOTES,
     )
     b.add_argument(
         "--learning-starts",
@@ -132,12 +114,6 @@ def add_parser(sub: argparse._SubParsersAction) -> argparse.ArgumentParser:
         help="random steps before learning (default: the preset's; paper: each algorithm's own, "
         "25 000, M2TD3 100 000; quick 1 000; "
         "with --steps alone, at most a fifth of the budget)",
-    )
-    b.add_argument(
-        "--eval-every",
-        type=step_count,
-        metavar="N",
-        help="periodic evaluation every N steps (0: off; default: the preset's)",
     )
     b.add_argument(
         "--mesh",
@@ -186,11 +162,6 @@ def add_parser(sub: argparse._SubParsersAction) -> argparse.ArgumentParser:
     )
     b.add_argument(
         "--ray-address", metavar="ADDR", help="Ray cluster address (default: RAY_ADDRESS or local)"
-    )
-    b.add_argument(
-        "--device",
-        metavar="{cpu,cuda,cuda:N}",
-        help="cpu (default) or cuda (Ray: a quarter GPU per process)",
     )
     b.add_argument(
         "--dry-run",

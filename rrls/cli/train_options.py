@@ -19,8 +19,9 @@ from typing import Any
 
 from rrls.agents.config import TrainConfig
 from rrls.agents.lookup import algorithm
-from rrls.algorithms import algorithm_key, built_in
-from rrls.argtypes import seed_value, step_count, task_key, worker_count, workers_help
+from rrls.algorithms import built_in
+from rrls.argtypes import worker_count, workers_help
+from rrls.cli.run_options import add_option, option_kind
 from rrls.deprecation import DeprecatedOption
 from rrls.schema import JsonError, loads_json
 from rrls.seeds import EXAMPLES, parse_seeds
@@ -34,40 +35,6 @@ def _algos(args: argparse.Namespace | None = None) -> list[str]:
     return [*built_in(), *([extra] if extra and extra not in built_in() else [])]
 
 
-def _kind(hint: Any) -> Any:
-    """The option's element type from a field's annotation (``int | None`` -> int)."""
-    args = [a for a in typing.get_args(hint) if a is not type(None)]
-    if typing.get_origin(hint) is tuple:
-        return (tuple, args[0])
-    if args:
-        return _kind(args[0])
-    return hint
-
-
-#: integer options that count env steps: they accept 1e4, 100k, 1.5M (``argtypes.step_count``)
-STEP_OPTIONS = frozenset(
-    {"steps", "learning_starts", "eval_every", "checkpoint_every", "phase_steps", "buffer_size"}
-)
-
-
-def _add(parser: argparse._ActionsContainer, name: str, kind: Any, **kwargs: Any) -> None:
-    flag = "--" + name.replace("_", "-")
-    if kind is int and name in STEP_OPTIONS:
-        kind = step_count
-    elif kind is int and name == "seed":
-        kind = seed_value
-    elif name == "task":  # every spelling any command takes (InvertedPendulum, walker2d)
-        kind = task_key
-    elif name == "algo":  # TD3, NR-MDP, sac_dr: the table's names in any spelling
-        kind = algorithm_key
-    if kind is bool:
-        parser.add_argument(flag, action=argparse.BooleanOptionalAction, **kwargs)
-    elif isinstance(kind, tuple):
-        parser.add_argument(flag, type=kind[1], nargs="+", metavar="N", **kwargs)
-    else:
-        parser.add_argument(flag, type=kind, **kwargs)
-
-
 def hyperparameter_table(algos: list[str] | None = None) -> dict[str, dict[str, Any]]:
     """name -> {"kind", "help", "choices", "defaults": {algo: default}} over the algorithms."""
     table: dict[str, dict[str, Any]] = {}
@@ -78,7 +45,7 @@ def hyperparameter_table(algos: list[str] | None = None) -> dict[str, dict[str, 
             entry = table.setdefault(
                 f.name,
                 {
-                    "kind": _kind(hints[f.name]),
+                    "kind": option_kind(hints[f.name]),
                     "help": f.metadata.get("help", ""),
                     "choices": f.metadata.get("choices"),
                     "defaults": {},
@@ -109,6 +76,7 @@ def add_train_arguments(parser: argparse.ArgumentParser) -> None:
                 kwargs["help"] += f" (one of {', '.join(TASKS)})"
         elif f.name == "uncertainty":  # any set the task declares: TrainConfig checks it
             kwargs["metavar"] = "SET"
+            kwargs["help"] += f"; default: {f.metadata['default_text']}"
         elif f.metadata.get("choices"):
             kwargs["choices"] = f.metadata["choices"]
             kwargs["help"] += f" (default {f.default})"
@@ -142,7 +110,7 @@ def add_train_arguments(parser: argparse.ArgumentParser) -> None:
                 new="--workers",
             )
             continue
-        _add(run, f.name, _kind(hints[f.name]), **kwargs)
+        add_option(run, f.name, option_kind(hints[f.name]), **kwargs)
     run.add_argument("--resume", action="store_true", help="continue the run in --out exactly")
     run.add_argument(
         "--seeds",
@@ -177,7 +145,7 @@ def add_train_arguments(parser: argparse.ArgumentParser) -> None:
         kwargs = {"default": None, "help": f"{entry['help']} ({shown})"}
         if entry["choices"]:
             kwargs["choices"] = entry["choices"]
-        _add(hyper, name, entry["kind"], **kwargs)
+        add_option(hyper, name, entry["kind"], **kwargs)
 
 
 def configs_from_args(args: argparse.Namespace) -> tuple[list[TrainConfig], bool]:
@@ -230,7 +198,6 @@ def config_from_args(args: argparse.Namespace) -> tuple[TrainConfig, bool]:
 
 
 __all__ = [
-    "STEP_OPTIONS",
     "add_train_arguments",
     "config_from_args",
     "configs_from_args",

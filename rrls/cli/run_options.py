@@ -1,0 +1,83 @@
+"""A run's settings as command-line options, generated from ``TrainConfig``'s fields: the flag,
+the type, the choices and the help come from the field (its ``hp`` metadata), once, for
+``rrls train`` (every field) and ``rrls benchmark`` (the settings a benchmark gives all its runs,
+their default the preset's). Torch-free: ``rrls benchmark --help`` runs without torch."""
+
+from __future__ import annotations
+
+import argparse
+import typing
+from dataclasses import fields
+from typing import Any
+
+from rrls.agents.config import TrainConfig
+from rrls.algorithms import algorithm_key
+from rrls.argtypes import seed_value, step_count, task_key
+
+#: integer options that count env steps: they accept 1e4, 100k, 1.5M (``argtypes.step_count``)
+STEP_OPTIONS = frozenset(
+    {"steps", "learning_starts", "eval_every", "checkpoint_every", "phase_steps", "buffer_size"}
+)
+#: how an option names its value where the type does not say it
+METAVARS = {
+    "uncertainty": "SET",
+    "split": "extrapolation[:F]",
+    "device": "{cpu,cuda,cuda:N}",
+    **dict.fromkeys(STEP_OPTIONS, "N"),
+}
+
+
+def option_kind(hint: Any) -> Any:
+    """The option's element type from a field's annotation (``int | None`` -> int)."""
+    args = [a for a in typing.get_args(hint) if a is not type(None)]
+    if typing.get_origin(hint) is tuple:
+        return (tuple, args[0])
+    if args:
+        return option_kind(args[0])
+    return hint
+
+
+def add_option(parser: argparse._ActionsContainer, name: str, kind: Any, **kwargs: Any) -> None:
+    """``--name`` of type ``kind`` (steps in any spelling, seeds, tasks and algorithms by their
+    argument types; a bool as ``--name/--no-name``; a tuple as several values)."""
+    flag = "--" + name.replace("_", "-")
+    if kind is int and name in STEP_OPTIONS:
+        kind = step_count
+    elif kind is int and name == "seed":
+        kind = seed_value
+    elif name == "task":  # every spelling any command takes (InvertedPendulum, walker2d)
+        kind = task_key
+    elif name == "algo":  # TD3, NR-MDP, sac_dr: the table's names in any spelling
+        kind = algorithm_key
+    if kind is bool:
+        parser.add_argument(flag, action=argparse.BooleanOptionalAction, **kwargs)
+    elif isinstance(kind, tuple):
+        parser.add_argument(flag, type=kind[1], nargs="+", metavar="N", **kwargs)
+    else:
+        parser.add_argument(flag, type=kind, **kwargs)
+
+
+def add_run_options(
+    parser: argparse._ActionsContainer,
+    names: tuple[str, ...],
+    default: str,
+    notes: dict[str, str] | None = None,
+) -> None:
+    """``TrainConfig``'s fields ``names`` as options whose default is given elsewhere (``None``
+    when not given; ``default`` says whose), each field's help with ``notes``' addition."""
+    hints = typing.get_type_hints(TrainConfig)
+    by_name = {f.name: f for f in fields(TrainConfig)}
+    for name in names:
+        f = by_name[name]
+        text = f.metadata.get("help", "")
+        if notes and name in notes:
+            text += f"; {notes[name]}"
+        kwargs: dict[str, Any] = {"default": None, "help": f"{text} (default: {default})"}
+        if f.metadata.get("choices"):
+            kwargs["choices"] = f.metadata["choices"]
+        elif name in METAVARS:
+            kwargs["metavar"] = METAVARS[name]
+        add_option(parser, name, option_kind(hints[name]), **kwargs)
+
+
+__all__ = ["METAVARS", "STEP_OPTIONS", "add_option", "add_run_options", "option_kind"]
