@@ -17,6 +17,7 @@ from pathlib import Path
 
 import numpy as np
 
+from rrls import rundir
 from rrls.algorithms import display_name, sort_algos
 from rrls.experiments.pairwise import pairwise
 from rrls.experiments.stats import t_interval
@@ -135,11 +136,11 @@ def differences(folder: Path) -> str:
     versions: dict[str, set[str]] = {}
     m2td3_warmup = set()
     for path in sorted(folder.glob("runs/*/run.json")):
-        run = json.loads(path.read_text())
+        run = rundir.read_run_json(path.parent)  # any run.json format
         for k in ("gymnasium", "mujoco"):
             versions.setdefault(k, set()).add(run["versions"][k])
         if run["algorithm"] == "m2td3":
-            m2td3_warmup.add(int(run["hyperparameters"]["learning_starts"]))
+            m2td3_warmup.add(int(run["config"]["hyper"]["learning_starts"]))
     steps, seeds = int(spec["steps"]), len(spec["seeds"])
     rows = [
         (

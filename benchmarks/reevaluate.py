@@ -19,7 +19,6 @@ then records ``trained_otherwise``, what differs).
 from __future__ import annotations
 
 import argparse
-import json
 import shutil
 import time
 from pathlib import Path
@@ -81,7 +80,7 @@ def reevaluate(
 
 def _training_differences(spec, key: RunKey, run: Path) -> dict:
     """``{hyper-parameter: (the run's, the preset's today)}`` where they differ."""
-    hyper = json.loads((run / rundir.RUN_JSON).read_text())["hyperparameters"]
+    hyper = rundir.read_run_json(run)["config"]["hyper"]  # any run.json format
     today = spec.hyperparameters(key.algo)
     differ = {
         k: (hyper.get(k), v)

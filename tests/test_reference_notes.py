@@ -4,12 +4,12 @@ M2TD3's share of learning steps, each read here from the shipped runs."""
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 
 import pytest
 
 from rrls.experiments.reference import load_reference
+from rrls.rundir import read_run_json
 
 ROOT = Path(__file__).resolve().parent.parent
 
@@ -18,16 +18,14 @@ ROOT = Path(__file__).resolve().parent.parent
 def test_reference_notes_state_physics_versions_and_m2td3_share(task: str) -> None:
     ref = load_reference(ROOT / "rrls" / "experiments" / f"{task}_reference.json")
     assert "reduced budget" in ref.label
-    runs = [
-        json.loads(p.read_text()) for p in (ROOT / "docs/results" / task).glob("runs/*/run.json")
-    ]
+    runs = [read_run_json(p) for p in (ROOT / "docs/results" / task).glob("runs/*")]
     mujoco = {r["versions"]["mujoco"] for r in runs}
     gymnasium = {r["versions"]["gymnasium"] for r in runs}
     assert len(mujoco) == len(gymnasium) == 1
     assert f"MuJoCo {mujoco.pop()} and Gymnasium {gymnasium.pop()}" in ref.notes
     assert "pins, MuJoCo 2.3.3 and Gymnasium 1.0.0a1" in ref.notes
     assert "derived constants recomputed" in ref.notes and "not the paper's" in ref.notes
-    warmup = {r["hyperparameters"]["learning_starts"] for r in runs if r["algorithm"] == "m2td3"}
+    warmup = {r["config"]["hyper"]["learning_starts"] for r in runs if r["algorithm"] == "m2td3"}
     assert len(warmup) == 1
     learn = ref.steps - warmup.pop()
     assert (

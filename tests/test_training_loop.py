@@ -48,15 +48,16 @@ def test_every_algorithm_option_reaches_its_learner(tmp_path, capsys):
         _cli(tmp_path / "pr", "nrmdp", 200, "--mode", "pr", "--alpha", "0.3", "--ratio", "3") == 0
     )
     run = json.loads((tmp_path / "pr" / "run.json").read_text())
-    assert run["hyperparameters"]["mode"] == "pr" and run["hyperparameters"]["alpha"] == 0.3
-    assert run["hyperparameters"]["ratio"] == 3 and run["game"] == "pr"
+    hyper = run["config"]["hyper"]  # the run described once: every resolved hyper-parameter
+    assert hyper["mode"] == "pr" and hyper["alpha"] == 0.3
+    assert hyper["ratio"] == 3 and run["game"] == "pr"
     assert _cli(tmp_path / "rarl", "rarl", 200, "--phase-steps", "30") == 0
     run = json.loads((tmp_path / "rarl" / "run.json").read_text())
-    assert run["hyperparameters"]["phase_steps"] == 30
+    assert run["config"]["hyper"]["phase_steps"] == 30
     assert run["uncertainty"] == "2d"  # the benchmark's set by default, not the force set
     args = ("--uncertainty", "1d", "--hatomega-learning-rate", "0.01", "--learning-rate", "0.002")
     assert _cli(tmp_path / "m2", "m2td3", 200, *args) == 0
-    run = json.loads((tmp_path / "m2" / "run.json").read_text())["hyperparameters"]
+    run = json.loads((tmp_path / "m2" / "run.json").read_text())["config"]["hyper"]
     assert run["hatomega_learning_rate"] == 0.01 and run["learning_rate"] == 0.002
     # and the learner's optimisers use them
     from rrls.agents import algorithm, hyperparameters
