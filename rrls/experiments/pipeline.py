@@ -182,32 +182,9 @@ def _train(
     spec: Benchmark, runs: list[RunKey], outs: list[Path], progress: list[ProgressFile]
 ) -> None:
     """Train ``runs`` (one cell) together, resuming each from its checkpoint."""
-    from rrls.agents import TrainConfig, train_group
+    from rrls.agents import train_group
 
-    configs = [
-        TrainConfig(
-            algo=run.algo,
-            task=run.task,
-            uncertainty=spec.train_set(run.algo),
-            split=spec.split,
-            steps=spec.steps,
-            eval_every=spec.eval_every,
-            eval_mesh=spec.eval_mesh,
-            eval_episodes=spec.eval_episodes,
-            seed=run.seed,
-            out=str(out),
-            device=spec.device,
-            checkpoint_every=spec.checkpoint_every,
-            threads=1,
-            physics=spec.physics,
-            # the protocol's episode limit is the training's too (None: the task's)
-            max_episode_steps=spec.protocol.max_episode_steps,
-            simulator=spec.simulator_for(run.task),
-            progress=False,
-            hyper=spec.hyperparameters(run.algo),
-        )
-        for run, out in zip(runs, outs)
-    ]
+    configs = [spec.run_settings(run, out) for run, out in zip(runs, outs)]
     train_group(
         configs, resume=True, on_episode=lambda k, step, _: progress[k].write("train", step, False)
     )

@@ -32,6 +32,7 @@ __all__ = [
     "PROTOCOL_NAMES",
     "Benchmark",
     "RunKey",
+    "SHARED_SETTINGS",
     "SpecError",
     "check_protocol",
     "make_spec",
@@ -58,6 +59,18 @@ PROTOCOL_NAMES = {
     **{name: name for name in Protocol.__dataclass_fields__ if name != "seed"},
     "eval_seed": "seed",
 }
+#: the settings a benchmark gives each of its runs as they are (``TrainConfig``'s fields of the
+#: same names; the others ``Benchmark.run_settings`` derives per run)
+SHARED_SETTINGS = (
+    "steps",
+    "eval_every",
+    "eval_episodes",
+    "eval_mesh",
+    "checkpoint_every",
+    "device",
+    "physics",
+    "split",
+)
 #: the protocol's fields a benchmark.json written before they could be given never held: the
 #: flat view (and the benchmark fingerprint) names them only when they are not their default
 LATER = {"disruptors": [], "schedule": None, "context": False, "max_episode_steps": None}
@@ -192,6 +205,27 @@ class Benchmark:
         from rrls.twin.catalog import TWIN_TASKS
 
         return "warp" if task in TWIN_TASKS else "mujoco"
+
+    def run_settings(self, run: RunKey, out: str | PathLike[str]) -> Any:
+        """The ``TrainConfig`` of ``run``: the benchmark's shared settings (``SHARED_SETTINGS``,
+        under the same names), the run's algorithm, task, seed and directory, its training set,
+        simulator and hyper-parameters, the protocol's episode limit (None: the task's), and
+        one thread (the benchmark runs a process per core)."""
+        from rrls.agents.config import TrainConfig
+
+        return TrainConfig(
+            algo=run.algo,
+            task=run.task,
+            seed=run.seed,
+            out=str(out),
+            uncertainty=self.train_set(run.algo),
+            simulator=self.simulator_for(run.task),
+            max_episode_steps=self.protocol.max_episode_steps,
+            threads=1,
+            progress=False,
+            hyper=self.hyperparameters(run.algo),
+            **{name: getattr(self, name) for name in SHARED_SETTINGS},
+        )
 
     def hyperparameters(self, algo: str) -> dict[str, Any]:
         """The preset's overrides of ``algo``'s paper hyper-parameters (``TrainConfig.hyper``)."""
