@@ -5,7 +5,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, replace
 
-from rrls.agents import m2td3, nrmdp
+from rrls.agents.algos import m2td3, nrmdp
 from rrls.agents.hparams import hp
 from rrls.algorithms import ALGORITHMS, AlgorithmInfo, register_algorithm
 

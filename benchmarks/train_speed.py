@@ -18,7 +18,7 @@ env step after learning starts. Env steps per second of:
     layer, autograd, ``torch.optim.Adam``; tensor replay, acting in numpy);
 (b') (b) with ``--compile`` (the whole update through ``torch.compile``; compiled before the
     timed window, the compile cache in ``TORCHINDUCTOR_CACHE_DIR``);
-(c) M2TD3 (``rrls.agents.m2td3``), (d) SAC (``rrls.agents.sac``), (d') SAC with
+(c) M2TD3 (``rrls.agents.algos.m2td3``), (d) SAC (``rrls.agents.algos.sac``), (d') SAC with
     ``--compile``. ``--rows`` picks rows (default: all).
 
 Every measurement runs in a fresh process. Ratios are against CleanRL's loop of the same
@@ -78,7 +78,7 @@ def rrls_algo(
     ``compile``: ``--compile``, paid before the window: the first updates compile)."""
     import importlib
 
-    module = importlib.import_module(f"rrls.agents.{algo}")
+    module = importlib.import_module(f"rrls.agents.algos.{algo}")
     learning_starts = 1000
     stamps: list[float] = []
 

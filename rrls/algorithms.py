@@ -147,7 +147,7 @@ def _row(
     """A built-in row: its learner in ``rrls.agents``, TD3's one rate unless it says otherwise,
     and its ``anchor`` of the normalised score (set here only: see ``AlgorithmInfo.anchor``)."""
     flags.setdefault("rate_fields", _TD3_RATE)
-    info = AlgorithmInfo(name, display, f"rrls.agents.{name}:Learner", row=row, **flags)
+    info = AlgorithmInfo(name, display, f"rrls.agents.algos.{name}:Learner", row=row, **flags)
     if anchor is not None:
         if anchor not in ANCHORS:
             raise ValueError(f"algorithm {name!r}: anchor {anchor!r}; valid: {ANCHORS}")

@@ -9,6 +9,9 @@ from __future__ import annotations
 
 import argparse
 import functools
+import importlib
+import importlib.abc
+import importlib.util
 import sys
 import warnings
 from collections.abc import Callable
@@ -16,7 +19,7 @@ from typing import Any, TypeVar
 
 F = TypeVar("F", bound=Callable[..., Any])
 
-__all__ = ["DeprecatedOption", "notice", "renamed_keywords", "warn_deprecated"]
+__all__ = ["DeprecatedOption", "moved_modules", "notice", "renamed_keywords", "warn_deprecated"]
 
 
 def warn_deprecated(message: str, stacklevel: int = 2) -> None:
@@ -85,3 +88,46 @@ class DeprecatedOption(argparse.Action):
         command = parser.prog.removeprefix("rrls ").strip() or "rrls"
         notice(command, f"{option_string} is deprecated; use {self.new} (same meaning)")
         setattr(namespace, self.dest, values)
+
+
+class _MovedModules(importlib.abc.MetaPathFinder, importlib.abc.Loader):
+    """Finds a moved module's old name and hands the import its new module (the placeholder a
+    loader gets is replaced in ``sys.modules``, which the import system returns): the old path
+    keeps working, with a warning, and no file is left at it."""
+
+    def __init__(self) -> None:
+        self.moves: dict[str, str] = {}
+
+    def find_spec(self, fullname: str, path: Any = None, target: Any = None) -> Any:
+        if fullname not in self.moves:
+            return None
+        return importlib.util.spec_from_loader(fullname, self)
+
+    def create_module(self, spec: Any) -> None:
+        return None  # a plain placeholder, replaced below
+
+    def exec_module(self, module: Any) -> None:
+        new = self.moves[module.__name__]
+        warn_deprecated(f"{module.__name__} is deprecated; use {new} (the same module)", 3)
+        sys.modules[module.__name__] = importlib.import_module(new)
+
+
+_MOVED = _MovedModules()
+
+
+def moved_modules(moves: dict[str, str]) -> Callable[[str], Any]:
+    """Keep the modules ``{old dotted name: new dotted name}`` importable under their old names
+    (``import old``, ``from old import x``), warning each time one is first imported. Returns a
+    module ``__getattr__`` for their package, so that ``package.old`` read as an attribute
+    works and warns too."""
+    _MOVED.moves.update(moves)
+    if _MOVED not in sys.meta_path:
+        sys.meta_path.append(_MOVED)  # last: it never shadows a module that exists
+    by_attribute = {old.rpartition(".")[2]: old for old in moves}
+
+    def attribute(name: str) -> Any:
+        if name in by_attribute:
+            return importlib.import_module(by_attribute[name])
+        raise AttributeError(name)
+
+    return attribute

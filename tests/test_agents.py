@@ -11,9 +11,9 @@ from conftest import e2e_after_first, stopping_at
 torch = pytest.importorskip("torch")
 
 from rrls.agents import TrainConfig, hyperparameters, train  # noqa: E402
-from rrls.agents.m2td3 import Candidates  # noqa: E402
+from rrls.agents.algos.m2td3 import Candidates  # noqa: E402
+from rrls.agents.algos.td3 import TD3, TD3Config  # noqa: E402
 from rrls.agents.streams import NumpyGenerators, RunSeeds  # noqa: E402
-from rrls.agents.td3 import TD3, TD3Config  # noqa: E402
 from rrls.cli import main  # noqa: E402
 
 ALGOS = ["td3", "dr", "rarl", "nrmdp", "m2td3", "sac", "sacdr"]
@@ -310,7 +310,7 @@ def test_truncation_bootstraps_and_no_transition_crosses_a_reset(tmp_path):
 
 # -- M2TD3's candidates --------------------------------------------------------------------------
 def _candidates(low, high, seed=0):
-    from rrls.agents.m2td3 import Config
+    from rrls.agents.algos.m2td3 import Config
 
     rngs = NumpyGenerators([RunSeeds(seed)], "algo")
     return Candidates(low, high, rngs, Config(), torch.device("cpu")), rngs[0]
@@ -357,7 +357,7 @@ def test_candidates_stay_in_the_box_and_restart_by_the_rules():
 
 
 def test_each_candidate_has_its_own_adam_and_only_the_chosen_one_steps():
-    from rrls.agents.m2td3 import Config
+    from rrls.agents.algos.m2td3 import Config
 
     cands, _ = _candidates(np.zeros(2), np.ones(2), seed=1)
     logit = torch.nn.Parameter(cands.logits[3].detach().clone())
@@ -393,7 +393,7 @@ def test_each_candidate_has_its_own_adam_and_only_the_chosen_one_steps():
 # (returns ~50-130 for every seed tried, like the CleanRL-style reference); at 1e-3 — the original
 # TD3 paper's rate — it balances within 20-30 k steps. The reduced budgets use it, as the
 # quickstart does. M2TD3's critics see ω rescaled to [-1, 1] here: with the authors' raw pole
-# mass (1-31) it has not started to learn at 20 k steps (see rrls.agents.m2td3).
+# mass (1-31) it has not started to learn at 20 k steps (see rrls.agents.algos.m2td3).
 QUICK_LR = 1e-3
 
 
@@ -498,9 +498,9 @@ def test_nrmdp_adversary_lowers_the_shared_critics_value_more_than_a_random_one(
     # the two values tie (measured, seed 1: 19.719 vs 19.704; seeds 0 and 2 lower).
     import torch
 
-    from rrls.agents import nrmdp
+    from rrls.agents.algos import nrmdp
+    from rrls.agents.algos.td3 import cat
     from rrls.agents.learner import stack_runs
-    from rrls.agents.td3 import cat
 
     steps, lower = 15_000, {}
     for seed in (0, 1, 2):
@@ -524,7 +524,7 @@ def test_nrmdp_adversary_lowers_the_shared_critics_value_more_than_a_random_one(
 
 
 def test_rarl_trains_against_a_rate_limited_adversary_and_is_evaluated_in_that_game(tmp_path):
-    from rrls.agents import rarl
+    from rrls.agents.algos import rarl
     from rrls.evaluation import evaluate_run_dynamic
     from rrls.evaluation.policies import MLPPolicy
 

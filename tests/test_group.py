@@ -227,7 +227,7 @@ def test_a_pool_worker_steps_its_groups_envs_itself(tmp_path):
     import os
     from types import SimpleNamespace
 
-    from rrls.agents import td3
+    from rrls.agents.algos import td3
     from rrls.agents.envs import make_envs
     from rrls.agents.loop import env_workers
 

@@ -9,7 +9,7 @@ import pytest
 torch = pytest.importorskip("torch")
 
 from rrls.agents import LearnerProtocol, StateLayoutError, TrainConfig, train  # noqa: E402
-from rrls.agents.td3 import Learner as TD3Learner  # noqa: E402
+from rrls.agents.algos.td3 import Learner as TD3Learner  # noqa: E402
 
 
 class FlatLearner(TD3Learner):

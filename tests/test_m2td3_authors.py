@@ -8,7 +8,7 @@ from conftest import stopping_at
 
 torch = pytest.importorskip("torch")
 
-from rrls.agents import m2td3  # noqa: E402
+from rrls.agents.algos import m2td3  # noqa: E402
 from rrls.agents.run import read_checkpoint  # noqa: E402
 from rrls.agents.streams import RunSeeds  # noqa: E402
 from rrls.cli import main  # noqa: E402

@@ -140,15 +140,13 @@ def test_check_protocol_still_checks():
 #: and the command-line entry points: not part of the importable API
 PRIVATE_PACKAGES = ("rrls.agents.", "rrls.experiments.")
 ENTRY_POINTS = {"rrls.cli", "rrls.check", "rrls.__main__"}
-#: modules kept only as deprecated aliases of renamed ones (they warn on import; tested below)
-ALIASES = {"rrls.twin.tasks", "rrls.twin.check"}
 
 
 def public_modules() -> list[str]:
     names = ["rrls"]
     for info in pkgutil.walk_packages(rrls.__path__, "rrls."):
         parts = info.name.split(".")
-        if any(p.startswith("_") for p in parts) or info.name in ENTRY_POINTS | ALIASES:
+        if any(p.startswith("_") for p in parts) or info.name in ENTRY_POINTS:
             continue
         if info.name.startswith(PRIVATE_PACKAGES):
             continue
@@ -220,17 +218,27 @@ def test_mesh_keyword_and_its_deprecated_alias():
         assert len(generate(RobustHopper, bounds, nb_mesh_dim=3)) == 3
 
 
-@pytest.mark.parametrize(
-    ("old", "new", "name"),
-    [
-        ("rrls.twin.tasks", "rrls.twin.catalog", "TWIN_TASKS"),
-        ("rrls.twin.check", "rrls.twin.agreement", "divergence"),
-    ],
-)
-def test_the_twins_renamed_modules_import_under_their_old_names_with_a_warning(old, new, name):
+MOVED = [
+    ("rrls.twin.tasks", "rrls.twin.catalog", "TWIN_TASKS"),
+    ("rrls.twin.check", "rrls.twin.agreement", "divergence"),
+    *((f"rrls.agents.{a}", f"rrls.agents.algos.{a}", "Learner") for a in ("td3", "dr", "sacdr")),
+]
+
+
+@pytest.mark.parametrize(("old", "new", "name"), MOVED)
+def test_moved_modules_import_under_their_old_names_with_a_warning(old, new, name):
+    """No file is left at a moved module's old path; importing it gives the new module."""
     import sys
 
     sys.modules.pop(old, None)
     with pytest.warns(DeprecationWarning, match=f"{old} is deprecated; use {new}"):
         module = importlib.import_module(old)
-    assert getattr(module, name) is getattr(importlib.import_module(new), name)
+    assert module is importlib.import_module(new) and hasattr(module, name)
+    package, _, leaf = old.rpartition(".")
+    sys.modules.pop(old, None)
+    parent = importlib.import_module(package)
+    if leaf in vars(parent):  # the import above set it; read it again as a fresh process would
+        delattr(parent, leaf)
+    with pytest.warns(DeprecationWarning, match=f"{old} is deprecated"):
+        exec(f"from {package} import {leaf} as found", {})  # the old spelling
+    assert not (Path(importlib.import_module(package).__file__).parent / f"{leaf}.py").exists()

@@ -248,7 +248,7 @@ def test_the_hopper_pages_retraining_claims():
     # step, it gets all 175 000" (the learner's own schedule, both ways)
     from types import SimpleNamespace
 
-    from rrls.agents import rarl
+    from rrls.agents.algos import rarl
 
     start = spec.warmup("rarl")
     for schedule, protagonist in (("alternating", 88_000), ("simultaneous", 175_000)):

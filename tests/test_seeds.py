@@ -184,7 +184,7 @@ def test_no_two_runs_and_no_two_purposes_share_a_stream():
 def test_a_runs_generators_all_come_from_its_seed(tmp_path):
     # the same seed gives the same numbers; seeds s and s+1 share none of their draws
     torch = pytest.importorskip("torch")
-    from rrls.agents import td3
+    from rrls.agents.algos import td3
     from rrls.agents.streams import RunSeeds
 
     env = td3.make_env("invertedpendulum", "2d", td3.Config(hidden=(4,)))

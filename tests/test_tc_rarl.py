@@ -89,7 +89,7 @@ def test_the_tc_options_are_checked(hyper, message):
 
 
 def test_the_oracle_trains_on_parameter_sets_only():
-    from rrls.agents import rarl
+    from rrls.agents.algos import rarl
 
     oracle = rarl.Config(rate_limit=0.1, observe="oracle")
     with pytest.raises(ValueError, match="train the oracle on a parameter set"):

@@ -10,9 +10,9 @@ import pytest
 torch = pytest.importorskip("torch")
 F = torch.nn.functional
 
+from rrls.agents.algos.td3 import Config, Learner  # noqa: E402
 from rrls.agents.envs import task_env  # noqa: E402
 from rrls.agents.streams import RunSeeds  # noqa: E402
-from rrls.agents.td3 import Config, Learner  # noqa: E402
 
 
 def _plain(layer, j=None):

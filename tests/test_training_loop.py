@@ -169,7 +169,7 @@ def test_adaptive_threads_use_idle_cores_and_give_them_back():
 
 # -- NR-MDP / PR-MDP (Tessler et al. 2019) ----------------------------------------------------
 def _nrmdp_learner(mode: str, alpha: float = 0.3):
-    from rrls.agents import nrmdp
+    from rrls.agents.algos import nrmdp
 
     hyper = nrmdp.Config(
         alpha=alpha, mode=mode, hidden=(5,), policy_noise=0.0, batch_size=4, ratio=1, tau=0.5

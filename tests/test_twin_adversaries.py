@@ -14,7 +14,7 @@ import pytest
 import torch
 from conftest import HostReads
 
-from rrls.agents import nrmdp, rarl
+from rrls.agents.algos import nrmdp, rarl
 from rrls.agents.streams import RunSeeds
 
 #: the long end-to-end tier (.ci/run runs it after the default suite)

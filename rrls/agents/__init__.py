@@ -1,8 +1,9 @@
 """Baselines in plain PyTorch on one training loop (needs the ``train`` extra: torch,
 tensorboard).
 
-``train(config)`` runs the loop (``rrls.agents.loop``) with an algorithm's learner: ``td3``,
-``dr``, ``rarl``, ``nrmdp``, ``m2td3`` (the paper's five), ``sac``, ``sacdr`` — one file each,
+``train(config)`` runs the loop (``rrls.agents.loop``) with an algorithm's learner
+(``rrls.agents.algos``): ``td3``, ``dr``, ``rarl``, ``nrmdp``, ``m2td3`` (the paper's five),
+``sac``, ``sacdr`` — one file each,
 holding its paper reference, its hyper-parameters (``Config``) and its ``Learner``
 (``rrls.agents.learner``: the protocol third-party learners implement too, see
 ``docs/algorithms.md``).
@@ -14,6 +15,7 @@ import importlib
 from typing import Any
 
 from rrls.algorithms import built_in
+from rrls.deprecation import moved_modules
 
 ALGOS = built_in()  # the built-in algorithms' names (rrls.algorithms.ALGORITHMS is the table)
 
@@ -46,12 +48,20 @@ _WHERE = {
 }
 
 
+#: the algorithms' files moved to ``rrls.agents.algos`` (``rrls.agents.td3`` still imports, and
+#: warns: stored plug-in paths and user code keep working)
+_moved = moved_modules({f"rrls.agents.{a}": f"rrls.agents.algos.{a}" for a in ALGOS})
+
+
 def __getattr__(name: str) -> Any:
     if name in _WHERE:
         value = getattr(importlib.import_module(f"rrls.agents.{_WHERE[name]}"), name)
         globals()[name] = value  # once: later reads are plain attribute reads
         return value
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+    try:
+        return _moved(name)
+    except AttributeError:
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}") from None
 
 
 def __dir__() -> list[str]:

@@ -13,7 +13,7 @@ import dataclasses
 import importlib
 from typing import Any, NamedTuple
 
-from rrls.agents import td3
+from rrls.agents.algos import td3
 from rrls.algorithms import algorithm_info, built_in, plugin_entry_points
 
 __all__ = [

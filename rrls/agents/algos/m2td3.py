@@ -47,13 +47,13 @@ import numpy as np
 import torch
 from torch import nn
 
+from rrls.agents.algos.td3 import TD3, TD3Config
+from rrls.agents.algos.td3 import Learner as TD3Learner
 from rrls.agents.envs import task_env
 from rrls.agents.graphs import Update
 from rrls.agents.hparams import hp
 from rrls.agents.replay import ReplayBuffer, transition_fields
 from rrls.agents.streams import NumpyGenerators, RunSeeds
-from rrls.agents.td3 import TD3, TD3Config
-from rrls.agents.td3 import Learner as TD3Learner
 from rrls.algorithms import warmup
 
 

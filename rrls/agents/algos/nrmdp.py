@@ -46,13 +46,13 @@ from typing import Any
 import numpy as np
 import torch
 
+from rrls.agents.algos.td3 import Learner as TD3Learner
+from rrls.agents.algos.td3 import TD3Config, cat
 from rrls.agents.envs import task_env
 from rrls.agents.graphs import Update, adam, load_optimizer
 from rrls.agents.hparams import hp
 from rrls.agents.nets import Actor, NumpyActor, deterministic, polyak, to_mlp_policy
 from rrls.agents.streams import Generators, NumpyGenerators, RunSeeds
-from rrls.agents.td3 import Learner as TD3Learner
-from rrls.agents.td3 import TD3Config, cat
 
 
 @dataclass

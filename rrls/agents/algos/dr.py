@@ -12,8 +12,8 @@ from __future__ import annotations
 
 from typing import Any
 
+from rrls.agents.algos.td3 import Config, Learner
 from rrls.agents.envs import task_env
-from rrls.agents.td3 import Config, Learner
 
 
 def make_env(task: str, uncertainty: Any, config: Config, paper: bool = False) -> Any:

@@ -52,6 +52,7 @@ from typing import Any
 import numpy as np
 import torch
 
+from rrls.agents.algos.td3 import TD3, TD3Config
 from rrls.agents.envs import task_env
 from rrls.agents.graphs import Update
 from rrls.agents.hparams import hp
@@ -59,7 +60,6 @@ from rrls.agents.learner import Learner as _Learner
 from rrls.agents.nets import to_mlp_policy
 from rrls.agents.replay import ReplayBuffer, transition_fields
 from rrls.agents.streams import NumpyGenerators, RunSeeds
-from rrls.agents.td3 import TD3, TD3Config
 from rrls.wrappers.tc_rmdp import MAX_HISTORY, OBSERVE, RATE_GAMES
 
 SCHEDULES = ("simultaneous", "alternating")
