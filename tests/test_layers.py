@@ -101,3 +101,17 @@ def test_layers_point_one_way():
         if _layer(mod) >= 0 and _layer(dep) > _layer(mod)
     ]
     assert back == []
+
+
+def test_the_algorithms_are_leaves_the_table_loads_by_name():
+    """``rrls/agents/algos/``: one file per algorithm on the shared infrastructure. Nothing else
+    imports them (the table names each learner, ``rrls.agents.lookup`` loads it), except
+    ``lookup`` itself for TD3's ``Config`` and ``make_env``, a plug-in's defaults; an algorithm
+    may build on another (DR on TD3)."""
+    graph = _graph()
+    algos = {m for m in graph if m.startswith("rrls.agents.algos.")}
+    assert len(algos) == 7
+    importers = {mod for mod, deps in graph.items() if deps & algos and mod not in algos}
+    assert importers == {"rrls.agents.lookup"}
+    above = {"rrls.agents.loop", "rrls.agents.driver", "rrls.agents.run", "rrls.agents.lookup"}
+    assert all(not graph[algo] & above for algo in algos)  # the loop drives them, not back
