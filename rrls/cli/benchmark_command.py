@@ -19,7 +19,7 @@ from rrls.cli.benchmark_options import (
     spec_from,
 )
 from rrls.cli.parsing import fail
-from rrls.cli.run_options import add_run_options
+from rrls.cli.run_options import add_protocol_options, add_run_options
 from rrls.deprecation import DeprecatedOption
 from rrls.experiments.spec import ALGOS, BUILT_IN, PAPER_TASKS, PRESETS
 from rrls.extras import install_hint
@@ -115,18 +115,8 @@ def add_parser(sub: argparse._SubParsersAction) -> argparse.ArgumentParser:
         "25 000, M2TD3 100 000; quick 1 000; "
         "with --steps alone, at most a fifth of the budget)",
     )
-    b.add_argument(
-        "--mesh",
-        type=int,
-        metavar="N",
-        help="final evaluation: points per dimension (default: the preset's; paper 10)",
-    )
-    b.add_argument(
-        "--episodes",
-        type=int,
-        metavar="N",
-        help="final evaluation: episodes per point (default: the preset's; paper 5)",
-    )
+    # the final evaluation's protocol fields, their help Protocol's own (rrls evaluate's too)
+    add_protocol_options(b, ("mesh", "episodes"), "the preset's", "final evaluation: ")
     b.add_argument(
         "--protocol",
         metavar="FILE",

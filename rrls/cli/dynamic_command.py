@@ -9,6 +9,7 @@ import argparse
 from rrls import argtypes
 from rrls.argtypes import EPISODE_SEED_HELP, positive_int, seed_value, workers_help
 from rrls.deprecation import DeprecatedOption
+from rrls.evaluation.protocol import Protocol
 
 NAME = "evaluate-dynamic"
 
@@ -24,7 +25,11 @@ def add_parser(sub: argparse._SubParsersAction) -> argparse.ArgumentParser:
     )
     ed.add_argument("run_dir", help="an `rrls train` run directory holding adversary.npz")
     ed.add_argument(
-        "--episodes", type=positive_int, default=10, help="episodes (default 10, the paper's)"
+        "--episodes",
+        type=positive_int,
+        default=Protocol.dynamic_episodes,  # the protocol's own default, the paper's
+        metavar="N",
+        help=f"episodes (default {Protocol.dynamic_episodes}, the paper's)",
     )
     ed.add_argument(
         "--episode-seed", type=seed_value, default=0, metavar="S", help=EPISODE_SEED_HELP

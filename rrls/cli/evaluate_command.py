@@ -17,6 +17,7 @@ from rrls.argtypes import (
     workers_help,
 )
 from rrls.cli.parsing import UsageError, task_keys
+from rrls.cli.run_options import add_protocol_options
 from rrls.deprecation import DeprecatedOption
 
 NAME = "evaluate"
@@ -50,12 +51,8 @@ def add_parser(sub: argparse._SubParsersAction) -> argparse.ArgumentParser:
         "model as shipped). Default: the set the policy was trained on, else 3d (2d for "
         "invertedpendulum)",
     )
-    ev.add_argument(
-        "--mesh", type=positive_int, default=10, help="points per dimension (default 10)"
-    )
-    ev.add_argument(
-        "--episodes", type=positive_int, default=5, help="episodes per point (default 5)"
-    )
+    # the protocol's fields, their help and defaults Protocol's own (rrls benchmark's too)
+    add_protocol_options(ev, ("mesh", "episodes"), convert=positive_int)
     ev.add_argument(
         "--episode-seed", type=seed_value, default=0, metavar="S", help=EPISODE_SEED_HELP
     )

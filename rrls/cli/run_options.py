@@ -1,7 +1,9 @@
-"""A run's settings as command-line options, generated from ``TrainConfig``'s fields: the flag,
-the type, the choices and the help come from the field (its ``hp`` metadata), once, for
-``rrls train`` (every field) and ``rrls benchmark`` (the settings a benchmark gives all its runs,
-their default the preset's). Torch-free: ``rrls benchmark --help`` runs without torch."""
+"""A run's settings and an evaluation's protocol as command-line options, generated from the
+dataclasses that hold them: the flag, the type, the choices, the help and the default come from
+the field (``TrainConfig``'s ``hp`` metadata, ``Protocol``'s), once, for ``rrls train`` (every
+setting), ``rrls benchmark`` (the settings and protocol fields a benchmark gives all its runs,
+their default the preset's) and ``rrls evaluate`` (the protocol's, their default its own).
+Torch-free: ``rrls benchmark --help`` runs without torch."""
 
 from __future__ import annotations
 
@@ -13,6 +15,7 @@ from typing import Any
 from rrls.agents.config import TrainConfig
 from rrls.algorithms import algorithm_key
 from rrls.argtypes import seed_value, step_count, task_key
+from rrls.evaluation.protocol import Protocol
 
 #: integer options that count env steps: they accept 1e4, 100k, 1.5M (``argtypes.step_count``)
 STEP_OPTIONS = frozenset(
@@ -80,4 +83,34 @@ def add_run_options(
         add_option(parser, name, option_kind(hints[name]), **kwargs)
 
 
-__all__ = ["METAVARS", "STEP_OPTIONS", "add_option", "add_run_options", "option_kind"]
+def add_protocol_options(
+    parser: argparse._ActionsContainer,
+    names: tuple[str, ...],
+    default: str | None = None,
+    prefix: str = "",
+    convert: Any = int,
+) -> None:
+    """``Protocol``'s fields ``names`` as options (values through ``convert``): their help the
+    field's, after ``prefix``; their default the protocol's own, or, where ``default`` says whose
+    it is (a benchmark's preset), ``None`` when not given."""
+    by_name = {f.name: f for f in fields(Protocol)}
+    for name in names:
+        f = by_name[name]
+        shown = f.default if default is None else f"the preset's; the paper's {f.default}"
+        parser.add_argument(
+            "--" + name.replace("_", "-"),
+            type=convert,
+            metavar="N",
+            default=f.default if default is None else None,
+            help=f"{prefix}{f.metadata['help']} (default: {shown})",
+        )
+
+
+__all__ = [
+    "METAVARS",
+    "STEP_OPTIONS",
+    "add_option",
+    "add_protocol_options",
+    "add_run_options",
+    "option_kind",
+]

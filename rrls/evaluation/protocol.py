@@ -19,7 +19,7 @@ for interactive use.
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
-from dataclasses import asdict, dataclass, replace
+from dataclasses import asdict, dataclass, field, replace
 from typing import Any, NamedTuple
 
 import numpy as np
@@ -104,8 +104,9 @@ class Protocol:
     """
 
     uncertainty: str | UncertaintySet = "3d"
-    mesh: int = 10
-    episodes: int = 5
+    # the help of the options that set them (rrls evaluate, rrls benchmark: rrls.cli.run_options)
+    mesh: int = field(default=10, metadata={"help": "points per dimension of the mesh"})
+    episodes: int = field(default=5, metadata={"help": "episodes per point of the mesh"})
     seed: int = 0
     physics: str = "v5"
     endpoint: bool | None = None
@@ -114,7 +115,9 @@ class Protocol:
     schedule: Any = None
     context: bool = False
     max_episode_steps: int | None = None
-    dynamic_episodes: int = 10
+    dynamic_episodes: int = field(
+        default=10, metadata={"help": "episodes against the run's own adversary (paper Table 6)"}
+    )
     rate_limit: float | None = None
     rate_game: str = "tc"
     #: a worst case that resists episode noise, beside the paper's (``rrls.evaluation.recheck``):
