@@ -48,3 +48,13 @@ def test_the_protocols_options_are_its_fields(name):
 def test_a_benchmark_parses_a_step_count_in_any_spelling():
     args = _parser(benchmark_command).parse_args(["--out", "x", "--steps", "100k"])
     assert args.steps == 100_000 and args.uncertainty is None
+
+
+def test_the_warm_up_options_help_reads_the_table_and_the_quick_preset():
+    from rrls.algorithms import ALGORITHMS
+    from rrls.experiments.presets import PRESETS
+
+    text = _actions(_parser(benchmark_command))["learning_starts"].help
+    assert f"M2TD3 {ALGORITHMS['m2td3'].learning_starts:,}" in text
+    assert f"own, {ALGORITHMS['td3'].learning_starts:,}" in text
+    assert f"quick {PRESETS['quick']['learning_starts']:,}" in text

@@ -41,6 +41,19 @@ def _plugins() -> str:
     return f"({', '.join(names)}) " if names else ""
 
 
+def _warmups() -> str:
+    """The paper's five's warm-ups as the table declares them: the common one, then the rest by
+    name (``25,000, M2TD3 100,000``)."""
+    from collections import Counter
+
+    from rrls.algorithms import ALGORITHMS, paper_five
+
+    steps = {a: ALGORITHMS[a].learning_starts for a in paper_five()}
+    common = Counter(steps.values()).most_common(1)[0][0]
+    others = [f"{ALGORITHMS[a].display} {n:,}" for a, n in steps.items() if n != common]
+    return ", ".join([f"{common:,}", *others])
+
+
 def add_parser(sub: argparse._SubParsersAction) -> argparse.ArgumentParser:
     """Register ``rrls benchmark`` on the ``rrls`` sub-command parser."""
     from rrls.tasks import TASKS  # every registered task, plug-ins' included (loaded by main)
@@ -112,8 +125,8 @@ def add_parser(sub: argparse._SubParsersAction) -> argparse.ArgumentParser:
         type=step_count,
         metavar="N",
         help="random steps before learning (default: the preset's; paper: each algorithm's own, "
-        "25 000, M2TD3 100 000; quick 1 000; "
-        "with --steps alone, at most a fifth of the budget)",
+        f"{_warmups()}; quick {PRESETS['quick']['learning_starts']:,}; with --steps alone, at "
+        "most a fifth of the budget)",
     )
     # the final evaluation's protocol fields, their help Protocol's own (rrls evaluate's too)
     add_protocol_options(b, ("mesh", "episodes"), "the preset's", "final evaluation: ")
