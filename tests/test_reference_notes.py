@@ -72,3 +72,28 @@ def test_the_physics_sections_summary_is_the_files(task: str) -> None:
     means = [sum(v) / len(v) for v in change.values()]
     assert min(means) > 0
     assert f"(by {min(means):.0f} to {max(means):.0f})" in page
+
+
+def test_the_hopper_budget_probes_table_is_its_file() -> None:
+    """Each figure of the TD3 budget probe's table on the Hopper page is the file's, rounded."""
+    import csv
+    import re
+
+    folder = ROOT / "docs" / "results" / "hopper"
+    with open(folder / "td3_budget_probe.csv", newline="") as f:
+        rows = {
+            (int(r["seed"]), int(r["step"])): float(r["nominal_return"]) for r in csv.DictReader(f)
+        }
+    page = (folder / "README.md").read_text()
+    section = page.split("TD3 measured first", 1)[1].split("**Reading.**", 1)[0]
+    steps = [50_000, 100_000, 150_000, 200_000, 250_000, 300_000]
+    table = [line for line in section.splitlines() if re.match(r"\| \d+ \|", line)]
+    assert len(table) == len({seed for seed, _ in rows})
+    for line in table:
+        cells = [c.strip() for c in line.strip("|").split("|")]
+        seed = int(cells[0])
+        for step, cell in zip(steps, cells[1:]):
+            expected = rows.get((seed, step))
+            assert cell == ("" if expected is None else f"{expected:.0f}"), (seed, step)
+    final = rows[(0, 300_000)]
+    assert f"seed 0 is at {final:.0f}, far from 2 500" in " ".join(page.split())
