@@ -6,7 +6,8 @@ from __future__ import annotations
 
 from typing import Any
 
-from rrls.algorithms import display_name, normalisers
+from rrls.algorithms import normalisers
+from rrls.experiments.names import normaliser_names
 
 __all__ = [
     "BUDGET",
@@ -37,7 +38,7 @@ FEW_SEEDS_TEX = (
 UNSTABLE = "§"  # marks a normalised cell whose normaliser is within the baselines' noise
 #: the normaliser as a reader sees it: the table's two anchors (``normalisers``) by display name,
 #: ``|one - zero|``, in LaTeX ``|v_one - v_zero|``
-_ZERO, _ONE = (display_name(a) for a in normalisers())
+_ZERO, _ONE = normaliser_names()
 _SPAN = f"|{_ONE} - {_ZERO}|"
 _TEX_SPAN = "$|v_{\\mathrm{" + _ONE + "}} - v_{\\mathrm{" + _ZERO + "}}|$"
 UNSTABLE_NOTE = (

@@ -17,7 +17,7 @@ from typing import Any
 
 import numpy as np
 
-from rrls.algorithms import display_name, normalisers
+from rrls.algorithms import normalisers
 from rrls.evaluation.metrics import SCORES
 from rrls.experiments import profiles, stats
 from rrls.experiments.caveats import FEW, few_seeds
@@ -33,6 +33,7 @@ from rrls.experiments.figstyle import (
     reference_colour,
     save,
 )
+from rrls.experiments.names import normaliser_names
 from rrls.experiments.summary import Scores
 from rrls.experiments.tables import Row, cell, label, table_rows
 
@@ -40,7 +41,7 @@ __all__ = ["aggregate_figures", "marked", "row_colour"]
 
 TITLES = {"worst_case": "worst case", "average_case": "average case"}
 #: the unit of a normalised score: its two anchors (the algorithm table's), by display name
-NORMALISED = ", ".join(f"{v} = {display_name(a)}" for v, a in enumerate(normalisers()))
+NORMALISED = ", ".join(f"{v} = {name}" for v, name in enumerate(normaliser_names()))
 
 
 def marked(summary: dict[str, Any], row: Row) -> str:

@@ -11,10 +11,9 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any
 
-from rrls.algorithms import display_name, normalisers
 from rrls.experiments.caveats import BUDGET, BUDGET_TEX_MARK, FEW_SEEDS_TEX, UNSTABLE_TEX
 from rrls.experiments.cells import tex_ci, tex_pm
-from rrls.experiments.names import task_name
+from rrls.experiments.names import normaliser_names, task_name
 
 __all__ = ["CELLS", "PACKAGES", "caption", "fit", "fit_file", "tex_escape"]
 
@@ -73,7 +72,7 @@ def caption(
             )
             + "."
         )
-    zero, one = (tex_escape(display_name(a)) for a in normalisers())
+    zero, one = (tex_escape(name) for name in normaliser_names())
     if normalised:
         text.append(
             f"Normalised score: $(v - v_{{\\mathrm{{{zero}}}}}) / |v_{{\\mathrm{{{one}}}}} - "

@@ -26,7 +26,6 @@ from importlib import resources
 from pathlib import Path
 from typing import Any
 
-from rrls.algorithms import normalisers
 from rrls.evaluation.metrics import SPLIT_SCORES
 from rrls.experiments.caveats import (
     FEW,
@@ -39,7 +38,7 @@ from rrls.experiments.cells import fmt, pm
 from rrls.experiments.changes import rebuild_folder
 from rrls.experiments.crosstask import sources_lines
 from rrls.experiments.latex import fit_file
-from rrls.experiments.names import ORDER, display_name
+from rrls.experiments.names import ORDER, display_name, normaliser_names
 from rrls.experiments.origins import budget_lines, reference_lines, submitted_lines
 from rrls.experiments.pairwise import markdown as pairwise_markdown
 from rrls.experiments.pairwise import paper_orderings
@@ -344,7 +343,7 @@ def _markdown(
         if "poi_over_td3_worst_case" in v
     ]
     if poi:
-        zero = display_name(normalisers()[0])
+        zero = normaliser_names()[0]
         lines += [
             f"## Probability of improvement over {zero} (worst case)",
             "",
@@ -415,7 +414,7 @@ def _normalisation_lines(summary: dict[str, Any]) -> list[str]:
         key = "reference" if "reference" in used else "benchmark" if "benchmark" in used else "-"
         sources.setdefault(key, []).append(task)
     lines = ["## Normalisation", ""]
-    pair = " and ".join(display_name(a) for a in normalisers())
+    pair = " and ".join(normaliser_names())
     if sources.get("benchmark"):
         lines.append(f"- this benchmark's own {pair} runs: {', '.join(sources['benchmark'])}")
     if sources.get("reference") and ref:

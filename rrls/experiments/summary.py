@@ -20,7 +20,7 @@ from typing import Any
 
 import numpy as np
 
-from rrls.algorithms import display_name, normalisers, plays_adversary
+from rrls.algorithms import normalisers, plays_adversary
 from rrls.evaluation.metrics import (
     SCORES,
     SPLIT_SCORES,
@@ -30,7 +30,7 @@ from rrls.evaluation.metrics import (
 )
 from rrls.experiments import stats
 from rrls.experiments.caveats import check_normaliser
-from rrls.experiments.names import sort_algos
+from rrls.experiments.names import normaliser_names, sort_algos
 from rrls.experiments.pairwise import summarise_pairs
 from rrls.experiments.rechecked import summarise_rechecked
 from rrls.schema import SchemaError, loads_json
@@ -38,7 +38,7 @@ from rrls.schema import SchemaError, loads_json
 __all__ = ["CONVENTIONS", "Scores", "reference_name", "summarise", "summarise_store"]
 
 #: the normalised score's anchors (0, 1) as a reader sees them: their display names
-_ZERO, _ONE = (display_name(a) for a in normalisers())
+_ZERO, _ONE = normaliser_names()
 
 CONVENTIONS = {
     "worst_case": "per run: min over mesh points of the mean return over the point's "

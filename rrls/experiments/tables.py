@@ -22,11 +22,11 @@ from typing import Any
 
 import numpy as np
 
-from rrls.algorithms import normalisers, plays_adversary
+from rrls.algorithms import plays_adversary
 from rrls.experiments.caveats import BUDGET, budget_differs, few_seeds, is_unstable
 from rrls.experiments.cells import average, ci, pm, tied_best
 from rrls.experiments.latex import CELLS, PACKAGES, caption, fit, tex_escape
-from rrls.experiments.names import display_name, sort_algos, task_name
+from rrls.experiments.names import display_name, normaliser_names, sort_algos, task_name
 
 __all__ = [
     "TABLES",
@@ -179,7 +179,7 @@ def _why_empty(summary: dict[str, Any], name: str) -> str:
             "run them to fill paper Table 6)"
         )
     if name.startswith("normalised"):
-        pair = " and ".join(display_name(a) for a in normalisers())
+        pair = " and ".join(normaliser_names())
         return (
             f"no task could be normalised: it needs finished {pair} runs here or a "
             "reference with them (`rrls report DIR --reference FILE`)"
