@@ -119,7 +119,8 @@ def moved_modules(moves: dict[str, str]) -> Callable[[str], Any]:
     """Keep the modules ``{old dotted name: new dotted name}`` importable under their old names
     (``import old``, ``from old import x``), warning each time one is first imported. Returns a
     module ``__getattr__`` for their package, so that ``package.old`` read as an attribute
-    works and warns too."""
+    works and warns too (any other name: the ``AttributeError`` a module raises)."""
+    (package,) = {old.rpartition(".")[0] for old in moves}  # one package's modules
     _MOVED.moves.update(moves)
     if _MOVED not in sys.meta_path:
         sys.meta_path.append(_MOVED)  # last: it never shadows a module that exists
@@ -128,6 +129,6 @@ def moved_modules(moves: dict[str, str]) -> Callable[[str], Any]:
     def attribute(name: str) -> Any:
         if name in by_attribute:
             return importlib.import_module(by_attribute[name])
-        raise AttributeError(name)
+        raise AttributeError(f"module {package!r} has no attribute {name!r}")
 
     return attribute

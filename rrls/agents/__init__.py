@@ -58,10 +58,7 @@ def __getattr__(name: str) -> Any:
         value = getattr(importlib.import_module(f"rrls.agents.{_WHERE[name]}"), name)
         globals()[name] = value  # once: later reads are plain attribute reads
         return value
-    try:
-        return _moved(name)
-    except AttributeError:
-        raise AttributeError(f"module {__name__!r} has no attribute {name!r}") from None
+    return _moved(name)
 
 
 def __dir__() -> list[str]:

@@ -69,6 +69,8 @@ def add_train_arguments(parser: argparse.ArgumentParser) -> None:
         if f.name in _SKIP:
             continue
         kwargs: dict[str, Any] = {"default": None, "help": f.metadata.get("help", "")}
+        if "default_text" in f.metadata:  # a default a value cannot show (None: the task's...)
+            kwargs["help"] += f"; default: {f.metadata['default_text']}"
         if f.name in ("algo", "task"):
             kwargs["required"] = True
             if f.name == "task":
@@ -76,7 +78,6 @@ def add_train_arguments(parser: argparse.ArgumentParser) -> None:
                 kwargs["help"] += f" (one of {', '.join(TASKS)})"
         elif f.name == "uncertainty":  # any set the task declares: TrainConfig checks it
             kwargs["metavar"] = "SET"
-            kwargs["help"] += f"; default: {f.metadata['default_text']}"
         elif f.metadata.get("choices"):
             kwargs["choices"] = f.metadata["choices"]
             kwargs["help"] += f" (default {f.default})"
