@@ -51,10 +51,10 @@ def one_run_alone(args: argparse.Namespace, out: Path) -> float:
 
 def local_backend(args: argparse.Namespace, out: Path) -> dict[str, float]:
     """Wall time of the pool, the longest run, the driver's CPU, store and report times."""
-    from rrls.experiments.backends import run_local
-    from rrls.experiments.report import make_report
-    from rrls.experiments.spec import make_spec
-    from rrls.experiments.store import build_store
+    from rrls.benchmark.backends import run_local
+    from rrls.benchmark.grid import make_spec
+    from rrls.benchmark.store import build_store
+    from rrls.report.writer import make_report
 
     spec = make_spec(
         "paper",

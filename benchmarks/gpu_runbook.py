@@ -28,7 +28,7 @@ Its rows, most wanted first (so a deadline cuts the least wanted):
    twin) give a ``refused: <reason>`` row, in the twin's own words, without a process;
 4. ``loop`` on HalfCheetah at K = 1, 32, 128, 256;
 5. ``estimate``: the paper's protocol (``--preset paper``, 10 seeds packed K = 10 per process)
-   on one GPU, recomputed from these rows with ``rrls.experiments.gpu_estimate``; each cell is
+   on one GPU, recomputed from these rows with ``rrls.benchmark.gpu_estimate``; each cell is
    marked ``measured``, ``extrapolated`` (a twin task not measured: the mean of Hopper's and
    HalfCheetah's rows) or ``stored`` (no twin path or no row: the stored H100 figures of
    ``rrls benchmark --dry-run --device cuda``), beside that stored estimate.
@@ -247,7 +247,7 @@ def plan(args: argparse.Namespace, tmp: Path) -> list[Step]:
 
 def measured_rate(rows: list[dict[str, Any]]) -> tuple[Callable[..., Any], dict[str, str]]:
     """``gpu_estimate``'s rate from the rows, and where each cell's figure came from."""
-    from rrls.experiments.gpu_estimate import stored_rate
+    from rrls.benchmark.gpu_estimate import stored_rate
     from rrls.twin.catalog import TWIN_TASKS, not_on_twin
 
     ok = {
@@ -274,8 +274,8 @@ def measured_rate(rows: list[dict[str, Any]]) -> tuple[Callable[..., Any], dict[
 
 def paper_estimate(rows: list[dict[str, Any]], pack: int = PACK) -> dict[str, Any]:
     """The paper's protocol on one GPU from the measured rows, beside the stored figures'."""
-    from rrls.experiments.gpu_estimate import gpu_estimate
-    from rrls.experiments.spec import make_spec
+    from rrls.benchmark.gpu_estimate import gpu_estimate
+    from rrls.benchmark.grid import make_spec
 
     spec = make_spec("paper")
     rate, sources = measured_rate(rows)

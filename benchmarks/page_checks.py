@@ -19,13 +19,13 @@ import numpy as np
 
 from rrls import rundir
 from rrls.algorithms import display_name, sort_algos
-from rrls.experiments.pairwise import pairwise
-from rrls.experiments.stats import t_interval
+from rrls.report.pairwise import pairwise
+from rrls.report.stats import t_interval
 
 
 def seed_cell(values: list[float]) -> str:
     """Per-seed values as a page shows them: the mean with its 95 % Student-t interval (the
-    report's method, ``rrls.experiments.stats.t_interval``); one seed: its value."""
+    report's method, ``rrls.report.stats.t_interval``); one seed: its value."""
     if not values:
         return ""
     mean = sum(values) / len(values)
@@ -129,7 +129,7 @@ ORIGINAL = {"gymnasium": "1.0.0a1", "mujoco": "2.3.3"}
 def differences(folder: Path) -> str:
     """The ``differences`` block: what this reference holds against the paper's protocol, read
     from the benchmark, its runs and the paper's published settings."""
-    from rrls.experiments.report import paper_results
+    from rrls.report.writer import paper_results
 
     paper = paper_results()
     spec = json.loads((folder / "benchmark.json").read_text())

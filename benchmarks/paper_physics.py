@@ -20,8 +20,8 @@ import json
 import time
 from pathlib import Path
 
+from rrls.benchmark import benchfile
 from rrls.evaluation import evaluate
-from rrls.experiments import benchfile
 
 COLUMNS = (
     "run",

@@ -24,10 +24,10 @@ import time
 from pathlib import Path
 
 from rrls import rundir
+from rrls.benchmark import benchfile
+from rrls.benchmark.grid import RunKey, make_spec
+from rrls.benchmark.stages import run_evaluation
 from rrls.evaluation import MLPPolicy
-from rrls.experiments import benchfile
-from rrls.experiments.spec import RunKey, make_spec
-from rrls.experiments.stages import run_evaluation
 
 COPIED = ("policy.npz", "adversary.npz", "run.json", "scalars.csv", "dynamic.csv")
 DYNAMIC = ("dynamic_mean", "dynamic_std", "dynamic_env")

@@ -12,7 +12,7 @@ and, where the folder has ``runs/``, each run's ``result.json``.
 data give, so no number on a page is typed by hand. Blocks:
 
 - ``summary``: per algorithm, the mean over seeds with its 95 % Student-t interval (the report's
-  method, ``rrls.experiments.stats.t_interval``), each seed's final nominal return;
+  method, ``rrls.report.stats.t_interval``), each seed's final nominal return;
 - ``orderings``: every pair of algorithms whose intervals do not overlap, per criterion, and the
   lowest and highest mean: the only orderings a page may state;
 - ``runs``: one row per shipped run;
@@ -36,9 +36,9 @@ from collect_runs import run_seconds  # benchmarks/, beside this script
 from page_checks import seed_cell  # beside this script too
 
 from rrls.algorithms import display_name, sort_algos
-from rrls.experiments.pairwise import judge_paper, pairwise
-from rrls.experiments.reference import load_reference
-from rrls.experiments.stats import t_interval
+from rrls.report.pairwise import judge_paper, pairwise
+from rrls.report.reference import load_reference
+from rrls.report.stats import t_interval
 
 METRICS = {"worst_case": "worst case", "average_case": "average case"}
 #: a block; ``SUB/NAME`` is the block NAME of the report in the page's folder SUB (no reference)
@@ -180,8 +180,8 @@ def runs(folder: Path) -> str:
 def uncertainty_set(folder: Path) -> str:
     """The benchmark's set per task: each parameter's bounds and the model's nominal value,
     inside the set or not (the task's XML as compiled, what an unperturbed env runs)."""
+    from rrls.benchmark.benchfile import read_spec_json
     from rrls.envs import ROBUST_ENVS, get_uncertainty_set
-    from rrls.experiments.benchfile import read_spec_json
 
     spec = read_spec_json(folder)  # the protocol's fields flat, whatever the file's format
     lines = [
@@ -234,7 +234,7 @@ def paper_comparison(folder: Path) -> str:
     average case, mean ± std over the paper's 10 seeds), and for every pair of algorithms the
     paper orders: reproduced (this benchmark's 95 % intervals disjoint, the same way),
     contradicted (disjoint, the other way) or unresolved (they overlap)."""
-    from rrls.experiments.report import paper_results
+    from rrls.report.writer import paper_results
 
     paper = paper_results()
     spec = json.loads((folder / "benchmark.json").read_text())
@@ -288,7 +288,7 @@ def _p(p: float) -> str:
 
 def _holm(values: dict[str, list[float]], paper: dict, task: str, metric: str) -> str:
     """The paper's orderings judged by Welch's test with Holm's correction over the pairs
-    (``rrls.experiments.pairwise``, the report's method), the uncorrected p beside each."""
+    (``rrls.report.pairwise``, the report's method), the uncorrected p beside each."""
     rows = pairwise(values)
     verdicts: dict[str, list[str]] = {"reproduced": [], "contradicted": [], "unresolved": []}
     for j in judge_paper(rows, paper, task, metric):

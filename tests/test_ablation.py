@@ -49,7 +49,7 @@ def test_variants_are_registered_rows_the_benchmark_accepts(ablation):
     assert tessler.normalize_obs and tessler.critic_weight_decay == 1e-2
     authors = algorithm("m2td3-authors").Config()
     assert not authors.clip_exploration and authors.same_start
-    from rrls.experiments.spec import make_spec
+    from rrls.benchmark.grid import make_spec
 
     spec = make_spec("halfcheetah", algos="nrmdp-tessler,m2td3-authors", seeds=2)
     assert spec.warmup("m2td3-authors") == 100_000 and spec.warmup("nrmdp-tessler") == 25_000

@@ -16,8 +16,8 @@ from rrls.algorithms import (
     paper_five,
     register_algorithm,
 )
-from rrls.experiments.presets import ALGOS
-from rrls.experiments.spec import make_spec
+from rrls.benchmark.grid import make_spec
+from rrls.benchmark.presets import ALGOS
 
 
 def test_the_table_declares_one_row_per_anchor_of_the_normalised_score():

@@ -17,12 +17,12 @@ import numpy as np
 import pytest
 
 from rrls import rundir
+from rrls.benchmark.benchfile import read_spec
 from rrls.cli import main
 from rrls.evaluation import BatchInvariant
-from rrls.experiments import submit
-from rrls.experiments.benchfile import read_spec
-from rrls.experiments.submission import SubmitError, create_benchmark
-from rrls.experiments.withdraw import remove_submission
+from rrls.submissions import submit
+from rrls.submissions.steps import SubmitError, create_benchmark
+from rrls.submissions.withdraw import remove_submission
 
 LOCKS = {".benchmark.lock", ".report.lock", ".lock"}
 
@@ -211,7 +211,7 @@ def test_withdraw_takes_every_spelling_submit_takes(bench, task, capsys):
 
 def test_a_failed_store_rebuild_keeps_the_old_store(bench, tmp_path):
     """The result store is rebuilt beside the old one and swapped in whole."""
-    from rrls.experiments.store import build_store
+    from rrls.benchmark.store import build_store
 
     build_store(bench)
     remove_submission(bench, "other")  # the next rebuild differs
@@ -222,9 +222,9 @@ def test_a_failed_store_rebuild_keeps_the_old_store(bench, tmp_path):
 def test_a_failed_report_keeps_the_old_report(bench, tmp_path, monkeypatch):
     """The report is built beside the old one and swapped in whole: a failure while writing
     its figures leaves every file of the old report in place."""
-    from rrls.experiments import plots
-    from rrls.experiments.report import make_report
-    from rrls.experiments.store import build_store
+    from rrls.benchmark.store import build_store
+    from rrls.report import plots
+    from rrls.report.writer import make_report
 
     build_store(bench)
     make_report(bench, plots=False)

@@ -14,12 +14,12 @@ import pandas as pd
 import pytest
 
 from rrls import rundir
+from rrls.benchmark import benchfile, store
+from rrls.benchmark.grid import PRESETS, Benchmark, SpecError, make_spec
 from rrls.cli import main
 from rrls.evaluation import Protocol, evaldir
-from rrls.experiments import benchfile, store
-from rrls.experiments.reference import check_compatible, load_reference
-from rrls.experiments.spec import PRESETS, Benchmark, SpecError, make_spec
 from rrls.physics import physics_label
+from rrls.report.reference import check_compatible, load_reference
 from rrls.wrappers import ScheduleFamily
 
 ROOT = Path(__file__).resolve().parents[1]

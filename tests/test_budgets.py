@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from rrls.argtypes import MAX_STEPS, step_count
-from rrls.experiments.submission import SubmitError, create_benchmark, submit
+from rrls.submissions.steps import SubmitError, create_benchmark, submit
 
 
 def zeros(obs):
@@ -46,8 +46,8 @@ def test_train_and_benchmark_accept_1e4_and_100k():
 
 
 def test_submit_records_the_declared_budget_and_the_report_marks_a_different_one(tmp_path):
-    from rrls.experiments.report import make_report
-    from rrls.experiments.store import build_store
+    from rrls.benchmark.store import build_store
+    from rrls.report.writer import make_report
 
     bench = tmp_path / "bench"
     create_benchmark(bench, "smoke", ("invertedpendulum",))

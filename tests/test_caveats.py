@@ -3,9 +3,9 @@ and a normalisation whose span is within the baselines' seed spread is flagged."
 
 from __future__ import annotations
 
-from rrls.experiments.caveats import FEW, few_seeds, unstable_normalisation
-from rrls.experiments.cells import pm as _pm
-from rrls.experiments.cells import tex_pm as _tex_pm
+from rrls.report.caveats import FEW, few_seeds, unstable_normalisation
+from rrls.report.cells import pm as _pm
+from rrls.report.cells import tex_pm as _tex_pm
 
 
 def cell(mean, std, n):

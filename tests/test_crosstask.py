@@ -11,10 +11,10 @@ from pathlib import Path
 import pandas as pd
 import pytest
 
+from rrls.benchmark.benchfile import stored_fingerprints
+from rrls.benchmark.store import build_store
 from rrls.cli.app import main
-from rrls.experiments.benchfile import stored_fingerprints
-from rrls.experiments.crosstask import joined
-from rrls.experiments.store import build_store
+from rrls.report.crosstask import joined
 
 pytestmark = pytest.mark.e2e  # rrls report over two shipped references: a long run
 

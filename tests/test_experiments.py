@@ -20,18 +20,18 @@ import pytest
 from conftest import e2e_after_first
 
 from rrls.algorithms import ALGORITHMS
-from rrls.cli import main
-from rrls.experiments import stats
-from rrls.experiments.benchfile import reconcile
-from rrls.experiments.cpu_estimate import (
+from rrls.benchmark.benchfile import reconcile
+from rrls.benchmark.cpu_estimate import (
     RANDOM_STEPS_PER_S,
     REPORT_S,
     STARTUP_S,
     estimate,
 )
-from rrls.experiments.report import make_report, paper_results, summarise
-from rrls.experiments.runner import Display, plan
-from rrls.experiments.spec import Benchmark, SpecError, make_spec
+from rrls.benchmark.grid import Benchmark, SpecError, make_spec
+from rrls.benchmark.runner import Display, plan
+from rrls.cli import main
+from rrls.report import stats
+from rrls.report.writer import make_report, paper_results, summarise
 
 needs_torch = pytest.mark.skipif(
     importlib.util.find_spec("torch") is None, reason="training needs torch (rrls[train])"
@@ -51,8 +51,8 @@ def smoke(tmp_path_factory) -> Path:
 @pytest.mark.e2e
 @needs_torch
 def test_an_exported_reference_says_where_it_came_from(smoke, tmp_path):
-    from rrls.experiments.exported import export_reference
-    from rrls.experiments.reference import load_reference
+    from rrls.report.exported import export_reference
+    from rrls.report.reference import load_reference
 
     export_reference(smoke, tmp_path / "ref.json")
     prov = load_reference(tmp_path / "ref.json").provenance
@@ -84,7 +84,7 @@ def test_an_exported_reference_says_where_it_came_from(smoke, tmp_path):
     assert "trained_otherwise" not in prov  # every run trained as the benchmark says
     # a run re-evaluated under the benchmark's protocol but trained otherwise: the reference
     # says so, per algorithm
-    from rrls.experiments import store
+    from rrls.benchmark import store
 
     copy = tmp_path / "bench"
     shutil.copytree(smoke, copy)
@@ -503,7 +503,7 @@ def test_progress_shows_counts_running_runs_and_failures(tmp_path, stream_type):
 @pytest.mark.e2e
 @needs_torch
 def test_quickstart_is_the_quick_preset(tmp_path, capsys, monkeypatch):
-    from rrls.experiments import spec as spec_module
+    from rrls.benchmark import grid as spec_module
 
     quick = spec_module.PRESETS["quick"]
     assert quick["tasks"] == ("invertedpendulum",) and quick["uncertainty"] == "1d"
@@ -605,7 +605,7 @@ def test_benchmark_split_is_canonical_and_refuses_interpolation():
 
 
 def test_a_benchmark_runs_every_algorithms_first_seed_first():
-    from rrls.experiments.pipeline import groups
+    from rrls.benchmark.pipeline import groups
 
     spec = make_spec("smoke", seeds=3)
     alone = [(k.algo, k.seed) for g in groups(spec.runs(), 1) for k in g]

@@ -65,7 +65,7 @@ def test_rarls_alternating_phases_stay_available_by_name():
 
 def test_m2td3_warms_up_for_its_authors_100k_random_steps_in_every_paper_preset():
     # SuReLI/TCRMDP src/main_m2td3.py:16 (start_steps: int = 1e5), akimotolab/M2TD3's configs
-    from rrls.experiments.spec import make_spec
+    from rrls.benchmark.grid import make_spec
 
     assert hyperparameters(TrainConfig(algo="m2td3", task="hopper")).learning_starts == 100_000
     assert hyperparameters(TrainConfig(algo="td3", task="hopper")).learning_starts == 25_000
@@ -81,8 +81,8 @@ def test_m2td3_warms_up_for_its_authors_100k_random_steps_in_every_paper_preset(
 @pytest.mark.parametrize("preset", ["hopper", "halfcheetah", "paper"])
 def test_presets_that_claim_the_papers_mesh_evaluate_on_np_arange(preset):
     # the original code's mesh: np.arange(low, high, (high - low) / n), upper bound excluded
+    from rrls.benchmark.grid import make_spec
     from rrls.envs import get_uncertainty_set
-    from rrls.experiments.spec import make_spec
 
     spec = make_spec(preset, tasks="halfcheetah")
     plan = spec.protocol.plan("halfcheetah")

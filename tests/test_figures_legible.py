@@ -18,12 +18,12 @@ import pandas as pd
 import pytest
 
 from rrls._io import atomic_write_json
+from rrls.benchmark.grid import RunKey, make_spec
+from rrls.benchmark.store import build_store, write_result
 from rrls.evaluation import BatchInvariant, evaluate
-from rrls.experiments import submit
-from rrls.experiments.exported import export_reference
-from rrls.experiments.spec import RunKey, make_spec
-from rrls.experiments.store import build_store, write_result
+from rrls.report.exported import export_reference
 from rrls.rundir import SCALARS, write_checked_table
+from rrls.submissions import submit
 
 #: the long end-to-end tier (.ci/run runs it after the default suite)
 pytestmark = pytest.mark.e2e
@@ -90,7 +90,7 @@ def make_bench(tmp: Path) -> tuple[Path, Path]:
     """The benchmark (with a 2-seed submission) and a reference file from another one."""
     other = write_runs(tmp / "other", gain=0.7)
     build_store(other)
-    from rrls.experiments.report import make_report
+    from rrls.report.writer import make_report
 
     make_report(other, plots=False)
     ref = export_reference(other, tmp / "quick.json", label="quick").path
@@ -198,10 +198,10 @@ def test_the_checks_catch_a_legend_over_a_line_and_an_axis_without_unit():
 @pytest.fixture(scope="module")
 def drawn(tmp_path_factory):
     """The report of the benchmark and every figure of it (open), with and without titles."""
-    from rrls.experiments.plots import make_figures
-    from rrls.experiments.reference import load_reference
-    from rrls.experiments.report import make_report
-    from rrls.experiments.store import load_store
+    from rrls.benchmark.store import load_store
+    from rrls.report.plots import make_figures
+    from rrls.report.reference import load_reference
+    from rrls.report.writer import make_report
 
     tmp = tmp_path_factory.mktemp("figures")
     root, ref = make_bench(tmp)
@@ -255,7 +255,7 @@ def test_every_axis_with_numbers_states_its_unit(drawn):
 
 
 def test_a_parameters_unit_comes_from_its_field():
-    from rrls.experiments.figstyle import param_unit
+    from rrls.report.figstyle import param_unit
 
     assert param_unit("hopper", "torsomass") == "kg"
     assert param_unit("hopper", "worldfriction") == "unitless"  # a friction coefficient
@@ -311,7 +311,7 @@ def test_titles_are_optional(drawn):
 
 def test_rrls_report_no_titles_reaches_the_figures(drawn, monkeypatch):
     from rrls.cli import main
-    from rrls.experiments import report
+    from rrls.report import writer as report
 
     seen = {}
     real = report.make_report
@@ -328,11 +328,11 @@ def test_rrls_report_no_titles_reaches_the_figures(drawn, monkeypatch):
 
 
 def test_a_submissions_only_report_draws_the_probability_of_improvement(drawn):
-    from rrls.experiments.plots import make_figures
-    from rrls.experiments.reference import load_reference
-    from rrls.experiments.report import make_report
-    from rrls.experiments.store import load_store
-    from rrls.experiments.submission import create_benchmark
+    from rrls.benchmark.store import load_store
+    from rrls.report.plots import make_figures
+    from rrls.report.reference import load_reference
+    from rrls.report.writer import make_report
+    from rrls.submissions.steps import create_benchmark
 
     root = drawn["tmp"] / "submissions"
     create_benchmark(root, "smoke", (TASK,), mesh=5)
@@ -369,7 +369,7 @@ def test_a_submissions_only_report_draws_the_probability_of_improvement(drawn):
 def test_a_2d_set_heatmap_states_units_and_drops_its_title(tmp_path):
     import matplotlib.pyplot as plt
 
-    from rrls.experiments.plots import plot_heatmaps
+    from rrls.report.plots import plot_heatmaps
 
     rows = [
         {"task": TASK, "algorithm": algo, "seed": 0, "point": i * 3 + j, "episode": 0}

@@ -16,15 +16,15 @@ import pandas as pd
 import pytest
 
 from rrls import rundir
+from rrls.benchmark import benchfile, store
+from rrls.benchmark.grid import PRESETS, Benchmark, SpecError
 from rrls.evaluation import EvaluationResult, evaldir
 from rrls.evaluation.policies import HEADER_SCHEMA
-from rrls.experiments import benchfile, store
-from rrls.experiments.reference import (
+from rrls.report.reference import (
     REFERENCE_SCHEMA,
     ReferenceError,
     load_reference,
 )
-from rrls.experiments.spec import PRESETS, Benchmark, SpecError
 from rrls.schema import Field, Schema, SchemaError, TableSchema, integer, number, string
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -125,7 +125,7 @@ def test_a_hostile_benchmark_json_is_refused_by_field(tmp_path, field, bad):
 
 
 def test_the_flat_schema_declares_every_field_an_earlier_file_held():
-    from rrls.experiments.spec import LATER, PROTOCOL_NAMES
+    from rrls.benchmark.grid import LATER, PROTOCOL_NAMES
 
     earlier = set(PROTOCOL_NAMES) - set(LATER)  # the protocol's fields files held flat
     assert (
@@ -204,7 +204,7 @@ def test_a_hostile_run_json_is_a_damaged_run(tmp_path, field, bad):
 
 # --- reference files ------------------------------------------------------------------------
 def _reference() -> dict[str, Any]:
-    return json.loads((ROOT / "rrls/experiments/hopper_reference.json").read_text())
+    return json.loads((ROOT / "rrls/report/hopper_reference.json").read_text())
 
 
 @pytest.mark.parametrize(("field", "bad"), cases(REFERENCE_SCHEMA))
@@ -346,7 +346,7 @@ def test_the_shipped_evaluation_reads_back():
     "content", ["[]", '"x"', '{"phase": "train", "step": -1}', '{"phase": 3}', '{"sps": NaN}']
 )
 def test_a_hostile_progress_file_shows_nothing(tmp_path, content):
-    from rrls.experiments.pipeline import read_progress
+    from rrls.benchmark.pipeline import read_progress
 
     (tmp_path / rundir.PROGRESS).write_text(content)
     assert read_progress(tmp_path) is None

@@ -52,7 +52,7 @@ def test_a_benchmark_parses_a_step_count_in_any_spelling():
 
 def test_the_warm_up_options_help_reads_the_table_and_the_quick_preset():
     from rrls.algorithms import ALGORITHMS
-    from rrls.experiments.presets import PRESETS
+    from rrls.benchmark.presets import PRESETS
 
     text = _actions(_parser(benchmark_command))["learning_starts"].help
     assert f"M2TD3 {ALGORITHMS['m2td3'].learning_starts:,}" in text

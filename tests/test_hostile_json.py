@@ -16,11 +16,11 @@ import pytest
 from test_file_schemas import RESULT  # a valid result.json, beside this file
 
 from rrls import rundir
+from rrls.benchmark import benchfile, store
+from rrls.benchmark.grid import PRESETS, Benchmark
 from rrls.cli import main
 from rrls.evaluation import EvaluationResult, MLPPolicy
-from rrls.experiments import benchfile, store
-from rrls.experiments.reference import ReferenceError, load_reference
-from rrls.experiments.spec import PRESETS, Benchmark
+from rrls.report.reference import ReferenceError, load_reference
 from rrls.schema import (
     MAX_JSON_BYTES,
     MAX_JSON_DEPTH,
@@ -78,7 +78,7 @@ def test_the_depth_limit_is_the_stated_one_whatever_the_recursion_limit():
     with pytest.raises(JsonError, match="nested more than"):
         loads_json(beyond, "x")  # one level more: refused although Python parses it
     shipped = sorted(ROOT.glob("docs/results/**/summary.json"))[:3]
-    for path in [*shipped, ROOT / "rrls/experiments/halfcheetah_reference.json"]:
+    for path in [*shipped, ROOT / "rrls/report/halfcheetah_reference.json"]:
         assert loads_json(path.read_bytes(), str(path))  # rrls's own files: well within
 
 
@@ -148,7 +148,7 @@ def test_a_deep_reference_file_is_refused(tmp_path, shape):
 
 @pytest.mark.parametrize("shape", SHAPES)
 def test_a_deep_progress_file_shows_nothing(tmp_path, shape):
-    from rrls.experiments.pipeline import read_progress
+    from rrls.benchmark.pipeline import read_progress
 
     (tmp_path / rundir.PROGRESS).write_text(DEEP[shape])
     assert read_progress(tmp_path) is None
@@ -171,7 +171,7 @@ def test_a_deep_policy_header_is_refused(tmp_path, shape):
 
 
 def test_a_deep_budget_in_the_store_is_refused():
-    from rrls.experiments.summary import provenance
+    from rrls.report.summary import provenance
 
     runs = pd.DataFrame(
         {"source": ["submitted"], "algorithm": ["x"], "task": ["hopper"], "seed": [0]}

@@ -210,8 +210,8 @@ def _fake_runs(kept: dict[str, str]):
 @pytest.mark.parametrize("command", ["benchmark", "quickstart"])
 def test_ctrl_c_in_a_benchmark_counts_the_runs_kept(tmp_path, capsys, monkeypatch, command):
     pytest.importorskip("torch")
+    from rrls.benchmark import runner
     from rrls.cli import main
-    from rrls.experiments import runner
 
     monkeypatch.chdir(tmp_path)
     files = {"a": "result.json", "b": "result.json", "c": "checkpoint.pt"}
@@ -231,8 +231,9 @@ def test_ctrl_c_in_a_benchmark_counts_the_runs_kept(tmp_path, capsys, monkeypatc
 
 
 def test_ctrl_c_in_report_says_which_folders_were_rewritten(tmp_path, capsys, monkeypatch):
+    from rrls.benchmark import changes, store
     from rrls.cli import main
-    from rrls.experiments import changes, report, store
+    from rrls.report import writer as report
 
     (tmp_path / "runs").mkdir()
     (tmp_path / "report").mkdir()
@@ -256,7 +257,7 @@ def test_ctrl_c_in_submit_says_whether_anything_was_submitted(
     tmp_path, capsys, monkeypatch, stop_after_chunks
 ):
     from rrls.cli import main
-    from rrls.experiments import submission
+    from rrls.submissions import steps as submission
 
     monkeypatch.chdir(tmp_path)
     _policy(tmp_path / "p.npz", 4, 1)
@@ -295,7 +296,7 @@ def test_ctrl_c_in_submit_says_whether_anything_was_submitted(
 
 def test_ctrl_c_in_withdraw_says_whether_the_runs_are_gone(tmp_path, capsys, monkeypatch):
     from rrls.cli import main
-    from rrls.experiments import withdraw
+    from rrls.submissions import withdraw
 
     monkeypatch.chdir(tmp_path)
     _policy(tmp_path / "p.npz", 4, 1)

@@ -7,8 +7,12 @@ import ast
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1] / "rrls"
-#: each layer may import only itself and the layers before it (modules not listed: the base)
-LAYERS = ("envs", "wrappers", "evaluation", "agents", "experiments", "cli")
+#: each layer may import only itself and the layers before it (modules not listed: the base).
+#: The pipeline in folders: tasks as envs, wrapped, evaluated, trained on; a benchmark of runs;
+#: submissions entered into one; the report of its results; the command line over all.
+LAYERS = ("envs", "wrappers", "evaluation", "agents", "benchmark", "submissions", "report", "cli")
+#: kept only as deprecated import paths (``rrls.deprecation.moved_modules``): they hold no code
+SHIMS = ("rrls.experiments",)
 
 
 def _modules() -> dict[str, Path]:
@@ -83,6 +87,34 @@ def _layer(mod: str) -> int:
     parts = mod.split(".")
     name = parts[1] if len(parts) > 1 else ""
     return LAYERS.index(name) if name in LAYERS else -1
+
+
+def test_the_layers_are_the_folders():
+    """Every layer is a folder of ``rrls/`` and every folder a layer (or a shim, or the twin,
+    which the agents use behind a lazy import): a new folder gets a place in the order."""
+    folders = {p.name for p in ROOT.iterdir() if (p / "__init__.py").exists()}
+    assert folders == {*LAYERS, *(s.split(".")[1] for s in SHIMS), "twin"}
+
+
+def test_the_shims_hold_no_code_and_nothing_imports_them():
+    graph = _graph()
+    for shim in SHIMS:
+        assert graph[shim] <= {"rrls.deprecation"}  # the new paths are strings, not imports
+        assert not [mod for mod, deps in graph.items() if shim in deps]
+
+
+def test_the_report_never_imports_training_and_the_benchmark_never_the_report():
+    """The report reads a benchmark's files and store only (a results folder copied to a
+    machine without torch still reports; the twin's task table is data); a benchmark hands its runner the report to write
+    (``runner.benchmark(report=...)``) rather than importing it."""
+    graph = _graph()
+    for mod, deps in graph.items():
+        if mod.startswith("rrls.report"):
+            training = {d for d in deps if d.startswith(("rrls.agents", "rrls.twin"))}
+            assert training <= {"rrls.twin.catalog"}, mod  # the twin's table: data, no warp
+            assert not {d for d in deps if d in {"rrls.benchmark.pipeline", "rrls.benchmark.runner"}}
+        if mod.startswith(("rrls.benchmark", "rrls.submissions")):
+            assert not {d for d in deps if d.startswith("rrls.report")}, mod
 
 
 def test_the_cycle_finder_finds_a_cycle():

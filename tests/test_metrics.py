@@ -9,12 +9,10 @@ import pytest
 
 from rrls.evaluation import normalized_score
 
-# The paper's tables as the package ships them (rrls/experiments/paper_results.json, what
+# The paper's tables as the package ships them (rrls/report/paper_results.json, what
 # `rrls report` prints beside a benchmark): its normalised scores must follow from its raw ones.
 PAPER = json.loads(
-    (
-        pathlib.Path(__file__).resolve().parents[1] / "rrls/experiments/paper_results.json"
-    ).read_text()
+    (pathlib.Path(__file__).resolve().parents[1] / "rrls/report/paper_results.json").read_text()
 )
 
 

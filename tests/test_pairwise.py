@@ -12,8 +12,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from rrls.experiments.pairwise import ALPHA, compare, holm, judge_paper, pairwise
-from rrls.experiments.report import paper_results
+from rrls.report.pairwise import ALPHA, compare, holm, judge_paper, pairwise
+from rrls.report.writer import paper_results
 
 stats = pytest.importorskip("scipy.stats")
 ROOT = Path(__file__).resolve().parents[1]
@@ -113,11 +113,11 @@ def test_too_few_seeds_give_no_test_and_no_verdict():
 
 
 def test_the_report_writes_the_pairwise_section_and_tables(tmp_path):
+    from rrls.benchmark.store import build_store
     from rrls.evaluation import BatchInvariant
-    from rrls.experiments import submit
-    from rrls.experiments.report import make_report
-    from rrls.experiments.store import build_store
-    from rrls.experiments.submission import create_benchmark
+    from rrls.report.writer import make_report
+    from rrls.submissions import submit
+    from rrls.submissions.steps import create_benchmark
 
     root = tmp_path / "bench"
     create_benchmark(root, "smoke", ("invertedpendulum",))

@@ -174,8 +174,8 @@ def test_train_physics_paper_uses_the_paper_twin_and_records_it(tmp_path):
 
 
 def test_a_reference_of_other_physics_is_refused_for_a_paper_benchmark():
-    from rrls.experiments.reference import ReferenceError, check_compatible, load_reference
-    from rrls.experiments.spec import SpecError, make_spec
+    from rrls.benchmark.grid import SpecError, make_spec
+    from rrls.report.reference import ReferenceError, check_compatible, load_reference
 
     spec = make_spec("quick", physics="paper")
     assert spec.physics == "paper" and spec.to_json()["protocol"]["physics"] == "paper"

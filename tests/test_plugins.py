@@ -58,11 +58,12 @@ def test_unknown_module_learners_are_one_line_errors(tmp_path, capsys):
 
 
 def test_a_module_learner_in_the_benchmark_and_its_report(tmp_path, examples):
-    from rrls.experiments.runner import benchmark
-    from rrls.experiments.spec import make_spec
+    from rrls.benchmark.grid import make_spec
+    from rrls.benchmark.runner import benchmark
+    from rrls.report import make_report
 
     spec = make_spec("smoke", algos="td3,ddpg:Learner", seeds=1)
-    assert benchmark(tmp_path, spec, 2, report=True) == 0
+    assert benchmark(tmp_path, spec, 2, report=make_report) == 0
     summary = json.loads((tmp_path / "report" / "summary.json").read_text())
     assert {"td3", "ddpg:Learner"} <= set(next(iter(summary["results"].values())))
 
@@ -70,7 +71,7 @@ def test_a_module_learner_in_the_benchmark_and_its_report(tmp_path, examples):
 def test_a_plugin_registered_after_import_is_named_by_its_row():
     """Display names are read from the table at use, not a snapshot taken at import."""
     from rrls.algorithms import ALGORITHMS, AlgorithmInfo, register_algorithm
-    from rrls.experiments import names, tables
+    from rrls.report import names, tables
 
     assert names.display_name("late_algo") == "late_algo"
     register_algorithm(AlgorithmInfo("late_algo", "Late-Algo", "mypkg.late:Learner"))

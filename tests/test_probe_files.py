@@ -73,11 +73,11 @@ def test_curves_written_after_the_last_checkpoint_are_dropped_on_resume(tmp_path
 @pytest.fixture(scope="module")
 def finished(tmp_path_factory) -> Path:
     """A smoke benchmark of TD3 (one run, finished): every results file written once."""
-    from rrls.experiments.runner import benchmark
-    from rrls.experiments.spec import make_spec
+    from rrls.benchmark.grid import make_spec
+    from rrls.benchmark.runner import benchmark
 
     root = tmp_path_factory.mktemp("bench")
-    assert benchmark(root, make_spec("smoke", algos="td3"), 1, report=False) == 0
+    assert benchmark(root, make_spec("smoke", algos="td3"), 1) == 0
     return root
 
 

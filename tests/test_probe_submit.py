@@ -14,9 +14,9 @@ import pytest
 
 from rrls.cli import main
 from rrls.evaluation import BatchInvariant
-from rrls.experiments import submission
-from rrls.experiments.submission import SubmitError, create_benchmark, submit
 from rrls.seeds import MAX_SEED
+from rrls.submissions import steps as submission
+from rrls.submissions.steps import SubmitError, create_benchmark, submit
 
 pytest.importorskip("scipy")
 
@@ -168,10 +168,10 @@ def test_a_benchmark_json_that_is_no_spec_and_unusable_paths_are_one_line(tmp_pa
     listed = tmp_path / "listed"
     listed.mkdir()
     (listed / "benchmark.json").write_text("[1, 2]\n")
-    assert _submit(listed, "rrls.experiments:submit", "--algo", "x") == 2
+    assert _submit(listed, "rrls.submissions:submit", "--algo", "x") == 2
     assert "benchmark.json is damaged (it holds a JSON list, not an object)" in _one_line(capsys)
     long = tmp_path / ("x" * 300)
-    assert _submit(long, "rrls.experiments:submit", "--algo", "x", "--preset", "smoke") == 2
+    assert _submit(long, "rrls.submissions:submit", "--algo", "x", "--preset", "smoke") == 2
     assert "File name too long" in _one_line(capsys)
 
 

@@ -6,9 +6,9 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from rrls.experiments.cpu_estimate import estimate, format_duration
-from rrls.experiments.gpu_estimate import GPU_RECORD, gpu_estimate
-from rrls.experiments.spec import make_spec
+from rrls.benchmark.cpu_estimate import estimate, format_duration
+from rrls.benchmark.gpu_estimate import GPU_RECORD, gpu_estimate
+from rrls.benchmark.grid import make_spec
 
 PAGE = (Path(__file__).resolve().parent.parent / "docs" / "protocol.md").read_text()
 

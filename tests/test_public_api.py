@@ -103,7 +103,7 @@ def test_legacy_names_work_and_warn(module: str, name: str, new: str | None):
     [
         ("rrls.params", "ParamSpec", "Parameter"),
         ("rrls.evaluation.lanes", "RolloutSpec", "Rollouts"),
-        ("rrls.experiments.spec", "Spec", "Benchmark"),
+        ("rrls.benchmark.grid", "Spec", "Benchmark"),
     ],
 )
 def test_renamed_classes_keep_their_old_names_with_a_warning(module: str, old: str, new: str):
@@ -136,9 +136,16 @@ def test_check_protocol_still_checks():
 
 
 # -- __all__ in every public module -----------------------------------------------------
-#: implementation modules reached through their package (``rrls.agents``, ``rrls.experiments``)
+#: implementation modules reached through their package (``rrls.agents``, ``rrls.benchmark``,
+#: ``rrls.submissions``, ``rrls.report``; ``rrls.experiments`` is their deprecated former home)
 #: and the command-line entry points: not part of the importable API
-PRIVATE_PACKAGES = ("rrls.agents.", "rrls.experiments.")
+PRIVATE_PACKAGES = (
+    "rrls.agents.",
+    "rrls.benchmark.",
+    "rrls.submissions.",
+    "rrls.report.",
+    "rrls.experiments.",
+)
 ENTRY_POINTS = {"rrls.cli", "rrls.check", "rrls.__main__"}
 
 
@@ -222,7 +229,34 @@ MOVED = [
     ("rrls.twin.tasks", "rrls.twin.catalog", "TWIN_TASKS"),
     ("rrls.twin.check", "rrls.twin.agreement", "divergence"),
     *((f"rrls.agents.{a}", f"rrls.agents.algos.{a}", "Learner") for a in ("td3", "dr", "sacdr")),
+    ("rrls.experiments.spec", "rrls.benchmark.grid", "Benchmark"),
+    ("rrls.experiments.runner", "rrls.benchmark.runner", "benchmark"),
+    ("rrls.experiments.submission", "rrls.submissions.steps", "submit"),
+    ("rrls.experiments.report", "rrls.report.writer", "make_report"),
+    ("rrls.experiments.stats", "rrls.report.stats", "t_interval"),
 ]
+
+
+def test_every_former_experiments_module_has_a_new_home():
+    """``rrls.experiments`` was split into benchmark / submissions / report: each of its 34
+    former modules still imports under its old path (``MOVED`` there), and nothing else is left
+    in it but that table."""
+    from rrls.experiments import MOVED as SPLIT
+
+    assert len(SPLIT) == 34
+    for new in SPLIT.values():
+        assert importlib.util.find_spec(new) is not None, new
+    assert {new.split(".")[1] for new in SPLIT.values()} == {"benchmark", "submissions", "report"}
+    folder = Path(importlib.import_module("rrls.experiments").__file__).parent
+    assert sorted(p.name for p in folder.iterdir() if p.name != "__pycache__") == ["__init__.py"]
+
+
+def test_the_old_experiments_submit_still_submits_with_a_warning():
+    import rrls.experiments
+    from rrls.submissions import submit
+
+    with pytest.warns(DeprecationWarning, match="use rrls.submissions.submit"):
+        assert rrls.experiments.submit is submit
 
 
 @pytest.mark.parametrize(("old", "new", "name"), MOVED)

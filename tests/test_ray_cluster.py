@@ -18,7 +18,7 @@ import pandas as pd
 import pytest
 
 from rrls._io import DirectoryLock
-from rrls.experiments.backends import wait_for_locks
+from rrls.benchmark.backends import wait_for_locks
 
 REPO = Path(__file__).resolve().parents[1]
 ALGOS = ["td3", "rarl"]
@@ -116,9 +116,9 @@ class _FakeRay:
 def test_a_group_whose_node_dies_goes_again_first_then_fails_after_three_more(
     tmp_path, monkeypatch, capsys
 ):
-    from rrls.experiments.backends import LOCK_WAIT_S, NODE_LOSS_RETRIES, run_ray
-    from rrls.experiments.pipeline import run_dir
-    from rrls.experiments.spec import make_spec
+    from rrls.benchmark.backends import LOCK_WAIT_S, NODE_LOSS_RETRIES, run_ray
+    from rrls.benchmark.grid import make_spec
+    from rrls.benchmark.pipeline import run_dir
 
     spec = make_spec("smoke", algos="td3,rarl,dr")
     fake = _FakeRay({"td3": 1, "rarl": NODE_LOSS_RETRIES + 1})
@@ -253,7 +253,7 @@ def test_a_benchmark_survives_losing_the_node_running_it(tmp_path, monkeypatch):
 
 
 def test_the_protocol_page_states_what_is_retried():
-    from rrls.experiments.backends import LOCK_WAIT_S, NODE_LOSS_RETRIES
+    from rrls.benchmark.backends import LOCK_WAIT_S, NODE_LOSS_RETRIES
 
     page = (REPO / "docs" / "protocol.md").read_text()
     section = page[page.index("### When a node is lost") :]

@@ -9,10 +9,10 @@ import json
 import numpy as np
 import pytest
 
+from rrls.benchmark.grid import make_spec
 from rrls.evaluation import BatchInvariant, Protocol, evaluate
 from rrls.evaluation.lanes import episode_seeds
 from rrls.evaluation.recheck import Recheck, recheck, recheck_seeds
-from rrls.experiments.spec import make_spec
 
 PROTOCOL = Protocol("1d", mesh=6, episodes=2, seed=3)
 
@@ -84,10 +84,10 @@ def test_bad_recheck_settings_are_one_line(bad):
 
 
 def test_a_benchmark_with_recheck_records_and_reports_it(tmp_path):
-    from rrls.experiments import submit
-    from rrls.experiments.report import make_report
-    from rrls.experiments.store import build_store
-    from rrls.experiments.submission import create_benchmark
+    from rrls.benchmark.store import build_store
+    from rrls.report.writer import make_report
+    from rrls.submissions import submit
+    from rrls.submissions.steps import create_benchmark
 
     root = tmp_path / "bench"
     create_benchmark(

@@ -8,7 +8,7 @@ from pathlib import Path
 
 import pytest
 
-from rrls.experiments.reference import load_reference
+from rrls.report.reference import load_reference
 from rrls.rundir import read_run_json
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -16,7 +16,7 @@ ROOT = Path(__file__).resolve().parent.parent
 
 @pytest.mark.parametrize("task", ["halfcheetah", "hopper"])
 def test_reference_notes_state_physics_versions_and_m2td3_share(task: str) -> None:
-    ref = load_reference(ROOT / "rrls" / "experiments" / f"{task}_reference.json")
+    ref = load_reference(ROOT / "rrls" / "report" / f"{task}_reference.json")
     assert "reduced budget" in ref.label
     runs = [read_run_json(p) for p in (ROOT / "docs/results" / task).glob("runs/*")]
     mujoco = {r["versions"]["mujoco"] for r in runs}

@@ -333,7 +333,7 @@ def test_train_takes_any_set_the_task_declares_and_the_tasks_time_limit(tmp_path
 
 
 def test_display_names_come_from_the_registry():
-    from rrls.experiments.names import task_name
+    from rrls.report.names import task_name
 
     assert task_name("usertask") == "UserTask" and task_name("reacher") == "Reacher"
     assert task_name("walker") == "Walker"  # the paper's heading

@@ -11,11 +11,11 @@ import pandas as pd
 import pytest
 
 from rrls.evaluation.metrics import run_scores, scores_of, split_run_scores
-from rrls.experiments import profiles, stats
-from rrls.experiments.figstyle import PALETTE, colours
-from rrls.experiments.reference import Reference
-from rrls.experiments.report import make_report, paper_results, summarise, terminal_table
-from rrls.experiments.tables import write_tables
+from rrls.report import profiles, stats
+from rrls.report.figstyle import PALETTE, colours
+from rrls.report.reference import Reference
+from rrls.report.tables import write_tables
+from rrls.report.writer import make_report, paper_results, summarise, terminal_table
 
 # per algorithm: per seed, the returns at the set's 3 mesh points (polemass 1, 16, 31)
 RETURNS = {
@@ -238,7 +238,7 @@ def test_the_palette_never_repeats_for_ten_or_more_algorithms():
 @pytest.mark.e2e
 def test_figures_are_bounded_by_the_set_and_written_as_pdf_too(tmp_path):
     pytest.importorskip("matplotlib")
-    from rrls.experiments.plots import set_bounds
+    from rrls.report.plots import set_bounds
 
     root = _store(tmp_path)
     ev = pd.read_csv(root / "results" / "evaluations.csv")
@@ -260,8 +260,8 @@ def test_figures_are_bounded_by_the_set_and_written_as_pdf_too(tmp_path):
 
 def test_heatmaps_draw_every_mesh_point_as_a_full_cell_and_outline_the_set(tmp_path):
     from rrls.evaluation.result_plot import cell_edges
-    from rrls.experiments import plots
-    from rrls.experiments.plots import plot_heatmaps
+    from rrls.report import plots
+    from rrls.report.plots import plot_heatmaps
 
     # every cell as wide as its neighbours, centred on its point (no half-width edge cells)
     np.testing.assert_allclose(cell_edges(np.array([0.1, 3.0])), [-1.35, 1.55, 4.45])
@@ -331,8 +331,8 @@ def test_report_rename_is_name_equals_text(tmp_path, capsys):
 
 
 def test_every_figure_draws_the_references_rows_beside_the_benchmarks(tmp_path, monkeypatch):
-    from rrls.experiments import figures, plots
-    from rrls.experiments.store import load_store
+    from rrls.benchmark.store import load_store
+    from rrls.report import figures, plots
 
     drawn: dict[str, set[str]] = {}
 
@@ -358,7 +358,7 @@ def test_every_figure_draws_the_references_rows_beside_the_benchmarks(tmp_path, 
     assert {f"{r}: average over the set" for r in refs} <= drawn["returns_invertedpendulum.png"]
     assert "RARL, renamed†" in drawn["returns_invertedpendulum.png"]  # one seed
     # the first algorithm outside the table gets a dark colour, not yellow
-    from rrls.experiments.figstyle import LIGHT, colours
+    from rrls.report.figstyle import LIGHT, colours
 
     assert colours(["td3", "my-sac"])["my-sac"] not in LIGHT
 
@@ -370,7 +370,7 @@ def test_a_figure_saved_twice_is_the_same_bytes(tmp_path, monkeypatch):
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from rrls.experiments.figstyle import save
+    from rrls.report.figstyle import save
 
     fig, ax = plt.subplots()
     ax.plot([0, 1], [1, 0])

@@ -7,7 +7,7 @@ import pytest
 
 from rrls.cli import main
 from rrls.evaluation.metrics import split_run_scores as split_scores
-from rrls.experiments.report import summarise
+from rrls.report.writer import summarise
 
 
 def _store(root, with_split: bool = True):

@@ -82,7 +82,7 @@ def test_the_hopper_page_says_which_mesh_its_runs_were_evaluated_on():
 
 def test_the_halfcheetah_page_quotes_the_papers_table_7_as_shipped():
     # "worst case: TD3 −546 ± 159, DR 2 211 ± 916, M2TD3 2 032 ± 410", from the paper's tables
-    from rrls.experiments.report import paper_results
+    from rrls.report.writer import paper_results
 
     text = (RESULTS / "halfcheetah" / "README.md").read_text()
     worst = paper_results()["raw_worst_case"]
@@ -231,8 +231,8 @@ def test_the_earlier_block_pairs_seeds_and_states_only_separated_intervals(tmp_p
 def test_the_hopper_pages_retraining_claims():
     import json
 
-    from rrls.experiments.reference import load_reference
-    from rrls.experiments.spec import make_spec
+    from rrls.benchmark.grid import make_spec
+    from rrls.report.reference import load_reference
 
     folder = RESULTS / "hopper"
     # "No change is resolved at 3 seeds: every pair of intervals overlaps"

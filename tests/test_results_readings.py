@@ -86,7 +86,7 @@ def _nominal_curve(run: Path) -> pd.Series:
 def test_the_halfcheetah_reading_of_who_has_learned_to_run():
     import json
 
-    from rrls.experiments.report import paper_results
+    from rrls.report.writer import paper_results
 
     folder = RESULTS / "halfcheetah"
     text = _flat(folder / "README.md")
@@ -154,7 +154,7 @@ def test_the_halfcheetah_page_states_the_versions_every_run_recorded():
 
 def test_the_halfcheetah_page_says_what_the_reference_refuses():
     # "refuses a benchmark whose mesh, episodes, set or physics differ from this reference's"
-    from rrls.experiments.reference import (
+    from rrls.report.reference import (
         COMPARED,
         ReferenceError,
         check_compatible,
@@ -184,9 +184,9 @@ def test_the_presets_cpu_hours_stated_are_the_estimators():
     # "~22 CPU-hours" (halfcheetah), each what `--dry-run` estimates
     import argparse
 
+    from rrls.benchmark.cpu_estimate import estimate
+    from rrls.benchmark.grid import make_spec
     from rrls.cli.benchmark_command import add_parser
-    from rrls.experiments.cpu_estimate import estimate
-    from rrls.experiments.spec import make_spec
 
     doc = _flat(ROOT / "docs" / "benchmark.md")
     helps = " ".join(add_parser(argparse.ArgumentParser().add_subparsers()).format_help().split())
@@ -223,7 +223,7 @@ def test_the_halfcheetah_runs_commits_train_alike():
 def test_the_quick_pages_provenance_lists_the_references_commits():
     # "The reference's provenance.commits lists every commit that trained one of the 15 runs:
     # 827d334, 84de2a6, fb7996c and 827d334…+dirty"
-    from rrls.experiments.reference import load_reference
+    from rrls.report.reference import load_reference
 
     commits = load_reference("quick").provenance["commits"]
     short = sorted(c[:7] + ("…+dirty" if c.endswith("+dirty") else "") for c in commits)
@@ -293,7 +293,7 @@ def test_the_halfcheetah_pages_counts_are_its_protocols():
 def test_the_halfcheetah_reading_of_what_survives_the_correction():
     """The worst-case claims of "What survives a correction for ten comparisons", from the
     shipped per-run values through the report's own pairwise test."""
-    from rrls.experiments.pairwise import pairwise
+    from rrls.report.pairwise import pairwise
 
     folder = RESULTS / "halfcheetah"
     text = _flat(folder / "README.md")
@@ -323,7 +323,7 @@ def test_the_halfcheetah_reading_of_the_rechecked_worst_case():
     orderings the corrected test resolves, from the runs' result.json."""
     import json
 
-    from rrls.experiments.pairwise import pairwise
+    from rrls.report.pairwise import pairwise
 
     folder = RESULTS / "halfcheetah"
     text = _flat(folder / "README.md")

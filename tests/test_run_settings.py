@@ -8,7 +8,7 @@ from dataclasses import fields
 import pytest
 
 from rrls.agents.config import TrainConfig
-from rrls.experiments.spec import SHARED_SETTINGS, Benchmark, RunKey, make_spec
+from rrls.benchmark.grid import SHARED_SETTINGS, Benchmark, RunKey, make_spec
 
 pytest.importorskip("torch")  # a TrainConfig checks its algorithm and device when made
 

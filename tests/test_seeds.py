@@ -102,14 +102,14 @@ def _results(root: Path) -> dict[str, dict]:
 
 @pytest.mark.e2e
 def test_packed_benchmark_gives_the_numbers_of_unpacked_runs(tmp_path):
-    from rrls.experiments.pipeline import execute_group
-    from rrls.experiments.runner import benchmark
-    from rrls.experiments.spec import make_spec
+    from rrls.benchmark.grid import make_spec
+    from rrls.benchmark.pipeline import execute_group
+    from rrls.benchmark.runner import benchmark
 
     spec = make_spec("smoke", algos="td3", seeds=2)
     alone, packed = tmp_path / "alone", tmp_path / "packed"
-    assert benchmark(alone, spec, 2, report=False) == 0
-    assert benchmark(packed, spec, 1, report=False, pack=2) == 0
+    assert benchmark(alone, spec, 2) == 0
+    assert benchmark(packed, spec, 1, pack=2) == 0
     assert _results(packed) == _results(alone) and len(_results(alone)) == 2
     for run in (alone / "runs").iterdir():
         _assert_same_policy(run / "policy.npz", packed / "runs" / run.name / "policy.npz")
@@ -126,8 +126,8 @@ def test_packed_benchmark_gives_the_numbers_of_unpacked_runs(tmp_path):
 
 
 def test_a_bad_run_fails_alone_in_its_group(tmp_path):
-    from rrls.experiments.pipeline import GroupFailed, execute_group
-    from rrls.experiments.spec import make_spec
+    from rrls.benchmark.grid import make_spec
+    from rrls.benchmark.pipeline import GroupFailed, execute_group
 
     spec = make_spec("smoke", algos="td3", seeds=2)
     broken = tmp_path / "runs" / "td3-invertedpendulum-1d-seed1"

@@ -83,7 +83,7 @@ def test_every_declared_limit_is_enforced():
     """Each ``hp(..., most=)`` of every built-in algorithm's Config and of TrainConfig refuses
     one more than its limit, naming the field."""
     from rrls.agents.lookup import algorithm
-    from rrls.experiments.spec import BUILT_IN
+    from rrls.benchmark.grid import BUILT_IN
 
     classes = {TrainConfig} | {algorithm(name).Config for name in BUILT_IN}
     probed = 0

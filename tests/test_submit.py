@@ -18,20 +18,20 @@ import pandas as pd
 import pytest
 
 from rrls._io import atomic_write_json
+from rrls.benchmark.grid import RunKey, make_spec
+from rrls.benchmark.store import build_store, write_result
 from rrls.cli import main
 from rrls.evaluation import BatchInvariant, MLPPolicy, evaluate
-from rrls.experiments import submit
-from rrls.experiments.exported import export_reference
-from rrls.experiments.reference import (
+from rrls.report.exported import export_reference
+from rrls.report.reference import (
     PAPER_PHYSICS,
     ReferenceError,
     load_reference,
     paper_reference_from_results,
 )
-from rrls.experiments.report import make_report, paper_results
-from rrls.experiments.spec import RunKey, make_spec
-from rrls.experiments.store import build_store, write_result
-from rrls.experiments.submission import SubmitError, create_benchmark
+from rrls.report.writer import make_report, paper_results
+from rrls.submissions import submit
+from rrls.submissions.steps import SubmitError, create_benchmark
 
 pytest.importorskip("scipy")
 
@@ -113,7 +113,7 @@ def test_submitted_callable_is_a_column_of_every_table(bench):
 
 
 def test_submit_is_its_three_steps_check_evaluate_install(bench):
-    from rrls.experiments.submission import (
+    from rrls.submissions.steps import (
         Entry,
         check_submission,
         evaluate_submission,
@@ -365,7 +365,7 @@ def test_shipped_hopper_reference_fits_the_hopper_preset(tmp_path):
     assert ref.provenance["preset"] == "hopper" and ref.provenance["hidden"] == [256, 256]
     assert ref.provenance["machines"] and ref.provenance["versions"]["torch"]
     spec = create_benchmark(tmp_path / "b", "hopper", ("hopper",))
-    from rrls.experiments.reference import check_compatible
+    from rrls.report.reference import check_compatible
 
     check_compatible(ref, spec.to_json())  # same physics, set, mesh, episodes
 
@@ -382,7 +382,7 @@ def test_shipped_halfcheetah_reference_fits_its_preset_and_counts_its_runs(tmp_p
     assert "all 25 of the preset's runs (5 seeds of each algorithm)" in ref.notes
     assert ref.provenance["preset"] == "halfcheetah" and ref.provenance["runs"] == runs
     spec = create_benchmark(tmp_path / "b", "halfcheetah", ("halfcheetah",))
-    from rrls.experiments.reference import check_compatible
+    from rrls.report.reference import check_compatible
 
     check_compatible(ref, spec.to_json())
 
@@ -397,6 +397,6 @@ def test_shipped_quick_reference_fits_the_quick_preset(tmp_path):
     assert ref.provenance["machines"] and ref.provenance["versions"]["torch"]
     assert min(ref.cell("invertedpendulum", "1d", "td3", "average_case")["values"]) > 900
     spec = create_benchmark(tmp_path / "b", "quick", ("invertedpendulum",))
-    from rrls.experiments.reference import check_compatible
+    from rrls.report.reference import check_compatible
 
     check_compatible(ref, spec.to_json())  # no error: same physics, set, mesh, episodes

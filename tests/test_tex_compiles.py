@@ -1,5 +1,5 @@
 """A report's tables go into a paper unedited: every ``.tex`` it writes compiles with pdflatex in
-a plain ``article`` loading only the packages the docs name (``rrls.experiments.latex.PACKAGES``),
+a plain ``article`` loading only the packages the docs name (``rrls.report.latex.PACKAGES``),
 inside the float its header suggests, with no error and no overfull line; every row trained with
 another budget than the benchmark's carries ‡ whatever ``--rename`` calls it, in every table;
 a reference of another budget is refused unless asked for, then marked, normalised by its own
@@ -25,14 +25,14 @@ import pandas as pd
 import pytest
 from test_submit import linear, make_benchmark
 
+from rrls.benchmark.store import build_store
 from rrls.cli import main
-from rrls.experiments.cells import average, tied_best
-from rrls.experiments.exported import export_reference
-from rrls.experiments.latex import PACKAGES
-from rrls.experiments.report import make_report
-from rrls.experiments.store import build_store
-from rrls.experiments.submission import create_benchmark, submit
-from rrls.experiments.tables import label, table_rows
+from rrls.report.cells import average, tied_best
+from rrls.report.exported import export_reference
+from rrls.report.latex import PACKAGES
+from rrls.report.tables import label, table_rows
+from rrls.report.writer import make_report
+from rrls.submissions.steps import create_benchmark, submit
 
 pytest.importorskip("scipy")
 

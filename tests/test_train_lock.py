@@ -98,8 +98,8 @@ def test_a_report_waits_for_another_report_of_the_same_benchmark(tmp_path, capsy
     waits for the first instead of mixing the files."""
     import threading
 
+    from rrls.benchmark import benchfile
     from rrls.cli import main
-    from rrls.experiments import benchfile
 
     (tmp_path / "runs").mkdir()
     codes: list[int] = []

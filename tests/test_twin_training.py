@@ -40,7 +40,7 @@ def test_what_the_twin_cannot_train_is_refused_saying_why():
 def test_a_benchmark_on_the_twin_is_another_protocol_and_a_cpu_one_is_unchanged():
     from dataclasses import replace
 
-    from rrls.experiments.spec import PRESETS, Benchmark
+    from rrls.benchmark.grid import PRESETS, Benchmark
 
     cpu = Benchmark(**PRESETS["smoke"])
     assert "simulator" not in cpu.binding_fields()  # benchmark.json files written before: the same
@@ -56,8 +56,8 @@ def test_the_paper_preset_on_the_twin_trains_humanoidstandup_on_cpu_mujoco():
     import importlib.util
     from dataclasses import replace
 
-    from rrls.experiments.runner import plan
-    from rrls.experiments.spec import PRESETS, Benchmark, SpecError, validate
+    from rrls.benchmark.grid import PRESETS, Benchmark, SpecError, validate
+    from rrls.benchmark.runner import plan
 
     spec = replace(Benchmark(**PRESETS["paper"]), simulator="warp")
     assert {t: spec.simulator_for(t) for t in spec.tasks} == {

@@ -41,15 +41,15 @@ def test_an_evaluation_written_with_the_old_label_resumes(tmp_path: Path):
 
 
 def test_old_benchmark_files_and_shipped_references_read_as_today():
-    from rrls.experiments.reference import load_reference
-    from rrls.experiments.spec import Benchmark, make_spec
+    from rrls.benchmark.grid import Benchmark, make_spec
+    from rrls.report.reference import load_reference
 
     stored = make_spec("smoke").flat_json()  # as benchmark.json held it before the protocol
     assert stored["physics"] == "v5"
     assert Benchmark.from_json({**stored, "physics": "rrls-v5"}) == make_spec("smoke")
     with pytest.raises(ValueError, match="physics 'paper-v4' is the paper's physics on Gym"):
         Benchmark.from_json({**stored, "physics": "paper-v4"})  # ran v4: not read as today's paper
-    shipped = json.loads((ROOT / "rrls" / "experiments" / "quick_reference.json").read_text())
+    shipped = json.loads((ROOT / "rrls" / "report" / "quick_reference.json").read_text())
     assert shipped["physics"] == "rrls-v5"  # the file as shipped, untouched
     assert load_reference("quick").physics == "v5"
     for old in ROOT.glob("docs/results/*/benchmark.json"):

@@ -50,11 +50,11 @@ def main(argv: list[str] | None = None) -> dict:
     from stable_baselines3 import SAC
 
     import rrls  # noqa: F401  (registers the rrls/ ids)
-    from rrls.experiments import submit
-    from rrls.experiments.reference import ReferenceError, check_compatible, load_reference
-    from rrls.experiments.report import make_report
-    from rrls.experiments.store import build_store
-    from rrls.experiments.submission import create_benchmark
+    from rrls.benchmark.store import build_store
+    from rrls.report.reference import ReferenceError, check_compatible, load_reference
+    from rrls.report.writer import make_report
+    from rrls.submissions import submit
+    from rrls.submissions.steps import create_benchmark
 
     # 1. What ships. The paper's numbers: context only (other physics).
     paper = load_reference("paper")

@@ -48,11 +48,11 @@ def main(argv: list[str] | None = None) -> dict:
     from stable_baselines3 import SAC
 
     import rrls  # noqa: F401  (registers the rrls/ ids)
+    from rrls.benchmark.store import build_store
     from rrls.evaluation import Protocol, evaluate
-    from rrls.experiments import submit
-    from rrls.experiments.report import make_report
-    from rrls.experiments.store import build_store
-    from rrls.experiments.submission import create_benchmark
+    from rrls.report.writer import make_report
+    from rrls.submissions import submit
+    from rrls.submissions.steps import create_benchmark
 
     # SB3 trains with torch's default of one thread per core; on a machine shared with other
     # work (or with few cores) those threads oversubscribe it and a 200-step smoke run takes

@@ -11,11 +11,9 @@ holding its paper reference, its hyper-parameters (``Config``) and its ``Learner
 
 from __future__ import annotations
 
-import importlib
-from typing import Any
-
 from rrls.algorithms import built_in
 from rrls.deprecation import moved_modules
+from rrls.lazy import lazy_exports
 
 ALGOS = built_in()  # the built-in algorithms' names (rrls.algorithms.ALGORITHMS is the table)
 
@@ -50,19 +48,12 @@ _WHERE = {
 
 #: the algorithms' files moved to ``rrls.agents.algos`` (``rrls.agents.td3`` still imports, and
 #: warns: stored plug-in paths and user code keep working)
-_moved = moved_modules({f"rrls.agents.{a}": f"rrls.agents.algos.{a}" for a in ALGOS})
-
-
-def __getattr__(name: str) -> Any:
-    if name in _WHERE:
-        value = getattr(importlib.import_module(f"rrls.agents.{_WHERE[name]}"), name)
-        globals()[name] = value  # once: later reads are plain attribute reads
-        return value
-    return _moved(name)
-
-
-def __dir__() -> list[str]:
-    return sorted({*globals(), *_WHERE})
+__getattr__, __dir__ = lazy_exports(
+    __name__,
+    _WHERE,
+    globals(),
+    moved_modules({f"rrls.agents.{a}": f"rrls.agents.algos.{a}" for a in ALGOS}),
+)
 
 
 __all__ = [

@@ -1,5 +1,5 @@
 """``rrls benchmark``: train, evaluate and report a grid of runs (the library's
-:func:`rrls.experiments.runner.benchmark`), or print what it would do (``--dry-run``). Its
+:func:`rrls.benchmark.runner.benchmark`), or print what it would do (``--dry-run``). Its
 options and what it does live here; what it shares with ``quickstart`` and ``report`` is in
 :mod:`rrls.cli.benchmark_options`. Ranges are checked by the spec, so that errors are one line
 with exit status 2."""
@@ -10,6 +10,7 @@ import argparse
 from typing import Any
 
 from rrls.argtypes import recheck_value, step_count, worker_count
+from rrls.benchmark.grid import ALGOS, BUILT_IN, PAPER_TASKS, PRESETS
 from rrls.cli.benchmark_options import (
     CONFIRM_ABOVE,
     confirmed,
@@ -21,7 +22,6 @@ from rrls.cli.benchmark_options import (
 from rrls.cli.parsing import fail
 from rrls.cli.run_options import add_protocol_options, add_run_options
 from rrls.deprecation import DeprecatedOption
-from rrls.experiments.spec import ALGOS, BUILT_IN, PAPER_TASKS, PRESETS
 from rrls.extras import install_hint
 from rrls.seeds import EXAMPLES
 
@@ -222,14 +222,17 @@ def _benchmark(args: argparse.Namespace) -> int:
         return fail("benchmark", f"--out {out} is a file, not a directory: choose another --out")
     if args.dry_run:
         return _dry_run(out, spec, jobs or 0, args.backend, args.pack)
-    from rrls.experiments.runner import benchmark, kept_runs
+    from rrls.benchmark.runner import benchmark, kept_runs
     from rrls.interrupts import keeping
+    from rrls.report import make_report
 
     with keeping(lambda: kept_runs(out, spec)):
         todo, _ = pending(out, spec)
         if not confirmed("benchmark", len(todo), args.yes):
             return 1
-        code = benchmark(out, spec, jobs or 0, args.backend, args.ray_address, pack=args.pack)
+        code = benchmark(
+            out, spec, jobs or 0, args.backend, args.ray_address, report=make_report, pack=args.pack
+        )
         if (out / "report" / "summary.json").exists():
             print(results_table(out))
     return code
@@ -237,9 +240,9 @@ def _benchmark(args: argparse.Namespace) -> int:
 
 def _dry_run(root: Any, spec: Any, jobs: int, backend: str, pack: int | None) -> int:
     """What ``rrls benchmark`` would do in ``root``, without doing any of it."""
-    from rrls.experiments.benchfile import reconcile
-    from rrls.experiments.pipeline import default_pack, groups
-    from rrls.experiments.runner import plan
+    from rrls.benchmark.benchfile import reconcile
+    from rrls.benchmark.pipeline import default_pack, groups
+    from rrls.benchmark.runner import plan
 
     spec, (todo, finished) = reconcile(root, spec), pending(root, spec)
     pack = default_pack(spec, pack)

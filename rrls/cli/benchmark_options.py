@@ -10,8 +10,8 @@ import sys
 from collections.abc import Callable
 from typing import Any
 
+from rrls.benchmark.grid import PRESETS, SpecError
 from rrls.cli.parsing import fail
-from rrls.experiments.spec import PRESETS, SpecError
 from rrls.extras import install_hint
 from rrls.seeds import as_range, count_form, parse_seeds
 
@@ -34,8 +34,8 @@ def guarded(args: argparse.Namespace, body: Callable[[argparse.Namespace], int])
 
 def spec_from(args: argparse.Namespace) -> tuple:
     """The benchmark's spec and worker count from `rrls benchmark`'s options (checked here)."""
-    from rrls.experiments.cpu_estimate import default_jobs
-    from rrls.experiments.spec import make_spec
+    from rrls.benchmark.cpu_estimate import default_jobs
+    from rrls.benchmark.grid import make_spec
 
     if args.preset not in PRESETS:
         raise SpecError(f"unknown preset {args.preset!r}; valid: {', '.join(PRESETS)}")
@@ -97,8 +97,8 @@ def benchmark_seeds(text: str | None) -> list[int] | None:
 
 def pending(root: Any, spec: Any) -> tuple[list, int]:
     """(the runs ``root`` still lacks, how many it has) — without writing anything there."""
-    from rrls.experiments.benchfile import reconcile
-    from rrls.experiments.runner import pending_runs
+    from rrls.benchmark.benchfile import reconcile
+    from rrls.benchmark.runner import pending_runs
 
     return pending_runs(root, reconcile(root, spec))  # another protocol: refused now
 
@@ -123,10 +123,10 @@ def confirmed(command: str, runs: int, yes: bool) -> bool:
 
 def results_table(root: object) -> str:
     """The worst / average case per task and algorithm, the reference's rows too (the
-    report's ``summary.json``, as ``rrls.experiments.report.terminal_table`` prints it)."""
+    report's ``summary.json``, as ``rrls.report.writer.terminal_table`` prints it)."""
     from pathlib import Path
 
-    from rrls.experiments.report import terminal_table
+    from rrls.report.writer import terminal_table
     from rrls.schema import read_json
 
     return terminal_table(read_json(Path(str(root)) / "report" / "summary.json"))

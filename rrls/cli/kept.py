@@ -1,7 +1,7 @@
 """What a command kept when Ctrl-C came, for the commands that do not say it themselves (the
 others raise an :class:`~rrls.interrupts.Interruption` that does): read from the disk then.
 
-``submit`` and ``withdraw`` change a benchmark all or nothing (:mod:`rrls.experiments.changes`),
+``submit`` and ``withdraw`` change a benchmark all or nothing (:mod:`rrls.benchmark.changes`),
 so the disk says whether the change is in; ``check`` writes nothing.
 """
 

@@ -8,10 +8,10 @@ import argparse
 from typing import Any
 
 from rrls.argtypes import seed_value, step_count
+from rrls.benchmark.grid import SpecError
 from rrls.cli.benchmark_options import confirmed, guarded, pending, results_table
 from rrls.cli.parsing import fail
 from rrls.deprecation import notice
-from rrls.experiments.spec import SpecError
 from rrls.extras import install_hint
 from rrls.seeds import EXAMPLES, as_range, parse_seeds
 
@@ -59,15 +59,16 @@ def _quickstart(args: argparse.Namespace) -> int:
     """The ``quick`` preset in ``--out``: one pipeline with ``rrls benchmark --preset quick``."""
     from pathlib import Path
 
-    from rrls.experiments.cpu_estimate import default_jobs
-    from rrls.experiments.spec import make_spec
+    from rrls.benchmark.cpu_estimate import default_jobs
+    from rrls.benchmark.grid import make_spec
 
     try:
         import torch  # noqa: F401
     except ImportError:
         return fail("quickstart", f"needs torch: {install_hint('train')}")
-    from rrls.experiments.runner import benchmark, kept_runs
+    from rrls.benchmark.runner import benchmark, kept_runs
     from rrls.interrupts import keeping
+    from rrls.report import make_report
 
     spec = make_spec("quick", steps=args.steps, seeds=quickstart_seeds(args))
     root = Path(args.out)
@@ -75,7 +76,7 @@ def _quickstart(args: argparse.Namespace) -> int:
         todo, _ = pending(root, spec)
         if not confirmed("quickstart", len(todo), getattr(args, "yes", False)):
             return 1
-        code = benchmark(root, spec, default_jobs())
+        code = benchmark(root, spec, default_jobs(), report=make_report)
         _show(root)
     return code
 

@@ -1,6 +1,6 @@
 """``rrls report``: rebuild a benchmark's result store and write its report (the library's
-:func:`rrls.experiments.report.make_report`). Named ``report_command`` because
-:mod:`rrls.experiments.report` is the report itself."""
+:func:`rrls.report.writer.make_report`). Named ``report_command`` because
+:mod:`rrls.report.writer` is the report itself."""
 
 from __future__ import annotations
 
@@ -10,7 +10,7 @@ from typing import Any
 
 from rrls.cli.benchmark_options import guarded, results_table
 from rrls.cli.parsing import fail
-from rrls.experiments.reference import SHIPPED
+from rrls.report.reference import SHIPPED
 
 NAME = "report"
 
@@ -93,12 +93,12 @@ def run(args: argparse.Namespace) -> int:
 def _report(args: argparse.Namespace) -> int:
     from pathlib import Path
 
-    from rrls.experiments.benchfile import reporting, stored_fingerprints
-    from rrls.experiments.exported import export_reference
-    from rrls.experiments.reference import ReferenceError
-    from rrls.experiments.report import make_report
-    from rrls.experiments.store import build_store
+    from rrls.benchmark.benchfile import reporting, stored_fingerprints
+    from rrls.benchmark.store import build_store
     from rrls.interrupts import identity, keeping
+    from rrls.report.exported import export_reference
+    from rrls.report.reference import ReferenceError
+    from rrls.report.writer import make_report
 
     roots = [Path(d) for d in args.dir]
     for root in roots:
@@ -156,10 +156,10 @@ def _joined(args: argparse.Namespace, roots: list[Any], labels: dict[str, str]) 
     then one report across their tasks in OUT/report."""
     from pathlib import Path
 
-    from rrls.experiments.benchfile import reporting, stored_fingerprints
-    from rrls.experiments.report import make_cross_report
-    from rrls.experiments.store import build_store
+    from rrls.benchmark.benchfile import reporting, stored_fingerprints
+    from rrls.benchmark.store import build_store
     from rrls.interrupts import identity, keeping
+    from rrls.report.writer import make_cross_report
 
     if len(roots) < 2 or not args.out:
         return fail("report", "a joined report takes two or more DIRs and --out OUT")

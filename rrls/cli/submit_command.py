@@ -1,5 +1,5 @@
 """``rrls submit``: evaluate a policy trained elsewhere under a benchmark's protocol and store it
-as an algorithm's run (the library's :func:`rrls.experiments.submission.submit`). A command of
+as an algorithm's run (the library's :func:`rrls.submissions.steps.submit`). A command of
 its own: it needs neither SciPy nor torch."""
 
 from __future__ import annotations
@@ -8,8 +8,8 @@ import argparse
 import shlex
 
 from rrls.argtypes import seed_value, step_count, worker_count, workers_help
+from rrls.benchmark.grid import PRESETS
 from rrls.cli.parsing import fail
-from rrls.experiments.spec import PRESETS
 
 NAME = "submit"
 
@@ -96,7 +96,7 @@ def add_parser(sub: argparse._SubParsersAction) -> argparse.ArgumentParser:
 def run(args: argparse.Namespace) -> int:
     """Evaluate and store the submission, then say what to run next."""
     from rrls.evaluation import PolicyError
-    from rrls.experiments.submission import SubmitError, submit
+    from rrls.submissions.steps import SubmitError, submit
 
     if args.workers is not None and args.workers < 0:
         return fail("submit", f"--workers must be >= 0 (0: in this process), got {args.workers}")

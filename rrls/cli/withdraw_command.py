@@ -1,6 +1,6 @@
 """``rrls withdraw``: take an algorithm's submissions out of a benchmark, undoing ``rrls submit``
-(the library's :func:`rrls.experiments.withdraw.remove_submission`). Named
-``withdraw_command`` because :mod:`rrls.experiments.withdraw` does the work."""
+(the library's :func:`rrls.submissions.withdraw.remove_submission`). Named
+``withdraw_command`` because :mod:`rrls.submissions.withdraw` does the work."""
 
 from __future__ import annotations
 
@@ -33,8 +33,8 @@ def add_parser(sub: argparse._SubParsersAction) -> argparse.ArgumentParser:
 
 def run(args: argparse.Namespace) -> int:
     """Remove the submitted runs and say how to rebuild the report."""
-    from rrls.experiments.submission import SubmitError
-    from rrls.experiments.withdraw import remove_submission
+    from rrls.submissions.steps import SubmitError
+    from rrls.submissions.withdraw import remove_submission
 
     try:
         names = remove_submission(args.bench_dir, args.algo, args.task, args.seed)

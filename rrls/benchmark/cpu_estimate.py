@@ -1,0 +1,99 @@
+"""The CPU compute estimate of a benchmark (``rrls benchmark`` prints it before starting; the
+dry run prints it alone): training and evaluation seconds per run from rates measured on this
+project's machines, then the wall time with ``jobs`` runs at a time. Its GPU counterpart is
+``gpu_estimate``."""
+
+from __future__ import annotations
+
+from rrls.algorithms import TD3_CPU, algorithm_info, plays_adversary
+from rrls.benchmark.grid import Benchmark
+
+__all__ = [
+    "ENV_STEPS_PER_S",
+    "RANDOM_STEPS_PER_S",
+    "REPORT_S",
+    "STARTUP_S",
+    "default_jobs",
+    "estimate",
+    "format_duration",
+    "size_factor",
+]
+
+# Training: learning steps per CPU-second of one single-threaded Hopper run: each algorithm's
+# row (``rrls.algorithms.AlgorithmInfo.cpu_steps_per_s``, measured by benchmarks/calibrate.py).
+# Env steps/s of each task's `env.step`: the evaluation's cost, policy calls excluded.
+#: the share of a 256-256 learning step that does not scale with the network (dispatch, autograd
+#: nodes, the optimiser's loop, the env step): a step of hidden sizes h costs ``share + (1 -
+#: share) * work(h) / work(256-256)`` of a 256-256 one (``size_factor``; calibrated on the
+#: quick preset's 64-64 runs against the 256-256 rates above)
+FIXED_SHARE = 0.25
+RANDOM_STEPS_PER_S = 2_000.0  # warm-up steps (random actions, no update): env, buffer, logging
+STARTUP_S = 8.0  # per run: a fresh process importing torch, building envs (4-6 s alone, ~8 s
+# with a second run starting beside it: the quick preset's 15 runs, 2 at a time, 2026-11-24)
+#: seconds per evaluation step spent in the policy (rrls's exact-order MLP at the lockstep
+#: batches an evaluation runs: ~20-60 us a row), on top of the env's own step
+POLICY_S_PER_STEP = 30e-6
+REPORT_S = 45.0  # once per benchmark: the store, the report and its figures
+ENV_STEPS_PER_S = {
+    "ant": 3_600.0,
+    "halfcheetah": 21_800.0,
+    "hopper": 5_600.0,
+    "humanoidstandup": 2_100.0,
+    "invertedpendulum": 34_000.0,
+    "walker": 6_000.0,
+}
+
+
+def estimate(spec: Benchmark, jobs: int, max_episode_steps: int = 1000) -> dict[str, float]:
+    """Seconds of compute (one core) and wall time with ``jobs`` parallel runs — an estimate
+    from measured speeds (±30 %; evaluation episodes counted at full length: an upper bound)."""
+    from rrls.envs import get_uncertainty_set
+
+    train = evals = 0.0
+    for key in spec.runs():
+        info = algorithm_info(key.algo)
+        rate = (info.cpu_steps_per_s if info else TD3_CPU) / size_factor(spec.hidden)
+        random_steps = spec.warmup(key.algo)
+        train += STARTUP_S + random_steps / RANDOM_STEPS_PER_S
+        train += (spec.steps - random_steps) / rate
+        dims = len(get_uncertainty_set(key.task, spec.uncertainty).names)
+        env_sps = ENV_STEPS_PER_S.get(key.task, 5_000.0)
+        n_periodic = spec.steps // spec.eval_every if spec.eval_every else 0
+        periodic = n_periodic * (spec.eval_episodes + spec.eval_mesh**dims)
+        final = spec.mesh**dims * spec.episodes
+        dynamic = spec.dynamic_episodes if plays_adversary(key.algo) else 0
+        evals += (
+            (periodic + final + dynamic) * max_episode_steps * (1 / env_sps + POLICY_S_PER_STEP)
+        )
+    runs = len(spec.runs())
+    total = train + evals
+    # whole runs are scheduled, ``jobs`` at a time: ceil(runs / jobs) rounds of a mean run (the
+    # last round may leave cores idle), then the report
+    rounds = -(-runs // max(1, min(jobs, runs))) if runs else 0
+    wall = rounds * (total / runs if runs else 0.0) + REPORT_S
+    return {"runs": runs, "train_s": train, "eval_s": evals, "cpu_s": total, "wall_s": wall}
+
+
+def size_factor(hidden: tuple[int, ...]) -> float:
+    """A learning step's cost at ``hidden`` relative to the paper's 256-256 (``FIXED_SHARE``)."""
+
+    def work(h: tuple[int, ...]) -> int:  # hidden products, plus ~32 inputs and outputs
+        return sum(a * b for a, b in zip(h[:-1], h[1:])) + 32 * (h[0] + h[-1]) if h else 64
+
+    return FIXED_SHARE + (1 - FIXED_SHARE) * work(tuple(hidden)) / work((256, 256))
+
+
+def default_jobs() -> int:
+    from rrls._proc import cores
+
+    return cores()
+
+
+def format_duration(seconds: float) -> str:
+    if seconds < 120:
+        return f"{seconds:.0f} s"
+    if seconds < 7200:
+        return f"{seconds / 60:.0f} min"
+    if seconds < 3 * 86400:
+        return f"{seconds / 3600:.1f} h"
+    return f"{seconds / 86400:.1f} days"

@@ -1,0 +1,300 @@
+"""``benchmark()``: check the spec against the directory, run what is not finished, show progress,
+then rebuild the result store and the report from the run directories."""
+
+from __future__ import annotations
+
+import sys
+import time
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any, TextIO
+
+from rrls import rundir
+from rrls.benchmark.backends import run_local, run_ray
+from rrls.benchmark.benchfile import reconcile
+from rrls.benchmark.cpu_estimate import estimate, format_duration
+from rrls.benchmark.grid import Benchmark, RunKey
+from rrls.benchmark.pipeline import default_pack, groups, read_progress, run_dir
+
+
+class Display:
+    """One overall bar plus a live table of the running runs (steps, steps/s, ETA) on a
+    terminal; elsewhere (cluster logs) one plain line every ``interval`` seconds and one per
+    finished or failed run."""
+
+    def __init__(
+        self,
+        root: Path,
+        spec: Benchmark,
+        keys: list[RunKey],
+        done_before: int,
+        slots: int,
+        stream: TextIO | None = None,
+        interval: float = 60.0,
+    ) -> None:
+        self.root, self.spec = root, spec
+        self.stream = stream or sys.stderr
+        self.tty = bool(getattr(self.stream, "isatty", lambda: False)())
+        self.state = {k: "pending" for k in keys}
+        self.total = len(keys) + done_before
+        self.done_before = done_before
+        self.started: dict[RunKey, float] = {}
+        self.durations: list[float] = []
+        self.failures: dict[RunKey, str] = {}
+        self.interval, self._last_line = interval, time.monotonic()
+        self.t0 = time.monotonic()
+        self.slots = max(1, min(slots, len(keys) or 1))
+        self._bar: Any = None
+        self._rows: list[Any] = []
+        if self.tty:
+            from tqdm.auto import tqdm
+
+            from rrls._progress import terminal_shape
+
+            try:  # a real terminal of size 0x0 would hide the bars (an in-memory one has none)
+                shape = terminal_shape(self.stream) if self.stream.fileno() >= 0 else {}
+            except (AttributeError, ValueError, OSError):
+                shape = {}
+            self._bar = tqdm(
+                total=self.total,
+                initial=done_before,
+                unit="run",
+                file=self.stream,
+                position=0,
+                **shape,
+            )
+            self._rows = [
+                tqdm(bar_format="{desc}", file=self.stream, position=i + 1, leave=False, **shape)
+                for i in range(self.slots)
+            ]
+
+    def counts(self) -> dict[str, int]:
+        out = {"pending": 0, "running": 0, "done": self.done_before, "failed": 0}
+        for s in self.state.values():
+            out[s] += 1
+        return out
+
+    def event(self, key: RunKey, state: str, detail: str) -> None:
+        self.state[key] = state
+        name = key.name(self.spec.uncertainty)
+        if state == "running":
+            self.started[key] = time.monotonic()
+            return
+        seconds = time.monotonic() - self.started.get(key, time.monotonic())
+        if state == "done":
+            self.durations.append(seconds)
+            line = f"done   {name} ({format_duration(seconds)})"
+        else:
+            self.failures[key] = detail
+            line = f"FAILED {name}: {detail} (see {run_dir(self.root, self.spec, key)}/error.txt)"
+        if self._bar is not None:
+            self._bar.update(1)
+            self._bar.write(line, file=self.stream)
+        else:
+            print(line, file=self.stream, flush=True)
+        self.tick()
+
+    def _row(self, key: RunKey) -> str:
+        name = key.name(self.spec.uncertainty)
+        info = read_progress(run_dir(self.root, self.spec, key)) or {}
+        phase, step, total = info.get("phase", "starting"), info.get("step", 0), info.get("total")
+        sps = info.get("sps") or 0.0
+        if phase == "train" and total:
+            eta = f"ETA {format_duration((total - step) / sps)}" if sps > 0 else "ETA ?"
+            return f"{name:<40} train {step:>9,}/{total:,}  {sps:6.0f} steps/s  {eta}"
+        return f"{name:<40} {phase}"
+
+    def eta(self) -> str:
+        c = self.counts()
+        if not self.durations:
+            return "?"
+        left = (c["pending"] + c["running"] / 2) * sum(self.durations) / len(self.durations)
+        return format_duration(left / self.slots)
+
+    def tick(self) -> None:
+        c = self.counts()
+        running = [k for k, s in self.state.items() if s == "running"]
+        if self._bar is not None:
+            self._bar.set_postfix_str(
+                f"pending {c['pending']} running {c['running']} done {c['done']} "
+                f"failed {c['failed']} ETA {self.eta()}",
+                refresh=False,
+            )
+            self._bar.refresh()
+            for i, row in enumerate(self._rows):
+                row.set_description_str(self._row(running[i]) if i < len(running) else "")
+            return
+        now = time.monotonic()
+        if now - self._last_line >= self.interval:
+            self._last_line = now
+            rows = "; ".join(" ".join(self._row(k).split()) for k in running)
+            print(
+                f"[{time.strftime('%H:%M:%S')}] {c['done']}/{self.total} done, "
+                f"{c['running']} running, {c['failed']} failed, {c['pending']} pending; "
+                f"elapsed {format_duration(now - self.t0)}, ETA {self.eta()}"
+                + (f" | {rows}" if rows else ""),
+                file=self.stream,
+                flush=True,
+            )
+
+    def close(self) -> None:
+        for row in self._rows:
+            row.close()
+        if self._bar is not None:
+            self._bar.close()
+
+
+def pending_runs(root: Path, spec: Benchmark) -> tuple[list[RunKey], int]:
+    """(runs without ``result.json``, number of finished runs)."""
+    keys = spec.runs()
+    todo = [k for k in keys if not (run_dir(root, spec, k) / rundir.RESULT).exists()]
+    return todo, len(keys) - len(todo)
+
+
+def kept_runs(root: Path, spec: Benchmark) -> str:
+    """What an interrupted benchmark keeps of ``spec``'s grid in ``root``, read from the run
+    directories: the finished runs, and of the others those trained (their evaluation goes on)
+    or with a checkpoint (their training goes on); the rest start over."""
+    keys = spec.runs()
+    finished = trained = checkpointed = 0
+    for key in keys:
+        path = run_dir(root, spec, key)
+        if (path / rundir.RESULT).exists():
+            finished += 1
+        elif rundir.finished_steps(path) is not None:
+            trained += 1
+        elif (path / rundir.CHECKPOINT).exists():
+            checkpointed += 1
+    text = f"{finished} of {len(keys)} runs finished in {Path(root) / 'runs'}"
+    others = len(keys) - finished
+    kept = [
+        f"{n} {what}"
+        for n, what in (
+            (trained, "trained (their evaluation goes on)"),
+            (checkpointed, "with a checkpoint (their training goes on)"),
+        )
+        if n
+    ]
+    if others and kept:
+        text += f"; of the {others} others, " + " and ".join(kept)
+    elif others:
+        text += f"; the {others} others kept nothing yet"
+    return text
+
+
+def plan(
+    root: Path, spec: Benchmark, todo: int, finished: int, jobs: int, backend: str, pack: int = 1
+) -> str:
+    """What is about to run, and the compute estimate (printed before anything starts)."""
+    est = estimate(spec, jobs or 1)
+    if spec.device.startswith("cuda"):
+        from rrls.benchmark.gpu_estimate import describe
+
+        estimate_line = "\n" + describe(spec, pack)
+    else:
+        estimate_line = (
+            "\nestimate for the whole grid (from measured single-thread speeds on a 2-core CPU; "
+            f"an estimate, +-30 %): {format_duration(est['cpu_s'])} of compute (training "
+            f"{format_duration(est['train_s'])}, evaluation <= {format_duration(est['eval_s'])})"
+            + (
+                f", about {format_duration(est['wall_s'])} wall time with {jobs} parallel runs"
+                if jobs
+                else ", divided among the cluster's CPUs"
+            )
+        )
+    return (
+        f"rrls benchmark {root}: preset {spec.preset}, {len(spec.algos)} algorithms x "
+        f"{len(spec.tasks)} tasks x {len(spec.seeds)} seeds = {est['runs']} runs "
+        f"({finished} finished, {todo} to run), {spec.steps:,} steps each, set "
+        f"{spec.uncertainty}, mesh {spec.mesh} x {spec.episodes} episodes; {backend} backend"
+        + (f", split {spec.split} (training on the inner box)" if spec.split else "")
+        + (f", {jobs} workers" if jobs else "")
+        + (f", up to {pack} seeds of a cell trained together per process" if pack > 1 else "")
+        + _simulators(spec)
+        + estimate_line
+    )
+
+
+def _simulators(spec: Benchmark) -> str:
+    """Where a warp benchmark's runs train: its tasks without a twin on CPU MuJoCo."""
+    cpu = [t for t in spec.tasks if spec.simulator_for(t) != spec.simulator]
+    if not cpu:
+        return ""
+    return (
+        f"; trained on the Warp twin but {', '.join(cpu)} (no twin: CPU MuJoCo, beside the "
+        "twin's runs)"
+    )
+
+
+def benchmark(
+    out: str | Path,
+    spec: Benchmark,
+    jobs: int,
+    backend: str = "local",
+    ray_address: str | None = None,
+    stream: TextIO | None = None,
+    interval: float = 60.0,
+    report: Callable[[Path], Path] | None = None,
+    pack: int | None = None,
+) -> int:
+    """Run ``spec`` in ``out`` (resuming), then build the store, and the report with
+    ``report(out)`` when given (``rrls benchmark`` passes :func:`rrls.report.make_report`; the
+    report is the layer above, so this one is handed it rather than importing it).
+
+    ``pack``: at most that many seeds of one (algorithm, task) cell are trained together in
+    one process (``train_group``; same numbers as alone); default every seed of a cell on
+    CUDA, 1 on CPU (``pipeline.default_pack``). Returns 0 when every run finished, 1 when some
+    failed (the others still ran). Ctrl-C stops the runs, then raises an
+    :class:`~rrls.interrupts.Interruption` saying what is kept (:func:`kept_runs`): the same
+    call resumes from it.
+    """
+    from rrls.interrupts import keeping
+
+    root = Path(out)
+    with keeping(lambda: kept_runs(root, spec)):
+        return _benchmark(root, spec, jobs, backend, ray_address, stream, interval, report, pack)
+
+
+def _benchmark(
+    root: Path,
+    spec: Benchmark,
+    jobs: int,
+    backend: str,
+    ray_address: str | None,
+    stream: TextIO | None,
+    interval: float,
+    report: Callable[[Path], Path] | None,
+    pack: int | None,
+) -> int:
+    from rrls.benchmark import benchfile
+
+    stream = stream or sys.stderr
+    root.mkdir(parents=True, exist_ok=True)
+    with benchfile.locked(root):  # a concurrent `rrls submit` adding a task loses nothing
+        stored = reconcile(root, spec)  # refuses another protocol; the grid may grow
+        benchfile.write_spec(root, stored)
+    todo, finished = pending_runs(root, spec)  # this command's grid only
+    pack = default_pack(spec, pack)
+    print(plan(root, spec, len(todo), finished, jobs, backend, pack), file=stream, flush=True)
+    slots = min(len(todo), (jobs or len(groups(todo, pack))) * pack)  # runs at once
+    display = Display(root, spec, todo, finished, slots, stream, interval)
+    try:  # Ctrl-C: the runs are stopped before it goes on up
+        if backend == "ray":
+            run_ray(root, spec, todo, jobs, ray_address, display.event, display.tick, pack)
+        else:
+            run_local(root, spec, todo, jobs, display.event, display.tick, pack)
+    finally:
+        display.close()
+    from rrls.benchmark.store import build_store
+
+    with benchfile.reporting(root):  # a concurrent `rrls report` waits
+        build_store(root, spec.fingerprints())
+        if report is not None and (finished or len(display.failures) < len(todo)):
+            path = report(root)  # (nothing finished: no report)
+            print(f"report: {path}", file=stream)
+    if display.failures:
+        print(f"{len(display.failures)} run(s) failed:", file=stream)
+        for key, detail in sorted(display.failures.items()):
+            print(f"  {key.name(spec.uncertainty)}: {detail}", file=stream)
+        return 1
+    return 0
