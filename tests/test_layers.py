@@ -105,14 +105,16 @@ def test_the_shims_hold_no_code_and_nothing_imports_them():
 
 def test_the_report_never_imports_training_and_the_benchmark_never_the_report():
     """The report reads a benchmark's files and store only (a results folder copied to a
-    machine without torch still reports; the twin's task table is data); a benchmark hands its runner the report to write
-    (``runner.benchmark(report=...)``) rather than importing it."""
+    machine without torch still reports; the twin's task table is data); a benchmark hands
+    its runner the report to write (``runner.benchmark(report=...)``), never importing it."""
     graph = _graph()
     for mod, deps in graph.items():
         if mod.startswith("rrls.report"):
             training = {d for d in deps if d.startswith(("rrls.agents", "rrls.twin"))}
             assert training <= {"rrls.twin.catalog"}, mod  # the twin's table: data, no warp
-            assert not {d for d in deps if d in {"rrls.benchmark.pipeline", "rrls.benchmark.runner"}}
+            assert not {
+                d for d in deps if d in {"rrls.benchmark.pipeline", "rrls.benchmark.runner"}
+            }
         if mod.startswith(("rrls.benchmark", "rrls.submissions")):
             assert not {d for d in deps if d.startswith("rrls.report")}, mod
 

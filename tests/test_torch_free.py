@@ -1,5 +1,5 @@
-"""The torch-free side stays torch-free: environments, wrappers, evaluation and the
-the benchmark's and the report's reading side (specs, references, the store, statistics) and a run's settings
+"""The torch-free side stays torch-free: environments, wrappers, evaluation, the benchmark's
+and the report's reading side (specs, references, the store, statistics) and a run's settings
 (``TrainConfig``'s fields, which ``rrls benchmark``'s options are made of) work in an interpreter
 where ``import torch`` fails, so a user without the ``train`` extra loses nothing of them."""
 
@@ -25,7 +25,8 @@ SCRIPT = textwrap.dedent(
     sys.meta_path.insert(0, NoTorch())
 
     import gymnasium as gym
-    import rrls, rrls.envs, rrls.wrappers, rrls.evaluation, rrls.benchmark, rrls.report, rrls.submissions
+    import rrls, rrls.envs, rrls.wrappers, rrls.evaluation
+    import rrls.benchmark, rrls.report, rrls.submissions
     from rrls.evaluation import MLPPolicy, evaluate
     from rrls.benchmark import benchfile, store
     from rrls.report.reference import load_reference
