@@ -48,7 +48,7 @@ MOVED = {
     "rrls.experiments.store": "rrls.benchmark.store",
     "rrls.experiments.submission": "rrls.submissions.steps",
     "rrls.experiments.submit_checks": "rrls.submissions.checks",
-    "rrls.experiments.submitted": "rrls.submissions.staging",
+    "rrls.experiments.submitted": "rrls.submissions.steps",
     "rrls.experiments.summary": "rrls.report.summary",
     "rrls.experiments.tables": "rrls.report.tables",
     "rrls.experiments.withdraw": "rrls.submissions.withdraw",

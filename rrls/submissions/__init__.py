@@ -4,7 +4,7 @@
 (:func:`check_submission`: the name, the benchmark, the policy's shapes, all before any
 episode), evaluate (:func:`evaluate_submission`: the benchmark's own protocol, in a staging
 folder), install (:func:`install_submission`: one all-or-nothing change of the results);
-``checks`` — the checks themselves; ``staging`` — the staging folder's clean-up;
+``checks`` — the checks themselves, the benchmark submitted to among them;
 ``withdraw`` — ``rrls withdraw``: a submission taken out again.
 
 Built on :mod:`rrls.benchmark` (a submission is a run of a benchmark); the report reads it

@@ -1,18 +1,21 @@
-"""What ``rrls submit`` checks before anything runs or changes: the benchmark, the algorithm's
-name, the seed, the policy (loaded, its shapes and identity), the declared budget and a new task
-(each failure one line, a ``SubmitError``). ``rrls.submissions.steps`` composes them and
-evaluates and installs."""
+"""What ``rrls submit`` checks before anything runs or changes: the benchmark submitted to
+(loaded or started from a preset, a new task allowed to join, and re-read under the lock when
+the submission is installed), the algorithm's name, the seed, the policy (loaded, its shapes
+and identity) and the declared budget (each failure one line, a ``SubmitError``).
+``rrls.submissions.steps`` composes them, then evaluates and installs."""
 
 from __future__ import annotations
 
 import re
 import shlex
+from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from rrls.algorithms import ALGORITHMS, plugin_entry_points
+from rrls.benchmark import benchfile
 from rrls.benchmark.grid import BUILT_IN, Benchmark, SpecError
 from rrls.physics import is_paper
 
@@ -20,6 +23,7 @@ __all__ = [
     "BUDGET_KEYS",
     "RESERVED",
     "SubmitError",
+    "benchmark_for",
     "check_budget",
     "check_declared_steps",
     "check_name",
@@ -28,6 +32,7 @@ __all__ = [
     "check_shapes",
     "env_shapes",
     "first_line",
+    "grown_benchmark",
     "load_policy",
     "load_spec",
     "policy_identity",
@@ -205,8 +210,6 @@ def check_declared_steps(meta: dict[str, Any]) -> None:
 
 def load_spec(bench_dir: str | Path) -> Benchmark:
     """The benchmark's protocol (``DIR/benchmark.json``), or ``SubmitError`` naming the file."""
-    from rrls.benchmark import benchfile
-
     path = benchfile.spec_path(bench_dir)
     try:
         exists = path.is_file()
@@ -228,8 +231,6 @@ def load_spec(bench_dir: str | Path) -> Benchmark:
 
 def preset_spec(preset: str, tasks: tuple[str, ...], **overrides: Any) -> Benchmark:
     """``preset``'s protocol on ``tasks`` without built-in algorithms (nothing written)."""
-    from dataclasses import replace
-
     from rrls.benchmark.grid import make_spec
 
     try:
@@ -293,3 +294,35 @@ def policy_identity(policy: Any, obs_dim: int, what: str = "policy") -> str:
         return f"actions:{policy_fingerprint(policy, obs_dim, n=64)}"
     except Exception as err:  # noqa: BLE001 - the submitter's code
         raise SubmitError(f"the {what} fails on probe observations ({first_line(err)})") from None
+
+
+def benchmark_for(root: Path, key: str, preset: str | None, add_task: bool) -> Benchmark:
+    """The benchmark submitted to: the stored one, or ``preset``'s when none is stored yet;
+    with ``key`` added if it may join (written only once the submission is in, by
+    :func:`grown_benchmark`)."""
+    if preset is not None and not benchfile.spec_path(root).exists():
+        spec = preset_spec(preset, (key,))
+    else:
+        spec = load_spec(root)
+    if key not in spec.tasks:
+        check_new_task(root, spec, key, add_task)
+        spec = replace(spec, tasks=(*spec.tasks, key))
+    return spec
+
+
+def grown_benchmark(root: Path, spec: Benchmark, key: str) -> Benchmark | None:
+    """Under the lock: the benchmark to write with this submission — ``spec`` for a new one,
+    the stored one (re-read now: another command may have added tasks or baselines meanwhile,
+    nothing of theirs is lost) with ``key`` added, or None if it has ``key`` already."""
+    if not benchfile.spec_path(root).exists():
+        return spec
+    stored = load_spec(root)
+    if stored.binding_fields() != spec.binding_fields():
+        raise SubmitError(
+            f"{benchfile.spec_path(root)} changed during the evaluation (another protocol); "
+            "nothing was submitted: submit again"
+        )
+    if key in stored.tasks:
+        return None
+    check_new_task(root, stored, key, add_task=True)  # submit() checked it may join
+    return replace(stored, tasks=(*stored.tasks, key))

@@ -25,9 +25,11 @@ trains nor touches a submitted algorithm, and rebuilding the store keeps it.
 
 from __future__ import annotations
 
+import json
 import os
+import shutil
 import time
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -42,21 +44,21 @@ from rrls.schema import SchemaError
 from rrls.submissions.checks import (
     RESERVED,
     SubmitError,
+    benchmark_for,
     check_budget,
     check_declared_steps,
     check_name,
-    check_new_task,
     check_seed,
     check_shapes,
     env_shapes,
     first_line,
+    grown_benchmark,
     load_policy,
     load_spec,
     policy_identity,
     preset_spec,
     reserved_names,
 )
-from rrls.submissions.staging import discard, jsonable
 
 __all__ = [  # the checks live in rrls.submissions.checks; importable from here too
     "RESERVED",
@@ -247,7 +249,7 @@ def check_submission(
     except ValueError as err:
         raise SubmitError(str(err)) from None
     root = Path(bench_dir)
-    spec = _benchmark(root, key, preset, add_task)
+    spec = benchmark_for(root, key, preset, add_task)
     game, alpha = entry.game, entry.alpha
     if game is not None and game not in GAMES:
         raise SubmitError(f"unknown game {game!r}; valid: {', '.join(GAMES)}")
@@ -289,21 +291,6 @@ def check_submission(
         budget=budget,
         **adversary,
     )
-
-
-def _benchmark(root: Path, key: str, preset: str | None, add_task: bool) -> Benchmark:
-    """The benchmark submitted to: the stored one, or ``preset``'s when none is stored yet;
-    with ``key`` added if it may join (written only once the submission is in)."""
-    from rrls.benchmark import benchfile
-
-    if preset is not None and not benchfile.spec_path(root).exists():
-        spec = preset_spec(preset, (key,))
-    else:
-        spec = load_spec(root)
-    if key not in spec.tasks:
-        check_new_task(root, spec, key, add_task)
-        spec = replace(spec, tasks=(*spec.tasks, key))
-    return spec
 
 
 def _checked_adversary(
@@ -377,6 +364,21 @@ def evaluate_submission(
     return Staged(staging, made, result)
 
 
+def discard(staging: Path, made: list[Path]) -> None:
+    """Remove a submission's staging directory and the directories it created."""
+    shutil.rmtree(staging, ignore_errors=True)
+    for path in reversed(made):
+        try:
+            path.rmdir()  # only if empty: another command's files stay
+        except OSError:
+            pass
+
+
+def jsonable(meta: dict[str, Any]) -> dict[str, Any]:
+    """A policy's metadata as JSON holds it (anything else as its text)."""
+    return json.loads(json.dumps(meta, default=str))
+
+
 def _record(checked: Checked, steps: int, declared: str | None) -> dict[str, Any]:
     """``result.json``'s ``submitted``: the source, identity and metadata of the policy, when,
     the budget and who declared it, the adversary and its game."""
@@ -418,7 +420,7 @@ def install_submission(checked: Checked, staged: Staged, overwrite: bool = False
             if done is not None:  # the same policy, submitted meanwhile
                 discard(staged.dir, staged.made)
                 return done
-            grown = _grown_spec(root, checked.spec, checked.task)
+            grown = grown_benchmark(root, checked.spec, checked.task)
             with Changes(root) as change:  # all or nothing: undone if any step fails
                 if final.exists():
                     change.remove(final)  # the earlier submission (--overwrite)
@@ -467,23 +469,3 @@ def _existing(checked: Checked, overwrite: bool) -> Submission | None:
             "replace it"
         )
     return None
-
-
-def _grown_spec(root: Path, spec: Benchmark, key: str) -> Benchmark | None:
-    """Under the lock: the benchmark to write with this submission — ``spec`` for a new one,
-    the stored one (re-read now: another command may have added tasks or baselines meanwhile,
-    nothing of theirs is lost) with ``key`` added, or None if it has ``key`` already."""
-    from rrls.benchmark import benchfile
-
-    if not benchfile.spec_path(root).exists():
-        return spec
-    stored = load_spec(root)
-    if stored.binding_fields() != spec.binding_fields():
-        raise SubmitError(
-            f"{benchfile.spec_path(root)} changed during the evaluation (another protocol); "
-            "nothing was submitted: submit again"
-        )
-    if key in stored.tasks:
-        return None
-    check_new_task(root, stored, key, add_task=True)  # submit() checked it may join
-    return replace(stored, tasks=(*stored.tasks, key))
