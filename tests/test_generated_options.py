@@ -58,3 +58,33 @@ def test_the_warm_up_options_help_reads_the_table_and_the_quick_preset():
     assert f"M2TD3 {ALGORITHMS['m2td3'].learning_starts:,}" in text
     assert f"own, {ALGORITHMS['td3'].learning_starts:,}" in text
     assert f"quick {PRESETS['quick']['learning_starts']:,}" in text
+
+
+@pytest.mark.parametrize("name", ["rate_limit", "recheck"])
+def test_the_adversary_and_recheck_options_are_the_protocols_fields(name):
+    field = {f.name: f for f in fields(Protocol)}[name]
+    action = _actions(_parser(benchmark_command))[name]
+    assert action.help.startswith(field.metadata["help"]) and action.default is None
+    assert action.metavar == field.metadata["metavar"]
+    assert f"the paper's: {field.metadata['none']})" in action.help  # Protocol's None, said
+
+
+def test_the_parsed_adversary_and_recheck_are_what_the_protocol_holds():
+    from rrls.cli.benchmark_options import spec_from
+
+    args = _parser(benchmark_command).parse_args(
+        ["--out", "x", "--preset", "smoke", "--rate-limit", "0.001", "--recheck", "3x4"]
+    )
+    args.workers = 1
+    spec, _ = spec_from(args)
+    assert spec.protocol.rate_limit == 0.001
+    assert (spec.protocol.recheck.worst, spec.protocol.recheck.episodes) == (3, 4)
+
+
+def test_observe_is_the_benchmarks_field_with_its_choices():
+    from rrls.benchmark.grid import Benchmark
+
+    field = {f.name: f for f in fields(Benchmark)}["observe"]
+    action = _actions(_parser(benchmark_command))["observe"]
+    assert action.help.startswith(field.metadata["help"]) and action.default is None
+    assert tuple(action.choices) == field.metadata["choices"] == ("vanilla", "stacked", "oracle")

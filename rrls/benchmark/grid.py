@@ -11,7 +11,7 @@ tasks, seeds) may grow: the stored spec becomes the union and only the new runs 
 from __future__ import annotations
 
 from collections.abc import Mapping
-from dataclasses import dataclass, fields, replace
+from dataclasses import dataclass, field, fields, replace
 from os import PathLike
 from typing import Any
 
@@ -20,6 +20,7 @@ from rrls.benchmark.presets import ALGOS, PAPER_TASKS, PRESETS
 from rrls.deprecation import warn_deprecated
 from rrls.evaluation.protocol import Protocol, Recheck, check_episodes
 from rrls.physics import SIMULATORS, is_paper
+from rrls.wrappers.tc_rmdp import OBSERVE
 
 __all__ = [
     "ALGOS",
@@ -105,8 +106,16 @@ class Benchmark:
     checkpoint_every: int = 50_000
     preset: str = "paper"
     device: str = "cpu"
-    #: the RARL protagonist of the TC-RMDP game: vanilla, stacked or oracle
-    observe: str = "vanilla"
+    #: the RARL protagonist of the TC-RMDP game (its help: ``rrls benchmark --observe``'s)
+    observe: str = field(
+        default="vanilla",
+        metadata={
+            "choices": OBSERVE,
+            "help": "with --rate-limit: RARL's protagonist is TC-RMDP's vanilla (the state), "
+            "stacked (the previous state and action too) or oracle (the state and psi in "
+            "[0, 1])",
+        },
+    )
     #: what steps the training envs: ``mujoco`` (CPU MuJoCo) or ``warp`` (the task's MuJoCo
     #: Warp twin on ``device``); every evaluation stays on CPU MuJoCo
     simulator: str = "mujoco"
@@ -477,7 +486,7 @@ def validate(spec: Benchmark) -> None:
                 "--rate-limit applies to an adversary moving the parameters: add "
                 f"{' or '.join(movers)} to --algos"
             )
-    from rrls.wrappers.tc_rmdp import OBSERVE, RATE_GAMES
+    from rrls.wrappers.tc_rmdp import RATE_GAMES
 
     if spec.rate_game not in RATE_GAMES:
         raise SpecError(f"rate_game must be one of {', '.join(RATE_GAMES)}, got {spec.rate_game!r}")

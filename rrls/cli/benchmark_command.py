@@ -9,8 +9,8 @@ from __future__ import annotations
 import argparse
 from typing import Any
 
-from rrls.argtypes import recheck_value, step_count, worker_count
-from rrls.benchmark.grid import ALGOS, BUILT_IN, PAPER_TASKS, PRESETS
+from rrls.argtypes import step_count, worker_count
+from rrls.benchmark.grid import ALGOS, BUILT_IN, PAPER_TASKS, PRESETS, Benchmark
 from rrls.cli.benchmark_options import (
     CONFIRM_ABOVE,
     confirmed,
@@ -30,6 +30,7 @@ NAME = "benchmark"
 NOTES = {
     "physics": "training and evaluation; recorded as given in benchmark.json",
     "device": "Ray: a quarter GPU per process",
+    "rate_limit": "RARL also trains against it",
 }
 
 
@@ -97,21 +98,10 @@ def add_parser(sub: argparse._SubParsersAction) -> argparse.ArgumentParser:
         help=f"the training seeds, a list or range: {EXAMPLES} (default: the preset's). A bare "
         "N, once a count of seeds here, is refused: write 0-2 for three seeds, 3-3 for seed 3",
     )
-    b.add_argument(
-        "--rate-limit",
-        type=float,
-        metavar="L",
-        help="RARL trains against (and is evaluated with) TC-RMDP's time-constrained adversary, "
-        "as its authors play it: each step it moves every parameter by at most L in raw "
-        "parameter units (psi <- clip(psi + a * L, box); the authors train with 0.001), "
-        "episodes start uniformly in the box, the adversary sees psi and the state",
-    )
-    b.add_argument(
-        "--observe",
-        choices=["vanilla", "stacked", "oracle"],
-        help="with --rate-limit: RARL's protagonist is TC-RMDP's vanilla (the state; default), "
-        "stacked (the previous state and action too) or oracle (the state and psi in [0, 1])",
-    )
+    # the dynamic evaluation's adversary, and RARL's protagonist in TC-RMDP's game: the
+    # Protocol's and the Benchmark's fields, their help declared there
+    add_protocol_options(b, ("rate_limit",), "the preset's", notes=NOTES)
+    add_run_options(b, ("observe",), "the preset's; the paper's vanilla", source=Benchmark)
     # a run's settings every run of the benchmark shares: rrls train's options, from the same
     # TrainConfig fields (their help, type and choices), the default the preset's
     add_run_options(
@@ -139,14 +129,7 @@ def add_parser(sub: argparse._SubParsersAction) -> argparse.ArgumentParser:
         "--uncertainty, --mesh, --episodes, --physics, --split, --rate-limit, --recheck "
         "override it. Its max_episode_steps truncates the training's episodes too",
     )
-    b.add_argument(
-        "--recheck",
-        metavar="KxE",
-        type=recheck_value,
-        help="also recheck each run's worst case: its K lowest mesh points re-evaluated with E "
-        "fresh episodes each, and the 5th percentile of its point means, beside the paper's "
-        "minimum (e.g. 10x20; 10x20@0.1 for the 10th percentile; docs/evaluation.md)",
-    )
+    add_protocol_options(b, ("recheck",), "the preset's")
     b.add_argument(
         "--workers",
         type=worker_count,

@@ -14,7 +14,7 @@ from typing import Any
 
 from rrls.agents.config import TrainConfig
 from rrls.algorithms import algorithm_key
-from rrls.argtypes import seed_value, step_count, task_key
+from rrls.argtypes import recheck_value, seed_value, step_count, task_key
 from rrls.evaluation.protocol import Protocol
 
 #: integer options that count env steps: they accept 1e4, 100k, 1.5M (``argtypes.step_count``)
@@ -65,11 +65,13 @@ def add_run_options(
     names: tuple[str, ...],
     default: str,
     notes: dict[str, str] | None = None,
+    source: type = TrainConfig,
 ) -> None:
-    """``TrainConfig``'s fields ``names`` as options whose default is given elsewhere (``None``
-    when not given; ``default`` says whose), each field's help with ``notes``' addition."""
-    hints = typing.get_type_hints(TrainConfig)
-    by_name = {f.name: f for f in fields(TrainConfig)}
+    """``source``'s fields ``names`` (a run's settings, ``TrainConfig``; or a benchmark's own,
+    ``Benchmark``) as options whose default is given elsewhere (``None`` when not given;
+    ``default`` says whose), each field's help with ``notes``' addition."""
+    hints = typing.get_type_hints(source)
+    by_name = {f.name: f for f in fields(source)}
     for name in names:
         f = by_name[name]
         text = f.metadata.get("help", "")
@@ -83,31 +85,42 @@ def add_run_options(
         add_option(parser, name, option_kind(hints[name]), **kwargs)
 
 
+#: how a protocol option's value is read where it is not a count (``int``)
+PROTOCOL_TYPES: dict[str, Any] = {"rate_limit": float, "recheck": recheck_value}
+
+
 def add_protocol_options(
     parser: argparse._ActionsContainer,
     names: tuple[str, ...],
     default: str | None = None,
     prefix: str = "",
     convert: Any = int,
+    notes: dict[str, str] | None = None,
 ) -> None:
-    """``Protocol``'s fields ``names`` as options (values through ``convert``): their help the
-    field's, after ``prefix``; their default the protocol's own, or, where ``default`` says whose
-    it is (a benchmark's preset), ``None`` when not given."""
+    """``Protocol``'s fields ``names`` as options (values through ``PROTOCOL_TYPES``, else
+    ``convert``): their help and metavar the field's, after ``prefix``, with ``notes``'
+    addition; their default the protocol's own, or, where ``default`` says whose it is (a
+    benchmark's preset), ``None`` when not given."""
     by_name = {f.name: f for f in fields(Protocol)}
     for name in names:
         f = by_name[name]
-        shown = f.default if default is None else f"the preset's; the paper's {f.default}"
+        paper = f"the paper's {f.default}"
+        if f.default is None:
+            paper = f"the paper's: {f.metadata.get('none', 'none')}"
+        shown = f.default if default is None else f"{default}; {paper}"
+        text = f.metadata["help"] + (f"; {notes[name]}" if notes and name in notes else "")
         parser.add_argument(
             "--" + name.replace("_", "-"),
-            type=convert,
-            metavar="N",
+            type=PROTOCOL_TYPES.get(name, convert),
+            metavar=f.metadata.get("metavar", "N"),
             default=f.default if default is None else None,
-            help=f"{prefix}{f.metadata['help']} (default: {shown})",
+            help=f"{prefix}{text} (default: {shown})",
         )
 
 
 __all__ = [
     "METAVARS",
+    "PROTOCOL_TYPES",
     "STEP_OPTIONS",
     "add_option",
     "add_protocol_options",

@@ -118,11 +118,31 @@ class Protocol:
     dynamic_episodes: int = field(
         default=10, metadata={"help": "episodes against the run's own adversary (paper Table 6)"}
     )
-    rate_limit: float | None = None
+    rate_limit: float | None = field(
+        default=None,
+        metadata={
+            "metavar": "L",
+            "help": "the dynamic evaluation's adversary is TC-RMDP's time-constrained one, as "
+            "its authors play it: each step it moves every parameter by at most L in raw "
+            "parameter units (psi <- clip(psi + a * L, box); the authors train with 0.001), "
+            "episodes start uniformly in the box, the adversary sees psi and the state",
+            "none": "none, an unconstrained adversary",
+        },
+    )
     rate_game: str = "tc"
     #: a worst case that resists episode noise, beside the paper's (``rrls.evaluation.recheck``):
     #: the lowest points re-evaluated with fresh episodes; None: not computed
-    recheck: Any = None
+    recheck: Any = field(
+        default=None,
+        metadata={
+            "metavar": "KxE",
+            "help": "also recheck each run's worst case: its K lowest mesh points re-evaluated "
+            "with E fresh episodes each, and the 5th percentile of its point means, beside the "
+            "paper's minimum (e.g. 10x20; 10x20@0.1 for the 10th percentile; "
+            "docs/evaluation.md)",
+            "none": "none",
+        },
+    )
 
     def __post_init__(self) -> None:
         if self.recheck is not None:
