@@ -24,19 +24,6 @@ from rrls.envs.base import SAVED_FIELDS
 #: fields whose entries a parameter writes (the rest of the twin's fields are derived): the
 #: model arrays the CPU env saves and restores, the options' and the adversary's forces
 WRITTEN = (*SAVED_FIELDS, "timestep", "gravity", "xfrc_applied")
-WRITTEN = (
-    "body_mass",
-    "body_inertia",
-    "body_ipos",
-    "geom_friction",
-    "dof_damping",
-    "dof_armature",
-    "dof_frictionloss",
-    "actuator_gear",
-    "timestep",
-    "gravity",
-    "xfrc_applied",
-)
 #: written fields that MuJoCo derives constants from (``set_const`` after writing them)
 DERIVING = ("body_mass", "body_inertia", "body_ipos", "dof_armature", "actuator_gear")
 
