@@ -20,8 +20,11 @@ __all__ = ["Diverged", "Interrupted", "TrainConfig", "benchmark_set", "training_
 @dataclass
 class TrainConfig:
     """One training run: what, where, how long. The algorithm's hyper-parameters are its own
-    dataclass (``rrls.agents.<algo>.Config``, the paper's values); ``hyper`` overrides fields of
-    it (``{"learning_rate": 1e-3}``). ``rrls train`` offers every field of both as an option."""
+    dataclass (``rrls.agents.algos.<algo>.Config``, the paper's values); ``hyper`` overrides fields
+    of it (``{"learning_rate": 1e-3}``, what a benchmark's template holds: it needs no torch) or
+    is that ``Config`` itself (``td3.Config(learning_rate=1e-3)``). Either way the run resolves
+    it once (``rrls.agents.lookup.resolve_run``) and ``run.json`` stores every resolved field.
+    ``rrls train`` offers every field of both as an option."""
 
     algo: str = hp(
         "td3",
@@ -103,7 +106,8 @@ class TrainConfig:
     wandb_project: str = hp("rrls", "the W&B project of --track")
     progress: bool | None = None  # progress bar (None: when stderr is a terminal)
     overwrite: bool = hp(False, "replace a finished run in --out")
-    hyper: dict[str, Any] = field(default_factory=dict)
+    #: overrides of the algorithm's ``Config`` fields, or that ``Config`` itself
+    hyper: dict[str, Any] | Any = field(default_factory=dict)
 
     def __post_init__(self) -> None:
         from rrls.agents.lookup import algorithm  # torch: the fields are read without it

@@ -110,8 +110,18 @@ def resolve_run(config: Any) -> ResolvedRun:
 
 
 def hyperparameters(config: Any) -> Any:
-    """The algorithm's ``Config`` with the run's overrides (``config.hyper``), validated."""
+    """The algorithm's ``Config`` with the run's overrides (``config.hyper``), validated; or
+    ``config.hyper`` itself when it is that ``Config`` already (``TrainConfig(algo="td3",
+    hyper=td3.Config(tau=0.01))``: typed, checked where it is written)."""
     cls = algorithm(config.algo).Config
+    if dataclasses.is_dataclass(config.hyper) and not isinstance(config.hyper, type):
+        if type(config.hyper) is not cls:
+            raise ValueError(
+                f"hyper is a {type(config.hyper).__module__}.{type(config.hyper).__qualname__}; "
+                f"{config.algo} takes its {cls.__module__}.{cls.__qualname__} (or a dict of "
+                "that Config's fields to override)"
+            )
+        return config.hyper
     valid = set(cls.__dataclass_fields__)
     unknown = sorted(set(config.hyper) - valid)
     if unknown:
