@@ -3,7 +3,8 @@
 Read in the order a benchmark runs:
 
 - ``grid`` — what a benchmark is (:class:`Benchmark`: a grid of runs, algorithm × task × seed,
-  under one evaluation ``Protocol``) and ``presets`` (``paper``, ``quick``, ``smoke``, …);
+  under one evaluation ``Protocol``), ``presets`` (``paper``, ``quick``, ``smoke``, …) and
+  ``validation`` (everything that would keep it from running, refused before it starts);
 - ``benchfile`` — ``benchmark.json``, the benchmark's file (written once, checked on resume);
 - ``pipeline`` — what a group of runs does: train, evaluate, play the adversary (``stages``:
   the evaluations, which ``rrls submit`` runs too);
