@@ -124,3 +124,23 @@ def test_the_sim_to_sim_tables_and_numbers_are_the_csvs():
         and f"at {run['steps']:,} steps".replace(",", " ") in prose
     )
     assert len(ratios["invertedpendulum"]) == len(ratios["halfcheetah"]) == 8  # "8 points"
+
+
+def test_the_fresh_dr_cost_table_is_the_median_of_its_log():
+    """docs/twin.md's pool / ``pool=0`` table: per task, the median over the log's three runs of
+    each rate and of each run's ratio."""
+    import statistics
+
+    runs: dict[str, list[list[float]]] = {}
+    for line in table_lines(DOCS / "results" / "twin" / "pool_cpu.log"):
+        cells = [c.strip() for c in line.strip("|").split("|")]
+        if cells[0] in ("hopper", "halfcheetah"):
+            runs.setdefault(cells[0], []).append(
+                [float(cells[i].replace(",", "")) for i in (2, 4, 5)]
+            )
+    twin = (DOCS / "twin.md").read_text()
+    names = {"hopper": "Hopper", "halfcheetah": "HalfCheetah"}
+    for task, rows in runs.items():
+        assert len(rows) == 3
+        pool, fresh, ratio = (statistics.median(column) for column in zip(*rows))
+        assert f"| {names[task]} | {pool:.0f} | {fresh:.0f} | {ratio:.2f} |" in twin, task

@@ -3,7 +3,7 @@
 The learner is the algorithm's own (``rrls.agents.<algo>:Learner``, the same object the CPU
 loop drives: one batched update for the ``K`` runs); only the physics moves to the GPU. Each
 run keeps the paper's protocol of one env per run: its world resets on its own, and for DR
-draws a new point of the set at every episode (from the twin's pool). The policies it returns
+draws a new point of the box at every episode (on the device). The policies it returns
 are evaluated where rrls evaluates everything, on CPU MuJoCo.
 
 The training driver of ``rrls train`` (``rrls.agents.driver``) with the twin's device-resident

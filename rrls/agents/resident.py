@@ -14,7 +14,8 @@ is read back inside a block (``tests/test_twin_resident.py`` counts it).
 
 Episodes are the twin's own: each world resets itself at termination and at the time limit,
 its first state and DR point drawn from its seed and episode count (``WarpTwin``); DR draws
-from the twin's pool of points of the set. A checkpoint holds each world's episode count, and a
+each episode's point from the whole box, its fields written on the device (``pool=0``). A
+checkpoint holds each world's episode count, and a
 resumed run starts the episode in progress again from its first state and point, as any twin
 run, another draw of the same training (float32 physics on another device would not replay
 it). M2TD3, whose learner chooses each episode's point, trains through the CPU env of each run
@@ -161,8 +162,9 @@ def make_twin(
     **options: Any,
 ) -> Any:
     """The group's twin, the one place it is built for a device-resident run: world ``k``
-    seeded from run ``k``'s ``"env"`` stream, DR (a new point per episode per world, from a
-    pool of points drawn with ``pool_seed`` 0) for an algorithm whose row says it trains on
+    seeded from run ``k``'s ``"env"`` stream, DR (a new point of the whole box per episode per
+    world, drawn from the world's own stream and written on the device, ``pool=0``: the CPU's
+    ``DomainRandomization``, not a pool of points) for an algorithm whose row says it trains on
     random points, the adversary's columns of the action written into each world inside the
     step (``adversary=True``: RARL's game) for one whose row says an adversary moves the
     dynamics; ``options``: the rest of ``WarpTwin``'s (``max_episode_steps``...)."""
@@ -181,7 +183,7 @@ def make_twin(
         seed=[RunSeeds(s).integer("env") for s in seeds],
         device=device,
         array="torch",
-        **{"pool_seed": 0, **options},
+        **{"pool": 0, **options},
     )
 
 

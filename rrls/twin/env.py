@@ -12,10 +12,9 @@ any two float paths do: the docs show by how much).
 Points: ``points=`` gives each world a fixed point (an ``(n, dim)`` array over the set's
 names); ``domain_randomization=True`` draws each world a new point at every reset, uniformly from
 a pool of ``pool`` points of the set drawn from the seed, or from ``pool_seed`` (the pool's fields
-are computed once by CPU MuJoCo, so a reset never leaves the device; training gives
-``pool_seed=0``: one pool for every run, so a run's draws depend on its own seed alone, not on
-its group), or with ``pool=0`` uniformly from the whole box, from the world's own stream, the
-point's fields written on the device (``rrls.twin.adversary``); neither: the nominal model.
+are computed once by CPU MuJoCo, so a reset never leaves the device), or with ``pool=0``
+(what training uses) uniformly from the whole box, from the world's own stream, the point's
+fields written on the device (``rrls.twin.adversary``); neither: the nominal model.
 
 The adversary's point (RARL's game, ``adversary=True``): the action is the protagonist's then
 the adversary's, ``(n, nu + dim)``; each step the adversary's ``[-1, 1]`` columns are mapped onto
