@@ -132,7 +132,7 @@ def _train_together(group: ResolvedRun, runs, states, on_episode, threads) -> No
     make = env_factory(algo, first, hyper)
     template = make()  # spaces and metadata; the group's envs may live in worker processes
     check_group_memory(hyper, template, len(runs), first.steps - runs[0].step)
-    if resident.trains_on_device(first, algo.Learner):  # the twin, without leaving the device
+    if resident.trains_on_device(first, algo.Learner, hyper):  # the twin, never leaving the device
         seeds = [run.config.seed for run in runs]
         envs: Any = resident.make_twin(
             first.task,
@@ -255,7 +255,7 @@ def _collect(
     if any(state is not None for state in states):
         learner.load_state_dict(stack_runs([state["learner"] for state in states]))
     collector: Collector
-    if resident.trains_on_device(first, algo.Learner):
+    if resident.trains_on_device(first, algo.Learner, hyper):
         device = torch.device(first.device)
         collector = resident.BlockCollector(
             envs, learner, seeds, learning_starts, first.algo, device

@@ -32,18 +32,15 @@ from rrls.twin.catalog import not_on_twin
 
 
 def twin_refusal(algo: str) -> str | None:
-    """Why this library loop does not train ``algo`` (its row's ``set_use``), or None: a
-    learner choosing each episode's point
-    (``rrls train --simulator warp`` trains it: the CPU env of each run takes the learner's point
-    at every reset and the world copies it), a name without a row."""
+    """Why this library loop does not train ``algo``, or None: a name without a row (every
+    built-in algorithm trains here; a learner choosing each episode's point, M2TD3, chooses it
+    on the device and the twin writes it)."""
     info = algorithm_info(algo)
     if info is None:
         return "no algorithm of that name"
     why = not_on_twin(algo)
     if why is not None:
         return why
-    if info.set_use == "chosen":
-        return "it picks each episode's point itself: train it with rrls train --simulator warp"
     return None
 
 
@@ -92,8 +89,9 @@ def train_on_twin(
     config = info.Config(**(hyper or {}))
     twin = make_twin(task, algo, list(seeds), uncertainty, device, config, **(twin_options or {}))
     dev = torch.device(device)
-    # RARL's learner reads both players' spaces from its game's env; the others the twin's
-    game = info.make_env(task, uncertainty, config) if twin.adversary_dim else None
+    # RARL's learner reads both players' spaces from its game's env, M2TD3 its set from its
+    # env; the others the twin's
+    game = info.make_env(task, uncertainty, config) if twin.adversary_dim or twin.chosen else None
     try:
         learner = info.Learner(game or twin.cpu, config, [RunSeeds(s) for s in seeds], dev)
     finally:

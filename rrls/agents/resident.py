@@ -1,6 +1,6 @@
 """Training without leaving the device: ``K`` runs on the MuJoCo Warp twin (run ``k`` on world
-``k``), for learners with the device-resident methods (``DeviceLearnerProtocol``: TD3, DR, SAC,
-SAC-DR). The twin's collector (``BlockCollector``) that the training driver
+``k``), for learners with the device-resident methods (``DeviceLearnerProtocol``: every
+built-in algorithm). The twin's collector (``BlockCollector``) that the training driver
 (``rrls.agents.driver``) runs for them in ``rrls train --simulator warp`` and in the library loop
 ``rrls.agents.on_twin.train_on_twin``; ``make_twin``, the one place their twin is built.
 
@@ -18,8 +18,10 @@ each episode's point from the whole box, its fields written on the device (``poo
 checkpoint holds each world's episode count, and a
 resumed run starts the episode in progress again from its first state and point, as any twin
 run, another draw of the same training (float32 physics on another device would not replay
-it). M2TD3, whose learner chooses each episode's point, trains through the CPU env of each run
-(``rrls.agents.twin_envs``). Adversaries acting every step train here too: NR-MDP's learner
+it). M2TD3, whose learner chooses each episode's point, chooses it here on the device as the
+episode begins (``begin_episodes``), and the twin writes it (``set_points``); with
+``same_start`` it trains through each run's CPU env (``rrls.agents.twin_envs``). Adversaries
+acting every step train here too: NR-MDP's learner
 returns the executed action; RARL's twin takes both players' joint action and writes the
 adversary's point into each world inside the step (``make_twin``).
 """
@@ -118,6 +120,8 @@ class Worlds:
             self.length += 1
             out.returns[j] = torch.where(ended, self.ret, math.nan)
             out.lengths[j] = torch.where(ended, self.length, 0)
+            if hasattr(learner, "begin_episodes"):  # its point for each episode that begins
+                self.twin.set_points(learner.begin_episodes(ended, self.length, step, row))
             self.ret.masked_fill_(ended, 0.0)
             self.length.masked_fill_(ended, 0)
             self.obs = next_obs.clone()  # the twin writes its next observations in place
@@ -180,6 +184,7 @@ def make_twin(
         uncertainty,
         domain_randomization=use == "random",
         adversary=use == "adversary",
+        chosen=use == "chosen",
         seed=[RunSeeds(s).integer("env") for s in seeds],
         device=device,
         array="torch",
@@ -198,13 +203,16 @@ def check_device_game(algo: str, hyper: Any) -> None:
         )
 
 
-def trains_on_device(config: Any, learner: type) -> bool:
+def trains_on_device(config: Any, learner: type, hyper: Any = None) -> bool:
     """Whether ``rrls train`` runs this group here: the twin, a built-in row (it says whether
-    the points are random) and a learner with the device-resident methods."""
+    the points are random) and a learner with the device-resident methods; not M2TD3's
+    ``same_start`` (every episode from the run's one first state: each world resets itself from
+    its own stream here, so those runs take the twin through each run's CPU env)."""
     return (
         config.simulator == "warp"
         and algorithm_info(config.algo) is not None
         and issubclass(learner, DeviceLearnerProtocol)
+        and not getattr(hyper, "same_start", False)
     )
 
 
@@ -236,14 +244,21 @@ class BlockCollector:
     def start(self, states: list[dict[str, Any] | None]) -> None:
         """A fresh reset, or the loop's streams as saved and the episodes in progress begun
         again (each world's episode count: the same first state and point)."""
+        begin = getattr(self.learner, "begin_episodes", None)  # a learner choosing the points
         if states[0] is None:
             self.worlds.start()
+            if begin is not None:  # the first episodes' points, from one step's draws
+                row = {name: value[0] for name, value in self.learner.draw_ahead(1).items()}
+                every = torch.ones(self.twin.num_envs, dtype=torch.bool, device=self.device)
+                self.twin.set_points(begin(every, None, 0, row))
             return
         for k, state in enumerate(states):
             set_rng_state(self.warmup[k], state["warmup"])
         # a checkpoint without the count: the run's episodes so far, the next one in progress
         counts = [state.get("twin_episode", int(state["episodes"]) + 1) for state in states]
         self.worlds.start(np.array(counts))
+        if begin is not None:  # the episodes in progress at their points again
+            self.twin.set_points(self.learner.episode_points())
 
     def advance(self, step: int, n: int) -> Advance:
         block = self.worlds.block(self.learner, step, n, self.starts)

@@ -102,6 +102,7 @@ class WarpTwin(VectorEnv):
         njmax: int = 160,
         max_episode_steps: int | None = None,
         adversary: bool = False,
+        chosen: bool = False,
         **env_kwargs: Any,
     ) -> None:
         key = get_task(task).key
@@ -127,6 +128,10 @@ class WarpTwin(VectorEnv):
             raise ValueError("give fixed points or domain_randomization=True, not both")
         if adversary and (points is not None or domain_randomization):
             raise ValueError("adversary=True: the adversary sets the forces, give no points or DR")
+        if chosen and (points is not None or domain_randomization or adversary):
+            raise ValueError(
+                "chosen=True: set_points gives the points, give no points, DR or adversary"
+            )
         self._wp, self._mjw, self._k = wp, mjw, kernels
         self.task, self.array = TWIN_TASKS[key], array
         self.resolved = resolve(key, uncertainty or default_set(key))
@@ -149,6 +154,7 @@ class WarpTwin(VectorEnv):
             points, domain_randomization and not self.fresh, pool, pool_from
         )
         self.redraw = int(domain_randomization and not self.fresh)
+        self.chosen = chosen  # each world's point is the caller's (``set_points``)
         self.formula = self._formula(kernels.Formula())
         self._build(nconmax, njmax)
         self._seed(seed)
@@ -271,12 +277,13 @@ class WarpTwin(VectorEnv):
             self.joint = self.action
             if self.adversary_dim:
                 self.joint = wp.zeros((n, self.nu + self.adversary_dim), dtype=float)
-            if self.adversary_dim or self.fresh:  # each world's point, written on the device
+            if self.adversary_dim or self.fresh or self.chosen:  # points written on the device
                 from rrls.twin.adversary import PointWrites
 
                 views = {f: _floats(t, n) for f, t in targets.items()}
                 self.writes = PointWrites(self.cpu, self.box, views)
-                self.values = wp.zeros((n, self.box.dim), dtype=float)
+                nominal = np.asarray(self.box.nominal, dtype=np.float32)  # until set_points
+                self.values = wp.array(np.tile(nominal, (n, 1)), dtype=float)
             self.seeds = wp.zeros(n, dtype=int)
 
     def _seed(self, seed: int | Sequence[int]) -> None:
@@ -393,7 +400,7 @@ class WarpTwin(VectorEnv):
         )
         for view, pool in self.fields:
             wp.launch(k.copy_point, view.shape, [mask, self.point, pool, view])
-        if self.fresh:
+        if self.fresh or self.chosen:  # the world's own point again, over the nominal fields
             self.writes.write(self.values, self.m, self.d)
         wp.launch(
             k.observe, n, [self.formula, self.d.qpos, self.d.qvel, self.d.cfrc_ext, mask, self.obs]
@@ -423,10 +430,39 @@ class WarpTwin(VectorEnv):
         out = a.numpy().copy()
         return out.astype(dtype) if dtype is not None else out
 
+    def set_points(self, points: Any) -> None:
+        """``chosen=True``: each world's point from now on, ``(num_envs, dim)`` over
+        ``box.names`` (a torch tensor or warp array on the device: no host round trip; or host
+        values), written into its fields with the derived constants recomputed, as
+        ``set_params`` writes a CPU env's. A world's next steps run at its point, and an episode
+        that begins keeps it until the next call (what M2TD3 does: the point chosen as its
+        episode begins; a reset state does not depend on the point, so writing it just after
+        the world's reset is the CPU's ``reset(options=point)``)."""
+        wp = self._wp
+        if not self.chosen:
+            raise ValueError("set_points needs a twin built with chosen=True")
+        if type(points).__module__.startswith("torch"):
+            points = wp.from_torch(points.detach().float().contiguous())
+        with wp.ScopedDevice(self.device):
+            if isinstance(points, wp.array):
+                if points.shape != self.values.shape:
+                    raise ValueError(
+                        f"points have shape {points.shape}; expected {self.values.shape}"
+                    )
+                wp.copy(self.values, points)
+            else:
+                host = np.asarray(points, dtype=np.float32)
+                if host.shape != self.values.shape:
+                    raise ValueError(
+                        f"points have shape {host.shape}; expected {self.values.shape}"
+                    )
+                self.values.assign(host)
+            self.writes.write(self.values, self.m, self.d)
+
     # -- what a check or a log needs ----------------------------------------------------------
     def points(self) -> np.ndarray:
         """Each world's current point, ``(num_envs, dim)`` over ``box.names`` (a host copy)."""
-        if self.fresh or self.adversary_dim:
+        if self.fresh or self.adversary_dim or self.chosen:
             return self.values.numpy().astype(np.float64)
         return self.pool_points[self.point.numpy()]
 

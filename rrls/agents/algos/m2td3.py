@@ -50,7 +50,7 @@ from torch import nn
 from rrls.agents.algos.td3 import TD3, TD3Config
 from rrls.agents.algos.td3 import Learner as TD3Learner
 from rrls.agents.envs import task_env
-from rrls.agents.graphs import Update
+from rrls.agents.graphs import Update, adam
 from rrls.agents.hparams import hp
 from rrls.agents.replay import ReplayBuffer, transition_fields
 from rrls.agents.streams import NumpyGenerators, RunSeeds
@@ -178,6 +178,80 @@ class Candidates:
         self.probabilities.mul_(1.0 - coeff.unsqueeze(1))
         self.probabilities.scatter_add_(1, chosen.view(-1, 1), coeff.unsqueeze(1))
 
+    # -- on the device (the twin's resident loop): the same rules on every run at once, masked by
+    # the runs whose episode begins, with no host read (``Learner.begin_episodes``)
+    @torch.no_grad()
+    def to_storage(self) -> None:
+        """The logits and their Adam states as rows of four ``(K·N, ...)`` tensors (each
+        candidate still its own parameter, a view of its row), so a masked write resets many."""
+        self.rows = torch.stack([p.detach() for p in self.logits]).clone()
+        moments = [torch.zeros_like(self.rows) for _ in range(2)]
+        steps = torch.zeros(len(self.logits), dtype=torch.float32, device=self.rows.device)
+        for i, p in enumerate(self.logits):
+            state = self.opt.state.get(p, {})
+            if state:
+                moments[0][i], moments[1][i] = state["exp_avg"], state["exp_avg_sq"]
+                steps[i] = state["step"]
+        self.logits = [nn.Parameter(self.rows[i]) for i in range(len(self.logits))]
+        # capturable on a GPU, fused on a CPU: no step count read back (``graphs.adam``)
+        self.opt = adam(self.logits, self.opt.defaults["lr"], self.rows.device)
+        self.state_rows = [*moments, steps]
+        for i, p in enumerate(self.logits):
+            self.opt.state[p] = {"exp_avg": moments[0][i], "exp_avg_sq": moments[1][i]}
+            self.opt.state[p]["step"] = steps[i]
+
+    @torch.no_grad()
+    def _reinitialise_masked(self, j: int, mask: torch.Tensor, u: torch.Tensor) -> None:
+        """``reinitialise(k, j)`` for every run ``k`` of ``mask``, ``u`` its uniform draw."""
+        span = (self.high - self.low).double()
+        y = (u.double() * span / span.clamp(min=1e-5)).clamp(1e-5, 1 - 1e-5)
+        rows = torch.arange(self.group, device=mask.device) * self.n + j
+        fresh = torch.log(y / (1 - y)).float()
+        self.rows[rows] = torch.where(mask[:, None], fresh, self.rows[rows])
+        for state in self.state_rows:
+            state[rows] = torch.where(mask.view(-1, *[1] * (state.dim() - 1)), 0, state[rows])
+        p = self.probabilities
+        p[:, j] = torch.where(mask, 0.0, p[:, j])
+        p[:, j] = torch.where(mask, p.sum(1) / (self.n - 1), p[:, j])
+
+    @torch.no_grad()
+    def restart_masked(self, mask: torch.Tensor, close_u: torch.Tensor, rare_u: torch.Tensor):
+        """``restart`` for the runs of ``mask`` (``(K,)``): the collapsed candidates first, in
+        index order, then the rare ones, each with its own uniform draw (``(K, N, dim)``)."""
+        v = self.values()
+        near = (v[:, :, None] - v[:, None]).abs().sum(-1) <= self.distance
+        later = torch.ones(self.n, self.n, dtype=torch.bool, device=v.device).triu(1)
+        close = (near & later).any(2) & mask[:, None]
+        for j in range(self.n):
+            self._reinitialise_masked(j, close[:, j], close_u[:, j])
+        rare = (self.probabilities < self.min_probability) & mask[:, None]
+        for j in range(self.n):
+            self._reinitialise_masked(j, rare[:, j], rare_u[:, j])
+
+    @torch.no_grad()
+    def select_drawn(self, mask: torch.Tensor, u: torch.Tensor) -> torch.Tensor:
+        """``select`` for every run (``u``: its uniform draw, ``(K,)``), numpy's
+        ``choice(p=p)`` arithmetic; only the runs of ``mask`` have their ``p`` renormalised."""
+        p = self.probabilities
+        p.copy_(torch.where(mask[:, None], p / p.sum(1, keepdim=True), p))
+        cdf = p.cumsum(1)
+        cdf = cdf / cdf[:, -1:]
+        chosen = torch.searchsorted(cdf, u.double()[:, None], right=True)[:, 0]
+        return chosen.clamp(max=self.n - 1)
+
+    def step_masked(self, loss: torch.Tensor, chosen: torch.Tensor) -> None:
+        """``step`` without reading ``chosen`` back: every candidate takes the Adam step, and
+        all but the chosen ones are put back as they were (the authors' skipped optimisers)."""
+        self.opt.zero_grad(set_to_none=True)
+        loss.sum().backward(inputs=self.logits)
+        with torch.no_grad():
+            before = [self.rows.clone(), *(s.clone() for s in self.state_rows)]
+            self.opt.step()
+            mine = torch.zeros(self.group * self.n, dtype=torch.bool, device=self.rows.device)
+            mine[torch.arange(self.group, device=mine.device) * self.n + chosen] = True
+            for now, old in zip([self.rows, *self.state_rows], before):
+                now.copy_(torch.where(mine.view(-1, *[1] * (now.dim() - 1)), now, old))
+
     def state_dict(self) -> dict[str, torch.Tensor]:
         """Runs first: logits, Adam moments and step counts ``(K, N, ...)``, probabilities."""
         shape = (self.group, self.n)
@@ -221,10 +295,6 @@ class Learner(TD3Learner):
     """TD3 with ω-conditioned critics, the candidates ω̂ and each run's episode ω (acting and
     exploration as TD3's learner)."""
 
-    # not TD3's device-resident methods (its transitions and updates are its own): None marks
-    # them absent, so ``isinstance(learner, DeviceLearnerProtocol)`` is False, as for ``__hash__``
-    draw_ahead = act_tensor = put = update_drawn = None  # type: ignore[assignment]
-
     def __init__(self, env: Any, config: Config, seeds: list[RunSeeds], device: Any) -> None:
         try:  # through any wrapper a user (or a benchmark's clock) put around make_env's env
             box = env.get_wrapper_attr("uncertainty_box")
@@ -259,6 +329,7 @@ class Learner(TD3Learner):
         self.coeff = torch.full((len(seeds),), 1e-3, dtype=torch.float64, device=device)
         self.omega = np.zeros((len(seeds), dim))
         self.same_start = config.same_start
+        self.run_seeds, self.on_device = seeds, False  # on_device: the twin's resident loop
         self._update = Update(self._compute, device)
 
     def act(self, obs: np.ndarray) -> list[Any]:
@@ -302,6 +373,11 @@ class Learner(TD3Learner):
         draws = {"idx": self.buffer.draw(size)}
         draws["eps_omega"] = agent.draw(size, self.box.dim)  # ω's smoothing noise, then a's
         draws["eps"] = agent.draw(size)
+        return self._update_with(step, draws, self.candidates.step)
+
+    def _update_with(self, step: int, draws: dict[str, torch.Tensor], descend: Any) -> dict:
+        """The update on ``draws``; the worst candidates then descend with ``descend``."""
+        agent = self.agent
         with torch.no_grad():
             draws["candidates"] = self.candidates.values()
         out = self._update(step % self.config.policy_frequency == 0, draws)
@@ -311,7 +387,7 @@ class Learner(TD3Learner):
             index = chosen.view(-1, 1, 1).expand(-1, 1, self.box.dim)
             worst = self.candidates.values().gather(1, index).expand(-1, s.shape[1], -1)
             loss = agent.critic.q1(torch.cat((s, a, cw(worst)), -1)).mean(-1)
-            self.candidates.step(loss, chosen)
+            descend(loss, chosen)
             self.candidates.mark_worst(chosen, self.coeff)
             losses["omega_loss"] = loss.detach()
         return losses
@@ -347,8 +423,108 @@ class Learner(TD3Learner):
         agent.soft_update()
         return {**losses, "chosen": chosen, "obs": s, "action": a}
 
+    # -- the device-resident loop (``rrls.agents.resident``, the twin): acting, storing and
+    # updating as TD3's, each episode's ω chosen on the device as the episode begins (the
+    # twin's ``set_points`` writes it), every random input drawn a block of steps ahead
+    def draw_ahead(self, steps: int) -> dict[str, torch.Tensor]:
+        """TD3's draws, and per step and run from its own ``".ahead"`` streams: ω's smoothing
+        noise, and what a beginning episode draws (a uniform ω, the candidate, its noise, the
+        restarted candidates' uniforms)."""
+        k, n, dim = len(self.run_seeds), self.config.hatomega_number, self.box.dim
+        size = self.config.batch_size
+        draws = super().draw_ahead(steps)
+        normal = np.stack(
+            [g.standard_normal((steps, size * dim + dim)) for g in self._ahead()["omega"]], 1
+        )
+        uniform = np.stack(
+            [g.random((steps, dim + 1 + 2 * n * dim)) for g in self._ahead()["episode"]], 1
+        )
+        device = self.agent.device
+
+        def tensor(x: np.ndarray, *shape: int) -> torch.Tensor:
+            return (
+                torch.from_numpy(np.ascontiguousarray(x, dtype=np.float32))
+                .to(device)
+                .view(steps, k, *shape)
+            )
+
+        draws["eps_omega"] = tensor(normal[..., : size * dim], size, dim)
+        draws["omega_noise"] = tensor(normal[..., size * dim :], dim)
+        draws["omega_uniform"] = tensor(uniform[..., :dim], dim)
+        draws["pick"] = tensor(uniform[..., dim])
+        draws["close_u"] = tensor(uniform[..., dim + 1 : dim + 1 + n * dim], n, dim)
+        draws["rare_u"] = tensor(uniform[..., dim + 1 + n * dim :], n, dim)
+        return draws
+
+    def _ahead(self) -> dict[str, NumpyGenerators]:
+        """The streams of ``draw_ahead``'s own draws, made on first use."""
+        if not hasattr(self, "episode_ahead"):
+            names = ("omega", "episode")
+            self.episode_ahead = {n: NumpyGenerators(self.run_seeds, f"{n}.ahead") for n in names}
+        return self.episode_ahead
+
+    def _act_on_device(self, variant: None, x: dict[str, torch.Tensor]) -> torch.Tensor:
+        """TD3's, unclipped with ``clip_exploration=False`` (as ``act``)."""
+        if self.config.clip_exploration:
+            return super()._act_on_device(variant, x)
+        with torch.no_grad():
+            return self.agent.actor(x["obs"].unsqueeze(1)).squeeze(1) + x["noise"]
+
+    def put(self, obs, actions, rewards, next_obs, terminated) -> None:
+        self.buffer.put(
+            obs=obs,
+            action=actions,
+            reward=rewards,
+            next_obs=next_obs,
+            terminated=terminated,
+            omega=self.omega_t,
+        )
+
+    def update_drawn(self, step: int, draws: dict[str, torch.Tensor]) -> dict[str, torch.Tensor]:
+        names = ("idx", "eps", "eps_omega")
+        return self._update_with(step, {n: draws[n] for n in names}, self.candidates.step_masked)
+
+    def begin_episodes(
+        self, begins: torch.Tensor, lengths: torch.Tensor | None, step: int, row: dict
+    ) -> torch.Tensor:
+        """``episode_options`` on the device for the runs of ``begins`` (``(K,)``; ``lengths``:
+        the episodes that just ended, for the worst candidates' average, None at the start):
+        their ω as ``episode_options`` draws it; every run's ω, ``(K, dim)``, to write."""
+        self._to_device()
+        if lengths is not None:
+            self.coeff.copy_(torch.where(begins, 1.0 / lengths.clamp(min=1).double(), self.coeff))
+        if step < self.config.learning_starts:
+            omega = self.omega_low + row["omega_uniform"] * (self.omega_high - self.omega_low)
+        else:
+            c = self.candidates
+            c.restart_masked(begins, row["close_u"], row["rare_u"])
+            chosen = c.select_drawn(begins, row["pick"])
+            with torch.no_grad():
+                centre = c.values()[torch.arange(len(chosen), device=chosen.device), chosen]
+            noise = row["omega_noise"] * self.omega_std_t
+            omega = torch.minimum(torch.maximum(centre + noise, self.omega_low), self.omega_high)
+        self.omega_t = torch.where(begins[:, None], omega, self.omega_t)
+        return self.omega_t
+
+    def episode_points(self) -> torch.Tensor:
+        """Every run's ω of the episode in progress (a resumed run starts it again there)."""
+        self._to_device()
+        return self.omega_t
+
+    def _to_device(self) -> None:
+        """Once, as the resident loop starts: the candidates as rows, ω on the device."""
+        if self.on_device:
+            return
+        self.on_device = True
+        self.candidates.to_storage()
+        self.omega_t, self.omega_std_t = (
+            torch.as_tensor(x, dtype=torch.float32, device=self.agent.device)
+            for x in (self.omega, self.omega_std)
+        )
+
     def episode_end(self, k: int, episode_return: float, length: int) -> dict[str, float]:
-        self.coeff[k] = 1.0 / max(1, length)
+        if not self.on_device:  # on the device: set as the episode ended (begin_episodes)
+            self.coeff[k] = 1.0 / max(1, length)
         with torch.no_grad():
             values = self.candidates.values()[k].cpu().numpy()
         probabilities = self.candidates.probabilities[k].cpu().numpy()
@@ -364,7 +540,8 @@ class Learner(TD3Learner):
             "candidates": self.candidates.state_dict(),
             "draws": self.draws.state_dict(),
             "coeff": self.coeff.clone(),
-            "omega": torch.as_tensor(self.omega),
+            "omega": self.omega_t.double().cpu() if self.on_device else torch.as_tensor(self.omega),
+            **{f"{n}_ahead": g.state_dict() for n, g in getattr(self, "episode_ahead", {}).items()},
         }
 
     def load_state_dict(self, state: dict[str, Any]) -> None:
@@ -373,3 +550,6 @@ class Learner(TD3Learner):
         self.draws.load_state_dict(state["draws"])
         self.coeff.copy_(state["coeff"])
         self.omega[:] = state["omega"].numpy()
+        if "omega_ahead" in state:  # a run of the resident loop
+            for name, streams in self._ahead().items():
+                streams.load_state_dict(state[f"{name}_ahead"])
