@@ -10,8 +10,8 @@ The training driver of ``rrls train`` (``rrls.agents.driver``) with the twin's d
 collector (``rrls.agents.resident``: nothing read back inside a block, each run's random inputs
 drawn a block ahead from its own generators), without run directories, so without loss logs,
 checkpoints or periodic evaluations: for measuring the twin's throughput and for scripts.
-``rrls train --simulator warp`` adds those, and M2TD3 (through each run's CPU env). The
-adversarial games (RARL, NR-MDP: an adversary acting every step) are refused by both.
+``rrls train --simulator warp`` adds those. Every built-in algorithm trains here: the
+adversarial games (RARL, NR-MDP), and M2TD3, whose points the twin takes from its learner.
 """
 
 from __future__ import annotations

@@ -1,6 +1,6 @@
 """The envs of a group of runs on the MuJoCo Warp twin (``rrls train --simulator warp``) for
-learners without the device-resident methods (M2TD3, whose learner chooses each episode's point;
-TD3, DR, SAC and SAC-DR run in ``rrls.agents.resident`` instead): the same interface as
+learners without the device-resident methods (a plug-in's; M2TD3 with ``same_start``, every
+episode from the run's one first state: the built-ins run in ``rrls.agents.resident``): the same interface as
 ``rrls.agents.envs.LocalEnvs``, so the CPU envs' collector (``rrls.agents.stepwise``) steps them
 and the driver's checkpoints, logs, periodic evaluations and run files are the CPU path's.
 

@@ -14,7 +14,9 @@ names); ``domain_randomization=True`` draws each world a new point at every rese
 a pool of ``pool`` points of the set drawn from the seed, or from ``pool_seed`` (the pool's fields
 are computed once by CPU MuJoCo, so a reset never leaves the device), or with ``pool=0``
 (what training uses) uniformly from the whole box, from the world's own stream, the point's
-fields written on the device (``rrls.twin.adversary``); neither: the nominal model.
+fields written on the device (``rrls.twin.adversary``); ``chosen=True``: the caller's points,
+written the same way by ``set_points`` (M2TD3's, as each episode begins); none: the nominal
+model.
 
 The adversary's point (RARL's game, ``adversary=True``): the action is the protagonist's then
 the adversary's, ``(n, nu + dim)``; each step the adversary's ``[-1, 1]`` columns are mapped onto

@@ -439,14 +439,10 @@ class Learner(TD3Learner):
         uniform = np.stack(
             [g.random((steps, dim + 1 + 2 * n * dim)) for g in self._ahead()["episode"]], 1
         )
-        device = self.agent.device
 
         def tensor(x: np.ndarray, *shape: int) -> torch.Tensor:
-            return (
-                torch.from_numpy(np.ascontiguousarray(x, dtype=np.float32))
-                .to(device)
-                .view(steps, k, *shape)
-            )
+            as32 = torch.from_numpy(np.ascontiguousarray(x, dtype=np.float32))
+            return as32.to(self.agent.device).view(steps, k, *shape)
 
         draws["eps_omega"] = tensor(normal[..., : size * dim], size, dim)
         draws["omega_noise"] = tensor(normal[..., size * dim :], dim)
@@ -471,14 +467,8 @@ class Learner(TD3Learner):
             return self.agent.actor(x["obs"].unsqueeze(1)).squeeze(1) + x["noise"]
 
     def put(self, obs, actions, rewards, next_obs, terminated) -> None:
-        self.buffer.put(
-            obs=obs,
-            action=actions,
-            reward=rewards,
-            next_obs=next_obs,
-            terminated=terminated,
-            omega=self.omega_t,
-        )
+        at = {"obs": obs, "action": actions, "next_obs": next_obs, "omega": self.omega_t}
+        self.buffer.put(reward=rewards, terminated=terminated, **at)
 
     def update_drawn(self, step: int, draws: dict[str, torch.Tensor]) -> dict[str, torch.Tensor]:
         names = ("idx", "eps", "eps_omega")
