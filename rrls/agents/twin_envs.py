@@ -1,8 +1,9 @@
 """The envs of a group of runs on the MuJoCo Warp twin (``rrls train --simulator warp``) for
 learners without the device-resident methods (a plug-in's; M2TD3 with ``same_start``, every
 episode from the run's one first state: the built-ins run in ``rrls.agents.resident``): the
-same interface as ``rrls.agents.envs.LocalEnvs``, so the CPU envs' collector (``rrls.agents.stepwise``) steps them
-and the driver's checkpoints, logs, periodic evaluations and run files are the CPU path's.
+same interface as ``rrls.agents.envs.LocalEnvs``, so the CPU envs' collector
+(``rrls.agents.stepwise``) steps them and the driver's checkpoints, logs, periodic evaluations
+and run files are the CPU path's.
 
 Run ``k`` owns world ``k`` and a CPU env of its own. An episode starts on the CPU env (reset
 with the run's seed and the learner's options: DR's draw, M2TD3's chosen point), and the world
