@@ -39,8 +39,10 @@ def _train(algo: str, block: int, **kw):
 
 
 @pytest.mark.warp
-@pytest.mark.parametrize("algo", ["td3", "sac"])
+@pytest.mark.parametrize("algo", ["td3", "dr", "rarl", "nrmdp", "m2td3", "sac", "sacdr"])
 def test_the_host_reads_once_a_block_and_the_block_size_changes_nothing(algo, monkeypatch):
+    """Every built-in algorithm: no read back inside a block (the CUDA-graph path's static
+    inputs rehearsed), and the same runs whatever the block size."""
     whole = _train(algo, block=STEPS)
     reads = HostReads(monkeypatch)
     with settings(rehearse=True):  # the CUDA-graph path's static inputs, without the capture

@@ -29,6 +29,7 @@ from rrls.agents.resident import BLOCK, BlockCollector, make_twin
 from rrls.agents.streams import RunSeeds
 from rrls.algorithms import algorithm_info
 from rrls.twin.catalog import not_on_twin
+from rrls.twin.env import default_set
 
 
 def twin_refusal(algo: str) -> str | None:
@@ -87,6 +88,7 @@ def train_on_twin(
             raise ValueError(f"{name} must be a positive integer, got {value!r}")
     info = algorithm(algo)
     config = info.Config(**(hyper or {}))
+    uncertainty = uncertainty or default_set(task)  # the twin's own default, named for the env
     twin = make_twin(task, algo, list(seeds), uncertainty, device, config, **(twin_options or {}))
     dev = torch.device(device)
     # RARL's learner reads both players' spaces from its game's env, M2TD3 its set from its
