@@ -267,3 +267,29 @@ def _same(a, b) -> None:
         assert torch.equal(a, b)
     else:
         assert a == b
+
+
+@pytest.mark.warp
+@pytest.mark.exactness  # batched updates: .ci/run repeats it on the other CPU kernels
+@pytest.mark.parametrize("algo", ["td3", "dr", "rarl", "nrmdp", "m2td3", "sac", "sacdr"])
+def test_a_twin_run_is_the_same_alone_and_beside_another(algo):
+    """A run's numbers do not depend on what else shares its twin: seed 1 trained alone and
+    trained beside seed 0 (its world and its learner's slice of the stacked update) give the
+    same episodes and the same policy."""
+
+    def train(seeds: tuple[int, ...]):
+        return train_on_twin(
+            algo,
+            "invertedpendulum",
+            seeds=seeds,
+            steps=STEPS,
+            device="cpu",
+            hyper=HYPER,
+            block=16,
+            progress_every=STEPS,
+        )
+
+    alone, shared = train((1,)), train((0, 1))
+    assert alone.returns[0] == shared.returns[1] and alone.returns[0]
+    obs = np.random.default_rng(0).normal(size=(5, 4))
+    np.testing.assert_array_equal(alone.policies[0](obs), shared.policies[1](obs))
