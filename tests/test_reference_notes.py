@@ -85,16 +85,25 @@ def test_the_hopper_budget_probes_table_is_its_file() -> None:
             (int(r["seed"]), int(r["step"])): float(r["nominal_return"]) for r in csv.DictReader(f)
         }
     page = (folder / "README.md").read_text()
-    section = page.split("TD3 measured first", 1)[1].split("**Reading.**", 1)[0]
-    steps = [50_000, 100_000, 150_000, 200_000, 250_000, 300_000]
-    table = [line for line in section.splitlines() if re.match(r"\| \d+ \|", line)]
-    assert len(table) == len({seed for seed, _ in rows})
-    for line in table:
-        cells = [c.strip() for c in line.strip("|").split("|")]
-        seed = int(cells[0])
-        for step, cell in zip(steps, cells[1:]):
-            expected = rows.get((seed, step))
-            assert cell == ("" if expected is None else f"{expected:.0f}"), (seed, step)
+    section = page.split("TD3 measured first", 1)[1].split("## Per run", 1)[0]
+    tables = [t for t in re.split(r"\n\n", section) if t.startswith("| seed |")]
+    assert len(tables) == 2  # to 300 k, then on towards 1 M
+    shown = set()
+    for table in tables:
+        lines = table.strip().splitlines()
+        steps = [
+            int(c.strip().removesuffix(" k")) * 1000 for c in lines[0].strip("|").split("|")[1:]
+        ]
+        body = [line for line in lines[2:] if re.match(r"\| \d+ \|", line)]
+        assert len(body) == len({seed for seed, _ in rows})
+        for line in body:
+            cells = [c.strip() for c in line.strip("|").split("|")]
+            seed = int(cells[0])
+            for step, cell in zip(steps, cells[1:], strict=True):
+                expected = rows.get((seed, step))
+                assert cell == ("" if expected is None else f"{expected:.0f}"), (seed, step)
+                shown.add((seed, step))
+    assert {key for key in rows if key[1] >= 50_000} <= shown  # every measured point shown
     finals = [rows[(seed, 300_000)] for seed in (0, 1)]
     reading = " ".join(page.split())
     assert f"TD3 is at {finals[0]:.0f} (seed 0) and {finals[1]:.0f} (seed 1), far from 2 500" in (
