@@ -4,7 +4,8 @@
 (:func:`check_submission`: the name, the benchmark, the policy's shapes, all before any
 episode), evaluate (:func:`evaluate_submission`: the benchmark's own protocol, in a staging
 folder), install (:func:`install_submission`: one all-or-nothing change of the results);
-``checks`` — the checks themselves, the benchmark submitted to among them;
+``checks`` — the check step whole (``check_submission``, the benchmark submitted to among
+its checks);
 ``withdraw`` — ``rrls withdraw``: a submission taken out again.
 
 Built on :mod:`rrls.benchmark` (a submission is a run of a benchmark); the report reads it
@@ -20,7 +21,6 @@ _WHERE = {
         [
             "Submission",
             "SubmitError",
-            "check_submission",
             "create_benchmark",
             "evaluate_submission",
             "install_submission",
@@ -28,6 +28,7 @@ _WHERE = {
         ],
         "steps",
     ),
+    "check_submission": "checks",
     "remove_submission": "withdraw",
 }
 

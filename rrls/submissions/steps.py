@@ -35,27 +35,22 @@ from typing import Any
 
 from rrls._io import json_bytes
 from rrls.benchmark.changes import Changes
-from rrls.benchmark.grid import Benchmark, RunKey
+from rrls.benchmark.grid import Benchmark
 from rrls.benchmark.stages import run_dynamic, run_evaluation
 from rrls.benchmark.store import write_result
-from rrls.evaluation.dynamic import GAME_SCHEMA, GAMES, check_adversary
-from rrls.physics import is_paper
 from rrls.schema import SchemaError
 from rrls.submissions.checks import (
     RESERVED,
+    Checked,
+    Entry,
     SubmitError,
-    benchmark_for,
-    check_budget,
-    check_declared_steps,
     check_name,
     check_seed,
     check_shapes,
-    env_shapes,
+    check_submission,
     first_line,
     grown_benchmark,
-    load_policy,
     load_spec,
-    policy_identity,
     preset_spec,
     reserved_names,
 )
@@ -78,51 +73,6 @@ __all__ = [  # the checks live in rrls.submissions.checks; importable from here 
     "reserved_names",
     "submit",
 ]
-
-
-@dataclass(frozen=True)
-class Entry:
-    """What is submitted: the run it becomes (``algo``, ``task``, ``seed``), the policy, an
-    adversary for the dynamic evaluation with its ``game`` and ``alpha``, and the training
-    budget the submitter declares (``steps``, free-form ``budget``). See :func:`submit`."""
-
-    algo: str
-    task: str
-    seed: int
-    policy: Any
-    adversary: Any = None
-    game: str | None = None
-    alpha: float | None = None
-    steps: int | None = None
-    budget: dict[str, str] | None = None
-
-
-@dataclass(frozen=True)
-class Checked:
-    """An entry that passed every check, nothing run or changed yet: the benchmark (``spec``,
-    the task added when it joins), the run's key and directory, the policy prepared for the
-    protocol, the adversary, each with its source record and identity (its actions)."""
-
-    root: Path
-    spec: Benchmark
-    algo: str
-    task: str  # the registry's key
-    seed: int
-    final: Path  # the run directory it becomes
-    policy: Any  # a PreparedPolicy
-    source: dict[str, Any]
-    identity: str
-    steps: int | None
-    budget: dict[str, str]
-    adversary: Any = None
-    adversary_source: dict[str, Any] | None = None
-    adversary_identity: str | None = None
-    game: str | None = None
-    alpha: float | None = None
-
-    @property
-    def fingerprint(self) -> str:
-        return self.policy.fingerprint
 
 
 @dataclass(frozen=True)
@@ -225,106 +175,6 @@ def submit(
         return done
     staged = evaluate_submission(checked, workers=workers, progress=progress)
     return install_submission(checked, staged, overwrite)
-
-
-def check_submission(
-    bench_dir: str | Path, entry: Entry, preset: str | None = None, add_task: bool = False
-) -> Checked:
-    """Everything about ``entry`` checked, before any episode runs or anything changes: its
-    name, seed and declared budget, the benchmark (``preset``: started from it if
-    ``bench_dir`` holds none; ``add_task``: the task may join), the game, then the policy and
-    adversary loaded, their shapes and identities, the policy prepared for the protocol.
-    Every refusal is one line, a ``SubmitError``."""
-    from rrls.evaluation.prepared import prepare
-    from rrls.evaluation.stack import policy_view
-    from rrls.tasks import get_task
-
-    check_name(entry.algo)
-    seed = check_seed(entry.seed)
-    steps = entry.steps
-    if steps is not None and (isinstance(steps, bool) or not isinstance(steps, int) or steps < 1):
-        raise SubmitError(f"--steps must be a whole number >= 1, got {steps!r}")
-    try:
-        key = get_task(entry.task).key
-    except ValueError as err:
-        raise SubmitError(str(err)) from None
-    root = Path(bench_dir)
-    spec = benchmark_for(root, key, preset, add_task)
-    game, alpha = entry.game, entry.alpha
-    if game is not None and game not in GAMES:
-        raise SubmitError(f"unknown game {game!r}; valid: {', '.join(GAMES)}")
-    if entry.adversary is None and (game is not None or alpha is not None):
-        raise SubmitError("--game and --alpha need --adversary (the dynamic evaluation)")
-
-    budget = check_budget(entry.budget)
-    source, adapted = load_policy("policy", entry.policy)
-    check_declared_steps(getattr(adapted, "metadata", None) or {})
-    obs_shape, act_shape, set_dim = env_shapes(key, spec.uncertainty, is_paper(spec.physics))
-    view = policy_view(adapted)  # an rrls TC-RMDP Stacked/Oracle protagonist: what it sees
-    seen = obs_shape if view is None else (view.dim(obs_shape[0], act_shape[0]),)
-    check_shapes(adapted, seen, act_shape, "policy", key)
-    adversary: dict[str, Any] = {}
-    if entry.adversary is not None:
-        adversary = _checked_adversary(entry, spec, key, obs_shape, act_shape, set_dim)
-    identity = policy_identity(adapted, seen[0])
-    # prepared once, here: the mesh evaluation and the dynamic one take it as it is
-    try:
-        prepared = prepare(adapted, key, spec.protocol)
-    except (OSError, MemoryError):
-        raise
-    except Exception as err:  # noqa: BLE001 - the submitter's code
-        raise SubmitError(
-            f"the evaluation failed ({first_line(err)}); nothing was submitted"
-        ) from None
-    final = root / "runs" / RunKey(entry.algo, key, seed).name(spec.uncertainty)
-    return Checked(
-        root=root,
-        spec=spec,
-        algo=entry.algo,
-        task=key,
-        seed=seed,
-        final=final,
-        policy=prepared,
-        source=source,
-        identity=identity,
-        steps=steps,
-        budget=budget,
-        **adversary,
-    )
-
-
-def _checked_adversary(
-    entry: Entry,
-    spec: Benchmark,
-    key: str,
-    obs_shape: tuple[int, ...],
-    act_shape: tuple[int, ...],
-    set_dim: int,
-) -> dict[str, Any]:
-    """The adversary loaded and checked (its metadata against the game schema, its shapes in
-    its game), its game and alpha (given, else what its file records): ``Checked``'s fields."""
-    source, adv = load_policy("adversary", entry.adversary)
-    try:  # what it says of its game: checked, one line (alpha: null is no alpha)
-        meta = check_adversary(
-            getattr(adv, "metadata", None), f"--adversary {entry.adversary!s:.80}", GAME_SCHEMA
-        )
-    except SchemaError as err:
-        raise SubmitError(str(err)) from None
-    game = entry.game or meta.get("game") or "adversarial"
-    alpha = float(meta.get("alpha", 0.1)) if entry.alpha is None else entry.alpha
-    adv_obs, adv_act = obs_shape, (set_dim,) if game == "adversarial" else act_shape
-    if game == "adversarial" and spec.rate_limit is not None and spec.rate_game == "tc":
-        # TC-RMDP: [ψ01, s], and the protagonist's action when omniscient (the default)
-        omniscient = bool(meta.get("omniscient", True))
-        adv_obs = (set_dim + obs_shape[0] + (act_shape[0] if omniscient else 0),)
-    check_shapes(adv, adv_obs, adv_act, f"adversary ({game} game)", key)
-    return {
-        "adversary": adv,
-        "adversary_source": source,
-        "adversary_identity": policy_identity(adv, adv_obs[0], "adversary"),
-        "game": game,
-        "alpha": alpha,
-    }
 
 
 def evaluate_submission(
