@@ -144,3 +144,17 @@ def test_the_fresh_dr_cost_table_is_the_median_of_its_log():
         assert len(rows) == 3
         pool, fresh, ratio = (statistics.median(column) for column in zip(*rows))
         assert f"| {names[task]} | {pool:.0f} | {fresh:.0f} | {ratio:.2f} |" in twin, task
+
+
+def test_the_solver_comparison_numbers_are_its_files():
+    """The twin page's PGS-against-CG/Newton sentence: every number read from ``solver.csv``."""
+    rows = list(csv.DictReader((DOCS / "results" / "twin" / "solver.csv").open()))
+    gap = {t: sorted(float(r[f"qpos_gap_{t}"]) for r in rows) for t in (1, 10, 100)}
+    rel = max(abs(float(r["return_solver"]) / float(r["return_pgs"]) - 1) for r in rows)
+    text = " ".join((DOCS / "twin.md").read_text().split())
+    assert f"is {gap[1][-1]:.1e} after one env step and {gap[10][-1]:.1e} after 10" in text
+    below = sum(g < 1e-5 for g in gap[100])
+    assert f"after 100 steps {below} of the {len(rows)} runs stay below 1e-05" in text
+    assert f"one drifts apart ({gap[100][-1]:.3f}" in text and below == len(rows) - 1
+    assert f"differ by at most {rel * 100:.2f} %" in text
+    assert gap[10][-1] < 1e-5  # below the twin's own tolerance against CPU MuJoCo (1e-5)
