@@ -147,3 +147,29 @@ class HostReads:
             return method(*args, **kwargs)
 
         return read
+
+
+def assert_worlds_follow_cpu(twin, resolved, points, steps: int = 10) -> list:
+    """Each world of ``twin`` against a CPU env at its point (``points``, one row per world) from
+    its state: the same masses, then ``steps`` steps of the same random actions within the
+    twin's tolerances (qpos 1e-5 after the first step, 1e-4 after; reward 1e-3; the same
+    terminations). Returns the CPU envs."""
+    from rrls.twin.agreement import cpu_env_at
+
+    n = twin.num_envs
+    qpos, qvel = twin.state()
+    cpus = [cpu_env_at(resolved, points[w], qpos[w], qvel[w]) for w in range(n)]
+    np.testing.assert_array_equal(
+        twin.m.body_mass.numpy(), np.float32([e.unwrapped.model.body_mass for e in cpus])
+    )
+    rng, space = np.random.default_rng(0), twin.single_action_space
+    for t in range(steps):
+        action = rng.uniform(space.low, space.high, (n, space.shape[0])).astype(np.float32)
+        _, reward, terminated, _, _ = twin.step(action)
+        tq, _ = twin.state()
+        for w, env in enumerate(cpus):
+            _, r, term, _, _ = env.step(action[w].astype(np.float64))
+            assert bool(term) == bool(terminated[w])
+            assert np.abs(tq[w] - env.unwrapped.data.qpos).max() < (1e-5 if t == 0 else 1e-4)
+            assert abs(float(reward[w]) - r) < 1e-3
+    return cpus

@@ -12,7 +12,7 @@ import json
 import numpy as np
 import pytest
 import torch
-from conftest import HostReads
+from conftest import HostReads, assert_worlds_follow_cpu
 
 from rrls.agents.algos import nrmdp, rarl
 from rrls.agents.streams import RunSeeds
@@ -234,7 +234,6 @@ def test_dr_draws_a_point_of_the_box_per_episode_and_world_on_the_device():
     written on the device; each world follows a CPU env at its point within the tolerances."""
     from rrls.envs import resolve
     from rrls.twin import WarpTwin
-    from rrls.twin.agreement import cpu_env_at
 
     resolved = resolve("hopper", "3d")
     box = resolved.box
@@ -246,21 +245,7 @@ def test_dr_draws_a_point_of_the_box_per_episode_and_world_on_the_device():
     first = twin.points()
     assert np.array_equal(alone.points()[0], first[2])  # world 2's draw is its seed's alone
     assert all(box.contains(p) for p in first) and len({tuple(p) for p in first}) == 3
-    qpos, qvel = twin.state()
-    cpus = [cpu_env_at(resolved, first[w], qpos[w], qvel[w]) for w in range(3)]
-    np.testing.assert_array_equal(
-        twin.m.body_mass.numpy(), np.float32([e.unwrapped.model.body_mass for e in cpus])
-    )
-    rng, space = np.random.default_rng(0), twin.single_action_space
-    for t in range(10):
-        action = rng.uniform(space.low, space.high, (3, space.shape[0])).astype(np.float32)
-        _, reward, terminated, _, _ = twin.step(action)
-        tq, _ = twin.state()
-        for w, env in enumerate(cpus):
-            _, r, term, _, _ = env.step(action[w].astype(np.float64))
-            assert bool(term) == bool(terminated[w])
-            assert np.abs(tq[w] - env.unwrapped.data.qpos).max() < (1e-5 if t == 0 else 1e-4)
-            assert abs(float(reward[w]) - r) < 1e-3
+    assert_worlds_follow_cpu(twin, resolved, first)
     twin.restart(np.array([2, 2, 2]))
     second = twin.points()
     assert all(box.contains(p) for p in second) and not np.isin(second, first).any()

@@ -11,7 +11,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 import torch
-from conftest import HostReads
+from conftest import HostReads, assert_worlds_follow_cpu
 
 from rrls.agents.algos import m2td3
 from rrls.agents.streams import NumpyGenerators, RunSeeds
@@ -101,7 +101,6 @@ def test_a_world_at_a_chosen_point_follows_the_cpu_env_at_that_point():
     world that resets keeps its point, and each follows a CPU env at its point."""
     from rrls.envs import resolve
     from rrls.twin import WarpTwin
-    from rrls.twin.agreement import cpu_env_at
 
     resolved = resolve("hopper", "3d")
     box = resolved.box
@@ -110,21 +109,7 @@ def test_a_world_at_a_chosen_point_follows_the_cpu_env_at_that_point():
     twin.reset()
     twin.set_points(torch.from_numpy(points))
     np.testing.assert_array_equal(twin.points(), points.astype(np.float64))
-    qpos, qvel = twin.state()
-    cpus = [cpu_env_at(resolved, points[w], qpos[w], qvel[w]) for w in range(3)]
-    np.testing.assert_array_equal(
-        twin.m.body_mass.numpy(), np.float32([e.unwrapped.model.body_mass for e in cpus])
-    )
-    rng, space = np.random.default_rng(0), twin.single_action_space
-    for t in range(10):
-        action = rng.uniform(space.low, space.high, (3, space.shape[0])).astype(np.float32)
-        _, reward, terminated, _, _ = twin.step(action)
-        tq, _ = twin.state()
-        for w, env in enumerate(cpus):
-            _, r, term, _, _ = env.step(action[w].astype(np.float64))
-            assert bool(term) == bool(terminated[w])
-            assert np.abs(tq[w] - env.unwrapped.data.qpos).max() < (1e-5 if t == 0 else 1e-4)
-            assert abs(float(reward[w]) - r) < 1e-3
+    cpus = assert_worlds_follow_cpu(twin, resolved, points)
     twin.restart(np.array([2, 2, 2]))  # a new episode: the point stays until set_points
     np.testing.assert_array_equal(twin.points(), points.astype(np.float64))
     np.testing.assert_array_equal(
