@@ -87,6 +87,36 @@ class Constants:
     noise: float
 
 
+def fill_formula(f: Any, env: Any, task: TwinTask, max_steps: int) -> Any:
+    """The twin kernels' ``Formula`` struct ``f`` filled for ``task``: its flags, the numbers of
+    its CPU env ``env`` (``constants``), its frame skip and episode limit."""
+    c = constants(env, task)
+    f.pos_start, f.clip_vel, f.health = task.pos_start, task.clip_vel, task.health
+    f.cfrc, f.forward, f.normal_qvel = int(task.cfrc), int(task.forward), int(task.normal_qvel)
+    for name in FORMULA_NUMBERS:
+        setattr(f, name, getattr(c, name))
+    f.terminate, f.frame_skip, f.max_steps = int(c.terminate), int(env.frame_skip), int(max_steps)
+    return f
+
+
+#: the ``Constants`` a twin kernel reads, by name
+FORMULA_NUMBERS = (
+    "forward_weight",
+    "ctrl_weight",
+    "healthy_reward",
+    "z_low",
+    "z_high",
+    "angle_low",
+    "angle_high",
+    "state_low",
+    "state_high",
+    "contact_weight",
+    "cfrc_low",
+    "cfrc_high",
+    "noise",
+)
+
+
 def constants(env: Any, task: TwinTask) -> Constants:
     """Read the formulas' numbers from a Gymnasium v5 env (its constructor's keyword arguments)."""
 
@@ -154,6 +184,7 @@ __all__ = [
     "not_on_twin",
     "check_twin",
     "DIVERGES",
+    "FORMULA_NUMBERS",
     "NO_TERMINATION",
     "PENDULUM",
     "REFUSED",
@@ -165,4 +196,5 @@ __all__ = [
     "Constants",
     "TwinTask",
     "constants",
+    "fill_formula",
 ]

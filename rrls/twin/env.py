@@ -44,7 +44,7 @@ from gymnasium.vector import AutoresetMode, VectorEnv
 from rrls.envs import resolve
 from rrls.extras import install_hint
 from rrls.registry import get_task
-from rrls.twin.catalog import REFUSED, TWIN_TASKS, UNSUPPORTED_FIELDS, constants
+from rrls.twin.catalog import REFUSED, TWIN_TASKS, UNSUPPORTED_FIELDS, fill_formula
 from rrls.uncertainty import UncertaintySet
 
 #: MuJoCo Warp's batched model fields that rrls's kinds write or ``mj_setConst`` derives
@@ -157,7 +157,7 @@ class WarpTwin(VectorEnv):
         )
         self.redraw = int(domain_randomization and not self.fresh)
         self.chosen = chosen  # each world's point is the caller's (``set_points``)
-        self.formula = self._formula(kernels.Formula())
+        self.formula = fill_formula(kernels.Formula(), self.cpu, self.task, self.max_episode_steps)
         self._build(nconmax, njmax)
         self._seed(seed)
         self._graph: Any = None
@@ -202,31 +202,6 @@ class WarpTwin(VectorEnv):
             dtype=np.float32,
         )
         return box.dim
-
-    def _formula(self, f: Any) -> Any:
-        t, c = self.task, constants(self.cpu, self.task)
-        f.pos_start, f.clip_vel, f.health = t.pos_start, t.clip_vel, t.health
-        f.cfrc, f.forward, f.normal_qvel = int(t.cfrc), int(t.forward), int(t.normal_qvel)
-        for name in (
-            "forward_weight",
-            "ctrl_weight",
-            "healthy_reward",
-            "z_low",
-            "z_high",
-            "angle_low",
-            "angle_high",
-            "state_low",
-            "state_high",
-            "contact_weight",
-            "cfrc_low",
-            "cfrc_high",
-            "noise",
-        ):
-            setattr(f, name, getattr(c, name))
-        f.terminate = int(c.terminate)
-        f.frame_skip = int(self.cpu.frame_skip)
-        f.max_steps = int(self.max_episode_steps)
-        return f
 
     def _host_fields(self, pts: np.ndarray) -> dict[str, np.ndarray]:
         """Each point's packed fields, as a CPU model at that point holds them."""
@@ -433,13 +408,11 @@ class WarpTwin(VectorEnv):
         return out.astype(dtype) if dtype is not None else out
 
     def set_points(self, points: Any) -> None:
-        """``chosen=True``: each world's point from now on, ``(num_envs, dim)`` over
-        ``box.names`` (a torch tensor or warp array on the device: no host round trip; or host
-        values), written into its fields with the derived constants recomputed, as
-        ``set_params`` writes a CPU env's. A world's next steps run at its point, and an episode
-        that begins keeps it until the next call (what M2TD3 does: the point chosen as its
-        episode begins; a reset state does not depend on the point, so writing it just after
-        the world's reset is the CPU's ``reset(options=point)``)."""
+        """``chosen=True``: each world's point from now on, ``(num_envs, dim)`` over ``box.names``
+        (a device tensor or warp array: no host round trip; or host values), written into its
+        fields with the derived constants recomputed, as ``set_params`` writes a CPU env's. A
+        reset state does not depend on the point, so writing it just after a world's reset is
+        the CPU's ``reset(options=point)`` (M2TD3: the point chosen as its episode begins)."""
         wp = self._wp
         if not self.chosen:
             raise ValueError("set_points needs a twin built with chosen=True")
