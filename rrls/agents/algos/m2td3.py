@@ -196,6 +196,9 @@ class Candidates:
         # capturable on a GPU, fused on a CPU: no step count read back (``graphs.adam``)
         self.opt = adam(self.logits, self.opt.defaults["lr"], self.rows.device)
         self.state_rows = [*moments, steps]
+        # made once, read at every step: each run's first row, and the box's span
+        self.first_rows = torch.arange(self.group, device=self.rows.device) * self.n
+        self.span = (self.high - self.low).double()
         for i, p in enumerate(self.logits):
             self.opt.state[p] = {"exp_avg": moments[0][i], "exp_avg_sq": moments[1][i]}
             self.opt.state[p]["step"] = steps[i]
@@ -203,13 +206,12 @@ class Candidates:
     @torch.no_grad()
     def _reinitialise_masked(self, j: int, mask: torch.Tensor, u: torch.Tensor) -> None:
         """``reinitialise(k, j)`` for every run ``k`` of ``mask``, ``u`` its uniform draw."""
-        span = (self.high - self.low).double()
-        y = (u.double() * span / span.clamp(min=1e-5)).clamp(1e-5, 1 - 1e-5)
-        rows = torch.arange(self.group, device=mask.device) * self.n + j
+        y = (u.double() * self.span / self.span.clamp(min=1e-5)).clamp(1e-5, 1 - 1e-5)
+        rows = self.first_rows + j
         fresh = torch.log(y / (1 - y)).float()
         self.rows[rows] = torch.where(mask[:, None], fresh, self.rows[rows])
         for state in self.state_rows:
-            state[rows] = torch.where(mask.view(-1, *[1] * (state.dim() - 1)), 0, state[rows])
+            state[rows] = torch.where(_per_row(mask, state), 0, state[rows])
         p = self.probabilities
         p[:, j] = torch.where(mask, 0.0, p[:, j])
         p[:, j] = torch.where(mask, p.sum(1) / (self.n - 1), p[:, j])
@@ -248,9 +250,9 @@ class Candidates:
             before = [self.rows.clone(), *(s.clone() for s in self.state_rows)]
             self.opt.step()
             mine = torch.zeros(self.group * self.n, dtype=torch.bool, device=self.rows.device)
-            mine[torch.arange(self.group, device=mine.device) * self.n + chosen] = True
+            mine[self.first_rows + chosen] = True
             for now, old in zip([self.rows, *self.state_rows], before):
-                now.copy_(torch.where(mine.view(-1, *[1] * (now.dim() - 1)), now, old))
+                now.copy_(torch.where(_per_row(mine, now), now, old))
 
     def state_dict(self) -> dict[str, torch.Tensor]:
         """Runs first: logits, Adam moments and step counts ``(K, N, ...)``, probabilities."""
@@ -281,6 +283,11 @@ class Candidates:
                     "exp_avg_sq": exp_avg_sq[i].clone().to(p.device),
                 }
         self.probabilities.copy_(state["probabilities"])
+
+
+def _per_row(mask: torch.Tensor, like: torch.Tensor) -> torch.Tensor:
+    """A ``(rows,)`` mask shaped to broadcast over ``like``'s rows."""
+    return mask.view(-1, *[1] * (like.dim() - 1))
 
 
 def make_env(task: str, uncertainty: Any, config: Config, paper: bool = False) -> Any:
@@ -330,6 +337,7 @@ class Learner(TD3Learner):
         self.omega = np.zeros((len(seeds), dim))
         self.same_start = config.same_start
         self.run_seeds, self.on_device = seeds, False  # on_device: the twin's resident loop
+        self.episode_ahead: dict[str, NumpyGenerators] | None = None  # made on first use
         self._update = Update(self._compute, device)
 
     def act(self, obs: np.ndarray) -> list[Any]:
@@ -454,7 +462,7 @@ class Learner(TD3Learner):
 
     def _ahead(self) -> dict[str, NumpyGenerators]:
         """The streams of ``draw_ahead``'s own draws, made on first use."""
-        if not hasattr(self, "episode_ahead"):
+        if self.episode_ahead is None:
             names = ("omega", "episode")
             self.episode_ahead = {n: NumpyGenerators(self.run_seeds, f"{n}.ahead") for n in names}
         return self.episode_ahead
@@ -531,7 +539,7 @@ class Learner(TD3Learner):
             "draws": self.draws.state_dict(),
             "coeff": self.coeff.clone(),
             "omega": self.omega_t.double().cpu() if self.on_device else torch.as_tensor(self.omega),
-            **{f"{n}_ahead": g.state_dict() for n, g in getattr(self, "episode_ahead", {}).items()},
+            **{f"{n}_ahead": g.state_dict() for n, g in (self.episode_ahead or {}).items()},
         }
 
     def load_state_dict(self, state: dict[str, Any]) -> None:
