@@ -91,6 +91,7 @@ class Worlds:
         update (after ``starts``), on the device."""
         k = self.twin.num_envs
         draws = learner.draw_ahead(n)
+        begin = getattr(learner, "begin_episodes", None)  # a learner choosing its points
         uniform = np.stack(
             [g.uniform(self.low, self.high, (n, len(self.low))) for g in self.warmup], 1
         )
@@ -120,8 +121,8 @@ class Worlds:
             self.length += 1
             out.returns[j] = torch.where(ended, self.ret, math.nan)
             out.lengths[j] = torch.where(ended, self.length, 0)
-            if hasattr(learner, "begin_episodes"):  # its point for each episode that begins
-                self.twin.set_points(learner.begin_episodes(ended, self.length, step, row))
+            if begin is not None:  # its point for each episode that begins
+                self.twin.set_points(begin(ended, self.length, step, row))
             self.ret.masked_fill_(ended, 0.0)
             self.length.masked_fill_(ended, 0)
             self.obs = next_obs.clone()  # the twin writes its next observations in place
