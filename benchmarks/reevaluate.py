@@ -23,7 +23,7 @@ import shutil
 import time
 from pathlib import Path
 
-from rrls import rundir
+from rrls import files, rundir
 from rrls.benchmark import benchfile
 from rrls.benchmark.grid import RunKey, make_spec
 from rrls.benchmark.stages import run_evaluation
@@ -53,10 +53,10 @@ def reevaluate(
             raise SystemExit(f"{name} was trained otherwise ({differ}): train it again")
         new.mkdir(parents=True, exist_ok=True)
         for rel in COPIED:
-            for path in (old / rel, old / f"{rel}{rundir.SEAL_SUFFIX}"):
+            for path in (old / rel, old / f"{rel}{files.SEAL_SUFFIX}"):
                 if path.is_file():
                     shutil.copy2(path, new / path.name)
-        before = rundir.read_checked_json(old / rundir.RESULT)
+        before = files.read_checked_json(old / rundir.RESULT)
         start = time.time()
         policy = MLPPolicy.load(new / rundir.POLICY)
         trained = {"train_set": spec.train_set(key.algo), "steps": spec.steps}
@@ -68,7 +68,7 @@ def reevaluate(
         result["seconds"] = float(before.get("seconds", 0.0)) + time.time() - start
         if differ:
             result["trained_otherwise"] = {k: v[0] for k, v in differ.items()}
-        rundir.write_checked_json(new / rundir.RESULT, result)
+        files.write_checked_json(new / rundir.RESULT, result)
         print(
             f"{name}: worst {before['worst_case']:.1f} -> {result['worst_case']:.1f}, "
             f"average {before['average_case']:.1f} -> {result['average_case']:.1f}",

@@ -15,36 +15,27 @@ store read::
 
 No torch here: the sealed checkpoint is bytes in, bytes out.
 
-Results files (``result.json``, ``scalars.csv``, ``dynamic.csv``, the evaluation's
-``episodes.parquet``/``.csv`` and ``summary.json``, the benchmark's ``benchmark.json``) are
-sealed too, without changing their format: beside each, ``NAME.sha256`` holds its SHA-256 in
-``sha256sum``'s format (``sha256sum -c NAME.sha256`` checks it by hand). Readers check it
-(``read_checked``): a damaged file is a one-line ``DamagedFile`` error naming it, never numbers.
-A file without a seal (written by an older rrls, or by a write killed between the file and its
-seal) is read as it is.
+How the files are written and read back (atomically; sealed by their SHA-256, so damage is a
+one-line ``DamagedFile``, never numbers) is ``rrls.files``'s; this module says which files a run
+holds and what is in them.
 """
 
 from __future__ import annotations
 
-import hashlib
 import shutil
 from pathlib import Path
 from typing import Any
 
-from rrls._io import atomic_write_bytes
-from rrls.physics import ALIASES
-from rrls.schema import (
-    MAX_JSON_BYTES,
-    JsonError,
-    Schema,
-    SchemaError,
-    array,
-    integer,
-    loads_json,
-    obj,
-    read_limited,
-    string,
+from rrls.files import (
+    DAMAGE_ADVICE,
+    DamagedFile,
+    read_checked_json,
+    seal_path,
+    sealed_prefix,
+    write_checked,
 )
+from rrls.physics import ALIASES
+from rrls.schema import Schema, SchemaError, array, integer, obj, string
 from rrls.seeds import MAX_SEED
 
 CHECKPOINT = "checkpoint.pt"
@@ -59,7 +50,6 @@ ERROR = "error.txt"
 #: what a fresh start or ``--overwrite`` removes
 RUN_FILES = (CHECKPOINT, POLICY, ADVERSARY, RUN_JSON, SCALARS)
 
-_SEAL = b"\nrrls-sha256:"
 _OPEN = Schema({}, open=True)
 #: ``run.json``: the policy's metadata (open: an algorithm may add its own), the run's settings
 #: (``config``, its ``hyper`` every resolved hyper-parameter; files written before hold the
@@ -86,140 +76,6 @@ RUN_SCHEMA = Schema(
 )
 
 
-def write_sealed(path: Path, data: bytes) -> None:
-    """Write ``data`` atomically followed by its SHA-256: ``read_sealed`` detects damage."""
-    atomic_write_bytes(path, data + _SEAL + hashlib.sha256(data).hexdigest().encode())
-
-
-def read_sealed(path: Path) -> bytes:
-    """The bytes ``write_sealed`` wrote; a one-line ``ValueError`` naming the file if damaged."""
-    raw = Path(path).read_bytes()
-    data, sep, digest = raw.rpartition(_SEAL)
-    if not sep:
-        raise ValueError(
-            f"{path} has no checksum: damaged, truncated or written by another version of rrls; "
-            "delete it (or pass --overwrite) to start again"
-        )
-    if hashlib.sha256(data).hexdigest().encode() != digest:
-        raise ValueError(
-            f"{path} is damaged (its SHA-256 does not match its content); delete it "
-            "(or pass --overwrite) to start again"
-        )
-    return data
-
-
-SEAL_SUFFIX = ".sha256"
-
-
-class DamagedFile(ValueError):
-    """A results file whose bytes are not those rrls wrote (one line, naming the file)."""
-
-
-def seal_path(path: Path) -> Path:
-    """Where ``path``'s seal lives (``NAME.sha256`` beside it)."""
-    path = Path(path)
-    return path.with_name(path.name + SEAL_SUFFIX)
-
-
-def _seal_line(path: Path, data: bytes) -> bytes:
-    return f"{hashlib.sha256(data).hexdigest()}  {Path(path).name}\n".encode()
-
-
-def write_checked(path: Path, data: bytes) -> Path:
-    """Write ``data`` atomically, then its seal. The old seal goes first, so a write killed
-    half-way leaves an unsealed file (read as is), never a false alarm."""
-    path = Path(path)
-    seal_path(path).unlink(missing_ok=True)
-    atomic_write_bytes(path, data)
-    atomic_write_bytes(seal_path(path), _seal_line(path, data))
-    return path
-
-
-def seal(path: Path) -> None:
-    """Seal a file written in place (``scalars.csv``, appended to while training)."""
-    atomic_write_bytes(seal_path(path), _seal_line(path, Path(path).read_bytes()))
-
-
-def _expected(path: Path) -> str | None:
-    """The digest ``path``'s seal records (None: no seal); a damaged seal is damage."""
-    side = seal_path(path)
-    try:
-        text = side.read_bytes().decode("ascii")
-    except FileNotFoundError:
-        return None
-    except UnicodeDecodeError:
-        text = ""
-    digest = text.split(" ", 1)[0].strip()
-    if len(digest) != 64 or any(c not in "0123456789abcdef" for c in digest):
-        raise DamagedFile(f"{side} is damaged (not a SHA-256 line); {_ADVICE}")
-    return digest
-
-
-_ADVICE = "the results in it cannot be trusted: restore it from a copy or re-run that step"
-
-
-def read_checked(path: Path, limit: int | None = None) -> bytes:
-    """``path``'s bytes, checked against its seal (``DamagedFile`` if they differ); with
-    ``limit``, a file holding more bytes is damaged too (never read whole)."""
-    path = Path(path)
-    if limit is None:
-        data = path.read_bytes()
-    else:
-        try:
-            data = read_limited(path, limit)
-        except JsonError as err:
-            raise DamagedFile(f"{path} is damaged ({err.reason}); {_ADVICE}") from None
-    digest = _expected(path)
-    if digest is not None and hashlib.sha256(data).hexdigest() != digest:
-        raise DamagedFile(
-            f"{path} is damaged (its SHA-256 does not match {seal_path(path).name}); {_ADVICE}"
-        )
-    return data
-
-
-def read_checked_json(path: Path) -> dict[str, Any]:
-    """A sealed (or older unsealed) JSON object file; damage (not JSON, larger than
-    ``MAX_JSON_BYTES``, nested deeper than ``MAX_JSON_DEPTH``) is a one-line ``DamagedFile``."""
-    data = read_checked(path, MAX_JSON_BYTES)
-    try:
-        obj = loads_json(data, str(path))
-    except JsonError as err:
-        raise DamagedFile(f"{path} is damaged ({err.reason}); {_ADVICE}") from None
-    if not isinstance(obj, dict):
-        raise DamagedFile(
-            f"{path} is damaged (it holds a JSON {type(obj).__name__}, not an object); {_ADVICE}"
-        )
-    return obj
-
-
-def read_checked_table(path: Path) -> Any:
-    """A sealed (or older unsealed) Parquet / CSV table as a DataFrame; damage is one line."""
-    import io
-
-    import pandas as pd
-
-    data = read_checked(path)
-    try:
-        if Path(path).suffix == ".parquet":
-            return pd.read_parquet(io.BytesIO(data))
-        return pd.read_csv(io.BytesIO(data))
-    except Exception as err:  # noqa: BLE001 - any unreadable table: name the file
-        first = (str(err).strip().splitlines() or [type(err).__name__])[0]
-        raise DamagedFile(f"{path} is damaged (unreadable: {first}); {_ADVICE}") from None
-
-
-def write_checked_json(path: Path, obj: Any) -> Path:
-    from rrls._io import json_bytes
-
-    return write_checked(path, json_bytes(obj))
-
-
-def write_checked_table(path: Path, frame: Any) -> Path:
-    from rrls._io import table_bytes
-
-    return write_checked(path, table_bytes(path, frame))
-
-
 def read_run_json(run_dir: Path) -> dict[str, Any]:
     """A finished training run's ``run.json``, checked against its schema, in today's form
     (``migrate_run_json``): a damaged or foreign file is a one-line ``DamagedFile`` naming it
@@ -228,7 +84,7 @@ def read_run_json(run_dir: Path) -> dict[str, Any]:
     try:
         return migrate_run_json(RUN_SCHEMA.check(read_checked_json(path), str(path)))
     except SchemaError as err:
-        raise DamagedFile(f"{err} ({_ADVICE})") from None
+        raise DamagedFile(f"{err} ({DAMAGE_ADVICE})") from None
 
 
 def migrate_run_json(data: dict[str, Any]) -> dict[str, Any]:
@@ -267,70 +123,36 @@ def remove_temporary_files(run_dir: Path) -> None:
         path.unlink(missing_ok=True)
 
 
-def _sealed_prefix(path: Path, data: bytes) -> bytes:
-    """The part of an append-only file its seal covers: rows appended after the last seal
-    (a checkpoint) are rows the resumed run redoes. ``DamagedFile`` where no prefix ending at
-    a line matches the seal."""
-    digest = _expected(path)
-    if digest is None:
-        return data  # an older run: no seal
-    running = hashlib.sha256()
-    start = 0
-    while True:
-        if running.hexdigest() == digest:
-            return data[:start]
-        end = data.find(b"\n", start)
-        if end < 0:
-            raise DamagedFile(
-                f"{path} is damaged (its SHA-256 matches no part of it recorded in "
-                f"{seal_path(path).name}); {_ADVICE}"
-            )
-        running.update(data[start : end + 1])
-        start = end + 1
-
-
 def truncate_scalars(path: Path, step: int) -> None:
     """Drop curve rows written after the checkpoint being resumed (they will be redone);
     damaged rows are a one-line ``DamagedFile`` naming the file."""
     if not path.exists():
         return
-    data = _sealed_prefix(path, path.read_bytes())
+    data = sealed_prefix(path, path.read_bytes())
     try:
         lines = data.decode("utf-8").splitlines(keepends=True)
         rows = [ln for ln in lines[1:] if ln.endswith("\n") and int(ln.split(",", 1)[0]) <= step]
     except ValueError as err:  # not UTF-8, or a step that is no integer
-        raise DamagedFile(f"{path} is damaged ({err}); {_ADVICE}") from None
+        raise DamagedFile(f"{path} is damaged ({err}); {DAMAGE_ADVICE}") from None
     write_checked(path, "".join(lines[:1] + rows).encode())
 
 
 __all__ = [
     "ADVERSARY",
     "CHECKPOINT",
-    "DamagedFile",
     "ERROR",
-    "finished_steps",
-    "migrate_run_json",
     "POLICY",
     "PROGRESS",
-    "read_checked",
-    "read_checked_json",
-    "read_checked_table",
-    "read_run_json",
-    "RUN_SCHEMA",
-    "read_sealed",
-    "remove_run_files",
-    "remove_temporary_files",
     "RESULT",
     "RUN_FILES",
     "RUN_JSON",
+    "RUN_SCHEMA",
     "SCALARS",
-    "seal",
-    "seal_path",
-    "SEAL_SUFFIX",
     "TENSORBOARD",
+    "finished_steps",
+    "migrate_run_json",
+    "read_run_json",
+    "remove_run_files",
+    "remove_temporary_files",
     "truncate_scalars",
-    "write_checked",
-    "write_checked_json",
-    "write_checked_table",
-    "write_sealed",
 ]

@@ -21,16 +21,12 @@ rrls.schema.SchemaError: benchmark.json: field 'mesh' is 2.9; valid: an integer 
 
 from __future__ import annotations
 
-import json
 import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
-from pathlib import Path
 from typing import Any
 
 __all__ = [
-    "MAX_JSON_BYTES",
-    "MAX_JSON_DEPTH",
     "Field",
     "JsonError",
     "Schema",
@@ -40,11 +36,8 @@ __all__ = [
     "array",
     "boolean",
     "integer",
-    "loads_json",
     "number",
     "obj",
-    "read_json",
-    "read_limited",
     "string",
 ]
 
@@ -56,14 +49,6 @@ class SchemaError(ValueError):
     """A file or object that is not what its format says (one line: file, field, value)."""
 
 
-#: the most bytes a JSON file rrls reads may hold: its own files hold at most ~15 kB, and a
-#: larger one is read into memory whole before any field can be checked
-MAX_JSON_BYTES = 16 * 2**20
-#: the deepest nesting a JSON value rrls reads may have: its own files nest at most 7 levels,
-#: and Python's parser recurses (100 000 ``[`` would be a ``RecursionError`` traceback)
-MAX_JSON_DEPTH = 64
-
-
 class JsonError(SchemaError):
     """JSON refused before its fields are read: not UTF-8, not JSON, too large or nested too
     deep. ``reason``: the message without the file's name (for readers that word their own);
@@ -72,60 +57,6 @@ class JsonError(SchemaError):
     def __init__(self, where: str, reason: str, syntax: bool = False) -> None:
         super().__init__(f"{where}: {reason}")
         self.where, self.reason, self.syntax = where, reason, syntax
-
-
-def read_limited(path: str | Path, limit: int = MAX_JSON_BYTES) -> bytes:
-    """``path``'s bytes, or a ``JsonError`` naming it when it holds more than ``limit`` (read
-    no further than that: a huge or endless file costs no memory)."""
-    with open(path, "rb") as f:
-        data = f.read(limit + 1)
-    if len(data) > limit:
-        raise JsonError(str(path), f"it holds more than {limit:,} bytes; valid: at most {limit:,}")
-    return data
-
-
-def loads_json(data: bytes | bytearray | str, where: str) -> Any:
-    """``data`` parsed as JSON, or a one-line ``JsonError`` naming ``where`` (the file): not
-    UTF-8, not JSON, more than ``MAX_JSON_BYTES`` or nested deeper than ``MAX_JSON_DEPTH``.
-    Every JSON reader of rrls goes through here, so none can fail with a traceback."""
-    if not isinstance(data, (str, bytes, bytearray)):
-        raise JsonError(where, f"it holds {_show(data)}; valid: JSON text")
-    if len(data) > MAX_JSON_BYTES:
-        raise JsonError(
-            where, f"it holds {len(data):,} bytes; valid: at most {MAX_JSON_BYTES:,} bytes of JSON"
-        )
-    deep = f"it is nested more than {MAX_JSON_DEPTH} levels deep; valid: JSON nested at most "
-    deep += f"{MAX_JSON_DEPTH} levels"
-    try:
-        text = data if isinstance(data, str) else bytes(data).decode("utf-8")
-        value = json.loads(text)
-    except UnicodeDecodeError as err:
-        raise JsonError(where, f"not UTF-8 text ({err})") from None
-    except RecursionError:  # the parser recursed past Python's limit: deeper than ours
-        raise JsonError(where, deep) from None
-    except ValueError as err:
-        raise JsonError(where, f"not valid JSON: {err}", syntax=True) from None
-    if _depth(value) > MAX_JSON_DEPTH:
-        raise JsonError(where, deep)
-    return value
-
-
-def read_json(path: str | Path) -> Any:
-    """The JSON value in ``path`` (through ``read_limited`` and ``loads_json``)."""
-    return loads_json(read_limited(path), str(path))
-
-
-def _depth(value: Any) -> int:
-    """How deep ``value``'s lists and objects nest (a scalar: 0), without recursion."""
-    deepest, stack = 0, [(value, 1)]
-    while stack:
-        item, level = stack.pop()
-        if isinstance(item, (list, dict)):
-            deepest = max(deepest, level)
-            if level <= MAX_JSON_DEPTH:  # deeper is refused anyway: no need to look further
-                items = item.values() if isinstance(item, dict) else item
-                stack.extend((x, level + 1) for x in items)
-    return deepest
 
 
 @dataclass(frozen=True)

@@ -16,7 +16,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from rrls import rundir
+from rrls import files, rundir
 from rrls.benchmark.benchfile import read_spec
 from rrls.cli import main
 from rrls.evaluation import BatchInvariant
@@ -156,12 +156,12 @@ def test_a_failure_at_any_step_leaves_the_benchmark_as_it_was(bench, tmp_path, n
 def test_the_earlier_submission_survives_a_refused_overwrite(bench):
     run = bench / "runs" / "mine-invertedpendulum-1d-seed0"
     before = snapshot(bench)
-    old = rundir.read_checked_json(run / rundir.RESULT)
+    old = files.read_checked_json(run / rundir.RESULT)
     bad = Linear(2.0, 0.5, metadata={"steps": -5})
     with pytest.raises(SubmitError, match="steps -5"):
         submit(bench, "mine", "invertedpendulum", 0, bad, overwrite=True, workers=1)
     assert snapshot(bench) == before
-    assert rundir.read_checked_json(run / rundir.RESULT) == old
+    assert files.read_checked_json(run / rundir.RESULT) == old
 
 
 @pytest.mark.parametrize("steps", [-5, True, 2.5, "many"])

@@ -150,7 +150,7 @@ def test_evaluate_a_run_directory_uses_its_set_and_records_the_policy(files, cap
 
 # -- evaluation faults --------------------------------------------------------------------
 def test_an_evaluation_directory_is_locked_while_in_use(tmp_path):
-    from rrls._io import DirectoryLock
+    from rrls.files import DirectoryLock
 
     out = tmp_path / "ev"
     held, release = threading.Event(), threading.Event()
@@ -195,7 +195,7 @@ def test_a_damaged_chunk_is_named_and_recomputed(tmp_path, damage):
 
 
 def test_files_respect_the_umask(tmp_path):
-    from rrls._io import atomic_write_json
+    from rrls.files import atomic_write_json
 
     previous = os.umask(0o002)
     try:

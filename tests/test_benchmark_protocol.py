@@ -13,7 +13,7 @@ from pathlib import Path
 import pandas as pd
 import pytest
 
-from rrls import rundir
+from rrls import files
 from rrls.benchmark import benchfile, store
 from rrls.benchmark.grid import PRESETS, Benchmark, SpecError, make_spec
 from rrls.cli import main
@@ -182,12 +182,12 @@ def test_a_protocol_a_benchmark_cannot_run_is_refused_before_training(given, nee
 def test_a_benchmark_json_with_a_hostile_protocol_is_one_line(tmp_path):
     data = make_spec("smoke").to_json()
     for bad, needle in (({"mesh": "3"}, "mesh must be an integer"), ([], "valid: an object")):
-        rundir.write_checked_json(benchfile.spec_path(tmp_path), {**data, "protocol": bad})
+        files.write_checked_json(benchfile.spec_path(tmp_path), {**data, "protocol": bad})
         with pytest.raises(SpecError) as err:
             benchfile.read_spec(tmp_path)
         assert "benchmark.json" in str(err.value) and needle in str(err.value)
         assert "\n" not in str(err.value)
-    rundir.write_checked_json(benchfile.spec_path(tmp_path), {**data, "mesh": 3})
+    files.write_checked_json(benchfile.spec_path(tmp_path), {**data, "mesh": 3})
     with pytest.raises(SpecError, match="unknown field 'mesh'"):  # not both formats at once
         benchfile.read_spec(tmp_path)
 

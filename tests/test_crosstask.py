@@ -92,9 +92,9 @@ def test_benchmarks_of_another_set_are_refused(joined_report: dict, tmp_path: Pa
     shutil.copytree(joined_report["dirs"][1], other)
     data = json.loads((other / "benchmark.json").read_text())
     data["mesh"] = 5
-    from rrls import rundir
+    from rrls import files
 
-    rundir.write_checked_json(other / "benchmark.json", data)
+    files.write_checked_json(other / "benchmark.json", data)
     with pytest.raises(ValueError, match="differ in mesh"):
         joined([joined_report["dirs"][0], other])
 

@@ -29,7 +29,7 @@ from conftest import policy_arrays
 
 torch = pytest.importorskip("torch")
 
-from rrls import rundir  # noqa: E402
+from rrls import files, rundir  # noqa: E402
 from rrls.agents import TrainConfig, train  # noqa: E402
 from rrls.agents.loop import train_group  # noqa: E402
 
@@ -123,7 +123,7 @@ def _digest(run: Path, steps: int = STEPS) -> str:
     """What a finished run wrote, as one digest (the wall clock left out)."""
     h = hashlib.sha256()
     checkpoint = torch.load(
-        io.BytesIO(rundir.read_sealed(run / rundir.CHECKPOINT)), weights_only=True
+        io.BytesIO(files.read_sealed(run / rundir.CHECKPOINT)), weights_only=True
     )
     assert checkpoint["step"] == steps // 3 * 3
     _feed(h, checkpoint)

@@ -17,12 +17,12 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from rrls._io import atomic_write_json
 from rrls.benchmark.grid import RunKey, make_spec
 from rrls.benchmark.store import build_store, write_result
 from rrls.evaluation import BatchInvariant, evaluate
+from rrls.files import atomic_write_json, write_checked_table
 from rrls.report.exported import export_reference
-from rrls.rundir import SCALARS, write_checked_table
+from rrls.rundir import SCALARS
 from rrls.submissions import submit
 
 #: the long end-to-end tier (.ci/run runs it after the default suite)

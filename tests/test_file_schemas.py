@@ -15,7 +15,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from rrls import rundir
+from rrls import files, rundir
 from rrls.benchmark import benchfile, store
 from rrls.benchmark.grid import PRESETS, Benchmark, SpecError
 from rrls.evaluation import EvaluationResult, evaldir
@@ -118,7 +118,7 @@ def test_the_spec_schema_declares_every_spec_field():
 def test_a_hostile_benchmark_json_is_refused_by_field(tmp_path, field, bad):
     data = Benchmark(**PRESETS["smoke"]).to_json()
     data[field] = bad
-    rundir.write_checked_json(benchfile.spec_path(tmp_path), data)
+    files.write_checked_json(benchfile.spec_path(tmp_path), data)
     with pytest.raises(SpecError) as err:
         benchfile.read_spec(tmp_path)
     one_line(err.value, "benchmark.json", f"'{field}")
@@ -143,7 +143,7 @@ def test_a_hostile_flat_benchmark_json_is_refused_by_field(tmp_path, field, bad)
         **PRESETS["smoke"]
     ).flat_json()  # as benchmark.json held it before the protocol
     data[field] = bad
-    rundir.write_checked_json(benchfile.spec_path(tmp_path), data)
+    files.write_checked_json(benchfile.spec_path(tmp_path), data)
     with pytest.raises(SpecError) as err:
         benchfile.read_spec(tmp_path)
     one_line(err.value, "benchmark.json", f"'{field}")
@@ -151,7 +151,7 @@ def test_a_hostile_flat_benchmark_json_is_refused_by_field(tmp_path, field, bad)
 
 def test_a_benchmark_json_with_an_unknown_field_is_refused(tmp_path):
     data = {**Benchmark(**PRESETS["smoke"]).to_json(), "physic": "v5"}
-    rundir.write_checked_json(benchfile.spec_path(tmp_path), data)
+    files.write_checked_json(benchfile.spec_path(tmp_path), data)
     with pytest.raises(SpecError, match="unknown field 'physic'"):
         benchfile.read_spec(tmp_path)
 
@@ -170,7 +170,7 @@ RESULT = {
 
 @pytest.mark.parametrize(("field", "bad"), cases(store.RESULT_SCHEMA))
 def test_a_hostile_result_json_is_refused_by_field(tmp_path, field, bad):
-    rundir.write_checked_json(tmp_path / rundir.RESULT, {**RESULT, field: bad})
+    files.write_checked_json(tmp_path / rundir.RESULT, {**RESULT, field: bad})
     with pytest.raises(SchemaError) as err:
         store.read_result(tmp_path)
     one_line(err.value, "result.json", f"'{field}")
@@ -194,9 +194,9 @@ def test_every_shipped_result_and_run_file_matches_its_schema():
 )
 def test_a_hostile_run_json_is_a_damaged_run(tmp_path, field, bad):
     good = json.loads((ROOT / "docs/results/hopper/runs/td3-hopper-3d-seed0/run.json").read_text())
-    rundir.write_checked_json(tmp_path / rundir.RUN_JSON, {**good, field: bad})
+    files.write_checked_json(tmp_path / rundir.RUN_JSON, {**good, field: bad})
     (tmp_path / rundir.POLICY).write_bytes(b"")
-    with pytest.raises(rundir.DamagedFile) as err:
+    with pytest.raises(files.DamagedFile) as err:
         rundir.read_run_json(tmp_path)
     one_line(err.value, "run.json", f"'{field}")
     assert rundir.finished_steps(tmp_path) is None  # not a finished run: it trains again
@@ -287,7 +287,7 @@ def _benchmark_with_one_run(root: Path, result: dict[str, Any]) -> Path:
             "diverged": [False, False],
         }
     )
-    rundir.write_checked_table(run / "eval" / "episodes.csv", episodes)
+    files.write_checked_table(run / "eval" / "episodes.csv", episodes)
     store.write_result(run, {**RESULT, "steps": spec.steps, **result})
     return run
 
@@ -303,11 +303,11 @@ def test_a_result_from_another_protocol_is_refused_by_the_store_and_the_report(t
     _benchmark_with_one_run(tmp_path / "a", own)
     store.build_store(tmp_path / "a", own)  # its own: accepted
     _benchmark_with_one_run(tmp_path / "b", {**own, "protocol": "0123456789abcdef"})
-    with pytest.raises(rundir.DamagedFile) as err:
+    with pytest.raises(files.DamagedFile) as err:
         store.build_store(tmp_path / "b", own)
     one_line(err.value, "td3-hopper-3d-seed0", "another evaluation protocol", "0123456789abcdef")
     _benchmark_with_one_run(tmp_path / "c", {**own, "benchmark": "fedcba9876543210"})
-    with pytest.raises(rundir.DamagedFile, match="another benchmark protocol"):
+    with pytest.raises(files.DamagedFile, match="another benchmark protocol"):
         store.build_store(tmp_path / "c", own)
     # a result written before fingerprints existed has none to compare: read as it is
     _benchmark_with_one_run(tmp_path / "d", {})
@@ -332,7 +332,7 @@ def test_a_hostile_evaluation_summary_is_refused_by_field(tmp_path, field, bad):
 
     shutil.copytree(_EVAL, tmp_path / "eval")
     summary = json.loads((_EVAL / "summary.json").read_text())
-    rundir.write_checked_json(tmp_path / "eval" / "summary.json", {**summary, field: bad})
+    files.write_checked_json(tmp_path / "eval" / "summary.json", {**summary, field: bad})
     with pytest.raises(SchemaError) as err:
         EvaluationResult.load(tmp_path / "eval")
     one_line(err.value, "summary.json", f"'{field}")

@@ -1,4 +1,4 @@
-"""Every JSON file rrls reads goes through one reader (``rrls.schema.loads_json``) with a depth
+"""Every JSON file rrls reads goes through one reader (``rrls.files.loads_json``) with a depth
 and a size limit: a file nested 100 000 levels deep (Python's parser recurses: a
 ``RecursionError`` traceback before) or larger than the limit is refused in one line naming
 it, by each reader and by each command that reads one."""
@@ -15,20 +15,14 @@ import pandas as pd
 import pytest
 from test_file_schemas import RESULT  # a valid result.json, beside this file
 
-from rrls import rundir
+from rrls import files, rundir
 from rrls.benchmark import benchfile, store
 from rrls.benchmark.grid import PRESETS, Benchmark
 from rrls.cli import main
 from rrls.evaluation import EvaluationResult, MLPPolicy
+from rrls.files import MAX_JSON_BYTES, MAX_JSON_DEPTH, loads_json, read_json, read_limited
 from rrls.report.reference import ReferenceError, load_reference
-from rrls.schema import (
-    MAX_JSON_BYTES,
-    MAX_JSON_DEPTH,
-    JsonError,
-    loads_json,
-    read_json,
-    read_limited,
-)
+from rrls.schema import JsonError
 
 ROOT = Path(__file__).resolve().parents[1]
 LEVELS = 100_000
@@ -107,9 +101,9 @@ def test_a_file_above_the_size_limit_is_refused_before_it_is_read_whole(tmp_path
     with pytest.raises(JsonError, match=f"valid: at most {MAX_JSON_BYTES:,} bytes"):
         loads_json(" " * (MAX_JSON_BYTES + 1), "x.json")
     path.write_bytes(b" " * (MAX_JSON_BYTES + 1))  # a sealed results file too
-    rundir.write_checked(path, path.read_bytes())
-    with pytest.raises(rundir.DamagedFile, match="big.json is damaged .*more than"):
-        rundir.read_checked_json(path)
+    files.write_checked(path, path.read_bytes())
+    with pytest.raises(files.DamagedFile, match="big.json is damaged .*more than"):
+        files.read_checked_json(path)
 
 
 # --- each file kind, through its reader ------------------------------------------------------
@@ -117,7 +111,7 @@ def test_a_file_above_the_size_limit_is_refused_before_it_is_read_whole(tmp_path
 
 def _deep(path: Path, shape: str) -> Path:
     """``path`` holding the deep JSON, sealed as rrls seals it (the seal is no defence)."""
-    return rundir.write_checked(path, DEEP[shape].encode())
+    return files.write_checked(path, DEEP[shape].encode())
 
 
 @pytest.mark.parametrize("shape", SHAPES)
@@ -197,7 +191,7 @@ def _benchmark(root: Path) -> Path:
         {"point": [0, 1], "episode": [0, 0], "seed": [1, 2], "return": [1.0, 3.0]}
         | {"length": [10, 10], "terminated": [False, False], "diverged": [False, False]}
     )
-    rundir.write_checked_table(run / "eval" / "episodes.csv", episodes)
+    files.write_checked_table(run / "eval" / "episodes.csv", episodes)
     store.write_result(run, {**RESULT, "steps": spec.steps, **spec.fingerprints()})
     return run
 
@@ -207,7 +201,7 @@ def _submitted(root: Path) -> Path:
     run = root / "runs" / "mine-hopper-3d-seed0"
     (run / "eval").mkdir(parents=True)
     own = root / "runs" / "td3-hopper-3d-seed0" / "eval" / "episodes.csv"
-    rundir.write_checked_table(run / "eval" / "episodes.csv", rundir.read_checked_table(own))
+    files.write_checked_table(run / "eval" / "episodes.csv", files.read_checked_table(own))
     store.write_result(run, {**RESULT, "algorithm": "mine", "submitted": {"kind": "npz"}})
     return run
 
@@ -265,7 +259,7 @@ def _checkpoint(out: Path, config: str, **state: Any) -> None:
     buf = io.BytesIO()
     torch.save({"learner": {}, "config": config, "step": 0, "episodes": 0, **state}, buf)
     out.mkdir(parents=True, exist_ok=True)
-    rundir.write_sealed(out / rundir.CHECKPOINT, buf.getvalue())
+    files.write_sealed(out / rundir.CHECKPOINT, buf.getvalue())
 
 
 @pytest.mark.parametrize("shape", SHAPES)

@@ -14,7 +14,7 @@ from conftest import stopping_at
 torch = pytest.importorskip("torch")
 pytest.importorskip("scipy")
 
-from rrls import rundir  # noqa: E402
+from rrls import files, rundir  # noqa: E402
 from rrls.cli import main  # noqa: E402
 
 #: the long end-to-end tier (.ci/run runs it after the default suite)
@@ -49,7 +49,7 @@ def test_a_damaged_curve_file_stops_a_resume_naming_it(tmp_path, capsys, to):
     with stopping_at(200):
         assert _train(out) == 3
     scalars = out / rundir.SCALARS
-    assert rundir.seal_path(scalars).exists()
+    assert files.seal_path(scalars).exists()
     _flip(scalars, 0.6, to)
     capsys.readouterr()
     assert _train(out, "--resume") == 2
@@ -67,7 +67,7 @@ def test_curves_written_after_the_last_checkpoint_are_dropped_on_resume(tmp_path
     assert _train(out, "--resume") == 0
     lines = scalars.read_text().splitlines()
     assert not any(ln.startswith(("250,", "260,")) for ln in lines)
-    rundir.read_checked(scalars)  # sealed again, whole
+    files.read_checked(scalars)  # sealed again, whole
 
 
 @pytest.fixture(scope="module")
@@ -108,13 +108,13 @@ def test_one_flipped_byte_in_a_results_file_is_named_by_the_report(bench, capsys
         "episodes": _episodes(bench),
         "summary.json": _run(bench) / "eval" / "summary.json",
     }[name]
-    assert rundir.seal_path(path).exists()
+    assert files.seal_path(path).exists()
     _flip(path, where)
     capsys.readouterr()
     if name == "summary.json":  # read by `rrls evaluate`'s loader, not by the report
         from rrls.evaluation import EvaluationResult
 
-        with pytest.raises(rundir.DamagedFile, match="summary.json is damaged"):
+        with pytest.raises(files.DamagedFile, match="summary.json is damaged"):
             EvaluationResult.load(path.parent)
         return
     assert main(["report", str(bench), "--no-plots"]) == 2
@@ -125,10 +125,10 @@ def test_one_flipped_byte_in_a_results_file_is_named_by_the_report(bench, capsys
 
 def test_a_flipped_return_never_reaches_the_report(bench, capsys):
     """The issue's case: a byte of a stored return changed, result.json intact."""
-    from rrls._io import table_bytes
+    from rrls.files import table_bytes
 
     path = _episodes(bench)
-    frame = rundir.read_checked_table(path)
+    frame = files.read_checked_table(path)
     frame.loc[0, "return"] = -65536.0  # what a flipped exponent bit made of a return
     path.write_bytes(table_bytes(path, frame))  # rewritten without its seal's knowledge
     assert main(["report", str(bench), "--no-plots"]) == 2
@@ -136,7 +136,7 @@ def test_a_flipped_return_never_reaches_the_report(bench, capsys):
 
 
 def test_a_damaged_seal_is_damage_too(bench, capsys):
-    side = rundir.seal_path(_run(bench) / "result.json")
+    side = files.seal_path(_run(bench) / "result.json")
     side.write_text("not a digest\n")
     assert main(["report", str(bench), "--no-plots"]) == 2
     assert "result.json.sha256 is damaged" in _one_line(capsys)
@@ -154,6 +154,6 @@ def test_sealed_files_check_with_sha256sum_by_hand(bench):
     import hashlib
 
     path = _run(bench) / "result.json"
-    digest, name = rundir.seal_path(path).read_text().split()
+    digest, name = files.seal_path(path).read_text().split()
     assert name == "result.json"
     assert digest == hashlib.sha256(path.read_bytes()).hexdigest()

@@ -17,8 +17,8 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from rrls._io import DirectoryLock
 from rrls.benchmark.backends import wait_for_locks
+from rrls.files import DirectoryLock
 
 REPO = Path(__file__).resolve().parents[1]
 ALGOS = ["td3", "rarl"]

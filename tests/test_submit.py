@@ -17,11 +17,11 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from rrls._io import atomic_write_json
 from rrls.benchmark.grid import RunKey, make_spec
 from rrls.benchmark.store import build_store, write_result
 from rrls.cli import main
 from rrls.evaluation import BatchInvariant, MLPPolicy, evaluate
+from rrls.files import atomic_write_json
 from rrls.report.exported import export_reference
 from rrls.report.reference import (
     PAPER_PHYSICS,

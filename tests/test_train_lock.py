@@ -12,13 +12,13 @@ import pytest
 
 pytest.importorskip("torch")
 
-from rrls._io import DirectoryLock
 from rrls.cli import main
+from rrls.files import DirectoryLock
 
 HOLD = textwrap.dedent(
     """
     import sys, time
-    from rrls._io import DirectoryLock
+    from rrls.files import DirectoryLock
     with DirectoryLock(sys.argv[1]):
         print("held", flush=True)
         time.sleep(60)
@@ -50,7 +50,7 @@ def test_a_process_nests_its_own_locks_but_another_may_not(tmp_path):
     with DirectoryLock(tmp_path), DirectoryLock(tmp_path):  # a run inside its benchmark's lock
         pass
     with DirectoryLock(tmp_path):
-        probe = "from rrls._io import DirectoryLock; import sys\n"
+        probe = "from rrls.files import DirectoryLock; import sys\n"
         probe += "try:\n    DirectoryLock(sys.argv[1]).__enter__()\nexcept FileExistsError:\n"
         probe += "    sys.exit(7)\n"
         code = subprocess.run([sys.executable, "-c", probe, str(tmp_path)]).returncode

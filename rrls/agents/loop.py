@@ -28,7 +28,6 @@ from typing import Any
 import numpy as np
 import torch
 
-from rrls._io import DirectoryLock
 from rrls.agents import graphs, resident
 from rrls.agents.config import TrainConfig
 from rrls.agents.driver import Collector, Driver
@@ -40,6 +39,7 @@ from rrls.agents.run import Run, active_ctrl_c
 from rrls.agents.stepwise import StepCollector, uniform
 from rrls.agents.streams import RunSeeds
 from rrls.agents.threads import process_settings
+from rrls.files import DirectoryLock
 
 
 def train(

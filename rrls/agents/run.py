@@ -25,12 +25,12 @@ from typing import Any
 import numpy as np
 import torch
 
-from rrls import rundir
+from rrls import files, rundir
 from rrls.agents.config import Diverged, Interrupted, TrainConfig, benchmark_set
 from rrls.agents.hparams import jsonable
+from rrls.files import loads_json
 from rrls.physics import physics_label
 from rrls.provenance import machine, source_commit
-from rrls.schema import loads_json
 
 #: stop a run right after the checkpoint at or past this step, as if killed (fault injection)
 STOP_AT_ENV = "RRLS_STOP_AT"
@@ -150,7 +150,7 @@ class Metrics:
         """Write the curves out and seal them (at every checkpoint: a resume checks them)."""
         if self._csv is not None:
             self._csv.flush()
-            rundir.seal(self.csv_path)
+            files.seal(self.csv_path)
 
     def close(self) -> None:
         if self._tb:
@@ -159,7 +159,7 @@ class Metrics:
         if self._csv is not None:
             self._csv.close()
             self._csv = None
-            rundir.seal(self.csv_path)
+            files.seal(self.csv_path)
         if self._wandb is not None:
             self._wandb.finish()
             self._wandb = None
@@ -216,7 +216,7 @@ class PeriodicEvaluation:
 
 def read_checkpoint(path: Path) -> dict[str, Any]:
     """A run's checkpoint, or a one-line error naming the file when it cannot be used."""
-    data = rundir.read_sealed(path)  # damaged bytes: refused here
+    data = files.read_sealed(path)  # damaged bytes: refused here
     try:
         state = torch.load(io.BytesIO(data), weights_only=True, map_location="cpu")
     except Exception as err:  # noqa: BLE001 - not a checkpoint: all say the same
@@ -349,7 +349,7 @@ class Run:
         torch.save(state, buf)
         if self.metrics is not None:  # the curves reach at least as far as the checkpoint
             self.metrics.flush()
-        rundir.write_sealed(self.checkpoint_path, buf.getvalue())
+        files.write_sealed(self.checkpoint_path, buf.getvalue())
         self.saved_step = self.step
 
     def check_stop(self) -> None:
@@ -442,7 +442,7 @@ class Run:
         the dynamic evaluation, Table 6) and ``run.json`` (last: it marks the run finished)."""
         for name, policy in policies.items():
             policy.save(self.dir / (rundir.POLICY if name == "policy" else f"{name}.npz"))
-        rundir.write_checked_json(
+        files.write_checked_json(
             self.dir / rundir.RUN_JSON,
             {
                 **policies["policy"].metadata,

@@ -27,7 +27,7 @@ import torch
 from rrls.agents.config import Diverged
 from rrls.agents.driver import Advance
 from rrls.agents.streams import RunSeeds, rng_state, set_rng_state
-from rrls.schema import loads_json
+from rrls.files import loads_json
 
 
 def uniform(space: Any, rng: np.random.Generator) -> Any:

@@ -16,7 +16,7 @@ import zlib
 
 import numpy as np
 
-from rrls.schema import loads_json
+from rrls.files import loads_json
 
 __all__ = ["Generators", "NumpyGenerators", "RunSeeds", "rng_state", "set_rng_state"]
 

@@ -14,7 +14,6 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-from rrls._io import DirectoryLock
 from rrls._proc import die_with_parent, single_thread_env
 from rrls.benchmark.grid import Benchmark, RunKey
 from rrls.benchmark.pipeline import (
@@ -25,6 +24,7 @@ from rrls.benchmark.pipeline import (
     run_dir,
     run_ok,
 )
+from rrls.files import DirectoryLock
 
 
 # --- local backend: one spawned process per group ----------------------------------------------

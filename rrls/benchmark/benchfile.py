@@ -11,10 +11,10 @@ from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
-from rrls import rundir
-from rrls._io import waiting_lock
+from rrls import files
 from rrls.benchmark.grid import Benchmark, SpecError
 from rrls.evaluation.protocol import MAX_EPISODES
+from rrls.files import waiting_lock
 from rrls.physics import ALIASES, SIMULATORS
 from rrls.schema import Schema, SchemaError, array, boolean, integer, number, obj, string
 from rrls.seeds import MAX_SEED, MAX_SEEDS
@@ -77,7 +77,7 @@ def spec_path(root: str | Path) -> Path:
 def read_stored_json(root: str | Path) -> dict[str, Any]:
     """The file as it is stored (``FileNotFoundError`` if there is none, ``DamagedFile`` if its
     bytes are not those written)."""
-    return rundir.read_checked_json(spec_path(root))
+    return files.read_checked_json(spec_path(root))
 
 
 def read_spec(root: str | Path) -> Benchmark:
@@ -109,7 +109,7 @@ def stored_fingerprints(root: str | Path) -> dict[str, str]:
 def write_spec(root: str | Path, spec: Benchmark) -> Path:
     """Write (and seal) ``spec`` as the directory's protocol; hold :func:`locked` around the
     read that it updates."""
-    return rundir.write_checked_json(spec_path(root), spec.to_json())
+    return files.write_checked_json(spec_path(root), spec.to_json())
 
 
 @contextmanager

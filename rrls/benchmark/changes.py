@@ -32,8 +32,8 @@ from pathlib import Path
 from types import TracebackType
 from typing import Any
 
-from rrls import rundir
-from rrls._io import atomic_write_bytes
+from rrls import files
+from rrls.files import atomic_write_bytes
 
 __all__ = ["TRASH", "Changes", "rebuild_folder"]
 
@@ -99,12 +99,12 @@ class Changes:
         """Write ``data`` to ``path`` atomically (and seal it): the old bytes (or none) and the
         old seal come back if the change fails."""
         path = Path(path)
-        files = (path, rundir.seal_path(path)) if sealed else (path,)
-        before = {p: p.read_bytes() if p.exists() else None for p in files}
+        paths = (path, files.seal_path(path)) if sealed else (path,)
+        before = {p: p.read_bytes() if p.exists() else None for p in paths}
         self.mkdirs(path.parent)
         self._undo.append(lambda: _restore(before))
         if sealed:
-            rundir.write_checked(path, data)
+            files.write_checked(path, data)
         else:
             atomic_write_bytes(path, data)
 
@@ -117,8 +117,8 @@ class Changes:
                 return
 
 
-def _restore(files: dict[Path, bytes | None]) -> None:
-    for path, data in files.items():
+def _restore(before: dict[Path, bytes | None]) -> None:
+    for path, data in before.items():
         if data is None:
             path.unlink(missing_ok=True)
         else:

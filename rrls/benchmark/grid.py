@@ -293,7 +293,7 @@ class Benchmark:
         evaluation protocol's fingerprint (every run, submitted ones too), and ``benchmark``,
         the fingerprint of every field two invocations must agree on (trained runs). Runs of
         one benchmark produced in pieces on several machines share both."""
-        from rrls._io import json_fingerprint
+        from rrls.files import json_fingerprint
 
         return {
             "protocol": self.protocol.fingerprint(),
@@ -405,7 +405,7 @@ def _check_options(values: Mapping[str, Any]) -> None:
 def read_protocol(path: str | PathLike[str]) -> Protocol:
     """The ``Protocol`` in a JSON file (``Protocol.to_json``'s object: ``rrls benchmark
     --protocol FILE``); a file that is not one is a ``SpecError`` naming it."""
-    from rrls.schema import read_json
+    from rrls.files import read_json
 
     try:
         return Protocol.from_json(read_json(path))

@@ -26,13 +26,13 @@ from contextlib import ExitStack
 from pathlib import Path
 from typing import Any
 
-from rrls import rundir
-from rrls._io import DirectoryLock, atomic_write_json
+from rrls import files, rundir
 from rrls._proc import THREAD_ENV
 from rrls.algorithms import plays_adversary
 from rrls.benchmark.grid import Benchmark, RunKey
 from rrls.benchmark.stages import run_dynamic, run_evaluation
-from rrls.schema import Schema, integer, number, read_json, string
+from rrls.files import DirectoryLock, atomic_write_json, read_json
+from rrls.schema import Schema, integer, number, string
 
 
 def run_dir(root: Path, spec: Benchmark, key: RunKey) -> Path:
@@ -91,7 +91,7 @@ def execute_group(
     results: dict[int, dict[str, Any]] = {}
     for i, out in enumerate(outs):
         if (out / rundir.RESULT).exists():
-            results[i] = rundir.read_checked_json(out / rundir.RESULT)
+            results[i] = files.read_checked_json(out / rundir.RESULT)
     todo = [i for i in range(len(runs)) if i not in results]
     if not todo:
         return [results[i] for i in range(len(runs))]
@@ -104,7 +104,7 @@ def execute_group(
         errors = _group_stages(spec, [runs[i] for i in todo], [outs[i] for i in todo])
         for i in todo:
             if i not in errors:
-                results[i] = rundir.read_checked_json(outs[i] / rundir.RESULT)
+                results[i] = files.read_checked_json(outs[i] / rundir.RESULT)
     if errors:
         first = next(iter(errors.values()))
         lines = str(first).strip().splitlines() or [type(first).__name__]
@@ -160,7 +160,7 @@ def _group_stages(
             # this execution's (a resumed run: since resuming; a group: since the group began)
             result["seconds"] = time.time() - start
             result["benchmark"] = spec.fingerprints()["benchmark"]
-            rundir.write_checked_json(out / rundir.RESULT, result)
+            files.write_checked_json(out / rundir.RESULT, result)
             progress[i].write("done", spec.steps)
             # The checkpoint only serves to resume training (its replay buffer is up to ~250 MB
             # at 5 M steps: 60 GB for the paper's grid); a finished run keeps its policies,

@@ -23,7 +23,7 @@ import shlex
 from pathlib import Path
 from typing import Any
 
-from rrls import rundir
+from rrls import files, rundir
 from rrls.benchmark.changes import rebuild_folder
 from rrls.evaluation import evaldir
 from rrls.evaluation.evaldir import DYNAMIC_SCHEMA, EPISODES_SCHEMA
@@ -78,15 +78,15 @@ SCALARS_SCHEMA = TableSchema({"step": "int", "metric": "str", "value": "number"}
 def write_result(run: str | Path, result: dict[str, Any]) -> Path:
     """Mark ``run`` finished: its ``result.json`` (algorithm, task, uncertainty, seed, steps,
     worst_case, average_case, versions; optional dynamic_*, submitted), written atomically and
-    sealed (``rundir.write_checked``)."""
+    sealed (``files.write_checked``)."""
     RESULT_SCHEMA.check(result, "a run result")
-    return rundir.write_checked_json(Path(run) / rundir.RESULT, result)
+    return files.write_checked_json(Path(run) / rundir.RESULT, result)
 
 
 def read_result(run: str | Path) -> dict[str, Any]:
     """A finished run's ``result.json``, checked against its seal and its schema (one line)."""
     path = Path(run) / rundir.RESULT
-    return RESULT_SCHEMA.check(rundir.read_checked_json(path), str(path))
+    return RESULT_SCHEMA.check(files.read_checked_json(path), str(path))
 
 
 def _parquet() -> bool:
@@ -117,7 +117,7 @@ def _read_table(base: Path, schema: TableSchema | None = None) -> Any:
     path = base.with_suffix(".parquet")
     if not path.exists():
         path = base.with_suffix(".csv")
-    frame = rundir.read_checked_table(path)
+    frame = files.read_checked_table(path)
     return frame if schema is None else schema.check(frame, str(path))
 
 
@@ -128,7 +128,7 @@ def _curves(run: Path) -> Any:
     path = run / rundir.SCALARS
     if not path.exists():
         return pd.DataFrame({"step": []})
-    long = SCALARS_SCHEMA.check(rundir.read_checked_table(path), str(path))
+    long = SCALARS_SCHEMA.check(files.read_checked_table(path), str(path))
     long["metric"] = long["metric"].str.replace("/", "_", regex=False)
     long["metric"] = long["metric"].str.removeprefix("charts_")
     wide = long.pivot_table(index="step", columns="metric", values="value", aggfunc="last")
@@ -150,14 +150,14 @@ def _check_bound(
     key = RunKey(str(result["algorithm"]), str(result["task"]), int(result["seed"]))
     own = key.name(str(result["uncertainty"]))
     if own != run.name:
-        raise rundir.DamagedFile(
+        raise files.DamagedFile(
             f"{run / rundir.RESULT} is the result of run {own}, not of {run.name}: copied from "
             "another run? Re-run or withdraw this one"
         )
     for field, what in (("protocol", "evaluation protocol"), ("benchmark", "benchmark protocol")):
         theirs = result.get(field)
         if theirs is not None and field in expected and theirs != expected[field]:
-            raise rundir.DamagedFile(
+            raise files.DamagedFile(
                 f"{run / rundir.RESULT} was evaluated under another {what} (fingerprint "
                 f"{theirs}, this benchmark's {expected[field]}): copied from another benchmark? "
                 "Re-run or withdraw this one"
@@ -166,7 +166,7 @@ def _check_bound(
         return
     for score, value in scores_of(point_means(episodes)).items():
         if not math.isclose(value, float(result[score]), rel_tol=1e-9, abs_tol=1e-9):
-            raise rundir.DamagedFile(
+            raise files.DamagedFile(
                 f"{run / 'eval'}: its episodes give {score} {value:.6g}, but "
                 f"{run / rundir.RESULT} says {float(result[score]):.6g}: a file copied from "
                 "another run? Re-run or withdraw this one"
@@ -193,7 +193,7 @@ def build_store(root: str | Path, expected: dict[str, str] | None = None) -> Pat
         frames["curves"].append(_curves(run).assign(**cols))
         if (run / evaldir.DYNAMIC).exists():
             path = run / evaldir.DYNAMIC
-            dynamic = DYNAMIC_SCHEMA.check(rundir.read_checked_table(path), str(path))
+            dynamic = DYNAMIC_SCHEMA.check(files.read_checked_table(path), str(path))
             dynamic = dynamic.rename(columns={"seed": "episode_seed"})
             frames["dynamic"].append(dynamic.assign(**cols))
         frames["runs"].append(
@@ -224,7 +224,7 @@ def _write_store(out: Path, frames: dict[str, list[Any]]) -> None:
     """Write the store's tables into the new folder ``out`` (swapped in by the caller)."""
     import pandas as pd
 
-    from rrls._io import atomic_write_table
+    from rrls.files import atomic_write_table
 
     suffix = ".parquet" if _parquet() else ".csv"
     order = {"evaluations": ["point", "episode"], "curves": ["step"], "dynamic": ["episode"]}

@@ -108,7 +108,7 @@ def main(argv: list[str] | None = None) -> int:
         print(f"rrls {args.command}: error: {err}", file=sys.stderr)
         return 2
     except (OSError, MemoryError) as err:  # the machine's, not the input's: still one line
-        from rrls._io import resource_error
+        from rrls.files import resource_error
 
         print(f"rrls {args.command}: error: {resource_error(err)}", file=sys.stderr)
         return 2

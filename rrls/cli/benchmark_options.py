@@ -126,8 +126,8 @@ def results_table(root: object) -> str:
     report's ``summary.json``, as ``rrls.report.writer.terminal_table`` prints it)."""
     from pathlib import Path
 
+    from rrls.files import read_json
     from rrls.report.writer import terminal_table
-    from rrls.schema import read_json
 
     return terminal_table(read_json(Path(str(root)) / "report" / "summary.json"))
 

@@ -57,7 +57,8 @@ def _submitted(args: argparse.Namespace, started: float) -> tuple[str, bool | No
 
 def _withdrawn(args: argparse.Namespace) -> tuple[str, bool | None]:
     """Whether the runs to withdraw are still there: all of them, or none."""
-    from rrls.rundir import RESULT, read_checked_json
+    from rrls.files import read_checked_json
+    from rrls.rundir import RESULT
 
     root = Path(args.bench_dir)
     task = _task_key(args.task)

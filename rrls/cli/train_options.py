@@ -23,7 +23,8 @@ from rrls.algorithms import built_in
 from rrls.argtypes import worker_count, workers_help
 from rrls.cli.run_options import add_option, option_kind
 from rrls.deprecation import DeprecatedOption
-from rrls.schema import JsonError, loads_json
+from rrls.files import loads_json
+from rrls.schema import JsonError
 from rrls.seeds import EXAMPLES, parse_seeds
 
 _SKIP = {"progress", "hyper"}

@@ -10,7 +10,7 @@ from pathlib import Path
 
 import numpy as np
 
-from rrls._io import atomic_save_npz
+from rrls.files import atomic_save_npz
 
 __all__ = ["CHUNK", "chunk_path", "load_chunk", "remove_leftovers", "save_chunk", "saved"]
 

@@ -17,15 +17,16 @@ from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
-from rrls._io import DirectoryLock, atomic_write_json
 from rrls.evaluation.chunks import CHUNK, saved
-from rrls.physics import ALIASES, physics_label
-from rrls.rundir import (
+from rrls.files import (
+    DirectoryLock,
+    atomic_write_json,
     read_checked_json,
     read_checked_table,
     write_checked_json,
     write_checked_table,
 )
+from rrls.physics import ALIASES, physics_label
 from rrls.schema import Schema, TableSchema, boolean, integer, number, obj, string
 from rrls.seeds import MAX_SEED
 

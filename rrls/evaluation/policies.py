@@ -29,7 +29,8 @@ import numpy as np
 
 from rrls.evaluation.exact import ExactLinear, exact_tanh
 from rrls.extras import install_hint
-from rrls.schema import Schema, integer, loads_json, obj, string
+from rrls.files import loads_json
+from rrls.schema import Schema, integer, obj, string
 
 BLOCK = 64  # rows per policy call inside BatchInvariant (invariance measured in tests)
 
@@ -168,7 +169,7 @@ class MLPPolicy:
 
     def save(self, path: str | Path) -> Path:
         """Write ``path`` (``.npz``) atomically."""
-        from rrls._io import atomic_save_npz
+        from rrls.files import atomic_save_npz
 
         arrays: dict[str, np.ndarray] = {}
         for i, (w, b) in enumerate(zip(self.weights, self.biases)):

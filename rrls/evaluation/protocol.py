@@ -261,11 +261,11 @@ class Protocol:
         return cls(**fields)
 
     def fingerprint(self) -> str:
-        """16 hex digits naming this protocol's fields (``rrls._io.json_fingerprint``): what a
+        """16 hex digits naming this protocol's fields (``rrls.files.json_fingerprint``): what a
         run's ``result.json`` records, so a result copied from another protocol is refused.
         ``recheck`` is left out: it changes none of the mesh's rows, and each result records
         its own recheck settings."""
-        from rrls._io import json_fingerprint
+        from rrls.files import json_fingerprint
 
         data = self.to_json()
         data.pop("recheck", None)  # adds statistics beside the mesh's; changes none of its rows

@@ -12,9 +12,9 @@ from typing import Any
 
 import numpy as np
 
-from rrls._io import atomic_write_bytes
 from rrls.evaluation.result import EvaluationResult
 from rrls.extras import install_hint
+from rrls.files import atomic_write_bytes
 
 
 def pyplot() -> Any:

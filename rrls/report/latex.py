@@ -150,7 +150,7 @@ def fit(tabular: list[str]) -> list[str]:
 
 def fit_file(path: Path) -> None:
     """Rewrite a generated ``.tex`` whose ``tabular`` is bare with it ``fit`` to the line."""
-    from rrls._io import atomic_write_bytes
+    from rrls.files import atomic_write_bytes
 
     lines = Path(path).read_text().splitlines()
     if any("\\rrlsfit" in line for line in lines):

@@ -254,7 +254,7 @@ def write_tables(summary: Mapping[str, Any], out: Any, name: Any = str) -> None:
     (booktabs; the notes in the caption's suggested text, outside the tabular)."""
     import pandas as pd
 
-    from rrls._io import atomic_write_bytes, atomic_write_table
+    from rrls.files import atomic_write_bytes, atomic_write_table
 
     pairs = summary.get("pairwise") or {}
     records = [

@@ -39,20 +39,9 @@ from pathlib import Path
 from typing import Any
 
 from rrls.evaluation.protocol import MAX_EPISODES
+from rrls.files import loads_json, read_json
 from rrls.physics import ALIASES, PAPER, V5, physics_label
-from rrls.schema import (
-    JsonError,
-    Schema,
-    SchemaError,
-    array,
-    boolean,
-    integer,
-    loads_json,
-    number,
-    obj,
-    read_json,
-    string,
-)
+from rrls.schema import JsonError, Schema, SchemaError, array, boolean, integer, number, obj, string
 from rrls.seeds import MAX_SEED, MAX_SEEDS
 from rrls.uncertainty import MAX_MESH_POINTS
 
@@ -154,7 +143,7 @@ class Reference:
 
     def save(self, path: str | Path) -> Path:
         """Write ``path`` atomically: JSON for ``.json``, else CSV."""
-        from rrls._io import atomic_write_bytes, atomic_write_json
+        from rrls.files import atomic_write_bytes, atomic_write_json
 
         path = Path(path)
         if path.suffix.lower() == ".json":

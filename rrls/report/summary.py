@@ -28,12 +28,13 @@ from rrls.evaluation.metrics import (
     normalized_std,
     split_run_scores,
 )
+from rrls.files import loads_json
 from rrls.report import stats
 from rrls.report.caveats import check_normaliser
 from rrls.report.names import normaliser_names, sort_algos
 from rrls.report.pairwise import summarise_pairs
 from rrls.report.rechecked import summarise_rechecked
-from rrls.schema import SchemaError, loads_json
+from rrls.schema import SchemaError
 
 __all__ = ["CONVENTIONS", "Scores", "reference_name", "summarise", "summarise_store"]
 

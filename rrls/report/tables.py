@@ -124,7 +124,7 @@ def write_tables(
     with a row; and, for those not written, why."""
     import pandas as pd
 
-    from rrls._io import atomic_write_bytes, atomic_write_table
+    from rrls.files import atomic_write_bytes, atomic_write_table
 
     if cells not in CELLS:
         raise ValueError(f"cells {cells!r}; valid: {', '.join(CELLS)}")

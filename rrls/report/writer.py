@@ -28,6 +28,7 @@ from typing import Any
 
 from rrls.benchmark.changes import rebuild_folder
 from rrls.evaluation.metrics import SPLIT_SCORES
+from rrls.files import loads_json
 from rrls.report.caveats import (
     FEW,
     FEW_SEEDS_NOTE,
@@ -46,7 +47,6 @@ from rrls.report.pairwise import write_tables as write_pairwise
 from rrls.report.rechecked import markdown as rechecked_markdown
 from rrls.report.summary import summarise, summarise_store
 from rrls.report.tables import label, md_table, terminal_table, write_tables
-from rrls.schema import loads_json
 
 __all__ = [
     "make_cross_report",
@@ -133,7 +133,7 @@ def write_report(
     cells: str,
 ) -> Path:
     """``root/report/`` from a summary and the store it was computed from."""
-    from rrls._io import atomic_write_bytes, atomic_write_json
+    from rrls.files import atomic_write_bytes, atomic_write_json
 
     if labels:
         summary["labels"] = dict(labels)
@@ -183,7 +183,7 @@ def _check_has_runs(root: Path) -> None:
 def _per_run(store: dict[str, Any], tables: Path, summary: dict[str, Any]) -> list[str]:
     """``tables/per_run.csv`` (each row's label beside its algorithm) and its ``report.md``
     section (none for an empty store)."""
-    from rrls._io import atomic_write_table
+    from rrls.files import atomic_write_table
     from rrls.report.per_run import per_run_lines, per_run_table
 
     table = per_run_table(store)

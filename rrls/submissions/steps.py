@@ -33,11 +33,11 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from rrls._io import json_bytes
 from rrls.benchmark.changes import Changes
 from rrls.benchmark.grid import Benchmark
 from rrls.benchmark.stages import run_dynamic, run_evaluation
 from rrls.benchmark.store import write_result
+from rrls.files import json_bytes
 from rrls.schema import SchemaError
 from rrls.submissions.checks import (
     RESERVED,
@@ -298,13 +298,13 @@ def _same(record: dict[str, Any], checked: Checked) -> bool:
 
 def _existing(checked: Checked, overwrite: bool) -> Submission | None:
     """The stored submission if it is this one; ``SubmitError`` if it must not be replaced."""
-    from rrls import rundir
+    from rrls import files, rundir
 
     final = checked.final
     if not (final / rundir.RESULT).exists():
         return None
     try:
-        old = rundir.read_checked_json(final / rundir.RESULT)
+        old = files.read_checked_json(final / rundir.RESULT)
     except ValueError as err:
         raise SubmitError(str(err)) from None
     record = old.get("submitted")

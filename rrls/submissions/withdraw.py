@@ -24,10 +24,10 @@ def remove_submission(
     are matched in any spelling ``rrls submit`` accepts (``InvertedPendulum``, ``My-SAC``)."""
     from dataclasses import replace
 
-    from rrls import rundir
-    from rrls._io import json_bytes
+    from rrls import files, rundir
     from rrls.benchmark import benchfile
     from rrls.benchmark.changes import Changes
+    from rrls.files import json_bytes
     from rrls.tasks import get_task
 
     root = Path(bench_dir)
@@ -43,7 +43,7 @@ def remove_submission(
             if not (run / rundir.RESULT).exists():
                 continue  # unfinished: neither a submission nor a task's finished run
             try:  # every result first: a damaged one stops the command before any change
-                results[run] = rundir.read_checked_json(run / rundir.RESULT)
+                results[run] = files.read_checked_json(run / rundir.RESULT)
             except ValueError as err:
                 raise SubmitError(f"{err}; nothing was withdrawn") from None
         name = _submitted_name(algo, {str(r.get("algorithm")) for r in results.values()})
