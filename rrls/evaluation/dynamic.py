@@ -220,7 +220,7 @@ def _episode_steps(env: Any) -> int:
 def _fingerprints(players: TwoPlayers, env: Any) -> dict[str, str]:
     """Both players' fingerprints on probes of their input widths (a resume with another
     protagonist or adversary is refused)."""
-    from rrls.evaluation.policies import policy_fingerprint as fingerprint
+    from rrls.evaluation.prepared import policy_fingerprint as fingerprint
 
     width = range(env.observation_space.shape[0])
     p_dim = len(width[players.p0 : players.p1])

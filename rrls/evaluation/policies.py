@@ -18,7 +18,6 @@ True
 
 from __future__ import annotations
 
-import hashlib
 import json
 import re
 from collections.abc import Callable, Sequence
@@ -330,23 +329,6 @@ def load_policy(path: str | Path) -> Callable[[np.ndarray], np.ndarray]:
     return policy
 
 
-def policy_fingerprint(policy: Callable[[np.ndarray], Any], obs_dim: int, n: int = 8) -> str:
-    """A short hash of the policy's actions on fixed probe observations (to guard resumes)."""
-    probe = np.random.default_rng(12345).normal(size=(n, obs_dim))
-    actions = np.ascontiguousarray(np.asarray(policy(probe), dtype=np.float64))
-    return hashlib.sha256(actions.tobytes()).hexdigest()[:16]
-
-
-def is_batch_invariant(policy: Callable[[np.ndarray], Any], obs_dim: int, n: int = 20) -> bool:
-    """Whether rows of a batch call equal one-row calls on probe observations."""
-    probe = np.random.default_rng(54321).normal(size=(n, obs_dim))
-    batch = np.asarray(policy(probe))
-    return all(
-        np.array_equal(batch[i], np.asarray(policy(probe[i : i + 1]))[0], equal_nan=True)
-        for i in range(n)
-    )
-
-
 _ATTRIBUTE = re.compile(r"^[A-Za-z_][\w.]*:[A-Za-z_][\w.]*$")
 
 
@@ -426,14 +408,12 @@ __all__ = [
     "BatchInvariant",
     "BLOCK",
     "is_attribute_reference",
-    "is_batch_invariant",
     "is_sb3",
     "load_attribute",
     "load_policy",
     "load_sb3",
     "MLPPolicy",
     "Policy",
-    "policy_fingerprint",
     "SB3Policy",
     "TorchPolicy",
 ]

@@ -17,6 +17,7 @@ True
 
 from __future__ import annotations
 
+import hashlib
 import warnings
 from collections.abc import Callable
 from typing import Any
@@ -24,9 +25,16 @@ from typing import Any
 import numpy as np
 
 from rrls.evaluation.lanes import PolicyError, Rollouts, make_rollout_envs
-from rrls.evaluation.policies import as_policy, is_batch_invariant, policy_fingerprint
+from rrls.evaluation.policies import as_policy
 
-__all__ = ["PreparedPolicy", "policy_record", "prepare", "prepare_policy"]
+__all__ = [
+    "PreparedPolicy",
+    "is_batch_invariant",
+    "policy_fingerprint",
+    "policy_record",
+    "prepare",
+    "prepare_policy",
+]
 
 
 class PreparedPolicy:
@@ -134,3 +142,20 @@ def _check_policy(policy: Callable, obs_dim: int, act_dim: int) -> None:
             f"the policy maps observations (2, {obs_dim}) to shape {out.shape}; expected "
             f"(2, {act_dim}) for this task"
         )
+
+
+def policy_fingerprint(policy: Callable[[np.ndarray], Any], obs_dim: int, n: int = 8) -> str:
+    """A short hash of the policy's actions on fixed probe observations (to guard resumes)."""
+    probe = np.random.default_rng(12345).normal(size=(n, obs_dim))
+    actions = np.ascontiguousarray(np.asarray(policy(probe), dtype=np.float64))
+    return hashlib.sha256(actions.tobytes()).hexdigest()[:16]
+
+
+def is_batch_invariant(policy: Callable[[np.ndarray], Any], obs_dim: int, n: int = 20) -> bool:
+    """Whether rows of a batch call equal one-row calls on probe observations."""
+    probe = np.random.default_rng(54321).normal(size=(n, obs_dim))
+    batch = np.asarray(policy(probe))
+    return all(
+        np.array_equal(batch[i], np.asarray(policy(probe[i : i + 1]))[0], equal_nan=True)
+        for i in range(n)
+    )

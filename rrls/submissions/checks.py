@@ -294,7 +294,7 @@ def policy_identity(policy: Any, obs_dim: int, what: str = "policy") -> str:
     """What "the same policy" means: the same actions (on 64 probe observations of the size
     it sees: a TC-RMDP stacked/oracle protagonist's or adversary's input), whatever file or
     module holds it (a module whose weights file changed is another policy)."""
-    from rrls.evaluation.policies import policy_fingerprint
+    from rrls.evaluation.prepared import policy_fingerprint
 
     try:
         return f"actions:{policy_fingerprint(policy, obs_dim, n=64)}"
