@@ -27,7 +27,7 @@ import numpy as np
 
 import rrls  # noqa: F401  (registers the envs)
 from rrls.envs import get_uncertainty_set
-from rrls.twin.env import MODEL_FIELDS as FIELDS
+from rrls.twin.points import MODEL_FIELDS as FIELDS
 
 IDS = {"hopper": "rrls/robust-hopper-v0", "halfcheetah": "rrls/robust-halfcheetah-v0"}
 

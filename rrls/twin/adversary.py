@@ -85,7 +85,9 @@ def probe(cpu: Any, box: Any) -> list[Writes]:
 class PointWrites:
     """``box``'s probed writes as device arrays: ``write(values, m, d)`` puts each world's point
     (``values``, ``(n, dim)`` warp floats) into its fields, then recomputes the derived
-    constants if a written field feeds them. ``targets``: the fields, ``(n, width)`` views."""
+    constants if a written field feeds them (MuJoCo Warp's ``set_const`` derives them for every
+    world: ``WarpTwin`` puts back those of worlds it does not write). ``targets``: the fields,
+    ``(n, width)`` views."""
 
     def __init__(self, cpu: Any, box: Any, targets: dict[str, Any]) -> None:
         import warp as wp
@@ -103,14 +105,15 @@ class PointWrites:
             self.launches.append((len(w.slot), [*arrays, targets[w.field]]))
         self.derive = any(w.field in DERIVING for w in writes)
 
-    def write(self, values: Any, m: Any, d: Any) -> None:
+    def write(self, values: Any, m: Any, d: Any, only: Any) -> None:
+        """Each world's point into its fields, the worlds of ``only`` (a warp int mask)."""
         import mujoco_warp as mjw
         import warp as wp
 
         from rrls.twin import warp_kernels as kernels
 
         for entries, inputs in self.launches:
-            wp.launch(kernels.write_point, (values.shape[0], entries), [values, *inputs])
+            wp.launch(kernels.write_point, (values.shape[0], entries), [values, only, *inputs])
         if self.derive:  # mj_setConst's derived constants, per world
             mjw.set_const(m, d)
 

@@ -16,7 +16,11 @@ are computed once by CPU MuJoCo, so a reset never leaves the device), or with ``
 (what training uses) uniformly from the whole box, from the world's own stream, the point's
 fields written on the device (``rrls.twin.adversary``); ``chosen=True``: the caller's points,
 written the same way by ``set_points`` (M2TD3's, as each episode begins); none: the nominal
-model.
+model. ``modes=`` mixes them, one per world (``WORLD_MODES``: ``nominal``, ``random``,
+``chosen``, ``adversary``, an algorithm row's ``set_use``), so several algorithms' runs share
+one twin step: a world's numbers are those it has in a twin of its mode alone (MuJoCo Warp
+derives the constants of every world at once; those of the nominal worlds are put back as
+copied from CPU MuJoCo).
 
 The adversary's point (RARL's game, ``adversary=True``): the action is the protagonist's then
 the adversary's, ``(n, nu + dim)``; each step the adversary's ``[-1, 1]`` columns are mapped onto
@@ -45,25 +49,13 @@ from rrls.envs import resolve
 from rrls.extras import install_hint
 from rrls.registry import get_task
 from rrls.twin.catalog import REFUSED, TWIN_TASKS, UNSUPPORTED_FIELDS, fill_formula
+from rrls.twin.points import MODEL_FIELDS, host_fields, model_fields, pool_points
 from rrls.uncertainty import UncertaintySet
 
-#: MuJoCo Warp's batched model fields that rrls's kinds write or ``mj_setConst`` derives
-MODEL_FIELDS = (
-    "body_mass",
-    "body_inertia",
-    "body_ipos",
-    "body_subtreemass",
-    "body_invweight0",
-    "geom_friction",
-    "dof_damping",
-    "dof_armature",
-    "dof_frictionloss",
-    "dof_invweight0",
-    "actuator_gear",
-    "actuator_acc0",
-)
 ARRAYS = ("numpy", "torch", "warp")
-POOL_KEY = 2**31 - 1  # the pool's stream: a spawn key no world uses
+#: how a world meets the set (``modes=``): the nominal model, a fresh point of the box per
+#: episode, the caller's point (``set_points``), the adversary's point at every step
+WORLD_MODES = ("nominal", "random", "chosen", "adversary")
 
 
 def default_set(task: str) -> str:
@@ -105,6 +97,7 @@ class WarpTwin(VectorEnv):
         max_episode_steps: int | None = None,
         adversary: bool = False,
         chosen: bool = False,
+        modes: Sequence[str] | None = None,
         **env_kwargs: Any,
     ) -> None:
         key = get_task(task).key
@@ -134,6 +127,10 @@ class WarpTwin(VectorEnv):
             raise ValueError(
                 "chosen=True: set_points gives the points, give no points, DR or adversary"
             )
+        if modes is not None and (
+            points is not None or domain_randomization or adversary or chosen
+        ):
+            raise ValueError("modes= replaces points, domain_randomization, adversary and chosen")
         self._wp, self._mjw, self._k = wp, mjw, kernels
         self.task, self.array = TWIN_TASKS[key], array
         self.resolved = resolve(key, uncertainty or default_set(key))
@@ -147,47 +144,36 @@ class WarpTwin(VectorEnv):
         self.max_episode_steps = max_episode_steps or get_task(key).max_episode_steps or 1000
         self.single_observation_space = self.cpu.observation_space
         self.single_action_space = self.cpu.action_space
-        self.adversary_dim = self._adversary(adversary)
+        fresh = domain_randomization and pool == 0  # a point of the box per episode
+        one = "adversary" if adversary else "chosen" if chosen else "random" if fresh else None
+        self.world_modes = self._modes(modes, one or "nominal")
+        self.adversary_dim = self._adversary("adversary" in self.world_modes)
         self.observation_space = gym.vector.utils.batch_space(self.single_observation_space, n)
         self.action_space = gym.vector.utils.batch_space(self.single_action_space, n)
         pool_from = seed if pool_seed is None else pool_seed
-        self.fresh = domain_randomization and pool == 0  # a point of the box per episode
-        self.pool_points = self._pool(
-            points, domain_randomization and not self.fresh, pool, pool_from
-        )
-        self.redraw = int(domain_randomization and not self.fresh)
-        self.chosen = chosen  # each world's point is the caller's (``set_points``)
+        self.fresh = "random" in self.world_modes
+        dr = domain_randomization and not fresh
+        self.pool_points = pool_points(self.box, n, points, dr, pool, pool_from)
+        self.redraw = int(domain_randomization and not fresh)
+        self.chosen = "chosen" in self.world_modes  # those worlds' points: ``set_points``
         self.formula = fill_formula(kernels.Formula(), self.cpu, self.task, self.max_episode_steps)
+        self.values: Any = None  # the written worlds' points (``_build``: if any)
         self._build(nconmax, njmax)
         self._seed(seed)
         self._graph: Any = None
 
     # -- construction -----------------------------------------------------------------------
-    def _pool(self, points: Any, dr: bool, size: int, seed: Any) -> np.ndarray:
-        """The points the worlds draw from: the given ones (one per world), a seeded uniform
-        pool of the set (DR), or the nominal point."""
-        dim = self.box.dim
-        if points is not None:
-            pts = np.asarray(points, dtype=np.float64)
-            if pts.shape != (self.num_envs, dim):
-                raise ValueError(
-                    f"points has shape {pts.shape}; expected ({self.num_envs}, {dim}): one row "
-                    f"per world over {list(self.box.names)}"
-                )
-            for row in pts:
-                if not self.box.contains(row):
-                    raise ValueError(f"point {row.tolist()} lies outside {self.box.label}")
-            return pts
-        if dr:
-            if not isinstance(size, int) or size < 1:
-                raise ValueError(
-                    f"pool must be a positive integer (0: a point of the box per episode), "
-                    f"got {size!r}"
-                )
-            entropy = int(seed) if isinstance(seed, (int, np.integer)) else [int(x) for x in seed]
-            rng = np.random.default_rng(np.random.SeedSequence(entropy, spawn_key=(POOL_KEY,)))
-            return np.asarray(self.box.sample(rng, size), dtype=np.float64).reshape(size, dim)
-        return np.asarray(self.box.nominal, dtype=np.float64).reshape(1, dim)
+    def _modes(self, modes: Sequence[str] | None, one: str) -> tuple[str, ...]:
+        """Each world's mode (``modes``, or ``one`` for all of them), checked."""
+        if modes is None:
+            return (one,) * self.num_envs
+        modes = tuple(modes)
+        if len(modes) != self.num_envs:
+            raise ValueError(f"{len(modes)} modes for {self.num_envs} worlds: give one each")
+        for mode in modes:
+            if mode not in WORLD_MODES:
+                raise ValueError(f"world mode {mode!r}; valid: {', '.join(WORLD_MODES)}")
+        return modes
 
     def _adversary(self, on: bool) -> int:
         """With ``on``, the joint action space and the entries each parameter writes
@@ -203,21 +189,6 @@ class WarpTwin(VectorEnv):
         )
         return box.dim
 
-    def _host_fields(self, pts: np.ndarray) -> dict[str, np.ndarray]:
-        """Each point's packed fields, as a CPU model at that point holds them."""
-        cpu, names = self.cpu, self.box.names
-        rows: dict[str, list[np.ndarray]] = {}
-        for p in pts:
-            cpu.set_params(**dict(zip(names, p.tolist(), strict=True)))
-            got = {f: getattr(cpu.model, f) for f in MODEL_FIELDS}
-            got["timestep"] = np.array([cpu.model.opt.timestep])
-            got["gravity"] = np.array(cpu.model.opt.gravity)
-            got["xfrc_applied"] = np.array(cpu.data.xfrc_applied)
-            for f, v in got.items():
-                rows.setdefault(f, []).append(np.asarray(v, dtype=np.float32).ravel())
-        cpu.reset_params()
-        return {f: np.stack(v) for f, v in rows.items()}
-
     def _build(self, nconmax: int, njmax: int) -> None:
         wp, mjw, n = self._wp, self._mjw, self.num_envs
         mjm = self.cpu.model
@@ -231,7 +202,7 @@ class WarpTwin(VectorEnv):
             targets = {f: getattr(self.m, f) for f in MODEL_FIELDS}
             targets |= {"timestep": self.m.opt.timestep, "gravity": self.m.opt.gravity}
             targets["xfrc_applied"] = self.d.xfrc_applied
-            host = self._host_fields(self.pool_points)
+            host = host_fields(self.cpu, self.box, self.pool_points)
             self.fields = [(_floats(targets[f], n), wp.array(host[f], dtype=float)) for f in host]
             self.field_names = list(host)  # the order of ``fields``
             for view, pool in self.fields:
@@ -254,7 +225,14 @@ class WarpTwin(VectorEnv):
             self.joint = self.action
             if self.adversary_dim:
                 self.joint = wp.zeros((n, self.nu + self.adversary_dim), dtype=float)
-            if self.adversary_dim or self.fresh or self.chosen:  # points written on the device
+            modes = np.array(self.world_modes)
+            mask = {m: wp.array((modes == m).astype(np.int32), dtype=int) for m in WORLD_MODES}
+            self.drawn, self.pushed = mask["random"], mask["adversary"]
+            written = modes != "nominal"
+            self.written = wp.array(written.astype(np.int32), dtype=int)
+            self.kept = mask["nominal"]
+            self.mixed = bool(written.any() and not written.all())
+            if written.any():  # points written on the device
                 from rrls.twin.adversary import PointWrites
 
                 views = {f: _floats(t, n) for f, t in targets.items()}
@@ -317,9 +295,9 @@ class WarpTwin(VectorEnv):
         if self.adversary_dim:  # the protagonist's columns, then the adversary's point
             wp.launch(k.split_action, (n, self.nu), [self.joint, action])
             w = self.writes
-            point = [self.joint, self.nu, w.low, w.span, self.values]
+            point = [self.joint, self.nu, w.low, w.span, self.pushed, self.values]
             wp.launch(k.adversary_point, (n, self.adversary_dim), point)
-            w.write(self.values, self.m, self.d)
+            self._write_points()
         wp.launch(k.begin_step, (n, self.nu), [action, self.d.qpos, self.d.ctrl, self.x_before])
         for _ in range(self.formula.frame_skip):
             self._mjw.step(self.m, self.d)
@@ -356,7 +334,7 @@ class WarpTwin(VectorEnv):
         self._mjw.reset_data(self.m, self.d, reset=mask)
         if self.fresh:  # before reset_worlds counts the episode
             w = self.writes
-            draw = [mask, self.seeds, self.episode, w.low, w.span, self.values]
+            draw = [mask, self.drawn, self.seeds, self.episode, w.low, w.span, self.values]
             wp.launch(k.draw_point, n, draw)
         wp.launch(
             k.reset_worlds,
@@ -378,10 +356,19 @@ class WarpTwin(VectorEnv):
         for view, pool in self.fields:
             wp.launch(k.copy_point, view.shape, [mask, self.point, pool, view])
         if self.fresh or self.chosen:  # the world's own point again, over the nominal fields
-            self.writes.write(self.values, self.m, self.d)
+            self._write_points()
         wp.launch(
             k.observe, n, [self.formula, self.d.qpos, self.d.qvel, self.d.cfrc_ext, mask, self.obs]
         )
+
+    def _write_points(self) -> None:
+        """The written worlds' points into their fields, the derived constants recomputed; in a
+        mixed twin the nominal worlds' fields then as copied from CPU MuJoCo again (MuJoCo
+        Warp's ``set_const`` derives every world's constants, in float32)."""
+        self.writes.write(self.values, self.m, self.d, self.written)
+        if self.mixed:
+            for view, pool in self.fields:
+                self._wp.launch(self._k.copy_point, view.shape, [self.kept, self.point, pool, view])
 
     def _actions(self, actions: Any) -> None:
         """Copy the actions into the twin's input array (on the device: a device copy)."""
@@ -407,39 +394,42 @@ class WarpTwin(VectorEnv):
         out = a.numpy().copy()
         return out.astype(dtype) if dtype is not None else out
 
-    def set_points(self, points: Any) -> None:
-        """``chosen=True``: each world's point from now on, ``(num_envs, dim)`` over ``box.names``
-        (a device tensor or warp array: no host round trip; or host values), written into its
-        fields with the derived constants recomputed, as ``set_params`` writes a CPU env's. A
-        reset state does not depend on the point, so writing it just after a world's reset is
-        the CPU's ``reset(options=point)`` (M2TD3: the point chosen as its episode begins)."""
+    def set_points(self, points: Any, first: int = 0) -> None:
+        """``chosen`` worlds' points from now on, ``(rows, dim)`` over ``box.names`` for worlds
+        ``first .. first + rows - 1`` (a device tensor or warp array: no host round trip; or host
+        values), written into their fields with the derived constants recomputed, as
+        ``set_params`` writes a CPU env's. A reset state does not depend on the point, so writing
+        it just after a world's reset is the CPU's ``reset(options=point)`` (M2TD3: the point
+        chosen as its episode begins)."""
         wp = self._wp
-        if not self.chosen:
-            raise ValueError("set_points needs a twin built with chosen=True")
         if type(points).__module__.startswith("torch"):
             points = wp.from_torch(points.detach().float().contiguous())
+        if not isinstance(points, wp.array):
+            points = np.asarray(points, dtype=np.float32)
+        rows = points.shape[0] if len(points.shape) == 2 else -1
+        worlds = self.world_modes[first : first + rows] if first >= 0 and rows > 0 else ()
+        if len(points.shape) != 2 or points.shape[1] != self.box.dim or len(worlds) != rows:
+            raise ValueError(
+                f"points have shape {tuple(points.shape)} from world {first}; expected (rows, "
+                f"{self.box.dim}) within the twin's {self.num_envs} worlds"
+            )
+        if any(mode != "chosen" for mode in worlds):
+            raise ValueError("set_points needs chosen worlds (chosen=True, or modes= 'chosen')")
         with wp.ScopedDevice(self.device):
-            if isinstance(points, wp.array):
-                if points.shape != self.values.shape:
-                    raise ValueError(
-                        f"points have shape {points.shape}; expected {self.values.shape}"
-                    )
-                wp.copy(self.values, points)
-            else:
-                host = np.asarray(points, dtype=np.float32)
-                if host.shape != self.values.shape:
-                    raise ValueError(
-                        f"points have shape {host.shape}; expected {self.values.shape}"
-                    )
-                self.values.assign(host)
-            self.writes.write(self.values, self.m, self.d)
+            if not isinstance(points, wp.array):
+                points = wp.array(points, dtype=float)
+            dim = self.box.dim
+            wp.copy(self.values, points, dest_offset=first * dim, count=rows * dim)
+            self._write_points()
 
     # -- what a check or a log needs ----------------------------------------------------------
     def points(self) -> np.ndarray:
         """Each world's current point, ``(num_envs, dim)`` over ``box.names`` (a host copy)."""
-        if self.fresh or self.adversary_dim or self.chosen:
-            return self.values.numpy().astype(np.float64)
-        return self.pool_points[self.point.numpy()]
+        pooled = self.pool_points[self.point.numpy()]
+        if self.values is None:
+            return pooled
+        written = (np.array(self.world_modes) != "nominal")[:, None]
+        return np.where(written, self.values.numpy().astype(np.float64), pooled)
 
     def state(self) -> tuple[np.ndarray, np.ndarray]:
         """Each world's ``(qpos, qvel)`` (host copies, float32)."""
@@ -476,11 +466,8 @@ class WarpTwin(VectorEnv):
         wp = self._wp
         if not 0 <= w < self.num_envs:
             raise ValueError(f"world {w} out of range; this twin has {self.num_envs}")
-        model, data = env.unwrapped.model, env.unwrapped.data
-        host = {f: getattr(model, f) for f in MODEL_FIELDS}
-        host["timestep"] = np.array([model.opt.timestep])
-        host["gravity"] = np.array(model.opt.gravity)
-        host["xfrc_applied"] = np.array(data.xfrc_applied)
+        data = env.unwrapped.data
+        host = model_fields(env.unwrapped.model, data)
         with wp.ScopedDevice(self.device):
             mask = np.zeros(self.num_envs, dtype=np.int32)
             mask[w] = 1
@@ -502,4 +489,4 @@ class WarpTwin(VectorEnv):
         self.cpu.close()
 
 
-__all__ = ["MODEL_FIELDS", "WarpTwin", "default_set"]
+__all__ = ["WORLD_MODES", "WarpTwin", "default_set"]

@@ -64,12 +64,15 @@ def adversary_point(
     nu: int,
     low: wp.array(dtype=float),
     span: wp.array(dtype=float),
+    only: wp.array(dtype=int),
     values: wp.array2d(dtype=float),
 ):
     """World ``w``'s point from the adversary's columns of its joint action, as
     ``DynamicAdversarial.params_of`` maps them: ``lo + ((clip(a, -1, 1) + 1) * (hi - lo)) / 2``
-    in float32."""
+    in float32 (``only``: the worlds an adversary plays in)."""
     w, i = wp.tid()
+    if only[w] == 0:
+        return
     a = wp.clamp(joint[w, nu + i], -1.0, 1.0)
     values[w, i] = low[i] + ((a + 1.0) * span[i]) / 2.0
 
@@ -77,6 +80,7 @@ def adversary_point(
 @wp.kernel
 def draw_point(
     mask: wp.array(dtype=int),
+    only: wp.array(dtype=int),
     seeds: wp.array(dtype=int),
     episode: wp.array(dtype=int),
     low: wp.array(dtype=float),
@@ -84,9 +88,10 @@ def draw_point(
     values: wp.array2d(dtype=float),
 ):
     """A resetting world's point for its next episode, uniform in the box, from the world's own
-    stream at that episode (past the draws of ``reset_worlds``'s noise)."""
+    stream at that episode (past the draws of ``reset_worlds``'s noise); ``only``: the worlds
+    that draw their points."""
     w = wp.tid()
-    if mask[w] == 0:
+    if mask[w] == 0 or only[w] == 0:
         return
     state = wp.rand_init(seeds[w], episode[w] * 4099 + 2048)
     for i in range(values.shape[1]):
@@ -96,6 +101,7 @@ def draw_point(
 @wp.kernel
 def write_point(
     values: wp.array2d(dtype=float),
+    only: wp.array(dtype=int),
     slot: wp.array(dtype=int),
     param: wp.array(dtype=int),
     c0: wp.array(dtype=float),
@@ -103,8 +109,10 @@ def write_point(
     field: wp.array2d(dtype=float),
 ):
     """World ``w``'s entry ``e`` of one field at its point: ``c0 + c1 * value`` of parameter
-    ``param[e]`` (``rrls.twin.adversary``)."""
+    ``param[e]`` (``rrls.twin.adversary``); ``only``: the worlds whose points are written."""
     w, e = wp.tid()
+    if only[w] == 0:
+        return
     field[w, slot[e]] = c0[e] + c1[e] * values[w, param[e]]
 
 
