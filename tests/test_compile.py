@@ -19,9 +19,10 @@ from conftest import e2e_after_first, policy_arrays, stopping_at
 
 torch = pytest.importorskip("torch")
 
-from rrls.agents import Interrupted, TrainConfig, graphs, loop, train  # noqa: E402
+from rrls.agents import Interrupted, TrainConfig, graphs, group, train  # noqa: E402
 from rrls.agents.graphs import Update, adam, cache_dir, load_optimizer  # noqa: E402
-from rrls.agents.loop import COMPILE_MIN_UPDATES, compiles, train_group  # noqa: E402
+from rrls.agents.group import COMPILE_MIN_UPDATES, compiles  # noqa: E402
+from rrls.agents.loop import train_group  # noqa: E402
 
 COMPILED_TOL = 1e-6  # |compiled - eager| per weight after a 300-update run (measured 3e-8)
 
@@ -56,7 +57,7 @@ def _gap(a, b) -> float:
 def test_compile_by_default_only_when_the_budget_pays_for_it(tmp_path, monkeypatch):
     long = _config(tmp_path, "td3", "a", steps=100 + COMPILE_MIN_UPDATES)
     assert not compiles(long, 100, 0)  # a CPU: measured no faster compiled
-    monkeypatch.setattr(loop, "COMPILE_PAYS_ON", ("cpu",))  # as a GPU's default (none here)
+    monkeypatch.setattr(group, "COMPILE_PAYS_ON", ("cpu",))  # as a GPU's default (none here)
     assert compiles(long, 100, 0)
     assert not compiles(long, 100, 101)  # resumed one update short of paying
     assert not compiles(_config(tmp_path, "td3", "b"), 100, 0)  # a test's budget

@@ -104,7 +104,7 @@ def test_every_declared_limit_is_enforced():
 def test_memory_is_checked_before_the_learner_allocates(tmp_path, capsys, monkeypatch):
     # a machine of 64 MiB: the default 1e6-transition buffer for 30 000 steps (~4.7 MiB) and
     # 256-256 networks (~7 MiB with their optimiser) fit; 64 runs' of them do not
-    from rrls.agents import loop
+    from rrls.agents import group
 
     monkeypatch.setattr(hparams, "machine_memory", lambda: 64 * 2**20)
     env = type("E", (), {})()
@@ -113,9 +113,9 @@ def test_memory_is_checked_before_the_learner_allocates(tmp_path, capsys, monkey
     env.observation_space = gym.spaces.Box(-1, 1, (11,))
     env.action_space = gym.spaces.Box(-1, 1, (3,))
     hyper = type("H", (), {"buffer_size": 1_000_000, "hidden": (256, 256)})()
-    loop.check_group_memory(hyper, env, 1, 30_000)
+    group.check_group_memory(hyper, env, 1, 30_000)
     with pytest.raises(MemoryError) as err:
-        loop.check_group_memory(hyper, env, 64, 30_000)
+        group.check_group_memory(hyper, env, 64, 30_000)
     assert "64 run(s)" in str(err.value) and "GiB" in str(err.value)
 
 

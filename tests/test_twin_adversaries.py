@@ -267,7 +267,7 @@ def _rarl_blocks(block: int, uncertainty: str) -> tuple[list, rarl.Learner]:
     """RARL's game for two runs on the twin, through the resident loop's blocks
     (``rrls.agents.resident.Worlds``): what the training loops run once they build the twin
     with ``adversary=True``."""
-    from rrls.agents.resident import Worlds, ended
+    from rrls.agents.resident import Worlds, ended, make_part
     from rrls.twin import WarpTwin
 
     config = rarl.Config(**SMALL)
@@ -277,12 +277,13 @@ def _rarl_blocks(block: int, uncertainty: str) -> tuple[list, rarl.Learner]:
     twin = WarpTwin(
         "invertedpendulum", 2, uncertainty, adversary=True, seed=seeds, device="cpu", array="torch"
     )
-    worlds = Worlds(twin, CPU, [s.numpy("warmup") for s in SEEDS])
+    worlds = Worlds(twin, CPU)
+    part = make_part(twin, learner, [s.seed for s in SEEDS], SMALL["learning_starts"], "rarl")
     worlds.start()
     out, done = [], 0
     while done < STEPS:
         n = min(block, STEPS - done)
-        out += ended(worlds.block(learner, done, n, SMALL["learning_starts"]))
+        out += ended(worlds.block([part], done, n)[0])
         done += n
     twin.close()
     return [(done_at, w, r) for done_at, w, r, _ in out], learner

@@ -74,6 +74,34 @@ def test_the_paper_preset_on_the_twin_trains_humanoidstandup_on_cpu_mujoco():
             validate(replace(spec, tasks=("humanoidstandup",)))
     text = plan(Path("bench"), spec, 250, 0, 0, "local", 10)
     assert "but humanoidstandup (no twin: CPU MuJoCo" in text
+    assert "a task's algorithms share each twin step" in text
+
+
+def test_on_the_twin_a_tasks_algorithms_are_one_group_and_humanoidstandup_is_not():
+    """``rrls benchmark --simulator warp`` packs each task's cells of one turn into one group
+    (one twin step for its algorithms, ``rrls.agents.shared``); a task without a twin, RARL in
+    TC-RMDP's rate-limited game and a CPU benchmark keep one cell a group."""
+    from dataclasses import replace
+
+    from rrls.benchmark.grid import PRESETS, Benchmark
+    from rrls.benchmark.pipeline import groups
+
+    spec = replace(Benchmark(**PRESETS["paper"]), simulator="warp", seeds=(0, 1, 2))
+    packed = groups(spec.runs(), 2, spec)
+    assert sorted(k for g in packed for k in g) == sorted(spec.runs())
+    shape = [(g[0].task, len({k.algo for k in g}), len(g)) for g in packed]
+    assert shape[:4] == [("ant", 5, 10), ("halfcheetah", 5, 10), ("hopper", 5, 10)] + [
+        ("humanoidstandup", 1, 2)
+    ]
+    assert ("walker", 5, 5) in shape and ("humanoidstandup", 1, 1) in shape  # the third seeds
+    cpu = groups(spec.runs(), 2, replace(spec, simulator="mujoco"))
+    assert all(len({k.algo for k in g}) == 1 for g in cpu) and len(cpu) == 50
+    rate_limited = replace(spec, rate_limit=0.1)  # TC-RMDP's game: RARL stays on its own
+    assert all(
+        {k.algo for k in g} in ({"rarl"}, {"td3", "dr", "m2td3", "nrmdp"})
+        for g in groups(rate_limited.runs(), 2, rate_limited)
+        if g[0].task == "hopper"
+    )
 
 
 pytest.importorskip("warp")

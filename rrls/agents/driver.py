@@ -104,21 +104,10 @@ class Driver:
     def run(self, states: list[dict[str, Any] | None]) -> None:
         """Drive the group from ``step`` to ``steps`` (``states``: the runs' checkpoints, None
         for a fresh start), then write each run's final files."""
-        ctrl_c = StepBoundary()  # Ctrl-C: a checkpoint at the end of its block, then stop
-        with self._bar() as bar, self.collector.running():
-            self.collector.start(states)
-            try:
-                ctrl_c.hold()
-                while self.step < self.steps:
-                    n = self._block()
-                    self._advance(n)
-                    bar.update(self.group * n)
-                    if ctrl_c.requested:  # Ctrl-C came during this block: keep its end, stop
-                        if self.runs and self.runs[0].saved_step != self.step:
-                            self.checkpoint(interrupted=True)
-                        raise KeyboardInterrupt
-            finally:
-                ctrl_c.release()
+        drive([self], [states])
+
+    def finish(self) -> None:
+        """Each run's exported policies and ``run.json``."""
         for k, run in enumerate(self.runs):
             summary = {"steps": run.step, "episodes": run.episodes}
             run.finish(export_policies(self.learner, k, self.metas[k]), summary)
@@ -163,7 +152,6 @@ class Driver:
             self.threads.poll()
         if self.runs and self.runs[0].checkpoint_due():
             self.checkpoint()
-            self.runs[0].check_stop()
         if self.on_progress is not None and self.progress_every:
             if self.step % self.progress_every == 0:
                 self.on_progress(self.step)
@@ -191,6 +179,43 @@ class Driver:
             run.save({"learner": run_slice(state, k), **self.collector.state(k)}, interrupted)
 
 
+def drive(drivers: list[Driver], states: list[list[dict[str, Any] | None]]) -> None:
+    """Drive groups in lockstep, every block of each at the same steps (``states``: each
+    group's checkpoints): one group alone, or several algorithms' groups whose collectors share
+    one twin step (``rrls.agents.resident.SharedBlocks``: the first group's ``advance`` steps
+    them all). A block ends wherever one of them must look; each group keeps its own cadence's
+    files, checkpoints included."""
+    if len({(d.step, d.steps) for d in drivers}) != 1:
+        raise ValueError("groups driven together start at the same step with the same budget")
+    first = drivers[0]
+    ctrl_c = StepBoundary()  # Ctrl-C: a checkpoint at the end of its block, then stop
+    with contextlib.ExitStack() as stack:
+        bars = [stack.enter_context(d._bar()) for d in drivers]
+        for d in drivers:
+            stack.enter_context(d.collector.running())
+        for d, group_states in zip(drivers, states):
+            d.collector.start(group_states)
+        try:
+            ctrl_c.hold()
+            while first.step < first.steps:
+                n = min(d._block() for d in drivers)
+                for d, bar in zip(drivers, bars):
+                    d._advance(n)
+                    bar.update(d.group * n)
+                for d in drivers:  # after every group's checkpoint at this step
+                    if d.runs and d.runs[0].saved_step == d.step:
+                        d.runs[0].check_stop()
+                if ctrl_c.requested:  # Ctrl-C came during this block: keep its end, stop
+                    for d in drivers:
+                        if d.runs and d.runs[0].saved_step != d.step:
+                            d.checkpoint(interrupted=True)
+                    raise KeyboardInterrupt
+        finally:
+            ctrl_c.release()
+    for d in drivers:
+        d.finish()
+
+
 class _NoBar:
     def update(self, n: int) -> None:
         pass
@@ -204,4 +229,4 @@ def _closing(bar: Any) -> Iterator[Any]:
         bar.close()
 
 
-__all__ = ["LOSS_EVERY", "Advance", "Collector", "Driver"]
+__all__ = ["LOSS_EVERY", "Advance", "Collector", "Driver", "drive"]

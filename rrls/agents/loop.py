@@ -18,26 +18,22 @@ collectors' ``"env"`` (first reset) and ``"warmup"`` streams, the learner's own.
 from __future__ import annotations
 
 import multiprocessing
-import os
 import signal
 from collections.abc import Callable
 from contextlib import ExitStack
 from pathlib import Path
 from typing import Any
 
-import numpy as np
 import torch
 
-from rrls.agents import graphs, resident
+from rrls.agents import resident
 from rrls.agents.config import TrainConfig
 from rrls.agents.driver import Collector, Driver
 from rrls.agents.envs import env_factory, make_envs
-from rrls.agents.hparams import check_memory
-from rrls.agents.learner import stack_runs
+from rrls.agents.group import build_learner, check_group, check_group_memory
 from rrls.agents.lookup import Algorithm, ResolvedRun, resolve_run, warm_up
 from rrls.agents.run import Run, active_ctrl_c
 from rrls.agents.stepwise import StepCollector, uniform
-from rrls.agents.streams import RunSeeds
 from rrls.agents.threads import process_settings
 from rrls.files import DirectoryLock
 
@@ -62,7 +58,8 @@ def train_group(
     resume: bool = False,
     on_episode: Callable[[int, int, float], None] | None = None,
 ) -> list[Path]:
-    """Train several runs of one algorithm on one task together; returns their directories.
+    """Train several runs of one algorithm on one task together; returns their directories
+    (runs of several algorithms on one MuJoCo Warp twin: ``rrls.agents.shared``).
 
     The runs (typically different seeds) differ only in ``seed`` and ``out``; one learner holds
     them all (one batched update) and their envs step in lockstep. Each run keeps its own
@@ -73,7 +70,11 @@ def train_group(
     if not configs:
         return []
     resolved = [resolve_run(c) for c in configs]  # each run's algorithm and Config, once
-    _check_group(resolved)
+    if len({r.settings.algo for r in resolved}) > 1:  # several algorithms: one twin step
+        from rrls.agents.shared import train_shared
+
+        return train_shared(resolved, resume, on_episode)
+    check_group(resolved)
     with ExitStack() as locks:  # a second command writing the same run directory is refused
         for c in configs:
             if c.out is not None:
@@ -82,7 +83,7 @@ def train_group(
 
 
 def _train_runs(resolved: list[ResolvedRun], resume, on_episode) -> list[Path]:
-    group = resolved[0]  # the runs differ only in seed and directory (_check_group)
+    group = resolved[0]  # the runs differ only in seed and directory (check_group)
     runs = [Run(r.settings, resume, group.hyper) for r in resolved]
     try:
         pending = [k for k, run in enumerate(runs) if not run.finished]
@@ -103,27 +104,6 @@ def _train_runs(resolved: list[ResolvedRun], resume, on_episode) -> list[Path]:
         for run in reversed(runs):
             run.close()
     return [run.dir for run in runs]
-
-
-def _check_group(resolved: list[ResolvedRun]) -> None:
-    """The runs of a group must differ only in seed and directory."""
-    configs = [r.settings for r in resolved]
-    first, reference = configs[0], configs[0].identity(resolved[0].hyper)
-    same = ("steps", "device", "eval_every", "eval_episodes", "eval_mesh", "checkpoint_every")
-    for config, run in zip(configs[1:], resolved[1:]):
-        identity = config.identity(run.hyper)
-        diff = [k for k, v in reference.items() if k != "seed" and identity[k] != v]
-        diff += [name for name in same if getattr(config, name) != getattr(first, name)]
-        if diff:
-            raise ValueError(
-                f"runs trained together must differ only in seed and out; these differ: "
-                f"{', '.join(sorted(set(diff)))}"
-            )
-    # realpath: Path.resolve raises RuntimeError on a loop of links (Python 3.11); the run's
-    # directory refuses it in one line when it is made
-    outs = [os.path.realpath(c.out) for c in configs]
-    if len(set(outs)) != len(outs):
-        raise ValueError("runs trained together need one directory each (--out)")
 
 
 def _train_together(group: ResolvedRun, runs, states, on_episode, threads) -> None:
@@ -168,33 +148,6 @@ def _without_ctrl_c(start: Callable[..., Any], *args: Any) -> Any:
         signal.signal(signal.SIGINT, previous)
 
 
-def check_group_memory(hyper: Any, env: Any, group: int, steps: int) -> None:
-    """Refuse, before the learner allocates them, replay buffers and networks that cannot fit
-    in this machine's memory (float32 transitions of ``min(buffer_size, steps)`` rows per run;
-    each network with its target, gradient and two Adam moments)."""
-    size = {k: int(np.prod(s.shape)) for k, s in _spaces(env).items()}
-    obs, act = size.get("obs", 0), size.get("act", 0)
-    rows = min(int(getattr(hyper, "buffer_size", 0) or 0), max(steps, 0))
-    replay = rows * (2 * obs + act + 2) * 4
-    hidden = list(getattr(hyper, "hidden", ()) or ())
-    params = 0
-    for sizes in ([obs, *hidden, act], [obs + act, *hidden, 1], [obs + act, *hidden, 1]):
-        params += sum(a * b + b for a, b in zip(sizes[:-1], sizes[1:]))
-    check_memory(
-        group * (replay + 5 * 4 * params),
-        f"{group} run(s) with {rows:,} replay transitions and {hidden} networks each",
-        "lower --buffer-size or --hidden, or train fewer runs together",
-    )
-
-
-def _spaces(env: Any) -> dict[str, Any]:
-    out = {}
-    for key, space in (("obs", env.observation_space), ("act", env.action_space)):
-        if getattr(space, "shape", None) is not None:
-            out[key] = space
-    return out
-
-
 def env_workers(config: TrainConfig, group: int) -> int:
     """``--env-workers``, or by default: none on a CPU (the update dominates), on a GPU one per
     4 envs of a group of 16 or more, within the cores. Measured on an H100 machine's 16-core
@@ -212,27 +165,6 @@ def env_workers(config: TrainConfig, group: int) -> int:
     return max(0, min(group // 4, cores() - 1))
 
 
-#: updates left below which ``--compile``'s default is off: compiling (~35 s the first time on a
-#: machine, ~4 s from the cache) is not paid back by a short run or a test
-COMPILE_MIN_UPDATES = 20_000
-#: devices where the default compiles (with enough updates left). Not the CPU: measured on a
-#: 2-core AMD EPYC (torch 2.13, Hopper TD3, 256-256, batch 256, 1 thread), a compiled update
-#: costs as much CPU time as an eager one (6.5-7.0 ms against 5.9-6.8 ms): the GEMMs are ~80 %
-#: of it and the compiled graphs' own overhead (a dozen frames per update, split by
-#: ``backward`` and ``Optimizer.step``'s graph breaks) eats what fusion saves
-COMPILE_PAYS_ON = ("cuda",)
-
-
-def compiles(config: TrainConfig, learning_starts: int, step: int) -> bool:
-    """``--compile``, or by default: on a device of ``COMPILE_PAYS_ON``, whether the updates
-    left from ``step`` are ``COMPILE_MIN_UPDATES`` or more."""
-    if config.compile is not None:
-        return config.compile
-    if torch.device(config.device).type not in COMPILE_PAYS_ON:
-        return False
-    return config.steps - max(step, learning_starts) >= COMPILE_MIN_UPDATES
-
-
 def _collect(
     algo: Algorithm,
     hyper: Any,
@@ -247,17 +179,11 @@ def _collect(
     first = runs[0].config
     seeds = [run.config.seed for run in runs]
     learning_starts = warm_up(hyper)
-    # the learner's updates read these when made; a learner made elsewhere keeps the defaults
-    compiled = compiles(first, learning_starts, runs[0].step)
-    with graphs.settings(graphs=first.cuda_graphs, compile=compiled):
-        streams = [RunSeeds(s) for s in seeds]
-        learner = algo.Learner(template, hyper, streams, torch.device(first.device))
-    if any(state is not None for state in states):
-        learner.load_state_dict(stack_runs([state["learner"] for state in states]))
+    learner = build_learner(algo, hyper, runs, states, template)
     collector: Collector
     if resident.trains_on_device(first, algo.Learner, hyper):
         device = torch.device(first.device)
-        collector = resident.BlockCollector(
+        collector = resident.BlockCollector.alone(
             envs, learner, seeds, learning_starts, first.algo, device
         )
     else:
@@ -288,10 +214,6 @@ def _collect(
 
 
 __all__ = [
-    "COMPILE_MIN_UPDATES",
-    "COMPILE_PAYS_ON",
-    "check_group_memory",
-    "compiles",
     "env_workers",
     "make_envs",
     "train",

@@ -22,10 +22,10 @@ from typing import Any
 
 import torch
 
-from rrls.agents.driver import Driver
+from rrls.agents.driver import Driver, drive
 from rrls.agents.learner import DeviceLearnerProtocol
 from rrls.agents.lookup import algorithm, warm_up
-from rrls.agents.resident import BLOCK, BlockCollector, make_twin
+from rrls.agents.resident import BLOCK, SharedBlocks, make_part, make_shared_twin
 from rrls.agents.streams import RunSeeds
 from rrls.algorithms import algorithm_info
 from rrls.twin.catalog import not_on_twin
@@ -78,54 +78,119 @@ def train_on_twin(
     """Train ``len(seeds)`` runs of ``algo`` on ``task``'s twin, world ``k`` for seed ``k``;
     ``on_progress(step, returns)`` every ``progress_every`` steps; random inputs drawn ``block``
     steps ahead (see the module's docstring)."""
-    why = twin_refusal(algo)
-    if why is not None:
-        raise ValueError(f"{algo} does not train on the Warp twin here: {why}")
-    if not seeds:
-        raise ValueError("seeds: give at least one")
+    progress = None if on_progress is None else (lambda step, out: on_progress(step, out[algo]))
+    return train_together(
+        {algo: seeds},
+        task,
+        steps,
+        uncertainty=uncertainty,
+        device=device,
+        hyper={algo: hyper or {}},
+        twin_options=twin_options,
+        on_progress=progress,
+        progress_every=progress_every,
+        block=block,
+    )[algo]
+
+
+def train_together(
+    algos: dict[str, tuple[int, ...]],
+    task: str = "hopper",
+    steps: int = 100_000,
+    *,
+    uncertainty: str | None = None,
+    device: str = "cuda",
+    hyper: dict[str, dict[str, Any]] | None = None,
+    twin_options: dict[str, Any] | None = None,
+    on_progress: Any = None,
+    progress_every: int = 1000,
+    block: int = BLOCK,
+) -> dict[str, TwinTraining]:
+    """Train several algorithms' runs on one twin, ``algos`` ``{algo: seeds}``: each
+    algorithm's worlds in its own mode (``WarpTwin(modes=...)``), its learner updating its own
+    runs, one twin step for all of them, so a step's latency is paid once. A run's numbers are
+    those it has trained alone (``train_on_twin``). ``hyper``: ``{algo: overrides}``;
+    ``on_progress(step, {algo: returns})``."""
+    if not algos:
+        raise ValueError("algos: give at least one algorithm with its seeds")
+    for algo, seeds in algos.items():
+        why = twin_refusal(algo)
+        if why is not None:
+            raise ValueError(f"{algo} does not train on the Warp twin here: {why}")
+        if not seeds:
+            raise ValueError(f"seeds of {algo}: give at least one")
     for name, value in (("steps", steps), ("block", block), ("progress_every", progress_every)):
         if not isinstance(value, int) or value < 1:
             raise ValueError(f"{name} must be a positive integer, got {value!r}")
-    info = algorithm(algo)
-    config = info.Config(**(hyper or {}))
+    hyper = hyper or {}
+    unknown = sorted(set(hyper) - set(algos))
+    if unknown:
+        raise ValueError(f"hyper names {', '.join(unknown)}; valid: {', '.join(algos)}")
+    configs = {a: algorithm(a).Config(**hyper.get(a, {})) for a in algos}
     uncertainty = uncertainty or default_set(task)  # the twin's own default, named for the env
-    twin = make_twin(task, algo, list(seeds), uncertainty, device, config, **(twin_options or {}))
+    groups = [(a, list(seeds), configs[a]) for a, seeds in algos.items()]
+    twin = make_shared_twin(task, groups, uncertainty, device, **(twin_options or {}))
     dev = torch.device(device)
-    # RARL's learner reads both players' spaces from its game's env, M2TD3 its set from its
-    # env; the others the twin's
-    game = info.make_env(task, uncertainty, config) if twin.adversary_dim or twin.chosen else None
+    returns = {a: [[] for _ in seeds] for a, seeds in algos.items()}
     try:
-        learner = info.Learner(game or twin.cpu, config, [RunSeeds(s) for s in seeds], dev)
+        parts, lo = [], 0
+        for algo, seeds in algos.items():
+            learner = _learner(algo, task, uncertainty, configs[algo], twin, seeds, dev)
+            parts.append(make_part(twin, learner, list(seeds), warm_up(configs[algo]), algo, lo))
+            lo += len(seeds)
+        shared = SharedBlocks(twin, parts, dev, block)
+        drivers = []
+        for algo, part, collector in zip(algos, parts, shared.collectors()):
+            first = not drivers and on_progress is not None
+            drivers.append(
+                Driver(
+                    part.learner,
+                    collector,
+                    group=len(part.seeds),
+                    steps=steps,
+                    starts=part.starts,
+                    on_episode=lambda k, step, ret, mine=returns[algo]: mine[k].append(ret),
+                    on_progress=(lambda step: on_progress(step, returns)) if first else None,
+                    progress_every=progress_every,
+                )
+            )
+        start = time.perf_counter()
+        drive(drivers, [[None] * len(part.seeds) for part in parts])
+        wall = time.perf_counter() - start
+        out = {}
+        for algo, part in zip(algos, parts):
+            policies = [part.learner.export(k)["policy"] for k in range(len(part.seeds))]
+            out[algo] = TwinTraining(policies, returns[algo], steps, wall)
+    finally:
+        twin.close()
+    return out
+
+
+def _learner(
+    algo: str,
+    task: str,
+    uncertainty: str,
+    config: Any,
+    twin: Any,
+    seeds: tuple[int, ...],
+    device: torch.device,
+) -> Any:
+    """``algo``'s learner for ``seeds``' runs on the twin (RARL's reads both players' spaces
+    from its game's env, M2TD3's its set from its env; the others the twin's)."""
+    info = algorithm(algo)
+    use = algorithm_info(algo).set_use
+    game = info.make_env(task, uncertainty, config) if use in ("adversary", "chosen") else None
+    try:
+        learner = info.Learner(game or twin.cpu, config, [RunSeeds(s) for s in seeds], device)
     finally:
         if game is not None:
             game.close()
     if not isinstance(learner, DeviceLearnerProtocol):
-        twin.close()
         raise ValueError(
             f"{algo}'s learner has no device-resident methods (draw_ahead, act_tensor, put, "
             "update_drawn; docs/algorithms.md): train it with rrls train --simulator warp"
         )
-    starts = warm_up(config)
-    returns: list[list[float]] = [[] for _ in seeds]
-    collector = BlockCollector(twin, learner, list(seeds), starts, algo, dev, block)
-    driver = Driver(
-        learner,
-        collector,
-        group=len(seeds),
-        steps=steps,
-        starts=starts,
-        on_episode=lambda k, step, ret: returns[k].append(ret),
-        on_progress=None if on_progress is None else (lambda step: on_progress(step, returns)),
-        progress_every=progress_every,
-    )
-    start = time.perf_counter()
-    try:
-        driver.run([None] * len(seeds))
-        wall = time.perf_counter() - start
-        policies = [learner.export(w)["policy"] for w in range(len(seeds))]
-    finally:
-        twin.close()
-    return TwinTraining(policies, returns, steps, wall)
+    return learner
 
 
-__all__ = ["TwinTraining", "train_on_twin", "twin_refusal"]
+__all__ = ["TwinTraining", "train_on_twin", "train_together", "twin_refusal"]

@@ -59,7 +59,7 @@ def run_local(
     import multiprocessing as mp
 
     ctx = mp.get_context("spawn")
-    pending, running = groups(keys, pack), {}
+    pending, running = groups(keys, pack, spec), {}
     spec_json = spec.to_json()
     with single_thread_env():
         try:
@@ -143,7 +143,7 @@ def run_ray(
     gpus = 0.25 if spec.device.startswith("cuda") else 0
     task = ray.remote(num_cpus=1, num_gpus=gpus, max_retries=0)(_ray_run)
     spec_json = spec.to_json()
-    pending = [(group, 0) for group in groups(keys, pack)]  # (group, times lost so far)
+    pending = [(group, 0) for group in groups(keys, pack, spec)]  # (group, times lost so far)
     inflight: dict[Any, tuple[tuple[RunKey, ...], int]] = {}
     limit = jobs or len(pending)
     try:

@@ -39,10 +39,15 @@ def run_dir(root: Path, spec: Benchmark, key: RunKey) -> Path:
     return Path(root) / "runs" / key.name(spec.uncertainty)
 
 
-def groups(keys: list[RunKey], pack: int) -> list[tuple[RunKey, ...]]:
+def groups(
+    keys: list[RunKey], pack: int, spec: Benchmark | None = None
+) -> list[tuple[RunKey, ...]]:
     """``keys`` packed into groups of at most ``pack`` runs of one (algorithm, task) cell, the
     cells taken in turn (every cell's first group, then every cell's second...), so that a
-    benchmark stopped part-way has every algorithm's first seeds (``pack=1``: ``keys``' order)."""
+    benchmark stopped part-way has every algorithm's first seeds (``pack=1``: ``keys``' order).
+    With ``spec`` on the Warp twin, a task's groups of one turn whose runs can share a twin
+    (``shares_twin``) are one group: its algorithms train on one twin step
+    (``rrls.agents.shared``)."""
     cells: dict[tuple[str, str], list[RunKey]] = {}
     for key in keys:
         cells.setdefault((key.algo, key.task), []).append(key)
@@ -50,9 +55,38 @@ def groups(keys: list[RunKey], pack: int) -> list[tuple[RunKey, ...]]:
         [tuple(members[i : i + pack]) for i in range(0, len(members), pack)]
         for members in cells.values()
     ]
-    return [
-        c[turn] for turn in range(max(map(len, chunks), default=0)) for c in chunks if turn < len(c)
+    turns = [
+        (turn, c[turn])
+        for turn in range(max(map(len, chunks), default=0))
+        for c in chunks
+        if turn < len(c)
     ]
+    out: list[list[RunKey]] = []
+    shared: dict[tuple[int, str], list[RunKey]] = {}
+    for turn, chunk in turns:
+        if spec is None or not all(shares_twin(spec, key) for key in chunk):
+            out.append(list(chunk))
+        elif (turn, chunk[0].task) in shared:
+            shared[turn, chunk[0].task].extend(chunk)
+        else:
+            out.append(shared.setdefault((turn, chunk[0].task), list(chunk)))
+    return [tuple(group) for group in out]
+
+
+def shares_twin(spec: Benchmark, key: RunKey) -> bool:
+    """Whether ``key``'s run may share a twin step with other algorithms' runs of its task: it
+    trains on the twin (its task has one), a built-in algorithm (device-resident), neither
+    M2TD3's ``same_start`` (each episode begun on its CPU env) nor TC-RMDP's rate-limited game
+    (its parameters move on the host)."""
+    from rrls.algorithms import built_in
+
+    hyper = spec.hyperparameters(key.algo)
+    return (
+        spec.simulator_for(key.task) == "warp"
+        and key.algo in built_in()
+        and not hyper.get("same_start")
+        and hyper.get("rate_limit") is None
+    )
 
 
 def default_pack(spec: Benchmark, pack: int | None) -> int:
@@ -75,7 +109,8 @@ def execute_run(root: str, spec_json: dict[str, Any], key: tuple[str, str, int])
 def execute_group(
     root: str, spec_json: dict[str, Any], keys: list[tuple[str, str, int]]
 ) -> list[dict[str, Any]]:
-    """``execute_run`` for runs of one cell, trained together; returns each ``result.json``.
+    """``execute_run`` for runs of one cell (on the twin: of one task's cells), trained
+    together; returns each ``result.json``.
 
     Runs already finished are skipped; the others are trained in one ``train_group`` call (a
     run whose training finished is left out; runs resumed at different steps are fine), then
@@ -181,7 +216,8 @@ def _write_error(out: Path) -> None:
 def _train(
     spec: Benchmark, runs: list[RunKey], outs: list[Path], progress: list[ProgressFile]
 ) -> None:
-    """Train ``runs`` (one cell) together, resuming each from its checkpoint."""
+    """Train ``runs`` (one cell, or on the twin one task's cells) together, resuming each from
+    its checkpoint."""
     from rrls.agents import train_group
 
     configs = [spec.run_settings(run, out) for run, out in zip(runs, outs)]

@@ -216,13 +216,17 @@ def plan(
 
 
 def _simulators(spec: Benchmark) -> str:
-    """Where a warp benchmark's runs train: its tasks without a twin on CPU MuJoCo."""
-    cpu = [t for t in spec.tasks if spec.simulator_for(t) != spec.simulator]
-    if not cpu:
+    """Where a warp benchmark's runs train: its tasks without a twin on CPU MuJoCo; a task's
+    algorithms sharing each twin step."""
+    if spec.simulator != "warp":
         return ""
+    cpu = [t for t in spec.tasks if spec.simulator_for(t) != spec.simulator]
+    shared = "; on the Warp twin a task's algorithms share each twin step"
+    if not cpu:
+        return shared
     return (
         f"; trained on the Warp twin but {', '.join(cpu)} (no twin: CPU MuJoCo, beside the "
-        "twin's runs)"
+        "twin's runs)" + shared
     )
 
 
@@ -276,7 +280,7 @@ def _benchmark(
     todo, finished = pending_runs(root, spec)  # this command's grid only
     pack = default_pack(spec, pack)
     print(plan(root, spec, len(todo), finished, jobs, backend, pack), file=stream, flush=True)
-    slots = min(len(todo), (jobs or len(groups(todo, pack))) * pack)  # runs at once
+    slots = min(len(todo), (jobs or len(groups(todo, pack, spec))) * pack)  # runs at once
     display = Display(root, spec, todo, finished, slots, stream, interval)
     try:  # Ctrl-C: the runs are stopped before it goes on up
         if backend == "ray":
