@@ -26,12 +26,16 @@ Its rows, most wanted first (so a deadline cuts the least wanted):
 3. ``baseline``: the paper's five baselines at K = 10 on Hopper, then on HalfCheetah; those the
    twin refuses when it runs (``rrls.twin.catalog.not_on_twin``: an adversary not wired to the
    twin) give a ``refused: <reason>`` row, in the twin's own words, without a process;
+   after each task's, ``shared``: the five at K = 10 each on ONE twin
+   (``benchmarks/twin_shared.py``: 50 runs, one twin step for all, ``rrls.agents.shared``);
 4. ``loop`` on HalfCheetah at K = 1, 32, 128, 256;
 5. ``estimate``: the paper's protocol (``--preset paper``, 10 seeds packed K = 10 per process)
    on one GPU, recomputed from these rows with ``rrls.benchmark.gpu_estimate``; each cell is
    marked ``measured``, ``extrapolated`` (a twin task not measured: the mean of Hopper's and
    HalfCheetah's rows) or ``stored`` (no twin path or no row: the stored H100 figures of
-   ``rrls benchmark --dry-run --device cuda``), beside that stored estimate.
+   ``rrls benchmark --dry-run --device cuda``), beside that stored estimate; with ``shared``
+   rows, also the protocol as ``rrls benchmark --simulator warp`` packs it (a task's
+   algorithms on one twin: ``shared_wall_h``, its tasks' rates measured or extrapolated).
 
 A rate is the loop's own clock: ``charts/steps_per_second`` of run 0's episode ends gives the
 time at each end, and the rate is taken between the first end after ``--window-after`` steps
@@ -74,7 +78,7 @@ TINY.update(steps=60, starts=20, window_after=20)
 class Step:
     """One row to measure: a process (``command``) or a refusal (``refused``, no process)."""
 
-    kind: str  # "loop" or "baseline"
+    kind: str  # "loop", "baseline" or "shared"
     algo: str
     task: str
     k: int
@@ -82,6 +86,7 @@ class Step:
     runs: Path | None = None  # the run directories it writes (run 0's scalars give the rate)
     after: int = 0  # the rate's window starts at the first episode end after this step
     refused: str | None = None
+    total: int = 0  # runs in the step (0: k): the shared step's algorithms x k
 
 
 class Rows:
@@ -112,6 +117,11 @@ def line(row: dict[str, Any]) -> str:
             f"estimate ({row['protocol']}, K = {row['pack']}): {row['wall_h']:.1f} h on one GPU "
             f"from these rows (training {row['train_h']:.1f} h; cells {row['sources']}) against "
             f"{row['stored_wall_h']:.1f} h from the stored H100 figures"
+            + (
+                f"; a task's algorithms sharing each twin step: {row['shared_wall_h']:.1f} h"
+                if "shared_wall_h" in row
+                else ""
+            )
         )
     what = f"{row['kind']} {row['algo']} {row['task']} K={row['k']}: {row['status']}"
     if row["status"] == "ok" and "env_steps_per_s" in row:
@@ -198,7 +208,9 @@ def run_step(step: Step, timeout: float) -> dict[str, Any]:
             per_run, window = rate_from_scalars(step.runs / "seed0" / "scalars.csv", step.after)
         except (OSError, ValueError) as exc:
             return {**row, "status": f"failed: {exc}"}
-        row.update(per_run=per_run, env_steps_per_s=per_run * step.k, window=list(window))
+        runs = step.total or step.k
+        row.update(per_run=per_run, env_steps_per_s=per_run * runs, window=list(window))
+        row["runs"] = runs
     return {**row, "status": "ok"}
 
 
@@ -237,9 +249,22 @@ def plan(args: argparse.Namespace, tmp: Path) -> list[Step]:
         command += ["--simulator", args.simulator, "--out", str(runs), "--overwrite"]
         return Step(kind, algo, task, k, command, runs, after=args.window_after)
 
+    def shared(task: str) -> Step:
+        runs = tmp / f"shared-{task}-{pack}"
+        command = [sys.executable, str(ROOT / "benchmarks" / "twin_shared.py"), str(runs)]
+        command += ["--task", task, "--k", str(pack), "--steps", str(args.steps)]
+        command += ["--starts", str(args.starts), "--device", args.device]
+        five = paper_five()
+        total = len(five) * pack
+        return Step(
+            "shared", "+".join(five), task, pack, command, runs, args.window_after, total=total
+        )
+
     steps = [train("loop", "td3", tasks[0], k) for k in ks]
     for task in tasks:
         steps += [train("baseline", algo, task, pack) for algo in algos]
+        if args.simulator == "warp" and not args.algos:  # not in the CPU dry run's sizes
+            steps.append(shared(task))
     for task in tasks[1:]:
         steps += [train("loop", "td3", task, k) for k in ks]
     return steps
@@ -272,8 +297,26 @@ def measured_rate(rows: list[dict[str, Any]]) -> tuple[Callable[..., Any], dict[
     return rate, sources
 
 
+def shared_rate(rows: list[dict[str, Any]]) -> Callable[[str, int], tuple[float, bool]] | None:
+    """A task's shared-twin rate from the ``shared`` rows (another task's, or another run count:
+    the per-run rate held, extrapolated), or None without one."""
+    ok = [r for r in rows if r["kind"] == "shared" and r.get("status") == "ok"]
+    if not ok:
+        return None
+
+    def rate(task: str, runs: int) -> tuple[float, bool]:
+        mine = [r for r in ok if r["task"] == task] or ok
+        per_run = sum(r["per_run"] for r in mine) / len(mine)
+        exact = any(r["task"] == task and r["runs"] == runs for r in mine)
+        return per_run * runs, exact
+
+    return rate
+
+
 def paper_estimate(rows: list[dict[str, Any]], pack: int = PACK) -> dict[str, Any]:
     """The paper's protocol on one GPU from the measured rows, beside the stored figures'."""
+    from dataclasses import replace
+
     from rrls.benchmark.gpu_estimate import gpu_estimate
     from rrls.benchmark.grid import make_spec
 
@@ -281,6 +324,15 @@ def paper_estimate(rows: list[dict[str, Any]], pack: int = PACK) -> dict[str, An
     rate, sources = measured_rate(rows)
     est, stored = gpu_estimate(spec, pack, rate=rate), gpu_estimate(spec, pack)
     counts = {s: list(sources.values()).count(s) for s in ("measured", "extrapolated", "stored")}
+    shared = shared_rate(rows)
+    extra = {}
+    if shared is not None:
+        warp = replace(spec, simulator="warp")
+        together = gpu_estimate(warp, pack, rate=rate, shared=shared)
+        extra = {
+            "shared_wall_h": together["wall_s"] / 3600,
+            "shared_measured": together["measured"],
+        }
     return {
         "kind": "estimate",
         "protocol": "paper",
@@ -291,6 +343,7 @@ def paper_estimate(rows: list[dict[str, Any]], pack: int = PACK) -> dict[str, An
         "stored_wall_h": stored["wall_s"] / 3600,
         "sources": ", ".join(f"{n} {s}" for s, n in counts.items() if n),
         "cells": sources,
+        **extra,
     }
 
 

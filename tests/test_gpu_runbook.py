@@ -195,13 +195,40 @@ def test_the_plan_puts_the_most_wanted_rows_first_and_refuses_without_a_process(
     five = ("td3", "dr", "rarl", "nrmdp", "m2td3")
     assert order[:4] == [("loop", "hopper", "td3", k) for k in (1, 32, 128, 256)]
     assert sorted(order[4:9]) == sorted(("baseline", "hopper", a, 10) for a in five)
-    assert sorted(order[9:14]) == sorted(("baseline", "halfcheetah", a, 10) for a in five)
-    assert order[14:] == [("loop", "halfcheetah", "td3", k) for k in (1, 32, 128, 256)]
+    assert order[9] == ("shared", "hopper", "+".join(five), 10) and steps[9].total == 50
+    assert sorted(order[10:15]) == sorted(("baseline", "halfcheetah", a, 10) for a in five)
+    assert order[15] == ("shared", "halfcheetah", "+".join(five), 10)
+    assert order[16:] == [("loop", "halfcheetah", "td3", k) for k in (1, 32, 128, 256)]
     for s in steps:
-        if s.algo == "nrmdp":
+        if s.kind == "shared":  # the five on one twin: a script, run 0 in OUT/seed0
+            assert s.command[1].endswith("benchmarks/twin_shared.py") and "--k 10" in " ".join(
+                s.command
+            )
+        elif s.algo == "nrmdp":
             assert s.command is None and s.refused == "the Warp twin does not train nrmdp: no"
         else:
             assert s.refused is None and s.command[2:4] == ["rrls", "train"]
             assert "--simulator warp" in " ".join(s.command) and f"--seeds 0-{s.k - 1}" in " ".join(
                 s.command
             )
+
+
+def test_shared_twin_rows_give_the_protocol_as_a_warp_benchmark_packs_it():
+    """A ``shared`` row (the five baselines on one twin) times each task's algorithms as one
+    group: measured for its task and run count, extrapolated (its per-run rate) elsewhere."""
+    runbook = _runbook()
+    base = {"kind": "baseline", "task": "hopper", "k": 10, "status": "ok"}
+    rows = [base | {"algo": a, "env_steps_per_s": 2000.0} for a in ("td3", "dr")]
+    alone = runbook.paper_estimate(rows)
+    assert "shared_wall_h" not in alone
+    shared = {"kind": "shared", "algo": "td3+dr+rarl+nrmdp+m2td3", "task": "hopper", "k": 10}
+    shared |= {"status": "ok", "per_run": 100.0, "runs": 50, "env_steps_per_s": 5000.0}
+    est = runbook.paper_estimate([*rows, shared])
+    assert est["wall_h"] == alone["wall_h"]  # the per-cell estimate is unchanged
+    assert 0 < est["shared_wall_h"] and est["shared_measured"] is False  # other tasks: held
+    rate = runbook.shared_rate([shared])
+    assert rate("hopper", 50) == (5000.0, True) and rate("walker", 20) == (2000.0, False)
+    faster = runbook.paper_estimate([*rows, shared | {"per_run": 200.0}])
+    assert faster["shared_wall_h"] < est["shared_wall_h"]
+    assert "a task's algorithms sharing each twin step" in runbook.line(est)
+    assert runbook.shared_rate([shared | {"status": "failed: x"}]) is None

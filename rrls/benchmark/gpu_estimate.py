@@ -22,7 +22,7 @@ from collections.abc import Callable
 from typing import Any
 
 from rrls.benchmark.cpu_estimate import REPORT_S, STARTUP_S, estimate
-from rrls.benchmark.grid import Benchmark
+from rrls.benchmark.grid import Benchmark, RunKey
 
 __all__ = ["GPU_RECORD", "Rate", "describe", "gpu_estimate", "stored_rate"]
 
@@ -54,18 +54,34 @@ def stored_rate(algo: str, k: int) -> tuple[float, bool]:
 
 
 def gpu_estimate(
-    spec: Benchmark, pack: int, cpu_cores: int = 16, rate: Rate | None = None
+    spec: Benchmark,
+    pack: int,
+    cpu_cores: int = 16,
+    rate: Rate | None = None,
+    shared: Callable[[str, int], tuple[float, bool]] | None = None,
 ) -> dict[str, Any]:
     """Seconds on one GPU: ``train_s`` (groups of ``pack`` seeds of a cell, one after another),
     ``eval_s`` (the final evaluations on ``cpu_cores``), ``wall_s``, and ``measured`` (whether
     every rate used was measured rather than interpolated, extrapolated or borrowed). ``rate``
     replaces the stored H100 figures (``benchmarks/gpu_runbook.py`` passes the rates it has
-    just measured on the machine, per task)."""
+    just measured on the machine, per task). ``shared(task, runs) -> (aggregated env steps/s,
+    measured)``: the rate of a task's algorithms sharing one twin step (``rrls benchmark
+    --simulator warp`` packs them so: ``pipeline.groups``); given, those runs are timed as one
+    group of each turn of ``pack`` seeds, at the steps of the longest warm-up's."""
+    from rrls.benchmark.pipeline import shares_twin
+
     pack = max(1, min(pack, len(spec.seeds)))
     train, measured = 0.0, True
     groups = 0
+    together = {
+        task: [a for a in spec.algos if shares_twin(spec, RunKey(a, task, 0))]
+        for task in spec.tasks
+        if shared is not None
+    }
     for algo in spec.algos:
         for task in spec.tasks:
+            if algo in together.get(task, ()):
+                continue
             for start in range(0, len(spec.seeds), pack):
                 k = min(pack, len(spec.seeds) - start)
                 per_s, exact = rate(algo, task, k) if rate else stored_rate(algo, k)
@@ -73,6 +89,13 @@ def gpu_estimate(
                 learning = spec.steps - spec.warmup(algo)
                 train += STARTUP_S + k * learning / per_s + spec.warmup(algo) / 2_000.0
                 groups += 1
+    for task, algos in together.items():
+        for start in range(0, len(spec.seeds), pack) if shared and algos else ():
+            runs = min(pack, len(spec.seeds) - start) * len(algos)
+            per_s, exact = shared(task, runs)
+            measured &= exact
+            train += STARTUP_S + runs * spec.steps / per_s
+            groups += 1
     evals = estimate(spec, 1)["eval_s"] / max(1, cpu_cores)
     return {
         "groups": groups,
