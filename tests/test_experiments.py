@@ -681,3 +681,16 @@ def test_a_file_copied_from_another_run_is_refused_by_name(tmp_path, capsys, cop
     assert main(["report", str(out)]) == 2
     line = capsys.readouterr().err.strip().splitlines()[-1]
     assert "copied from another run" in line and "seed0" in line, line
+
+
+def test_a_few_big_groups_evaluate_on_the_cores_the_others_leave(monkeypatch):
+    """A GPU benchmark's few groups (a task's algorithms on one twin) evaluate their runs on
+    their share of the machine's cores; a CPU benchmark's run per core keeps one each."""
+    import rrls._proc
+    from rrls.benchmark.backends import eval_share
+
+    monkeypatch.setattr(rrls._proc, "cores", lambda: 16)
+    assert eval_share(groups=5, jobs=16) == 3  # the paper's 5 twin tasks' groups
+    assert eval_share(groups=250, jobs=16) == 1 and eval_share(groups=5, jobs=1) == 16
+    monkeypatch.setattr(rrls._proc, "cores", lambda: 2)
+    assert eval_share(groups=1, jobs=2) == 2 and eval_share(groups=30, jobs=2) == 1

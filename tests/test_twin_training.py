@@ -75,6 +75,11 @@ def test_the_paper_preset_on_the_twin_trains_humanoidstandup_on_cpu_mujoco():
     text = plan(Path("bench"), spec, 250, 0, 0, "local", 10)
     assert "but humanoidstandup (no twin: CPU MuJoCo" in text
     assert "a task's algorithms share each twin step" in text
+    from rrls.benchmark.gpu_estimate import describe
+
+    on_gpu = describe(replace(spec, device="cuda"), 10)
+    assert "25 groups" in on_gpu and "sharing each twin step save is not measured" in on_gpu
+    assert "not measured yet" not in describe(replace(spec, device="cuda", simulator="mujoco"), 10)
 
 
 def test_on_the_twin_a_tasks_algorithms_are_one_group_and_humanoidstandup_is_not():

@@ -28,7 +28,9 @@ from rrls.files import DirectoryLock
 
 
 # --- local backend: one spawned process per group ----------------------------------------------
-def _group_main(root: str, spec_json: dict[str, Any], keys: list[tuple[str, str, int]]) -> None:
+def _group_main(
+    root: str, spec_json: dict[str, Any], keys: list[tuple[str, str, int]], eval_workers: int = 1
+) -> None:
     """Entry point of a group's process: dies with the driver, writes error.txt on failure.
     Ctrl-C is the driver's to handle (it stops the groups and says how to resume): a group
     ignores SIGINT, so that it is not torn down half-way through its own cleanup."""
@@ -40,7 +42,7 @@ def _group_main(root: str, spec_json: dict[str, Any], keys: list[tuple[str, str,
     signal.signal(signal.SIGTERM, lambda *_: sys.exit(143))
     die_with_parent()
     try:
-        execute_recorded(root, spec_json, keys)
+        execute_recorded(root, spec_json, keys, eval_workers)
     except BaseException:  # noqa: BLE001 - recorded in error.txt; the worker's exit says it
         sys.exit(1)
 
@@ -55,11 +57,13 @@ def run_local(
     pack: int = 1,
 ) -> None:
     """At most ``jobs`` group processes at a time (``groups(keys, pack)``); ``tick()``
-    refreshes the display (~2/s)."""
+    refreshes the display (~2/s). Fewer groups than cores (a GPU benchmark's groups of many
+    runs): each group evaluates its runs on its share of the cores (``eval_workers``)."""
     import multiprocessing as mp
 
     ctx = mp.get_context("spawn")
     pending, running = groups(keys, pack, spec), {}
+    eval_workers = eval_share(len(pending), jobs)
     spec_json = spec.to_json()
     with single_thread_env():
         try:
@@ -71,7 +75,12 @@ def run_local(
                         name += "-" + "-".join(str(key.seed) for key in group[1:])
                     proc = ctx.Process(
                         target=_group_main,
-                        args=(str(root), spec_json, [(k.algo, k.task, k.seed) for k in group]),
+                        args=(
+                            str(root),
+                            spec_json,
+                            [(k.algo, k.task, k.seed) for k in group],
+                            eval_workers,
+                        ),
                         name=f"rrls-run-{name}",
                     )
                     proc.start()
@@ -97,6 +106,14 @@ def run_local(
                 if proc.is_alive():
                     proc.kill()
                     proc.join()
+
+
+def eval_share(groups: int, jobs: int) -> int:
+    """Evaluation processes per group: the machine's cores shared among the groups that run at
+    once (1 when there are as many groups as jobs: a CPU benchmark's run per core)."""
+    from rrls._proc import cores
+
+    return max(1, cores() // max(1, min(groups, jobs)))
 
 
 # --- Ray backend: the same function as Ray tasks ----------------------------------------------

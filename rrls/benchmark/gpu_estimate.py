@@ -122,4 +122,10 @@ def describe(spec: Benchmark, pack: int) -> str:
         f"{format_duration(est['wall_s'])} ({est['groups']} groups of up to {pack} runs one "
         f"after another: training {format_duration(est['train_s'])}, final evaluations on 16 "
         f"CPU cores {format_duration(est['eval_s'])})"
+        + (
+            "; counted a group per cell: how much a task's algorithms sharing each twin step "
+            "save is not measured yet (benchmarks/gpu_runbook.py measures it)"
+            if spec.simulator == "warp"
+            else ""
+        )
     )

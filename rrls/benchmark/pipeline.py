@@ -107,15 +107,16 @@ def execute_run(root: str, spec_json: dict[str, Any], key: tuple[str, str, int])
 
 
 def execute_group(
-    root: str, spec_json: dict[str, Any], keys: list[tuple[str, str, int]]
+    root: str, spec_json: dict[str, Any], keys: list[tuple[str, str, int]], eval_workers: int = 1
 ) -> list[dict[str, Any]]:
     """``execute_run`` for runs of one cell (on the twin: of one task's cells), trained
     together; returns each ``result.json``.
 
     Runs already finished are skipped; the others are trained in one ``train_group`` call (a
     run whose training finished is left out; runs resumed at different steps are fine), then
-    each is evaluated on its own. A failing stage of one run writes its ``error.txt`` and the
-    others go on; ``GroupFailed`` is raised at the end.
+    each is evaluated on its own (on ``eval_workers`` processes: the cores a GPU benchmark's
+    few groups leave idle; the same rows whatever the count). A failing stage of one run writes
+    its ``error.txt`` and the others go on; ``GroupFailed`` is raised at the end.
     """
     os.environ.update(THREAD_ENV)  # before numpy/torch load here (a no-op if already loaded)
     from threadpoolctl import threadpool_limits
@@ -136,7 +137,8 @@ def execute_group(
         for i in todo:
             stack.enter_context(DirectoryLock(outs[i]))
         stack.enter_context(threadpool_limits(1))
-        errors = _group_stages(spec, [runs[i] for i in todo], [outs[i] for i in todo])
+        todo_runs, todo_outs = [runs[i] for i in todo], [outs[i] for i in todo]
+        errors = _group_stages(spec, todo_runs, todo_outs, eval_workers)
         for i in todo:
             if i not in errors:
                 results[i] = files.read_checked_json(outs[i] / rundir.RESULT)
@@ -148,7 +150,7 @@ def execute_group(
 
 
 def _group_stages(
-    spec: Benchmark, runs: list[RunKey], outs: list[Path]
+    spec: Benchmark, runs: list[RunKey], outs: list[Path], eval_workers: int = 1
 ) -> dict[int, BaseException]:
     """The stages of ``runs`` (training shared, the rest per run); returns each failed run's
     error (its traceback is in its ``error.txt``)."""
@@ -188,7 +190,7 @@ def _group_stages(
         run, out = runs[i], outs[i]
         try:
             progress[i].write("evaluate", spec.steps)
-            result = _evaluate(spec, run, out)
+            result = _evaluate(spec, run, out, eval_workers)
             if plays_adversary(run.algo):
                 progress[i].write("dynamic", spec.steps)
                 result.update(_dynamic(spec, run, out))
@@ -226,12 +228,12 @@ def _train(
     )
 
 
-def _evaluate(spec: Benchmark, run: RunKey, out: Path) -> dict[str, Any]:
+def _evaluate(spec: Benchmark, run: RunKey, out: Path, workers: int = 1) -> dict[str, Any]:
     from rrls.evaluation import MLPPolicy
 
     policy = MLPPolicy.load(out / rundir.POLICY)
     trained = {"train_set": spec.train_set(run.algo), "steps": spec.steps}
-    return run_evaluation(spec, run.algo, run.task, run.seed, policy, out, 1, False, trained)
+    return run_evaluation(spec, run.algo, run.task, run.seed, policy, out, workers, False, trained)
 
 
 def _dynamic(spec: Benchmark, run: RunKey, out: Path) -> dict[str, Any]:
@@ -302,12 +304,12 @@ class GroupFailed(RuntimeError):
 
 
 def execute_recorded(
-    root: str, spec_json: dict[str, Any], keys: list[tuple[str, str, int]]
+    root: str, spec_json: dict[str, Any], keys: list[tuple[str, str, int]], eval_workers: int = 1
 ) -> list[dict[str, Any]]:
     """``execute_group``, and a failure outside the runs' stages (a held lock, an interrupt)
     written to the ``error.txt`` of each run left unfinished."""
     try:
-        return execute_group(root, spec_json, keys)
+        return execute_group(root, spec_json, keys, eval_workers)
     except GroupFailed:
         raise
     except BaseException:
