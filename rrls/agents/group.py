@@ -6,6 +6,9 @@ its learner (compiled or not, its state loaded on resume)."""
 from __future__ import annotations
 
 import os
+from collections.abc import Callable
+from contextlib import ExitStack
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -18,6 +21,37 @@ from rrls.agents.learner import stack_runs
 from rrls.agents.lookup import Algorithm, ResolvedRun, warm_up
 from rrls.agents.run import Run
 from rrls.agents.streams import RunSeeds
+from rrls.agents.threads import process_settings
+from rrls.files import DirectoryLock
+
+#: ``train(runs, states, members, threads)``: train ``members`` (indices of ``runs``, all at
+#: one step) from their checkpoints ``states`` (None: a fresh start)
+TrainAtStep = Callable[[list[Run], dict[int, Any], list[int], Any], None]
+
+
+def run_groups(resolved: list[ResolvedRun], resume: bool, train: TrainAtStep) -> list[Path]:
+    """The runs' directories locked (a second command writing one is refused) and opened
+    (resumed or fresh), the unfinished ones trained by ``train`` in groups of equal step (runs
+    resumed from different steps continue apart), the runs closed whatever happens; their
+    directories."""
+    with ExitStack() as locks:
+        for r in resolved:
+            if r.settings.out is not None:
+                locks.enter_context(DirectoryLock(r.settings.out))
+        runs = [Run(r.settings, resume, r.hyper) for r in resolved]
+        try:
+            pending = [k for k, run in enumerate(runs) if not run.finished]
+            states = {k: runs[k].load() for k in pending}
+            by_step: dict[int, list[int]] = {}
+            for k in pending:
+                by_step.setdefault(runs[k].step, []).append(k)
+            for step in sorted(by_step):
+                with process_settings(resolved[0].settings.threads) as threads:
+                    train(runs, states, by_step[step], threads)
+        finally:
+            for run in reversed(runs):
+                run.close()
+    return [run.dir for run in runs]
 
 
 def check_group(resolved: list[ResolvedRun]) -> None:
@@ -112,4 +146,5 @@ __all__ = [
     "check_group",
     "check_group_memory",
     "compiles",
+    "run_groups",
 ]

@@ -20,7 +20,6 @@ from __future__ import annotations
 import multiprocessing
 import signal
 from collections.abc import Callable
-from contextlib import ExitStack
 from pathlib import Path
 from typing import Any
 
@@ -30,12 +29,10 @@ from rrls.agents import resident
 from rrls.agents.config import TrainConfig
 from rrls.agents.driver import Collector, Driver
 from rrls.agents.envs import env_factory, make_envs
-from rrls.agents.group import build_learner, check_group, check_group_memory
+from rrls.agents.group import build_learner, check_group, check_group_memory, run_groups
 from rrls.agents.lookup import Algorithm, ResolvedRun, resolve_run, warm_up
 from rrls.agents.run import Run, active_ctrl_c
 from rrls.agents.stepwise import StepCollector, uniform
-from rrls.agents.threads import process_settings
-from rrls.files import DirectoryLock
 
 
 def train(
@@ -75,35 +72,16 @@ def train_group(
 
         return train_shared(resolved, resume, on_episode)
     check_group(resolved)
-    with ExitStack() as locks:  # a second command writing the same run directory is refused
-        for c in configs:
-            if c.out is not None:
-                locks.enter_context(DirectoryLock(c.out))
-        return _train_runs(resolved, resume, on_episode)
+    group = resolved[0]  # the runs differ only in seed and directory
 
+    def train_at(runs: list[Run], states: dict[int, Any], members: list[int], threads: Any):
+        hook = None
+        if on_episode is not None:
+            hook = (lambda ks: lambda i, s, r: on_episode(ks[i], s, r))(members)
+        group_runs, group_states = [runs[k] for k in members], [states[k] for k in members]
+        _train_together(group, group_runs, group_states, hook, threads)
 
-def _train_runs(resolved: list[ResolvedRun], resume, on_episode) -> list[Path]:
-    group = resolved[0]  # the runs differ only in seed and directory (check_group)
-    runs = [Run(r.settings, resume, group.hyper) for r in resolved]
-    try:
-        pending = [k for k, run in enumerate(runs) if not run.finished]
-        states = {k: runs[k].load() for k in pending}
-        by_step: dict[int, list[int]] = {}
-        for k in pending:
-            by_step.setdefault(runs[k].step, []).append(k)
-        for step in sorted(by_step):
-            members = by_step[step]
-            hook = None
-            if on_episode is not None:
-                hook = (lambda ks: lambda i, s, r: on_episode(ks[i], s, r))(members)
-            with process_settings(group.settings.threads) as threads:
-                _train_together(
-                    group, [runs[k] for k in members], [states[k] for k in members], hook, threads
-                )
-    finally:
-        for run in reversed(runs):
-            run.close()
-    return [run.dir for run in runs]
+    return run_groups(resolved, resume, train_at)
 
 
 def _train_together(group: ResolvedRun, runs, states, on_episode, threads) -> None:

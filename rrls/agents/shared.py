@@ -14,7 +14,6 @@ equal step.
 from __future__ import annotations
 
 from collections.abc import Callable
-from contextlib import ExitStack
 from pathlib import Path
 from typing import Any
 
@@ -23,11 +22,9 @@ import torch
 from rrls.agents import resident
 from rrls.agents.driver import Driver, drive
 from rrls.agents.envs import env_factory
-from rrls.agents.group import build_learner, check_group, check_group_memory
+from rrls.agents.group import build_learner, check_group, check_group_memory, run_groups
 from rrls.agents.lookup import ResolvedRun, warm_up
 from rrls.agents.run import Run
-from rrls.agents.threads import process_settings
-from rrls.files import DirectoryLock
 
 #: what the runs sharing a twin must agree on (they step and stop together)
 SHARED = (
@@ -75,24 +72,11 @@ def train_shared(
     """Train ``resolved`` (runs of several algorithms of one task) on one twin; their
     directories. ``on_episode(k, step, return)`` as ``train_group``'s."""
     check_shared(resolved)
-    with ExitStack() as locks:  # a second command writing the same run directory is refused
-        for r in resolved:
-            if r.settings.out is not None:
-                locks.enter_context(DirectoryLock(r.settings.out))
-        runs = [Run(r.settings, resume, r.hyper) for r in resolved]
-        try:
-            pending = [k for k, run in enumerate(runs) if not run.finished]
-            states = {k: runs[k].load() for k in pending}
-            by_step: dict[int, list[int]] = {}
-            for k in pending:
-                by_step.setdefault(runs[k].step, []).append(k)
-            for step in sorted(by_step):
-                with process_settings(resolved[0].settings.threads) as threads:
-                    _together(resolved, runs, states, by_step[step], on_episode, threads)
-        finally:
-            for run in reversed(runs):
-                run.close()
-    return [run.dir for run in runs]
+
+    def train_at(runs: list[Run], states: dict[int, Any], members: list[int], threads: Any):
+        _together(resolved, runs, states, members, on_episode, threads)
+
+    return run_groups(resolved, resume, train_at)
 
 
 def _by_algo(resolved: list[ResolvedRun], members: Any) -> dict[str, list[int]]:
