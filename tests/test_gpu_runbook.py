@@ -232,3 +232,25 @@ def test_shared_twin_rows_give_the_protocol_as_a_warp_benchmark_packs_it():
     assert faster["shared_wall_h"] < est["shared_wall_h"]
     assert "a task's algorithms sharing each twin step" in runbook.line(est)
     assert runbook.shared_rate([shared | {"status": "failed: x"}]) is None
+
+
+@pytest.mark.warp
+def test_the_shared_step_trains_the_five_on_one_twin_and_reads_run_0s_clock(tmp_path):
+    """The runbook's ``shared`` step on warp's CPU device, at the smallest sizes: the paper's
+    five baselines, one seed each, on one Hopper twin (``benchmarks/twin_shared.py``), its rate
+    run 0's times the five runs."""
+    pytest.importorskip("warp")
+    pytest.importorskip("mujoco_warp")
+    import argparse
+
+    runbook = _runbook()
+    args = argparse.Namespace(ks=(), pack=1, tasks=("hopper",), algos=None, steps=60, starts=20)
+    args.__dict__.update(window_after=20, device="cpu", simulator="warp")
+    shared = [s for s in runbook.plan(args, tmp_path) if s.kind == "shared"]
+    assert len(shared) == 1 and shared[0].total == 5
+    row = runbook.run_step(shared[0], timeout=600)
+    assert row["status"] == "ok", row
+    assert row["runs"] == 5 and row["env_steps_per_s"] == pytest.approx(5 * row["per_run"])
+    made = sorted(p.name for p in shared[0].runs.iterdir())
+    assert made == ["dr-seed0", "m2td3-seed0", "nrmdp-seed0", "rarl-seed0", "seed0"]
+    assert all((shared[0].runs / name / "policy.npz").exists() for name in made)

@@ -136,6 +136,25 @@ def test_train_together_refuses_in_one_line():
         train_together({"td3": (0,)}, "invertedpendulum", 10, device="cpu", hyper={"sac": {}})
 
 
+def _twin_run(algo: str, seed: int, where, steps: int, eval_every: int = 50_000):
+    """A small ``rrls train --simulator warp`` run on warp's CPU device, in ``where``."""
+    from rrls.agents import TrainConfig
+
+    return TrainConfig(
+        algo=algo,
+        task="invertedpendulum",
+        seed=seed,
+        steps=steps,
+        out=str(where / f"{algo}-{seed}"),
+        device="cpu",
+        simulator="warp",
+        checkpoint_every=45,
+        eval_every=eval_every,
+        eval_episodes=1,
+        hyper=dict(HYPER),
+    )
+
+
 @pytest.mark.warp
 @pytest.mark.exactness  # batched updates: .ci/run repeats it on the other CPU kernels
 def test_rrls_runs_of_several_algorithms_share_a_twin_and_write_their_own_runs(tmp_path):
@@ -144,23 +163,11 @@ def test_rrls_runs_of_several_algorithms_share_a_twin_and_write_their_own_runs(t
     run its algorithm writes alone."""
     from conftest import policy_arrays
 
-    from rrls.agents import TrainConfig, train_group
+    from rrls.agents import train_group
     from rrls.agents.run import read_checkpoint
 
-    def config(algo: str, seed: int, where: str) -> TrainConfig:
-        return TrainConfig(
-            algo=algo,
-            task="invertedpendulum",
-            seed=seed,
-            steps=100,
-            out=str(tmp_path / where / f"{algo}-{seed}"),
-            device="cpu",
-            simulator="warp",
-            checkpoint_every=45,
-            eval_every=70,
-            eval_episodes=1,
-            hyper=dict(HYPER),
-        )
+    def config(algo: str, seed: int, where: str):
+        return _twin_run(algo, seed, tmp_path / where, steps=100, eval_every=70)
 
     runs = [("td3", 0), ("dr", 1), ("m2td3", 2), ("rarl", 3)]
     shared = train_group([config(a, s, "shared") for a, s in runs])
@@ -203,24 +210,10 @@ def test_a_shared_twin_group_killed_and_resumed_is_each_run_killed_and_resumed_a
     twin run's are)."""
     from conftest import policy_arrays, stopping_at
 
-    from rrls.agents import Interrupted, TrainConfig, train_group
+    from rrls.agents import Interrupted, train_group
 
-    def configs(runs, where: str) -> list[TrainConfig]:
-        return [
-            TrainConfig(
-                algo=algo,
-                task="invertedpendulum",
-                seed=seed,
-                steps=90,
-                out=str(tmp_path / where / f"{algo}-{seed}"),
-                device="cpu",
-                simulator="warp",
-                checkpoint_every=45,
-                eval_episodes=1,
-                hyper=dict(HYPER),
-            )
-            for algo, seed in runs
-        ]
+    def configs(runs, where: str) -> list:
+        return [_twin_run(algo, seed, tmp_path / where, steps=90) for algo, seed in runs]
 
     def cut_and_resume(runs, where: str):
         with stopping_at(45), pytest.raises(Interrupted):
