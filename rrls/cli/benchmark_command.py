@@ -161,7 +161,8 @@ def add_parser(sub: argparse._SubParsersAction) -> argparse.ArgumentParser:
         metavar="N",
         help="train up to N seeds of one algorithm and task together in one process (stacked "
         "agents, the same numbers as alone): the GPU then updates many seeds at once; on a CPU "
-        "the runs of a process share its one thread. Default: every seed of a cell with "
+        "the runs of a process share its one thread; with --simulator warp a task's algorithms "
+        "share the process and each twin step. Default: every seed of a cell with "
         "--device cuda, 1 on cpu",
     )
     b.add_argument(
