@@ -57,13 +57,14 @@ def run_local(
     pack: int = 1,
 ) -> None:
     """At most ``jobs`` group processes at a time (``groups(keys, pack)``); ``tick()``
-    refreshes the display (~2/s). Fewer groups than cores (a GPU benchmark's groups of many
-    runs): each group evaluates its runs on its share of the cores (``eval_workers``)."""
+    refreshes the display (~2/s). Packed groups fewer than the cores (a GPU benchmark's groups
+    of many runs): each evaluates its runs on its share of the cores (``eval_workers``)."""
     import multiprocessing as mp
 
     ctx = mp.get_context("spawn")
     pending, running = groups(keys, pack, spec), {}
-    eval_workers = eval_share(len(pending), jobs)
+    packed = any(len(group) > 1 for group in pending)  # a run alone: one process, as ever
+    eval_workers = eval_share(len(pending), jobs) if packed else 1
     spec_json = spec.to_json()
     with single_thread_env():
         try:
