@@ -123,6 +123,7 @@ STEPS = 84  # past the warm-up: the candidates restart, are drawn and descend on
 
 
 @pytest.mark.warp
+@pytest.mark.e2e  # ~30 s of twin training on warp's CPU device: the long tier (.ci/run runs it)
 def test_m2td3_trains_on_the_twin_reading_once_a_block(monkeypatch):
     """``train_on_twin`` trains M2TD3 with each episode's point chosen on the device: no read
     back inside a block, and a run's numbers do not depend on the block size."""
