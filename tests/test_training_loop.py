@@ -342,14 +342,22 @@ def test_a_damaged_checkpoint_is_refused_naming_the_file(tmp_path, capsys):
     assert str(cut / "checkpoint.pt") in err and "damaged" in err and "\n" not in err
 
 
-def test_extending_a_finished_run_equals_the_longer_run(tmp_path):
-    # the replay capacity no longer depends on --steps: 200 steps, then --resume --steps 300,
-    # equals 300 steps at once (the final checkpoint is at step 200: --checkpoint-every 50)
-    assert _cli(tmp_path / "long", "td3", 300) == 0
-    assert _cli(tmp_path / "short", "td3", 200) == 0
-    assert _cli(tmp_path / "short", "td3", 300, "--resume") == 0
-    a, b = (np.load(tmp_path / d / "policy.npz") for d in ("long", "short"))
-    assert all(np.array_equal(a[k], b[k]) for k in a.files if k != "header")
+@pytest.mark.parametrize(
+    "algo",
+    ["td3", *(pytest.param(a, marks=pytest.mark.e2e) for a in ("dr", "m2td3", "rarl", "nrmdp"))],
+)
+def test_extending_a_finished_run_equals_the_longer_run(tmp_path, algo):
+    # nothing depends on --steps (the replay capacity, RARL's phases, M2TD3's omegas): 200 steps,
+    # then --resume --steps 300, equals 300 steps at once (the final checkpoint is at step 200:
+    # --checkpoint-every 50), so a reference's budget can be extended run by run
+    assert _cli(tmp_path / "long", algo, 300) == 0
+    assert _cli(tmp_path / "short", algo, 200) == 0
+    assert _cli(tmp_path / "short", algo, 300, "--resume") == 0
+    for name in ("policy.npz", "adversary.npz"):
+        if (tmp_path / "long" / name).exists() or (tmp_path / "short" / name).exists():
+            a, b = (np.load(tmp_path / d / name) for d in ("long", "short"))
+            assert a.files == b.files
+            assert all(np.array_equal(a[k], b[k]) for k in a.files if k != "header")
 
 
 def test_a_split_run_trains_on_the_inner_box_only(tmp_path):
