@@ -35,6 +35,17 @@ def test_every_generated_block_of_a_page_is_what_its_data_give(name, reference):
     assert not changed, f"{page}: out of date ({changed}); run benchmarks/results_page.py --write"
 
 
+@pytest.mark.parametrize("name", ["hopper", "halfcheetah"])
+def test_a_locomotion_page_opens_with_its_table_beside_the_papers_row(name):
+    # a reader looks for the table and its verdict first; how it was made follows
+    text = (RESULTS / name / "README.md").read_text()
+    headings = [line for line in text.splitlines() if line.startswith("## ")]
+    assert headings[0].startswith("## Beside the paper's"), headings[0]
+    assert "<!-- generated:paper -->" in text.split(headings[1], 1)[0]
+    made = next(h for h in headings if h.startswith("## How it"))
+    assert headings.index(made) > 2
+
+
 def _disjoint_pairs(folder: Path, metric: str) -> list[tuple[str, str]]:
     data = results_page.per_seed(folder)
     ci = {a: results_page.t_interval(v[metric]) for a, v in data.items()}
