@@ -1,6 +1,6 @@
 """Copy a benchmark's finished runs' small files into a results folder, to commit as they land.
 
-    python3 benchmarks/collect_runs.py /path/to/bench docs/results/hopper
+    python3 benchmarks/collect_runs.py /path/to/bench docs/results/hopper-200k
 
 A reference produced in pieces on machines that may not come back keeps what is committed: each
 finished run (``result.json`` present) contributes its policy, ``run.json``, ``result.json``,

@@ -1,6 +1,6 @@
 """Re-evaluate a results folder's finished runs under a preset's protocol, without training.
 
-    python3 benchmarks/reevaluate.py docs/results/hopper /path/to/new-bench --preset hopper \
+    python3 benchmarks/reevaluate.py docs/results/hopper-200k /path/to/new-bench --preset hopper-200k \
         --algos td3,dr,nrmdp
 
 When a preset's evaluation protocol changes (the hopper preset moved to the paper's
@@ -95,7 +95,7 @@ def _training_differences(spec, key: RunKey, run: Path) -> dict:
 if __name__ == "__main__":
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument(
-        "src", type=Path, help="a results folder with runs/ (e.g. docs/results/hopper)"
+        "src", type=Path, help="a results folder with runs/ (e.g. docs/results/hopper-200k)"
     )
     parser.add_argument("dest", type=Path, help="the benchmark directory to write")
     parser.add_argument("--preset", required=True)

@@ -1,7 +1,7 @@
 """The numbers of a results page (``docs/results/<name>/README.md``), generated from its data.
 
-    python3 benchmarks/results_page.py docs/results/hopper --reference hopper --write
-    python3 benchmarks/results_page.py docs/results/hopper --reference hopper --check
+    python3 benchmarks/results_page.py docs/results/hopper-200k --reference hopper-200k --write
+    python3 benchmarks/results_page.py docs/results/hopper-200k --reference hopper-200k --check
 
 A page holds blocks between ``<!-- generated:NAME -->`` and ``<!-- /generated -->``; this script
 rewrites each from the shipped data: the report's per-run table (``tables/per_run.csv``: each
@@ -464,7 +464,8 @@ def blocks(folder: Path, reference: str | None) -> dict[str, str]:
     if (folder / "cleanrl_td3_returns.csv").is_file():
         import td3_sanity  # beside this file
 
-        steps = td3_sanity.TASKS[folder.name][0]
+        task = json.loads((folder / "benchmark.json").read_text())["tasks"][0]
+        steps = td3_sanity.TASKS[task][0]
         out["sanity"] = td3_sanity.table(folder, folder / "cleanrl_td3_returns.csv", steps)
     import page_checks  # beside this file
 

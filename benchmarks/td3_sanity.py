@@ -7,7 +7,7 @@ Hopper, the TD3 authors'), at the same step counts.
   written to ``--out`` (CSV: seed, step, return).
 - then the table: at 50 k, 100 k, 150 k and 200 k steps, the mean training-episode return over
   the preceding 10 000 steps (with exploration noise, as CleanRL logs it) of rrls's TD3 runs
-  (``docs/results/hopper/runs/td3-*/scalars.csv``) and of CleanRL's; rrls's deterministic
+  (``docs/results/hopper-200k/runs/td3-*/scalars.csv``) and of CleanRL's; rrls's deterministic
   nominal evaluation; and the TD3 authors' published learning curves (Fujimoto et al. 2018,
   ``sfujim/TD3`` ``learning_curves/Hopper/TD3_Hopper-v1_{0..9}.npy``: Hopper-v1 under mujoco-py,
   10 seeds, 10 000 random steps, 400-300 networks, deterministic evaluation every 5 000 steps;
@@ -32,8 +32,8 @@ import numpy as np
 import pandas as pd
 
 ROOT = Path(__file__).resolve().parent.parent
-RUNS = ROOT / "docs" / "results" / "hopper" / "runs"
-OUT = ROOT / "docs" / "results" / "hopper" / "cleanrl_td3_returns.csv"
+RUNS = ROOT / "docs" / "results" / "hopper-200k" / "runs"
+OUT = ROOT / "docs" / "results" / "hopper-200k" / "cleanrl_td3_returns.csv"
 STEPS = (50_000, 100_000, 150_000, 200_000)
 WINDOW = 10_000
 #: TD3 authors' Hopper-v1 evaluation returns (mean, std over 10 seeds) at STEPS
@@ -45,6 +45,8 @@ TASKS = {
     "hopper": (STEPS, AUTHORS),
     "halfcheetah": ((100_000, 200_000, 300_000), None),
 }
+#: per task: the results folder whose TD3 runs the table reads
+FOLDERS = {"hopper": "hopper-200k", "halfcheetah": "halfcheetah"}
 
 
 def _one(job: tuple[int, int, str]) -> list[tuple[int, int, float]]:
@@ -142,7 +144,7 @@ def main() -> None:
     parser.add_argument("--steps", type=int, default=200_000)
     parser.add_argument("--out", type=Path, help="default: the task's results folder")
     args = parser.parse_args()
-    folder = ROOT / "docs" / "results" / args.task
+    folder = ROOT / "docs" / "results" / FOLDERS[args.task]
     out = args.out or folder / "cleanrl_td3_returns.csv"
     if args.run:
         run(args.seeds, args.steps, out, args.task)

@@ -20,7 +20,7 @@ from rrls.evaluation.dynamic import ADVERSARY_SCHEMA, GAME_SCHEMA, check_adversa
 from rrls.schema import SchemaError
 
 ROOT = Path(__file__).resolve().parents[1]
-RUNS = ROOT / "docs/results/hopper/runs"
+RUNS = ROOT / "docs/results/hopper-200k/runs"
 
 
 def _run_with_adversary(tmp_path: Path, change: dict[str, Any], drop: str | None = None) -> Path:

@@ -28,15 +28,15 @@ ROOT = Path(__file__).resolve().parents[1]
 SHIPPED = {
     "halfcheetah": ("06fddb1da2e47f5c", "365e913d4cc24d42"),
     "halfcheetah/ablation": ("06fddb1da2e47f5c", "365e913d4cc24d42"),
-    "hopper": ("251d515ffab050de", "dbbed12e1380bcd5"),
-    "hopper/earlier": ("251d515ffab050de", "dbbed12e1380bcd5"),
+    "hopper-200k": ("251d515ffab050de", "dbbed12e1380bcd5"),
+    "hopper-200k/earlier": ("251d515ffab050de", "dbbed12e1380bcd5"),
     "quick": ("af948eecfec71b33", "2c66c2bac2da6ff1"),
 }
 #: the presets' fingerprints, computed the same way before
 PRESET_PRINTS = {
     "smoke": ("c3da4c495704f36d", "2a0780473e9eeafe"),
     "quick": ("af948eecfec71b33", "2c66c2bac2da6ff1"),
-    "hopper": ("251d515ffab050de", "dbbed12e1380bcd5"),
+    "hopper-200k": ("251d515ffab050de", "dbbed12e1380bcd5"),
     "halfcheetah": ("06fddb1da2e47f5c", "365e913d4cc24d42"),
     "paper": ("06fddb1da2e47f5c", "dd8d49985117645e"),
 }
@@ -115,7 +115,7 @@ def test_every_earlier_format_reads_as_the_benchmark_it_was():
 
 
 def test_the_shipped_references_compare_with_the_migrated_benchmarks():
-    for name in ("hopper", "halfcheetah", "quick"):
+    for name in ("hopper-200k", "halfcheetah", "quick"):
         spec = benchfile.read_spec_json(ROOT / "docs/results" / name)
         check_compatible(load_reference(name), spec)  # the same protocol: no error
         other = {**spec, "mesh": spec["mesh"] + 1}

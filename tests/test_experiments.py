@@ -618,7 +618,7 @@ def test_a_benchmark_runs_every_algorithms_first_seed_first():
 
 def test_a_dry_run_prints_the_plan_and_writes_nothing(tmp_path, capsys):
     out = tmp_path / "bench"
-    assert main(["benchmark", "--preset", "hopper", "--out", str(out), "--dry-run"]) == 0
+    assert main(["benchmark", "--preset", "hopper-200k", "--out", str(out), "--dry-run"]) == 0
     text = capsys.readouterr().out
     assert not out.exists()  # nothing written, nothing trained
     assert "15 runs (0 finished, 15 to run)" in text and "estimate" in text

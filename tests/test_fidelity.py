@@ -69,7 +69,7 @@ def test_m2td3_warms_up_for_its_authors_100k_random_steps_in_every_paper_preset(
 
     assert hyperparameters(TrainConfig(algo="m2td3", task="hopper")).learning_starts == 100_000
     assert hyperparameters(TrainConfig(algo="td3", task="hopper")).learning_starts == 25_000
-    for preset in ("hopper", "halfcheetah", "paper"):
+    for preset in ("hopper-200k", "hopper", "halfcheetah", "paper"):
         spec = make_spec(preset)
         assert spec.hyperparameters("m2td3")["learning_starts"] == 100_000, preset
         assert spec.hyperparameters("td3")["learning_starts"] == 25_000, preset
@@ -78,7 +78,7 @@ def test_m2td3_warms_up_for_its_authors_100k_random_steps_in_every_paper_preset(
     assert {short.hyperparameters(a)["learning_starts"] for a in short.algos} == {10_000}
 
 
-@pytest.mark.parametrize("preset", ["hopper", "halfcheetah", "paper"])
+@pytest.mark.parametrize("preset", ["hopper-200k", "hopper", "halfcheetah", "paper"])
 def test_presets_that_claim_the_papers_mesh_evaluate_on_np_arange(preset):
     # the original code's mesh: np.arange(low, high, (high - low) / n), upper bound excluded
     from rrls.benchmark.grid import make_spec

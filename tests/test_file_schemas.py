@@ -193,7 +193,7 @@ def test_every_shipped_result_and_run_file_matches_its_schema():
     ("field", "bad"), [c for c in cases(rundir.RUN_SCHEMA) if c[0] in ("steps", "algorithm")]
 )
 def test_a_hostile_run_json_is_a_damaged_run(tmp_path, field, bad):
-    good = json.loads((ROOT / "docs/results/hopper/runs/td3-hopper-3d-seed0/run.json").read_text())
+    good = json.loads((ROOT / "docs/results/hopper-200k/runs/td3-hopper-3d-seed0/run.json").read_text())
     files.write_checked_json(tmp_path / rundir.RUN_JSON, {**good, field: bad})
     (tmp_path / rundir.POLICY).write_bytes(b"")
     with pytest.raises(files.DamagedFile) as err:
@@ -204,7 +204,7 @@ def test_a_hostile_run_json_is_a_damaged_run(tmp_path, field, bad):
 
 # --- reference files ------------------------------------------------------------------------
 def _reference() -> dict[str, Any]:
-    return json.loads((ROOT / "rrls/report/hopper_reference.json").read_text())
+    return json.loads((ROOT / "rrls/report/hopper_200k_reference.json").read_text())
 
 
 @pytest.mark.parametrize(("field", "bad"), cases(REFERENCE_SCHEMA))
@@ -242,7 +242,7 @@ def test_a_reference_row_whose_seeds_and_values_disagree_is_refused(tmp_path):
 
 
 def test_a_csv_reference_reads_as_its_json_and_is_checked_the_same(tmp_path):
-    ref = load_reference("hopper")
+    ref = load_reference("hopper-200k")
     csv = ref.save(tmp_path / "ref.csv")
     back = load_reference(csv)
     assert back.rows == ref.rows and back.mesh == ref.mesh and back.endpoint == ref.endpoint

@@ -14,8 +14,8 @@ from rrls.cli.parsing import PATH_ARGUMENTS
 from rrls.evaluation import MLPPolicy
 
 ROOT = Path(__file__).resolve().parents[1]
-RUN = str(ROOT / "docs/results/hopper/runs/rarl-hopper-3d-seed0")
-BENCH = str(ROOT / "docs/results/hopper")
+RUN = str(ROOT / "docs/results/hopper-200k/runs/rarl-hopper-3d-seed0")
+BENCH = str(ROOT / "docs/results/hopper-200k")
 TRAIN = ["train", "--algo", "td3", "--task", "invertedpendulum", "--steps", "300"]
 SUBMIT = ["--algo", "x", "--task", "hopper", "--seed", "0"]
 

@@ -14,9 +14,9 @@ from rrls.rundir import read_run_json
 ROOT = Path(__file__).resolve().parent.parent
 
 
-@pytest.mark.parametrize("task", ["halfcheetah", "hopper"])
+@pytest.mark.parametrize("task", ["halfcheetah", "hopper-200k"])
 def test_reference_notes_state_physics_versions_and_m2td3_share(task: str) -> None:
-    ref = load_reference(ROOT / "rrls" / "report" / f"{task}_reference.json")
+    ref = load_reference(ROOT / "rrls" / "report" / f"{task.replace('-', '_')}_reference.json")
     assert "reduced budget" in ref.label
     runs = [read_run_json(p) for p in (ROOT / "docs/results" / task).glob("runs/*")]
     mujoco = {r["versions"]["mujoco"] for r in runs}
@@ -33,7 +33,7 @@ def test_reference_notes_state_physics_versions_and_m2td3_share(task: str) -> No
     )
 
 
-@pytest.mark.parametrize("task", ["halfcheetah", "hopper"])
+@pytest.mark.parametrize("task", ["halfcheetah", "hopper-200k"])
 def test_the_physics_sections_count_is_the_files(task: str) -> None:
     """The page's "N of M runs" (in progress until N = M) and the runs' cost are read from
     paper_physics.csv and runs/."""
@@ -54,7 +54,7 @@ def test_the_physics_sections_count_is_the_files(task: str) -> None:
     assert cost in " ".join(page.split()), cost
 
 
-@pytest.mark.parametrize("task", ["halfcheetah", "hopper"])
+@pytest.mark.parametrize("task", ["halfcheetah", "hopper-200k"])
 def test_the_physics_sections_summary_is_the_files(task: str) -> None:
     """Where a page says every mean worst case rises on the paper's physics, by how much is
     read from paper_physics.csv (per algorithm: the mean over its runs of paper minus v5)."""
@@ -79,7 +79,7 @@ def test_the_hopper_budget_probes_table_is_its_file() -> None:
     import csv
     import re
 
-    folder = ROOT / "docs" / "results" / "hopper"
+    folder = ROOT / "docs" / "results" / "hopper-200k"
     with open(folder / "td3_budget_probe.csv", newline="") as f:
         rows = {
             (int(r["seed"]), int(r["step"])): float(r["nominal_return"]) for r in csv.DictReader(f)

@@ -19,7 +19,7 @@ import results_page  # noqa: E402
 import td3_sanity  # noqa: E402
 
 #: each results page with its shipped reference (None: a page without one)
-PAGES = {"quick": "quick", "hopper": "hopper", "halfcheetah": "halfcheetah"}
+PAGES = {"quick": "quick", "hopper-200k": "hopper-200k", "halfcheetah": "halfcheetah"}
 
 
 def _pages():
@@ -35,7 +35,7 @@ def test_every_generated_block_of_a_page_is_what_its_data_give(name, reference):
     assert not changed, f"{page}: out of date ({changed}); run benchmarks/results_page.py --write"
 
 
-@pytest.mark.parametrize("name", ["hopper", "halfcheetah"])
+@pytest.mark.parametrize("name", ["hopper-200k", "halfcheetah"])
 def test_a_locomotion_page_opens_with_its_table_beside_the_papers_row(name):
     # a reader looks for the table and its verdict first; how it was made follows
     text = (RESULTS / name / "README.md").read_text()
@@ -52,7 +52,7 @@ def _disjoint_pairs(folder: Path, metric: str) -> list[tuple[str, str]]:
     return [(a, b) for a in ci for b in ci if a != b and ci[a][0] > ci[b][1]]
 
 
-@pytest.mark.parametrize("folder", ["quick", "quick/second-draw", "hopper"])
+@pytest.mark.parametrize("folder", ["quick", "quick/second-draw", "hopper-200k"])
 def test_pages_that_say_no_difference_is_resolved_have_none(folder):
     # quick: "No pair of intervals is disjoint on either criterion"; hopper: "No difference
     # is resolved, on either criterion"
@@ -72,7 +72,7 @@ def test_quick_pages_claims_about_who_learned_the_nominal_task(folder):
 def test_hopper_td3_learns_as_cleanrls_loop_within_a_standard_deviation():
     # the page: "within one standard deviation (the larger of the two) of rrls's TD3 from 100 k
     # steps on, and within 1.2 at 50 k, where CleanRL's loop is slightly ahead"
-    folder = RESULTS / "hopper"
+    folder = RESULTS / "hopper-200k"
     clean = pd.read_csv(folder / "cleanrl_td3_returns.csv")
     rrls, _ = td3_sanity.td3_curves(folder)
     for step in td3_sanity.STEPS:
@@ -83,8 +83,8 @@ def test_hopper_td3_learns_as_cleanrls_loop_within_a_standard_deviation():
 
 
 def test_the_hopper_page_says_which_mesh_its_runs_were_evaluated_on():
-    text = (RESULTS / "hopper" / "README.md").read_text()
-    block = results_page.evaluation(RESULTS / "hopper")
+    text = (RESULTS / "hopper-200k" / "README.md").read_text()
+    block = results_page.evaluation(RESULTS / "hopper-200k")
     assert block in text
     mesh_claims = ("evaluated on the paper's mesh", "on the paper's mesh (10 points")
     if "`np.linspace`" in block:  # a linspace evaluation never claims the paper's mesh
@@ -245,12 +245,12 @@ def test_the_hopper_pages_retraining_claims():
     from rrls.benchmark.grid import make_spec
     from rrls.report.reference import load_reference
 
-    folder = RESULTS / "hopper"
+    folder = RESULTS / "hopper-200k"
     # "No change is resolved at 3 seeds: every pair of intervals overlaps"
     assert "| apart |" not in results_page.earlier(folder)
     # "the authors' warm-up leaves M2TD3 100 000 updates where TD3 and the earlier M2TD3 had
     # 175 000 ... at the paper's 5 M steps the difference is 1.5 %"
-    spec, paper = make_spec("hopper"), make_spec("paper")
+    spec, paper = make_spec("hopper-200k"), make_spec("paper")
     assert spec.steps - spec.warmup("m2td3") == 100_000
     assert spec.steps - spec.warmup("td3") == 175_000 == spec.steps - 25_000
     updates = [paper.steps - paper.warmup(a) for a in ("m2td3", "td3")]
@@ -285,7 +285,7 @@ def test_the_hopper_pages_retraining_claims():
         if json.loads(path.read_text()).get("trained_otherwise"):
             otherwise.add(path.parent.name.split("-")[0])
     assert retrained and not retrained & otherwise
-    provenance = load_reference("hopper").provenance
+    provenance = load_reference("hopper-200k").provenance
     assert set(provenance.get("trained_otherwise", {})) == otherwise
     text = (folder / "README.md").read_text()
     if "rarl" in otherwise:  # "RARL's retraining ... has not finished: its rows here are still"

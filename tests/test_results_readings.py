@@ -29,7 +29,7 @@ def _points(run: Path) -> pd.DataFrame:
 
 
 def test_the_hopper_reading_of_where_the_agents_hop():
-    folder = RESULTS / "hopper"
+    folder = RESULTS / "hopper-200k"
     text = _flat(folder / "README.md")
     hopping, falls = {}, []
     for run in sorted((folder / "runs").iterdir()):
@@ -62,7 +62,7 @@ def test_the_hopper_page_names_each_runs_commit_and_cpu():
     # "TD3, DR and NR-MDP ... AMD EPYC ... X86_V4 ... at rrls commit d2fabcd; all three M2TD3
     # seeds and RARL seed 0 retrained on a 2-core AMD EPYC with AVX2 only (X86_V3) at rrls
     # commit d65188c, RARL seeds 1 and 2 on a 2-core Intel Xeon with AVX-512 (X86_V4) at e0436bc"
-    folder = RESULTS / "hopper"
+    folder = RESULTS / "hopper-200k"
     text = _flat(folder / "README.md")
     runs = {run.name: _provenance(run) for run in (folder / "runs").iterdir()}
     for name, (commit, cpu, simd) in runs.items():
@@ -191,7 +191,7 @@ def test_the_presets_cpu_hours_stated_are_the_estimators():
     doc = _flat(ROOT / "docs" / "benchmark.md")
     helps = " ".join(add_parser(argparse.ArgumentParser().add_subparsers()).format_help().split())
     helps = helps.replace("CPU- hours", "CPU-hours")  # argparse wraps after a hyphen
-    for preset in ("hopper", "halfcheetah"):
+    for preset in ("hopper-200k", "hopper", "halfcheetah"):
         hours = round(estimate(make_spec(preset), 2)["cpu_s"] / 3600)
         assert f"| ~{hours} CPU-hours (estimate;" in doc, preset
         assert f"{preset} (~{hours} CPU-hours" in helps, preset
@@ -237,7 +237,7 @@ def test_the_hopper_td3_reading_against_the_authors_curves():
     # them" (rrls's nominal evaluations against the TD3 authors' evaluation mean ± std)
     import td3_sanity
 
-    folder = RESULTS / "hopper"
+    folder = RESULTS / "hopper-200k"
     _, evals = td3_sanity.td3_curves(folder)
     for step, (mean, std) in td3_sanity.AUTHORS.items():
         ours = evals[evals["step"] == step]["value"].mean()

@@ -357,14 +357,14 @@ def test_create_benchmark_has_the_presets_protocol(tmp_path):
 
 
 def test_shipped_hopper_reference_fits_the_hopper_preset(tmp_path):
-    ref = load_reference("hopper")
+    ref = load_reference("hopper-200k")
     assert ref.physics == "v5" and ref.steps == 200_000 and ref.sets == ["3d"]
     assert set(ref.algorithms()) == {"td3", "dr", "rarl", "nrmdp", "m2td3"}
     static = [r for r in ref.rows if r["metric"] in ("worst_case", "average_case")]
     assert static and all(len(r["values"]) == r["n_seeds"] == 3 for r in static)
     assert ref.provenance["preset"] == "hopper" and ref.provenance["hidden"] == [256, 256]
     assert ref.provenance["machines"] and ref.provenance["versions"]["torch"]
-    spec = create_benchmark(tmp_path / "b", "hopper", ("hopper",))
+    spec = create_benchmark(tmp_path / "b", "hopper-200k", ("hopper",))
     from rrls.report.reference import check_compatible
 
     check_compatible(ref, spec.to_json())  # same physics, set, mesh, episodes

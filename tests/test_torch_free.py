@@ -35,11 +35,11 @@ SCRIPT = textwrap.dedent(
     env = gym.make("rrls/robust-hopper-v0")
     env.reset(seed=0)
     validate(Benchmark(**{**PRESETS["smoke"], "split": "extrapolation:0.5"}))
-    spec = benchfile.read_spec(sys.argv[1] + "/docs/results/hopper")
+    spec = benchfile.read_spec(sys.argv[1] + "/docs/results/hopper-200k")
     assert spec.fingerprints()["protocol"]
-    load_reference("hopper")
-    store.read_result(sys.argv[1] + "/docs/results/hopper/runs/td3-hopper-3d-seed0")
-    run = sys.argv[1] + "/docs/results/hopper/runs/td3-hopper-3d-seed0"
+    load_reference("hopper-200k")
+    store.read_result(sys.argv[1] + "/docs/results/hopper-200k/runs/td3-hopper-3d-seed0")
+    run = sys.argv[1] + "/docs/results/hopper-200k/runs/td3-hopper-3d-seed0"
     assert MLPPolicy.load(run + "/policy.npz").obs_dim == 11
     result = evaluate(MLPPolicy.random(4, 1, (8,), seed=0), "invertedpendulum", "1d", mesh=2,
                       episodes=1, workers=1)

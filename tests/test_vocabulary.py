@@ -173,7 +173,7 @@ def test_every_subcommand_describes_itself_and_every_option():
 
 def test_help_gives_defaults_and_choices_where_they_exist():
     benchmark = build_parser(with_train=False).subcommands["benchmark"].format_help()
-    presets = "{smoke,quick,hopper,halfcheetah,paper}"
+    presets = "{smoke,quick,hopper-200k,hopper,halfcheetah,paper}"
     for needle in ("{local,ray}", "default: local", presets, "default: paper"):
         assert needle in benchmark
     assert "random steps before learning" in benchmark  # --learning-starts

@@ -57,7 +57,7 @@ COMPARED = ("physics", "uncertainty", "mesh", "endpoint", "episodes")
 SHIPPED = {
     "paper": "paper_reference.json",
     "quick": "quick_reference.json",
-    "hopper": "hopper_reference.json",
+    "hopper-200k": "hopper_200k_reference.json",
     "halfcheetah": "halfcheetah_reference.json",
 }
 _META = ("label", "physics", "mesh", "episodes", "endpoint", "steps", "eval_seed")
