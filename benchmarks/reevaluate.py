@@ -1,19 +1,19 @@
 """Re-evaluate a results folder's finished runs under a preset's protocol, without training.
 
-    python3 benchmarks/reevaluate.py docs/results/hopper-200k /path/to/new-bench --preset hopper-200k \
-        --algos td3,dr,nrmdp
+    python3 benchmarks/reevaluate.py docs/results/hopper-200k /path/to/new-bench \
+        --preset hopper-200k --algos td3,dr,nrmdp
 
-When a preset's evaluation protocol changes (the hopper preset moved to the paper's
-``np.arange`` mesh) the trained policies stay valid: each run's ``policy.npz``, ``run.json``,
-curves and adversary are copied into a benchmark directory written with the preset's protocol
-today, the final mesh evaluation runs again there (``stages.run_evaluation``, the benchmark's
-own code path) and ``result.json`` is written anew. The dynamic evaluation does not depend on
-the mesh: its ``dynamic.csv`` and fields are kept. ``rrls benchmark --preset P --out DEST``
-then trains only what is missing (the runs whose training changed), and ``rrls report DEST``
-reports all of them. A run whose training hyper-parameters differ from the preset's today is
-refused: it needs training again, not a re-evaluation — unless ``--keep-training`` says to
-re-evaluate it as trained (an interim reference whose page names the difference; ``result.json``
-then records ``trained_otherwise``, what differs).
+When a preset's evaluation protocol changes (the hopper-200k preset, then named hopper, moved to
+the paper's ``np.arange`` mesh) the trained policies stay valid: each run's ``policy.npz``,
+``run.json``, curves and adversary are copied into a benchmark directory written with the
+preset's protocol today, the final mesh evaluation runs again there (``stages.run_evaluation``,
+the benchmark's own code path) and ``result.json`` is written anew. The dynamic evaluation does
+not depend on the mesh: its ``dynamic.csv`` and fields are kept. ``rrls benchmark --preset P
+--out DEST`` then trains only what is missing (the runs whose training changed), and ``rrls
+report DEST`` reports all of them. A run whose training hyper-parameters differ from the
+preset's today is refused: it needs training again, not a re-evaluation — unless
+``--keep-training`` says to re-evaluate it as trained (an interim reference whose page names the
+difference; ``result.json`` then records ``trained_otherwise``, what differs).
 """
 
 from __future__ import annotations

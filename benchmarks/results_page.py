@@ -41,6 +41,9 @@ from rrls.report.reference import load_reference
 from rrls.report.stats import t_interval
 
 METRICS = {"worst_case": "worst case", "average_case": "average case"}
+#: per task: the nominal return TD3 must reach on every probed seed at the preset's budget
+#: (HalfCheetah: the rule its budget was chosen by; Hopper: 2 500, the longer reference's rule)
+TD3_RULE = {"halfcheetah": 4_000.0, "hopper": 2_500.0}
 #: a block; ``SUB/NAME`` is the block NAME of the report in the page's folder SUB (no reference)
 BLOCK = re.compile(r"(<!-- generated:([\w/-]+) -->\n)(.*?)(<!-- /generated -->)", re.S)
 
@@ -327,7 +330,7 @@ def status(folder: Path) -> str:
     missing = [display_name(a) for a in sort_algos(spec["algos"]) if a not in done]
     return (
         f"**{n} of {total} runs finished** ({'; '.join(parts) or 'none'})"
-        + (f"; not started: {', '.join(missing)}" if missing else "")
+        + (f"; none finished yet: {', '.join(missing)}" if missing else "")
         + ".\n"
     )
 
@@ -446,18 +449,21 @@ def earlier(folder: Path, sub: str = "earlier") -> str:
 
 
 def blocks(folder: Path, reference: str | None) -> dict[str, str]:
-    data = per_seed(folder)
-    out = {"summary": summary(data, dynamic(folder, reference)), "orderings": orderings(data)}
+    out = {}
+    if (folder / "tables" / "per_run.csv").is_file():  # a grid in progress has no report yet
+        data = per_seed(folder)
+        out = {"summary": summary(data, dynamic(folder, reference)), "orderings": orderings(data)}
     if (folder / "benchmark.json").exists():
         out["set"] = uncertainty_set(folder)
         out["status"] = status(folder)
+        task = json.loads((folder / "benchmark.json").read_text())["tasks"][0]
+        out["td3_budget"] = td3_budget(folder, TD3_RULE.get(task, 4_000.0))
         text = (folder / "README.md").read_text() if (folder / "README.md").exists() else ""
         if "<!-- generated:paper -->" in text:
             out["paper"] = paper_comparison(folder)
     if (folder / "runs").is_dir():
         out["runs"] = runs(folder)
         out["evaluation"] = evaluation(folder)
-        out["td3_budget"] = td3_budget(folder)
         out["compute"] = compute(folder)
     if (folder / "earlier" / "tables" / "per_run.csv").is_file():
         out["earlier"] = earlier(folder)

@@ -193,7 +193,9 @@ def test_every_shipped_result_and_run_file_matches_its_schema():
     ("field", "bad"), [c for c in cases(rundir.RUN_SCHEMA) if c[0] in ("steps", "algorithm")]
 )
 def test_a_hostile_run_json_is_a_damaged_run(tmp_path, field, bad):
-    good = json.loads((ROOT / "docs/results/hopper-200k/runs/td3-hopper-3d-seed0/run.json").read_text())
+    good = json.loads(
+        (ROOT / "docs/results/hopper-200k/runs/td3-hopper-3d-seed0/run.json").read_text()
+    )
     files.write_checked_json(tmp_path / rundir.RUN_JSON, {**good, field: bad})
     (tmp_path / rundir.POLICY).write_bytes(b"")
     with pytest.raises(files.DamagedFile) as err:

@@ -35,6 +35,17 @@ def test_every_generated_block_of_a_page_is_what_its_data_give(name, reference):
     assert not changed, f"{page}: out of date ({changed}); run benchmarks/results_page.py --write"
 
 
+def test_a_grid_in_progress_shows_its_status_and_td3_from_its_files():
+    # the longer Hopper grid, produced in pieces: its page's blocks are what runs/ holds today
+    folder = RESULTS / "hopper"
+    text = (folder / "README.md").read_text()
+    assert "<!-- generated:status -->" in text and "<!-- generated:td3_budget -->" in text
+    _, changed = results_page.update(folder / "README.md", results_page.page_blocks(folder, None))
+    assert not changed, f"{folder}: out of date ({changed}); run benchmarks/results_page.py --write"
+    if list(folder.glob("runs/td3-*/scalars.csv")):
+        assert "first ≥ 2,500 |" in text  # Hopper's rule, not HalfCheetah's 4 000
+
+
 @pytest.mark.parametrize("name", ["hopper-200k", "halfcheetah"])
 def test_a_locomotion_page_opens_with_its_table_beside_the_papers_row(name):
     # a reader looks for the table and its verdict first; how it was made follows
