@@ -328,6 +328,8 @@ def status(folder: Path) -> str:
         for a in sort_algos(done)
     ]
     missing = [display_name(a) for a in sort_algos(spec["algos"]) if a not in done]
+    if not n:
+        return f"**0 of {total} runs finished** yet.\n"
     return (
         f"**{n} of {total} runs finished** ({'; '.join(parts) or 'none'})"
         + (f"; none finished yet: {', '.join(missing)}" if missing else "")
