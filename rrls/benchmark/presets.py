@@ -90,6 +90,9 @@ PRESETS: dict[str, dict[str, Any]] = {
         episodes=5,
         dynamic_episodes=10,
         checkpoint_every=50_000,
+        # each run's 10 lowest points re-evaluated with 20 fresh episodes (docs/evaluation.md),
+        # as the shipped references were after the fact; not in the fingerprints
+        recheck=dict(worst=10, episodes=20, quantile=0.05),
     ),
     # The locomotion reference where the agents have learned: HalfCheetah (the paper's widest
     # robust gap, its Table 7), the paper's 3D set (world friction 0.1-4, torso mass 0.1-7,
