@@ -16,11 +16,20 @@ rrls evaluate: interrupted; 3 of 10 chunks kept in ev; to go on: rrls evaluate p
 from __future__ import annotations
 
 import shlex
+import signal
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from pathlib import Path
 
-__all__ = ["NOTHING_YET", "Interruption", "identity", "interrupted", "keeping"]
+__all__ = [
+    "NOTHING_YET",
+    "Interruption",
+    "identity",
+    "interrupted",
+    "keeping",
+    "term_as_ctrl_c",
+    "terms_as_ctrl_c",
+]
 
 #: what is kept when Ctrl-C comes before a command wrote anything
 NOTHING_YET = "nothing written yet"
@@ -48,6 +57,23 @@ def keeping(describe: Callable[[], str | tuple[str, bool | None]]) -> Iterator[N
         said = describe()
         kept, resumes = said if isinstance(said, tuple) else (said, True)
         raise Interruption(kept, resumes) from None
+
+
+def term_as_ctrl_c() -> None:
+    """From now on SIGTERM is Ctrl-C in this process (``KeyboardInterrupt``). For a process
+    that a driver stops with SIGTERM (a benchmark's run process, which ignores Ctrl-C itself):
+    its training loop then finishes the step it is in and writes a checkpoint of it before
+    stopping, as ``rrls train`` does on Ctrl-C (``rrls.agents.run.StepBoundary``)."""
+    signal.signal(signal.SIGTERM, _ctrl_c)
+
+
+def terms_as_ctrl_c() -> bool:
+    """Whether SIGTERM is Ctrl-C here (:func:`term_as_ctrl_c`)."""
+    return signal.getsignal(signal.SIGTERM) is _ctrl_c
+
+
+def _ctrl_c(signum: int, frame: object) -> None:
+    raise KeyboardInterrupt
 
 
 def identity(path: str | Path) -> tuple[int, int] | None:

@@ -145,3 +145,28 @@ def test_ctrl_c_from_a_terminal_keeps_every_run_of_a_group_with_env_workers(tmp_
         f"rrls train: interrupted; the checkpoints at the interrupted step {step:,} of 200,000 "
         "are kept in run/seed0, run/seed1; to go on: " + shlex.join(["rrls", *args, "--resume"])
     )
+
+
+@pytest.mark.e2e
+def test_ctrl_c_in_a_benchmark_checkpoints_the_runs_in_training_and_resumes_them_exactly(
+    tmp_path,
+):
+    """A terminal's Ctrl-C to ``rrls benchmark``: its run processes ignore SIGINT and the driver
+    stops them with SIGTERM, which a run in training takes as Ctrl-C. It finishes its step and
+    checkpoints it (not only the last periodic checkpoint, every 100 steps in the smoke preset),
+    and the same command goes on from there to the weights of a benchmark never interrupted."""
+    args = ["benchmark", "--preset", "smoke", "--algos", "td3", "--seeds", "0-0"]
+    args += ["--steps", "4000", "--workers", "1"]
+    run = tmp_path / "cut" / "runs" / "td3-invertedpendulum-1d-seed0"
+    done = interrupt_rrls([*args, "--out", "cut"], tmp_path, run / "checkpoint.pt", wait=180)
+    assert done.returncode == 130, done.stderr[-2000:]
+    assert "Traceback" not in done.stderr
+    state = read_checkpoint(run / "checkpoint.pt")
+    assert state[INTERRUPTED_KEY] is True  # the step Ctrl-C came in, not a periodic one
+    assert 100 <= int(state["step"]) < 4000
+    assert "1 with a checkpoint (their training goes on)" in done.stderr
+    # the same command goes on from that step; a benchmark never interrupted gives the same
+    assert main([*args, "--out", str(tmp_path / "cut")]) == 0
+    assert main([*args, "--out", str(tmp_path / "whole")]) == 0
+    cut, whole = policy_arrays(run), policy_arrays(tmp_path / "whole" / "runs" / run.name)
+    assert cut.keys() == whole.keys() and all(np.array_equal(cut[k], whole[k]) for k in cut)

@@ -29,6 +29,7 @@ from rrls import files, rundir
 from rrls.agents.config import Diverged, Interrupted, TrainConfig, benchmark_set
 from rrls.agents.hparams import jsonable
 from rrls.files import loads_json
+from rrls.interrupts import terms_as_ctrl_c
 from rrls.physics import physics_label
 from rrls.provenance import machine, source_commit
 
@@ -42,16 +43,22 @@ class StepBoundary:
     """Ctrl-C held until the training step it came in ends (``requested``), so that the loop
     writes a checkpoint of a consistent state (no update, episode or buffer left half-way) and
     then stops; a second Ctrl-C stops at once. Only where Ctrl-C is Python's default (the main
-    thread; not a benchmark's run process, which ignores it)."""
+    thread); in a benchmark's run process, which ignores Ctrl-C, the driver's SIGTERM is held
+    the same way (``rrls.interrupts.term_as_ctrl_c``)."""
 
     def __init__(self) -> None:
         self.requested = False
-        self._previous: Any = None
+        self._previous: dict[int, Any] = {}
 
     def hold(self) -> None:
-        """From now on Ctrl-C only sets ``requested`` (until ``release``)."""
-        if active_ctrl_c():
-            self._previous = signal.signal(signal.SIGINT, self._request)
+        """From now on Ctrl-C (and SIGTERM where it is Ctrl-C) only sets ``requested`` (until
+        ``release``)."""
+        held = [signal.SIGINT] if active_ctrl_c() else []
+        if threading.current_thread() is threading.main_thread() and terms_as_ctrl_c():
+            held.append(signal.SIGTERM)
+        for sig in held:
+            self._previous[sig] = signal.signal(sig, self._request)
+        if held:
             self.requested = False
 
     def _request(self, signum: int, frame: Any) -> None:
@@ -60,10 +67,10 @@ class StepBoundary:
         self.requested = True
 
     def release(self) -> None:
-        """Ctrl-C as before ``hold``."""
-        if self._previous is not None:
-            signal.signal(signal.SIGINT, self._previous)
-            self._previous = None
+        """Ctrl-C (and SIGTERM) as before ``hold``."""
+        for sig, previous in self._previous.items():
+            signal.signal(sig, previous)
+        self._previous = {}
 
     def __enter__(self) -> StepBoundary:
         self.hold()

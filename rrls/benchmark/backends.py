@@ -26,8 +26,12 @@ from rrls.benchmark.pipeline import (
 )
 from rrls.files import DirectoryLock
 
-
 # --- local backend: one spawned process per group ----------------------------------------------
+#: how long a stopped group may take to checkpoint its runs (a 1 M-step replay buffer is ~80 MB
+#: written and sealed) before it is killed; a second Ctrl-C does not wait
+STOP_WAIT_S = 120.0
+
+
 def _group_main(
     root: str, spec_json: dict[str, Any], keys: list[tuple[str, str, int]], eval_workers: int = 1
 ) -> None:
@@ -36,10 +40,14 @@ def _group_main(
     ignores SIGINT, so that it is not torn down half-way through its own cleanup."""
     import signal
 
+    from rrls.interrupts import term_as_ctrl_c
+
     signal.signal(signal.SIGINT, signal.SIG_IGN)
-    # the driver stops a group with SIGTERM: exit through Python, so that multiprocessing's
-    # finalizers release the group's semaphores (no "leaked semaphore" warning at shutdown)
-    signal.signal(signal.SIGTERM, lambda *_: sys.exit(143))
+    # the driver stops a group with SIGTERM, taken as Ctrl-C: a run in training finishes its
+    # step and checkpoints it (nothing trained is lost), anything else stops at once; either
+    # way the process exits through Python, so multiprocessing's finalizers release its
+    # semaphores (no "leaked semaphore" warning at shutdown)
+    term_as_ctrl_c()
     die_with_parent()
     try:
         execute_recorded(root, spec_json, keys, eval_workers)
@@ -101,9 +109,9 @@ def run_local(
                 time.sleep(0.5)
         finally:
             for proc in running.values():
-                proc.terminate()
+                proc.terminate()  # a run in training checkpoints the step it is in first
             for proc in running.values():
-                proc.join(10)
+                proc.join(STOP_WAIT_S)
                 if proc.is_alive():
                     proc.kill()
                     proc.join()
