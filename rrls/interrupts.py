@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import shlex
 import signal
+import threading
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from pathlib import Path
@@ -27,6 +28,7 @@ __all__ = [
     "identity",
     "interrupted",
     "keeping",
+    "sigterm_as_ctrl_c",
     "term_as_ctrl_c",
     "terms_as_ctrl_c",
 ]
@@ -65,6 +67,21 @@ def term_as_ctrl_c() -> None:
     its training loop then finishes the step it is in and writes a checkpoint of it before
     stopping, as ``rrls train`` does on Ctrl-C (``rrls.agents.run.StepBoundary``)."""
     signal.signal(signal.SIGTERM, _ctrl_c)
+
+
+@contextmanager
+def sigterm_as_ctrl_c() -> Iterator[None]:
+    """SIGTERM is Ctrl-C inside the block (in the main thread; elsewhere nothing changes): the
+    polite stop of a scheduler (SLURM at its time limit, a preempted node, ``kill``) keeps what
+    Ctrl-C keeps, a checkpoint of the step a run is in, and says how to go on."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    previous = signal.signal(signal.SIGTERM, _ctrl_c)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGTERM, previous)
 
 
 def terms_as_ctrl_c() -> bool:

@@ -82,10 +82,11 @@ def policy_arrays(run_dir) -> dict:
 
 
 def interrupt_rrls(
-    args: list[str], cwd: Path, ready: Path, wait: float = 120
+    args: list[str], cwd: Path, ready: Path, wait: float = 120, sig: int = signal.SIGINT
 ) -> subprocess.CompletedProcess:
     """Run ``rrls ARGS`` in its own process group, press Ctrl-C (SIGINT to the group, as a
-    terminal sends it) once ``ready`` exists (or after ``wait`` s), and return what it printed."""
+    terminal sends it; ``sig=SIGTERM``: a scheduler's stop, to every process of the job) once
+    ``ready`` exists (or after ``wait`` s), and return what it printed."""
     # Python leaves SIGINT ignored if it starts ignored (a suite launched in the background by a
     # non-interactive shell): give the child Ctrl-C's default, as a terminal would
     code = "import signal, sys; signal.signal(signal.SIGINT, signal.default_int_handler); "
@@ -100,7 +101,7 @@ def interrupt_rrls(
         time.sleep(0.2)
     time.sleep(1.0)
     if proc.poll() is None:
-        os.killpg(proc.pid, signal.SIGINT)
+        os.killpg(proc.pid, sig)
     try:
         out, err = proc.communicate(timeout=120)
     except subprocess.TimeoutExpired:  # never leave a run training behind a failed test

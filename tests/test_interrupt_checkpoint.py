@@ -148,17 +148,19 @@ def test_ctrl_c_from_a_terminal_keeps_every_run_of_a_group_with_env_workers(tmp_
 
 
 @pytest.mark.e2e
+@pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM], ids=["ctrl-c", "scheduler"])
 def test_ctrl_c_in_a_benchmark_checkpoints_the_runs_in_training_and_resumes_them_exactly(
-    tmp_path,
+    tmp_path, sig
 ):
     """A terminal's Ctrl-C to ``rrls benchmark``: its run processes ignore SIGINT and the driver
     stops them with SIGTERM, which a run in training takes as Ctrl-C. It finishes its step and
     checkpoints it (not only the last periodic checkpoint, every 100 steps in the smoke preset),
-    and the same command goes on from there to the weights of a benchmark never interrupted."""
+    and the same command goes on from there to the weights of a benchmark never interrupted. A
+    scheduler's SIGTERM to every process of the job (driver and runs) keeps the same."""
     args = ["benchmark", "--preset", "smoke", "--algos", "td3", "--seeds", "0-0"]
     args += ["--steps", "4000", "--workers", "1"]
     run = tmp_path / "cut" / "runs" / "td3-invertedpendulum-1d-seed0"
-    done = interrupt_rrls([*args, "--out", "cut"], tmp_path, run / "checkpoint.pt", wait=180)
+    done = interrupt_rrls([*args, "--out", "cut"], tmp_path, run / "checkpoint.pt", 180, sig)
     assert done.returncode == 130, done.stderr[-2000:]
     assert "Traceback" not in done.stderr
     state = read_checkpoint(run / "checkpoint.pt")
@@ -170,3 +172,20 @@ def test_ctrl_c_in_a_benchmark_checkpoints_the_runs_in_training_and_resumes_them
     assert main([*args, "--out", str(tmp_path / "whole")]) == 0
     cut, whole = policy_arrays(run), policy_arrays(tmp_path / "whole" / "runs" / run.name)
     assert cut.keys() == whole.keys() and all(np.array_equal(cut[k], whole[k]) for k in cut)
+
+
+@pytest.mark.e2e
+def test_a_schedulers_sigterm_to_train_keeps_the_step_as_ctrl_c_does(tmp_path):
+    """SIGTERM (SLURM at its time limit, a preempted node) to ``rrls train`` and its env
+    workers: the same checkpoint of the step it came in, the same line, exit status 130."""
+    args = ["train", "--algo", "td3", "--task", "invertedpendulum", "--steps", "200000"]
+    args += ["--hidden", "16", "16", "--learning-starts", "100", "--eval-every", "0"]
+    args += ["--seeds", "0-1", "--workers", "2", "--out", "run"]
+    ready = tmp_path / "run" / "seed1" / "scalars.csv"
+    done = interrupt_rrls(args, tmp_path, ready, wait=180, sig=signal.SIGTERM)
+    assert done.returncode == 130, done.stderr[-2000:]
+    assert "Traceback" not in done.stderr
+    states = [read_checkpoint(tmp_path / "run" / s / "checkpoint.pt") for s in ("seed0", "seed1")]
+    assert all(state[INTERRUPTED_KEY] is True for state in states)
+    assert len({int(state["step"]) for state in states}) == 1
+    assert "to go on: " + shlex.join(["rrls", *args, "--resume"]) in done.stderr

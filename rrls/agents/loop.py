@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import multiprocessing
 import signal
+import threading
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
@@ -33,6 +34,7 @@ from rrls.agents.group import build_learner, check_group, check_group_memory, ru
 from rrls.agents.lookup import Algorithm, ResolvedRun, resolve_run, warm_up
 from rrls.agents.run import Run, active_ctrl_c
 from rrls.agents.stepwise import StepCollector, uniform
+from rrls.interrupts import terms_as_ctrl_c
 
 
 def train(
@@ -114,16 +116,20 @@ def _train_together(group: ResolvedRun, runs, states, on_episode, threads) -> No
 
 
 def _without_ctrl_c(start: Callable[..., Any], *args: Any) -> Any:
-    """``start(*args)`` with Ctrl-C ignored while it starts processes, which inherit that: the
-    terminal's Ctrl-C reaches the whole process group, and an env worker it killed would leave
-    the loop unable to finish the step whose end the checkpoint at Ctrl-C keeps."""
-    if not active_ctrl_c():
-        return start(*args)
-    previous = signal.signal(signal.SIGINT, signal.SIG_IGN)
+    """``start(*args)`` with Ctrl-C (and SIGTERM where it is Ctrl-C) ignored while it starts
+    processes, which inherit that: the terminal's Ctrl-C reaches the whole process group (a
+    scheduler's SIGTERM every process of the job), and an env worker it killed would leave the
+    loop unable to finish the step whose end the checkpoint at Ctrl-C keeps. The workers die
+    with the loop's process all the same."""
+    held = [signal.SIGINT] if active_ctrl_c() else []
+    if threading.current_thread() is threading.main_thread() and terms_as_ctrl_c():
+        held.append(signal.SIGTERM)
+    previous = {sig: signal.signal(sig, signal.SIG_IGN) for sig in held}
     try:
         return start(*args)
     finally:
-        signal.signal(signal.SIGINT, previous)
+        for sig, handler in previous.items():
+            signal.signal(sig, handler)
 
 
 def env_workers(config: TrainConfig, group: int) -> int:

@@ -62,7 +62,9 @@ class StepBoundary:
             self.requested = False
 
     def _request(self, signum: int, frame: Any) -> None:
-        if self.requested:
+        # a second Ctrl-C stops at once; a second SIGTERM does not (a scheduler signals every
+        # process of a job, and a benchmark's driver then stops its runs with one more)
+        if self.requested and signum == signal.SIGINT:
             raise KeyboardInterrupt
         self.requested = True
 

@@ -101,9 +101,12 @@ def main(argv: list[str] | None = None) -> int:
         print(unknown_option(sub, args.command, extras), file=sys.stderr)
         return 2
     started = time.time()  # what an interrupted command wrote since: rrls.cli.kept
+    from rrls.interrupts import sigterm_as_ctrl_c
+
     try:
         refuse_link_loops(args)
-        return _dispatch(args)
+        with sigterm_as_ctrl_c():  # a scheduler's stop keeps what Ctrl-C keeps
+            return _dispatch(args)
     except USAGE_ERRORS as err:
         print(f"rrls {args.command}: error: {err}", file=sys.stderr)
         return 2
