@@ -10,6 +10,13 @@ from rrls.algorithms import paper_five
 ALGOS = paper_five()  # the paper's five (the presets' default)
 PAPER_TASKS = ("ant", "halfcheetah", "hopper", "humanoidstandup", "walker")
 
+#: the paper's evaluation (§5): its 3D sets, its mesh (10 points per dimension, ``np.arange``:
+#: upper bounds excluded) x 5 episodes, 10 episodes against a run's own adversary, the nominal
+#: curve's 5 episodes; one protocol fingerprint for every preset that claims it
+PAPER_EVALUATION: dict[str, Any] = dict(
+    uncertainty="3d", mesh=10, endpoint=False, episodes=5, dynamic_episodes=10, eval_episodes=5
+)
+
 PRESETS: dict[str, dict[str, Any]] = {
     # Seconds, for tests: every code path (5 algorithms, curves, mesh, dynamic evaluation).
     "smoke": dict(
@@ -80,16 +87,11 @@ PRESETS: dict[str, dict[str, Any]] = {
     "hopper": dict(
         algos=ALGOS,
         tasks=("hopper",),
-        uncertainty="3d",
         seeds=(0, 1, 2, 3, 4),
         steps=700_000,
         eval_every=50_000,
-        eval_episodes=5,
-        mesh=10,
-        endpoint=False,
-        episodes=5,
-        dynamic_episodes=10,
         checkpoint_every=50_000,
+        **PAPER_EVALUATION,
         # each run's 10 lowest points re-evaluated with 20 fresh episodes (docs/evaluation.md),
         # as the shipped references were after the fact; not in the fingerprints
         recheck=dict(worst=10, episodes=20, quantile=0.05),
@@ -102,29 +104,19 @@ PRESETS: dict[str, dict[str, Any]] = {
     "halfcheetah": dict(
         algos=ALGOS,
         tasks=("halfcheetah",),
-        uncertainty="3d",
         seeds=(0, 1, 2, 3, 4),
         steps=300_000,
         eval_every=10_000,
-        eval_episodes=5,
-        mesh=10,
-        endpoint=False,
-        episodes=5,
-        dynamic_episodes=10,
         checkpoint_every=25_000,
+        **PAPER_EVALUATION,
     ),
     # The paper's protocol (§5): 5 algorithms × 5 tasks × 10 seeds, 5 M steps, 3D set, mesh 10.
     "paper": dict(
         algos=ALGOS,
         tasks=PAPER_TASKS,
-        uncertainty="3d",
         seeds=tuple(range(10)),
         steps=5_000_000,
         eval_every=50_000,
-        eval_episodes=5,
-        mesh=10,
-        endpoint=False,
-        episodes=5,
-        dynamic_episodes=10,
+        **PAPER_EVALUATION,
     ),
 }
