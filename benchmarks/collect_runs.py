@@ -84,6 +84,10 @@ def executions(run: Path, dest: Path) -> bool:
         times, steps = [t for t, _ in events], [s for _, s in events]
         # a minute's slack: the event file opens just after the execution's clock starts
         rows.append((min(times), max(times), min(steps), max(steps), int(min(times) > began - 60)))
+    if not any(row[4] for row in rows):  # it trained nothing (a checkpoint at the budget,
+        # evaluated): no event file of its own; the span result.json times, at the final step
+        step = int(json.loads((run / "run.json").read_text())["steps"])
+        rows.append((began, result.stat().st_mtime, step, step, 1))
     rows.sort()
     lines = [",".join(COLUMNS)] + [f"{a:.3f},{b:.3f},{c},{d},{e}" for a, b, c, d, e in rows]
     text = "\n".join(lines) + "\n"

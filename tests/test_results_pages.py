@@ -159,6 +159,34 @@ def test_a_resumed_runs_cost_counts_every_execution(tmp_path, monkeypatch):
     assert collect_runs.run_seconds(dest) == (750.0, 0)  # not known: result.json alone
 
 
+def test_an_execution_that_only_evaluated_is_listed_with_its_span(tmp_path, monkeypatch):
+    # a run resumed from a checkpoint at its budget trains nothing and writes no event file:
+    # its last execution is result.json's own span, at the final step
+    import json
+    import os
+    import time
+
+    import collect_runs
+    from torch.utils.tensorboard import SummaryWriter
+
+    run = tmp_path / "runs" / "td3-hopper-3d-seed0"
+    monkeypatch.setattr(time, "time", lambda: 1000.0)
+    writer = SummaryWriter(str(run / "tb"))
+    for wall in (1000.0, 1500.0):
+        writer.add_scalar("charts/episode_return", 1.0, int(wall), walltime=wall)
+    writer.close()
+    monkeypatch.undo()
+    (run / "run.json").write_text(json.dumps({"steps": 1500}))
+    (run / "result.json").write_text(json.dumps({"seconds": 300.0}))
+    os.utime(run / "result.json", (2300.0, 2300.0))  # evaluated from 2 000 to 2 300
+    dest = tmp_path / "shipped" / collect_runs.EXECUTIONS
+    assert collect_runs.executions(run, dest)
+    rows = pd.read_csv(dest)
+    assert list(rows["in_result"]) == [0, 1] and list(rows["started"]) == [1000.0, 2000.0]
+    assert list(rows["ended"]) == [1500.0, 2300.0]
+    assert (rows["first_step"].iloc[-1], rows["last_step"].iloc[-1]) == (1500, 1500)
+
+
 def test_every_shipped_execution_list_names_the_one_result_json_times():
     import json
 
