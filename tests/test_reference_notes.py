@@ -116,6 +116,11 @@ def test_the_hopper_budget_is_the_probes_rule_and_its_file() -> None:
         assert {k: round(v, 4) for k, v in evals.items()} == {
             step: v for (s, step), v in rows.items() if s == seed and step <= spec.steps
         }
+    executions = folder / "runs" / "td3-hopper-3d-seed0" / "executions.csv"
+    if executions.exists():  # the probe trained past the budget before the checkpoint was taken
+        with open(executions, newline="") as f:
+            last = max(int(r["last_step"]) for r in csv.DictReader(f))
+        assert last > spec.steps and f"(seed 0 to {last // 1000} k" in page
     learn = spec.steps - spec.warmup("m2td3")
     assert f"M2TD3 learns for {learn:,} of the {spec.steps:,} steps".replace(",", " ") in page
     assert f"({learn / spec.steps:.0%}".replace("%", " %") in page
