@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import multiprocessing as mp
 import os
+import signal
 import sys
 import warnings
 from collections.abc import Callable
@@ -189,6 +190,9 @@ def _worker_main(
     parent: int,
 ) -> None:
     """A worker process: take rows (own share, then stolen ones), send finished episodes back."""
+    # a forked worker inherits the command's handlers, SIGTERM-as-Ctrl-C among them
+    # (rrls.interrupts); its parent stops it with SIGTERM, which must end it where it stands
+    signal.signal(signal.SIGTERM, signal.SIG_DFL)
     die_with_parent(parent)
     try:
         try:  # one BLAS thread per process: the processes already use every core
