@@ -452,13 +452,14 @@ def earlier(folder: Path, sub: str = "earlier") -> str:
 
 def blocks(folder: Path, reference: str | None) -> dict[str, str]:
     out = {}
+    spec = folder / "benchmark.json"
+    task = json.loads(spec.read_text())["tasks"][0] if spec.exists() else None
     if (folder / "tables" / "per_run.csv").is_file():  # a grid in progress has no report yet
         data = per_seed(folder)
         out = {"summary": summary(data, dynamic(folder, reference)), "orderings": orderings(data)}
     if (folder / "benchmark.json").exists():
         out["set"] = uncertainty_set(folder)
         out["status"] = status(folder)
-        task = json.loads((folder / "benchmark.json").read_text())["tasks"][0]
         out["td3_budget"] = td3_budget(folder, TD3_RULE.get(task, 4_000.0))
         text = (folder / "README.md").read_text() if (folder / "README.md").exists() else ""
         if "<!-- generated:paper -->" in text:
@@ -472,7 +473,6 @@ def blocks(folder: Path, reference: str | None) -> dict[str, str]:
     if (folder / "cleanrl_td3_returns.csv").is_file():
         import td3_sanity  # beside this file
 
-        task = json.loads((folder / "benchmark.json").read_text())["tasks"][0]
         steps = td3_sanity.TASKS[task][0]
         out["sanity"] = td3_sanity.table(folder, folder / "cleanrl_td3_returns.csv", steps)
     import page_checks  # beside this file

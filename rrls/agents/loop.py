@@ -19,7 +19,6 @@ from __future__ import annotations
 
 import multiprocessing
 import signal
-import threading
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
@@ -32,9 +31,8 @@ from rrls.agents.driver import Collector, Driver
 from rrls.agents.envs import env_factory, make_envs
 from rrls.agents.group import build_learner, check_group, check_group_memory, run_groups
 from rrls.agents.lookup import Algorithm, ResolvedRun, resolve_run, warm_up
-from rrls.agents.run import Run, active_ctrl_c
+from rrls.agents.run import Run, ctrl_c_signals
 from rrls.agents.stepwise import StepCollector, uniform
-from rrls.interrupts import terms_as_ctrl_c
 
 
 def train(
@@ -121,10 +119,7 @@ def _without_ctrl_c(start: Callable[..., Any], *args: Any) -> Any:
     scheduler's SIGTERM every process of the job), and an env worker it killed would leave the
     loop unable to finish the step whose end the checkpoint at Ctrl-C keeps. The workers die
     with the loop's process all the same."""
-    held = [signal.SIGINT] if active_ctrl_c() else []
-    if threading.current_thread() is threading.main_thread() and terms_as_ctrl_c():
-        held.append(signal.SIGTERM)
-    previous = {sig: signal.signal(sig, signal.SIG_IGN) for sig in held}
+    previous = {sig: signal.signal(sig, signal.SIG_IGN) for sig in ctrl_c_signals()}
     try:
         return start(*args)
     finally:

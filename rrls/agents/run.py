@@ -53,9 +53,7 @@ class StepBoundary:
     def hold(self) -> None:
         """From now on Ctrl-C (and SIGTERM where it is Ctrl-C) only sets ``requested`` (until
         ``release``)."""
-        held = [signal.SIGINT] if active_ctrl_c() else []
-        if threading.current_thread() is threading.main_thread() and terms_as_ctrl_c():
-            held.append(signal.SIGTERM)
+        held = ctrl_c_signals()
         for sig in held:
             self._previous[sig] = signal.signal(sig, self._request)
         if held:
@@ -88,6 +86,15 @@ def active_ctrl_c() -> bool:
         threading.current_thread() is threading.main_thread()
         and signal.getsignal(signal.SIGINT) is signal.default_int_handler
     )
+
+
+def ctrl_c_signals() -> list[int]:
+    """The signals that are Ctrl-C here: SIGINT where :func:`active_ctrl_c`, and SIGTERM in
+    the main thread where it was made Ctrl-C (``rrls.interrupts.term_as_ctrl_c``)."""
+    held = [signal.SIGINT] if active_ctrl_c() else []
+    if threading.current_thread() is threading.main_thread() and terms_as_ctrl_c():
+        held.append(signal.SIGTERM)
+    return held
 
 
 def versions() -> dict[str, str]:
