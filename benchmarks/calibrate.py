@@ -5,7 +5,11 @@ Single-thread training rate per algorithm, in CPU time (robust to a loaded machi
 CPU seconds of `rrls train --threads 1` for 3 000 steps (1 000 random) minus for 1 000 random
 steps = the CPU cost of 2 000 learning steps; rate = 2000 / that.
 
-    python3 benchmarks/calibrate.py td3 m2td3 sac
+    python3 benchmarks/calibrate.py td3 dr rarl nrmdp m2td3 sac
+
+Measure the algorithms side by side in one call: CPU time under load grows with cache
+contention, so the ratios of one call hold where its absolute rates do not (RARL's and NR-MDP's
+constants are TD3's times such ratios).
 """
 
 import resource
@@ -27,7 +31,7 @@ def cpu(algo: str, steps: int) -> float:
 
 
 if __name__ == "__main__":
-    for algo in sys.argv[1:] or ["td3", "m2td3", "sac"]:
+    for algo in sys.argv[1:] or ["td3", "dr", "rarl", "nrmdp", "m2td3", "sac"]:
         full, random = cpu(algo, 3000), cpu(algo, 1000)
         rate = 2000 / (full - random)
         print(f"{algo}: {rate:.0f} learning steps per CPU-second", flush=True)

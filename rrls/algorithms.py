@@ -55,10 +55,15 @@ ANCHORS = (0.0, 1.0)
 #: to a machine shared with other work) by ``python3 benchmarks/calibrate.py td3 m2td3 sac``:
 #: CPU seconds of ``rrls train --threads 1`` for 3 000 steps (1 000 random) minus those of 1 000
 #: random steps, on the 2-core development machine, quiet, 2026-11-24 (under load: 77 / 85 /
-#: 47, CPU time grows with cache contention). DR trains TD3's learner, SAC-DR SAC's; RARL and
-#: NR-MDP (not measured) are taken as TD3's, as is a row that gives none.
+#: 47, CPU time grows with cache contention). DR trains TD3's learner, SAC-DR SAC's; a row that
+#: gives none is taken as TD3's. RARL and NR-MDP train a second learner, their adversary: their
+#: rates are TD3's times their ratio to TD3 measured beside it (``calibrate.py td3 dr rarl nrmdp
+#: m2td3`` on an AVX2 EPYC under load, 2026-11-29: 73 / 76 / 36 / 65 / 85; the HalfCheetah
+#: reference's runs took 2.0x and 1.2x TD3's time).
 TD3_CPU = 94.0
 SAC_CPU = 57.0
+RARL_CPU = float(round(TD3_CPU * 36 / 73))  # both players updated every step: twice TD3's work
+NRMDP_CPU = float(round(TD3_CPU * 65 / 73))
 #: TD3's aggregated env steps/s of K runs trained together on one H100, ``(K, rate)``
 #: (docs/results/gpu/h100-2026-11-25.md): the estimate of a row that gives none
 TD3_GPU = ((1, 784.0), (8, 2_300.0), (32, 4_189.0))
@@ -169,8 +174,10 @@ ALGORITHMS: dict[str, AlgorithmInfo] = {
             adversary=True,
             set_use="adversary",
             options=_rarl_options,
+            cpu_steps_per_s=RARL_CPU,
         ),
-        _row("nrmdp", "NR-MDP", 4, paper=True, adversary=True),  # its adversary acts on actions
+        # its adversary acts on actions
+        _row("nrmdp", "NR-MDP", 4, paper=True, adversary=True, cpu_steps_per_s=NRMDP_CPU),
         # the M2TD3 authors' start_steps = 1e5 (akimotolab/M2TD3's configs; SuReLI/TCRMDP
         # src/main_m2td3.py:16, the RRLS authors' port)
         _row(

@@ -12,6 +12,7 @@ import signal
 import subprocess
 import sys
 import time
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -26,6 +27,7 @@ from rrls.benchmark.cpu_estimate import (
     REPORT_S,
     STARTUP_S,
     estimate,
+    schedule,
 )
 from rrls.benchmark.grid import Benchmark, SpecError, make_spec
 from rrls.benchmark.runner import Display, plan
@@ -343,6 +345,25 @@ def test_bad_spec_from_the_command_line_has_no_traceback(tmp_path):
     assert proc.returncode == 2 and proc.stderr.count("\n") == 1 and "Traceback" not in proc.stderr
 
 
+def alone(spec, key):
+    """``spec``'s grid reduced to one of its runs."""
+    return replace(spec, algos=(key.algo,), tasks=(key.task,), seeds=(key.seed,))
+
+
+def max_run(spec):
+    """The longest run of ``spec``'s grid, each estimated alone."""
+    return max(estimate(alone(spec, k), 1)["cpu_s"] for k in spec.runs())
+
+
+def test_the_estimates_queue_is_the_schedulers():
+    # runs start in the grid's order, each on the first worker free
+    assert schedule([4.0, 4.0, 4.0], 2) == 8.0  # a second round leaves a worker idle
+    assert schedule([1.0, 1.0, 6.0], 2) == 7.0  # the long run starts once the first ends
+    assert schedule([6.0, 1.0, 1.0], 2) == 6.0
+    assert schedule([3.0] * 15, 2) == 24.0 and schedule([3.0] * 15, 100) == 3.0
+    assert schedule([], 4) == 0.0 and schedule([5.0], 0) == 5.0
+
+
 def test_paper_preset_is_the_protocol_and_prints_an_estimate(tmp_path):
     spec = make_spec("paper")
     assert spec.algos == ("td3", "dr", "rarl", "nrmdp", "m2td3")
@@ -353,8 +374,10 @@ def test_paper_preset_is_the_protocol_and_prints_an_estimate(tmp_path):
     assert (spec.endpoint, spec.learning_starts) == (False, None)  # np.arange; own warm-ups
     assert [spec.warmup(a) for a in spec.algos] == [25_000] * 4 + [100_000]  # M2TD3's authors'
     est = estimate(spec, jobs=2)
-    # 125 rounds of 2 runs, then the report
-    assert est["runs"] == 250 and est["wall_s"] == pytest.approx(est["cpu_s"] / 2 + REPORT_S)
+    # 250 runs of unequal length on 2 workers: no sooner than half the compute, and within the
+    # last run of it; then the report
+    assert est["runs"] == 250 and est["cpu_s"] / 2 + REPORT_S <= est["wall_s"]
+    assert est["wall_s"] <= est["cpu_s"] / 2 + REPORT_S + max_run(spec)
     # each run: the start-up, its random warm-up, then its learning steps at its algorithm's
     # calibrated single-thread rate (256-256: the calibration's size)
     warmups = [spec.warmup(a) for a in spec.algos]
@@ -362,9 +385,10 @@ def test_paper_preset_is_the_protocol_and_prints_an_estimate(tmp_path):
     learning = 50 * sum((5e6 - w) / r for w, r in zip(warmups, rates))
     warmup = 50 * sum(warmups) / RANDOM_STEPS_PER_S
     assert est["train_s"] == pytest.approx(learning + warmup + 250 * STARTUP_S)
-    # a 15-run preset on 2 cores: 8 rounds (the last leaves a core idle)
-    quick = estimate(make_spec("quick"), jobs=2)
-    assert quick["wall_s"] == pytest.approx(8 * quick["cpu_s"] / 15 + REPORT_S)
+    # with a worker per run, the wall time is the longest run's: RARL, which trains two players
+    assert estimate(spec, jobs=250)["wall_s"] == pytest.approx(max_run(spec) + REPORT_S)
+    longest = max(spec.runs(), key=lambda k: estimate(alone(spec, k), 1)["cpu_s"])
+    assert longest.algo == "rarl"
     text = plan(tmp_path, spec, 250, 0, 2, "local")
     assert "250 runs" in text and "estimate" in text and "days" in text
     # explicit options override the preset

@@ -6,6 +6,8 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import pytest
+
 from rrls.benchmark.cpu_estimate import estimate, format_duration
 from rrls.benchmark.gpu_estimate import GPU_RECORD, gpu_estimate
 from rrls.benchmark.grid import make_spec
@@ -37,3 +39,20 @@ def test_the_gpu_estimate_is_rrls_own_measurement_and_the_dry_run_prints_it(tmp_
     text = out.out + out.err
     assert f"estimate on one GPU (rrls's own H100 figures, {GPU_RECORD}" in text
     assert format_duration(est["wall_s"]) in text and "of compute (training" not in text
+
+
+def test_an_algorithm_without_gpu_figures_is_td3s_scaled_by_its_cpu_rate():
+    # RARL updates two players every step: on a CPU it trains at half TD3's rate, and the GPU
+    # estimate, which has no RARL figure, counts that rather than taking TD3's rate as it is
+    from rrls.algorithms import ALGORITHMS, TD3_CPU, TD3_GPU
+    from rrls.benchmark.gpu_estimate import stored_rate
+
+    td3 = dict(TD3_GPU)
+    for k in td3:
+        assert stored_rate("td3", k) == (td3[k], True)
+        assert stored_rate("dr", k) == (td3[k], False)  # DR trains TD3's learner
+        rarl, measured = stored_rate("rarl", k)
+        assert not measured
+        assert rarl == pytest.approx(td3[k] * ALGORITHMS["rarl"].cpu_steps_per_s / TD3_CPU)
+        assert rarl < 0.6 * td3[k]
+    assert stored_rate("m2td3", 8) == (1_172.0, True)  # measured figures are used as they are

@@ -180,8 +180,8 @@ def test_the_halfcheetah_page_says_what_the_reference_refuses():
 
 
 def test_the_presets_cpu_hours_stated_are_the_estimators():
-    # docs/benchmark.md's preset table and `rrls benchmark --help`: "~9 CPU-hours" (hopper),
-    # "~22 CPU-hours" (halfcheetah), each what `--dry-run` estimates
+    # docs/benchmark.md's preset table and `rrls benchmark --help`: "~11 CPU-hours" (hopper-200k),
+    # "~27 CPU-hours" (halfcheetah), each what `--dry-run` estimates
     import argparse
 
     from rrls.benchmark.cpu_estimate import estimate

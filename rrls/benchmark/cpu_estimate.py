@@ -5,6 +5,8 @@ project's machines, then the wall time with ``jobs`` runs at a time. Its GPU cou
 
 from __future__ import annotations
 
+import heapq
+
 from rrls.algorithms import TD3_CPU, algorithm_info, plays_adversary
 from rrls.benchmark.grid import Benchmark
 
@@ -16,6 +18,7 @@ __all__ = [
     "default_jobs",
     "estimate",
     "format_duration",
+    "schedule",
     "size_factor",
 ]
 
@@ -50,28 +53,43 @@ def estimate(spec: Benchmark, jobs: int, max_episode_steps: int = 1000) -> dict[
     from rrls.envs import get_uncertainty_set
 
     train = evals = 0.0
+    seconds = []  # each run's, in the order the scheduler starts them
     for key in spec.runs():
         info = algorithm_info(key.algo)
         rate = (info.cpu_steps_per_s if info else TD3_CPU) / size_factor(spec.hidden)
         random_steps = spec.warmup(key.algo)
-        train += STARTUP_S + random_steps / RANDOM_STEPS_PER_S
-        train += (spec.steps - random_steps) / rate
+        trained = STARTUP_S + random_steps / RANDOM_STEPS_PER_S
+        trained += (spec.steps - random_steps) / rate
         dims = len(get_uncertainty_set(key.task, spec.uncertainty).names)
         env_sps = ENV_STEPS_PER_S.get(key.task, 5_000.0)
         n_periodic = spec.steps // spec.eval_every if spec.eval_every else 0
         periodic = n_periodic * (spec.eval_episodes + spec.eval_mesh**dims)
         final = spec.mesh**dims * spec.episodes
         dynamic = spec.dynamic_episodes if plays_adversary(key.algo) else 0
-        evals += (
+        evaluated = (
             (periodic + final + dynamic) * max_episode_steps * (1 / env_sps + POLICY_S_PER_STEP)
         )
-    runs = len(spec.runs())
+        train, evals = train + trained, evals + evaluated
+        seconds.append(trained + evaluated)
     total = train + evals
-    # whole runs are scheduled, ``jobs`` at a time: ceil(runs / jobs) rounds of a mean run (the
-    # last round may leave cores idle), then the report
-    rounds = -(-runs // max(1, min(jobs, runs))) if runs else 0
-    wall = rounds * (total / runs if runs else 0.0) + REPORT_S
-    return {"runs": runs, "train_s": train, "eval_s": evals, "cpu_s": total, "wall_s": wall}
+    return {
+        "runs": len(seconds),
+        "train_s": train,
+        "eval_s": evals,
+        "cpu_s": total,
+        "wall_s": schedule(seconds, jobs) + REPORT_S,
+    }
+
+
+def schedule(seconds: list[float], jobs: int) -> float:
+    """When the last of runs lasting ``seconds`` ends, started in that order on ``jobs``
+    workers, each run on the first worker free (the local and Ray backends' queue): runs of
+    unequal length (RARL's twice TD3's) leave workers idle at the end, and no number of workers
+    finishes before the longest run."""
+    free = [0.0] * max(1, min(jobs, len(seconds)))
+    for run in seconds:
+        heapq.heappush(free, heapq.heappop(free) + run)
+    return max(free) if seconds else 0.0
 
 
 def size_factor(hidden: tuple[int, ...]) -> float:

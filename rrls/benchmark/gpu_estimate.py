@@ -7,7 +7,8 @@ env-worker processes on that machine's 16 cores): env steps per second after lea
 ONE process training K runs of a cell together. What is measured and what is extrapolated:
 
 - measured: TD3 and M2TD3 at K = 1, 8 and 32 (one round each, ±25 % run to run);
-- taken as TD3's (not measured on a GPU): DR, RARL, NR-MDP, SAC, SAC-DR and plug-ins;
+- TD3's scaled by their CPU rate against TD3's (not measured on a GPU): DR (as TD3), RARL and
+  NR-MDP (which train an adversary too: 0.49x and 0.89x), SAC, SAC-DR and plug-ins;
 - interpolated between measured K (linearly in the aggregated rate) and, beyond K = 32, held at
   K = 32's per-run rate: extrapolated;
 - groups run one after another (one process holds the GPU); the evaluation runs on the CPU
@@ -35,12 +36,14 @@ GPU_RECORD = "docs/results/gpu/h100-2026-11-25.md"
 
 def stored_rate(algo: str, k: int) -> tuple[float, bool]:
     """Aggregated env steps/s of a group of ``k`` runs of ``algo``, and whether measured (its
-    row's ``gpu_steps_per_s``, measured on one H100; a row without them: TD3's)."""
-    from rrls.algorithms import TD3_GPU, algorithm_info
+    row's ``gpu_steps_per_s``, measured on one H100; a row without them: TD3's, times its CPU
+    rate against TD3's, so that RARL's second player is counted)."""
+    from rrls.algorithms import TD3_CPU, TD3_GPU, algorithm_info
 
     info = algorithm_info(algo)
     own = info.gpu_rate() if info is not None else {}
-    table = own or dict(TD3_GPU)
+    scale = info.cpu_steps_per_s / TD3_CPU if info is not None else 1.0
+    table = own or {n: r * scale for n, r in TD3_GPU}
     measured = bool(own) and k in table
     ks = sorted(table)
     if k in table:
@@ -115,7 +118,8 @@ def describe(spec: Benchmark, pack: int) -> str:
     how = (
         "measured rates"
         if est["measured"]
-        else "measured rates where they exist, others interpolated, extrapolated or taken as TD3's"
+        else "measured rates where they exist, others interpolated, extrapolated or scaled from "
+        "TD3's"
     )
     return (
         f"estimate on one GPU (rrls's own H100 figures, {GPU_RECORD}; {how}; ±30 % at best): "

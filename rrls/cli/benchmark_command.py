@@ -73,8 +73,8 @@ def add_parser(sub: argparse._SubParsersAction) -> argparse.ArgumentParser:
         default="paper",
         metavar="{" + ",".join(PRESETS) + "}",
         help="smoke (seconds, for tests), quick (~18 min on 2 cores, reduced protocol), "
-        "hopper-200k (~9 CPU-hours: the early-training locomotion reference), hopper (~56 "
-        "CPU-hours: Hopper where TD3 hops, 700 k steps), halfcheetah (~22 "
+        "hopper-200k (~11 CPU-hours: the early-training locomotion reference), hopper (~67 "
+        "CPU-hours: Hopper where TD3 hops, 700 k steps), halfcheetah (~27 "
         "CPU-hours: the locomotion reference where TD3 runs), paper (the "
         "paper's protocol); "
         "default: %(default)s (250 runs: try --dry-run first)",
