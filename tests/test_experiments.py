@@ -23,13 +23,16 @@ from conftest import e2e_after_first
 from rrls.algorithms import ALGORITHMS
 from rrls.benchmark.benchfile import reconcile
 from rrls.benchmark.cpu_estimate import (
+    ENV_STEPS_PER_S,
+    POLICY_S_PER_STEP,
     RANDOM_STEPS_PER_S,
     REPORT_S,
     STARTUP_S,
     estimate,
+    format_duration,
     schedule,
 )
-from rrls.benchmark.grid import Benchmark, SpecError, make_spec
+from rrls.benchmark.grid import Benchmark, RunKey, SpecError, make_spec
 from rrls.benchmark.runner import Display, plan
 from rrls.cli import main
 from rrls.report import stats
@@ -394,6 +397,36 @@ def test_paper_preset_is_the_protocol_and_prints_an_estimate(tmp_path):
     # explicit options override the preset
     assert make_spec("paper", tasks="hopper", seeds=3, steps=1000).seeds == (0, 1, 2)
     assert make_spec("quick", steps=1000).learning_starts == 200
+
+
+def test_a_resumed_benchmark_estimates_what_is_left_from_the_runs_steps(tmp_path):
+    from rrls.benchmark.pipeline import ProgressFile, run_dir
+
+    spec = make_spec("hopper")
+    td3, dr, rarl = (RunKey(a, "hopper", 0) for a in ("td3", "dr", "rarl"))
+    whole = estimate(spec, 2)
+    # a run trained through its budget costs its start-up and its final evaluation only; one
+    # half-trained, half its learning steps more; the others as in the whole grid
+    through = estimate(spec, 1, runs=[td3], trained={td3: spec.steps})
+    final = 10**3 * 5 * 1000 * (1 / ENV_STEPS_PER_S["hopper"] + POLICY_S_PER_STEP)  # mesh x 5
+    assert through["train_s"] == pytest.approx(STARTUP_S)
+    assert through["eval_s"] == pytest.approx(final)
+    half = estimate(spec, 1, runs=[rarl], trained={rarl: 350_000})["train_s"] - STARTUP_S
+    fresh = estimate(spec, 1, runs=[rarl])["train_s"] - STARTUP_S
+    assert half == pytest.approx(350_000 / ALGORITHMS["rarl"].cpu_steps_per_s)
+    warmup = 25_000 / RANDOM_STEPS_PER_S  # random steps, no update
+    assert fresh == pytest.approx(warmup + 325_000 / ALGORITHMS["rarl"].cpu_steps_per_s + half)
+    # the plan reads each run's last progress.json: a fresh benchmark has no line for it
+    assert "runs left" not in plan(tmp_path, spec, 25, 0, 2, "local", left=spec.runs())
+    for key, phase, step in ((td3, "evaluate", 700_000), (dr, "train", 183_405)):
+        run_dir(tmp_path, spec, key).mkdir(parents=True)
+        ProgressFile(run_dir(tmp_path, spec, key) / "progress.json", spec.steps).write(phase, step)
+    left = estimate(spec, 2, runs=spec.runs(), trained={td3: 700_000, dr: 183_405})
+    text = plan(tmp_path, spec, 25, 0, 2, "local", left=spec.runs())
+    assert "for the 25 runs left (2 part-trained, counted from their last step): " in text
+    assert f"{format_duration(left['cpu_s'])}, about {format_duration(left['wall_s'])}" in text
+    saved = (675_000 + 183_405 - 25_000) / ALGORITHMS["td3"].cpu_steps_per_s  # their learning
+    assert whole["cpu_s"] - left["cpu_s"] > saved
 
 
 # --- the paper's own numbers through the report ---------------------------------------------

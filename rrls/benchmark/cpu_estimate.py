@@ -6,9 +6,10 @@ project's machines, then the wall time with ``jobs`` runs at a time. Its GPU cou
 from __future__ import annotations
 
 import heapq
+from collections.abc import Mapping
 
 from rrls.algorithms import TD3_CPU, algorithm_info, plays_adversary
-from rrls.benchmark.grid import Benchmark
+from rrls.benchmark.grid import Benchmark, RunKey
 
 __all__ = [
     "ENV_STEPS_PER_S",
@@ -47,30 +48,41 @@ ENV_STEPS_PER_S = {
 }
 
 
-def estimate(spec: Benchmark, jobs: int, max_episode_steps: int = 1000) -> dict[str, float]:
+def estimate(
+    spec: Benchmark,
+    jobs: int,
+    max_episode_steps: int = 1000,
+    runs: list[RunKey] | None = None,
+    trained: Mapping[RunKey, int] | None = None,
+) -> dict[str, float]:
     """Seconds of compute (one core) and wall time with ``jobs`` parallel runs — an estimate
-    from measured speeds (±30 %; evaluation episodes counted at full length: an upper bound)."""
+    from measured speeds (±30 %; evaluation episodes counted at full length: an upper bound).
+    ``runs``: those to count (default: the whole grid); ``trained``: the steps some have
+    trained already (a resumed benchmark's part-trained runs), which they do not train again."""
     from rrls.envs import get_uncertainty_set
 
     train = evals = 0.0
     seconds = []  # each run's, in the order the scheduler starts them
-    for key in spec.runs():
+    for key in spec.runs() if runs is None else runs:
         info = algorithm_info(key.algo)
         rate = (info.cpu_steps_per_s if info else TD3_CPU) / size_factor(spec.hidden)
         random_steps = spec.warmup(key.algo)
-        trained = STARTUP_S + random_steps / RANDOM_STEPS_PER_S
-        trained += (spec.steps - random_steps) / rate
+        done = min(max((trained or {}).get(key, 0), 0), spec.steps)
+        spent = STARTUP_S + max(random_steps - done, 0) / RANDOM_STEPS_PER_S
+        spent += (spec.steps - max(random_steps, done)) / rate
         dims = len(get_uncertainty_set(key.task, spec.uncertainty).names)
         env_sps = ENV_STEPS_PER_S.get(key.task, 5_000.0)
-        n_periodic = spec.steps // spec.eval_every if spec.eval_every else 0
+        n_periodic = (
+            spec.steps // spec.eval_every - done // spec.eval_every if spec.eval_every else 0
+        )
         periodic = n_periodic * (spec.eval_episodes + spec.eval_mesh**dims)
         final = spec.mesh**dims * spec.episodes
         dynamic = spec.dynamic_episodes if plays_adversary(key.algo) else 0
         evaluated = (
             (periodic + final + dynamic) * max_episode_steps * (1 / env_sps + POLICY_S_PER_STEP)
         )
-        train, evals = train + trained, evals + evaluated
-        seconds.append(trained + evaluated)
+        train, evals = train + spent, evals + evaluated
+        seconds.append(spent + evaluated)
     total = train + evals
     return {
         "runs": len(seconds),

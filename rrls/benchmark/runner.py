@@ -182,10 +182,30 @@ def kept_runs(root: Path, spec: Benchmark) -> str:
     return text
 
 
+def trained_steps(root: Path, spec: Benchmark, keys: list[RunKey]) -> dict[RunKey, int]:
+    """The steps each of ``keys`` has trained in ``root`` by its last ``progress.json`` (a
+    resumed run goes on from there; trained through: the budget), for those that have one."""
+    out = {}
+    for key in keys:
+        progress = read_progress(run_dir(root, spec, key))
+        if progress is not None and progress["step"] > 0:
+            out[key] = spec.steps if progress["phase"] != "train" else progress["step"]
+    return out
+
+
 def plan(
-    root: Path, spec: Benchmark, todo: int, finished: int, jobs: int, backend: str, pack: int = 1
+    root: Path,
+    spec: Benchmark,
+    todo: int,
+    finished: int,
+    jobs: int,
+    backend: str,
+    pack: int = 1,
+    left: list[RunKey] | None = None,
 ) -> str:
-    """What is about to run, and the compute estimate (printed before anything starts)."""
+    """What is about to run, and the compute estimate (printed before anything starts): the
+    whole grid's, and, in a benchmark resumed, that of the ``left`` runs, from the steps they
+    have trained."""
     est = estimate(spec, jobs or 1)
     if spec.device.startswith("cuda"):
         from rrls.benchmark.gpu_estimate import describe
@@ -202,6 +222,14 @@ def plan(
                 else ", divided among the cluster's CPUs"
             )
         )
+        trained = trained_steps(root, spec, left or [])
+        if left is not None and (finished or trained):
+            rest = estimate(spec, jobs or 1, runs=left, trained=trained)
+            estimate_line += (
+                f"; for the {len(left)} runs left ({len(trained)} part-trained, counted from "
+                f"their last step): {format_duration(rest['cpu_s'])}"
+                + (f", about {format_duration(rest['wall_s'])} wall time" if jobs else "")
+            )
     return (
         f"rrls benchmark {root}: preset {spec.preset}, {len(spec.algos)} algorithms x "
         f"{len(spec.tasks)} tasks x {len(spec.seeds)} seeds = {est['runs']} runs "
@@ -279,7 +307,7 @@ def _benchmark(
         benchfile.write_spec(root, stored)
     todo, finished = pending_runs(root, spec)  # this command's grid only
     pack = default_pack(spec, pack)
-    print(plan(root, spec, len(todo), finished, jobs, backend, pack), file=stream, flush=True)
+    print(plan(root, spec, len(todo), finished, jobs, backend, pack, todo), file=stream, flush=True)
     slots = min(len(todo), (jobs or len(groups(todo, pack, spec))) * pack)  # runs at once
     display = Display(root, spec, todo, finished, slots, stream, interval)
     try:  # Ctrl-C: the runs are stopped before it goes on up

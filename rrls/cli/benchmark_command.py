@@ -231,7 +231,7 @@ def _dry_run(root: Any, spec: Any, jobs: int, backend: str, pack: int | None) ->
 
     spec, (todo, finished) = reconcile(root, spec), pending(root, spec)
     pack = default_pack(spec, pack)
-    print(plan(root, spec, len(todo), finished, jobs, backend, pack))
+    print(plan(root, spec, len(todo), finished, jobs, backend, pack, todo))
     print(f"\nruns to start, in order ({len(todo)}):")
     for i, group in enumerate(groups(todo, pack), 1):
         names = ", ".join(key.name(spec.uncertainty) for key in group)
