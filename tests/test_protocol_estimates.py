@@ -56,3 +56,20 @@ def test_an_algorithm_without_gpu_figures_is_td3s_scaled_by_its_cpu_rate():
         assert rarl == pytest.approx(td3[k] * ALGORITHMS["rarl"].cpu_steps_per_s / TD3_CPU)
         assert rarl < 0.6 * td3[k]
     assert stored_rate("m2td3", 8) == (1_172.0, True)  # measured figures are used as they are
+
+
+def test_the_throughput_table_states_the_estimates_constants():
+    # "94 / 103 / 57" (TD3, M2TD3, SAC) and RARL's and NR-MDP's "46 and 84", which are TD3's
+    # times the ratios measured side by side ("73 / 76 / 36 / 65 / 85": TD3, DR, RARL, NR-MDP,
+    # M2TD3)
+    from rrls.algorithms import ALGORITHMS, SAC_CPU, TD3_CPU
+
+    rate = {a: ALGORITHMS[a].cpu_steps_per_s for a in ALGORITHMS}
+    assert f"| {TD3_CPU:.0f} / {rate['m2td3']:.0f} / {SAC_CPU:.0f} (" in PAGE
+    assert f"(their constants: {rate['rarl']:.0f} and {rate['nrmdp']:.0f})" in PAGE
+    side_by_side = dict(zip(("td3", "dr", "rarl", "nrmdp", "m2td3"), (73, 76, 36, 65, 85)))
+    assert " / ".join(map(str, side_by_side.values())) + ": RARL and NR-MDP" in PAGE
+    for algo in ("rarl", "nrmdp"):
+        ratio = side_by_side[algo] / side_by_side["td3"]
+        assert rate[algo] == round(TD3_CPU * ratio)
+        assert f"{ratio:.2f}×" in PAGE
