@@ -5,6 +5,7 @@ them: SIGINT to the whole process group)."""
 from __future__ import annotations
 
 import os
+import signal
 import subprocess
 from pathlib import Path
 
@@ -124,6 +125,36 @@ def test_ctrl_c_in_evaluate_names_the_chunks_kept_and_the_same_command_resumes_t
     assert _line(capsys).startswith(
         "rrls evaluate: interrupted; the evaluation is complete in ev (summary.json written);"
     )
+
+
+_MID_FORK = {"armed": False, "registered": False}
+
+
+def _ctrl_c_in_the_child() -> None:
+    if _MID_FORK["armed"]:  # Ctrl-C landing in a worker while it is being forked
+        os.kill(os.getpid(), signal.SIGINT)
+
+
+def test_ctrl_c_landing_while_the_workers_fork_prints_no_traceback(capfd):
+    # a Ctrl-C in the instant a worker is forked used to raise inside the child's at-fork
+    # handlers (logging's lock), which print "Exception ignored ... Traceback"; held until the
+    # worker's own code runs, it is one more Ctrl-C the evaluation reports
+    from rrls.evaluation import MLPPolicy, evaluate
+
+    if not _MID_FORK["registered"]:  # os.register_at_fork has no undo: once per process
+        os.register_at_fork(after_in_child=_ctrl_c_in_the_child)
+        _MID_FORK["registered"] = True
+    policy = MLPPolicy.random(11, 3, (8,), seed=0)
+    before = signal.signal(signal.SIGINT, signal.default_int_handler)  # as in a terminal
+    _MID_FORK["armed"] = True
+    try:
+        with pytest.raises(KeyboardInterrupt):
+            evaluate(policy, "hopper", "1d", mesh=4, episodes=4, workers=2)
+    finally:
+        _MID_FORK["armed"] = False
+        signal.signal(signal.SIGINT, before)
+    err = capfd.readouterr().err
+    assert "Traceback" not in err and "Exception ignored" not in err, err
 
 
 @pytest.fixture

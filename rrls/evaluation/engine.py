@@ -16,12 +16,13 @@ Why this shape:
 
 from __future__ import annotations
 
+import contextlib
 import multiprocessing as mp
 import os
 import signal
 import sys
 import warnings
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import Any
 
@@ -145,12 +146,12 @@ def _run_processes(
         )
         for w in range(plan.workers)
     ]
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", DeprecationWarning)  # fork with threads (3.12+)
-        for proc in procs:
-            proc.start()
     running = plan.workers
     try:
+        with warnings.catch_warnings(), _stops_held():
+            warnings.simplefilter("ignore", DeprecationWarning)  # fork with threads (3.12+)
+            for proc in procs:
+                proc.start()
         while running:
             try:
                 msg = results.get(timeout=1.0)
@@ -169,12 +170,33 @@ def _run_processes(
             else:
                 on_finished(msg)
     finally:
-        for proc in procs:
+        started = [proc for proc in procs if proc.pid is not None]
+        for proc in started:
             if proc.is_alive():
                 proc.terminate()
-        for proc in procs:
+        for proc in started:
             proc.join()
         results.close()
+
+
+#: the signals that stop a command (Ctrl-C; a scheduler's SIGTERM, ``rrls.interrupts``)
+_STOPS = {signal.SIGINT, signal.SIGTERM}
+
+
+@contextlib.contextmanager
+def _stops_held() -> Iterator[None]:
+    """Hold Ctrl-C and SIGTERM while the workers are forked: one landing mid-fork would raise
+    inside the child's at-fork handlers (logging's lock), which print a traceback. Held, it
+    reaches this process once the workers are started, and each worker once its own code
+    runs (``_worker_main`` lets them through)."""
+    if not hasattr(signal, "pthread_sigmask"):  # pragma: no cover - not POSIX
+        yield
+        return
+    before = signal.pthread_sigmask(signal.SIG_BLOCK, _STOPS)
+    try:
+        yield
+    finally:
+        signal.pthread_sigmask(signal.SIG_SETMASK, before)
 
 
 def _worker_main(
@@ -195,6 +217,8 @@ def _worker_main(
     signal.signal(signal.SIGTERM, signal.SIG_DFL)
     die_with_parent(parent)
     try:
+        if hasattr(signal, "pthread_sigmask"):  # held while it was forked (``_stops_held``);
+            signal.pthread_sigmask(signal.SIG_UNBLOCK, _STOPS)  # a Ctrl-C then goes to the parent
         try:  # one BLAS thread per process: the processes already use every core
             from threadpoolctl import threadpool_limits
 
