@@ -8,17 +8,23 @@ mass write (``mj_setConst``); the paper's code wrote the parameters without reco
 folder's benchmark protocol with only ``physics`` changed to ``paper`` (its mesh, episodes and
 seeds), and its worst and average case written beside the shipped (v5) ones to
 ``paper_physics.csv`` in the folder, one row per run as it finishes, every algorithm's seed 0
-first (a re-run skips the runs already there; several processes share the work). The results
-page's ``physics`` block (``benchmarks/results_page.py``) reads it.
+first (a re-run skips the runs already there; several processes share the work). A run's
+evaluation keeps its finished chunks in ``.paper_physics/<run>/`` until its row is written, so a
+process stopped part-way (Ctrl-C, a machine gone) goes on from them when run again; a run is
+claimed with a lock that ends with its process, so no claim outlives it. The results page's
+``physics`` block (``benchmarks/results_page.py``) reads it.
 """
 
 from __future__ import annotations
 
 import argparse
 import csv
+import fcntl
 import json
+import shutil
 import time
 from pathlib import Path
+from typing import Any
 
 from rrls.benchmark import benchfile
 from rrls.evaluation import evaluate
@@ -48,19 +54,24 @@ def main() -> None:
     runs = sorted((args.folder / "runs").iterdir())
     runs.sort(key=lambda r: int(r.name.rpartition("seed")[2]))  # every algorithm's seed 0 first
     for run in runs:
-        with open(out, newline="") as f:
-            done = {row["run"] for row in csv.DictReader(f)}
         claim = args.folder / f".paper_physics.{run.name}.claim"
-        if run.name in done:
+        hold = take(claim)  # several processes share the folder: each run once
+        if hold is None:
             continue
-        try:  # several processes may share the folder: each run once
-            claim.touch(exist_ok=False)
-        except FileExistsError:
+        with open(out, newline="") as f:  # read once held: another may have just written it
+            done = {row["run"] for row in csv.DictReader(f)}
+        if run.name in done:
+            hold.close()
             continue
         shipped = json.loads((run / "result.json").read_text())
         start = time.time()
+        chunks = args.folder / ".paper_physics" / run.name  # resumable until its row is written
         result = evaluate(
-            run / "policy.npz", shipped["task"], protocol=protocol, workers=args.workers
+            run / "policy.npz",
+            shipped["task"],
+            protocol=protocol,
+            workers=args.workers,
+            out_dir=chunks,
         )
         row = [
             run.name,
@@ -74,9 +85,27 @@ def main() -> None:
         ]
         with open(out, "a", newline="") as f:
             csv.writer(f).writerow(row)
+        shutil.rmtree(chunks)
         claim.unlink()
+        hold.close()
         print(*row, flush=True)
 
 
+def take(claim: Path) -> Any:
+    """This process's hold on a run, or None where another process holds it: an exclusive
+    ``flock`` on the claim file, which ends with its process (a process stopped part-way leaves
+    no claim behind)."""
+    handle = open(claim, "a")  # held for the run's evaluation
+    try:
+        fcntl.flock(handle, fcntl.LOCK_EX | fcntl.LOCK_NB)
+    except BlockingIOError:
+        handle.close()
+        return None
+    return handle
+
+
 if __name__ == "__main__":
-    main()
+    try:
+        main()
+    except KeyboardInterrupt:  # the finished chunks stay: the same command goes on from them
+        raise SystemExit("paper_physics: interrupted; run the same command to go on") from None

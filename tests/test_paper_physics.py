@@ -201,3 +201,22 @@ def test_a_plugin_make_env_without_paper_is_refused_on_the_papers_physics():
     with pytest.raises(ValueError, match="'mine': its make_env takes no 'paper' keyword"):
         env_factory(plugin, TrainConfig(task="hopper", physics="paper"), None)
     assert env_factory(plugin, TrainConfig(task="hopper"), None).func is make_env
+
+
+def test_the_paper_physics_script_claims_a_run_while_its_process_lives(tmp_path):
+    # benchmarks/paper_physics.py, several processes on one folder: a run is each one's once,
+    # and a claim left by a process stopped part-way does not keep the run from the next one
+    import sys
+    from pathlib import Path
+
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
+    from paper_physics import take
+
+    claim = tmp_path / ".paper_physics.td3-hopper-3d-seed0.claim"
+    first = take(claim)
+    assert first is not None and take(claim) is None  # held: the other process skips the run
+    first.close()  # its process ends (or is killed): the lock goes with it
+    claim.touch()  # the file left behind is no claim
+    second = take(claim)
+    assert second is not None
+    second.close()
