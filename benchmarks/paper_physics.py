@@ -55,12 +55,13 @@ def main() -> None:
     runs.sort(key=lambda r: int(r.name.rpartition("seed")[2]))  # every algorithm's seed 0 first
     for run in runs:
         claim = args.folder / f".paper_physics.{run.name}.claim"
+        if run.name in written(out):
+            continue
         hold = take(claim)  # several processes share the folder: each run once
         if hold is None:
             continue
-        with open(out, newline="") as f:  # read once held: another may have just written it
-            done = {row["run"] for row in csv.DictReader(f)}
-        if run.name in done:
+        if run.name in written(out):  # by the process that held it until just now
+            claim.unlink(missing_ok=True)
             hold.close()
             continue
         shipped = json.loads((run / "result.json").read_text())
@@ -89,6 +90,12 @@ def main() -> None:
         claim.unlink()
         hold.close()
         print(*row, flush=True)
+
+
+def written(out: Path) -> set[str]:
+    """The runs with a row in ``out``."""
+    with open(out, newline="") as f:
+        return {row["run"] for row in csv.DictReader(f)}
 
 
 def take(claim: Path) -> Any:
