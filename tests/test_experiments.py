@@ -30,7 +30,9 @@ from rrls.benchmark.cpu_estimate import (
     STARTUP_S,
     estimate,
     format_duration,
+    run_seconds,
     schedule,
+    train_rate,
 )
 from rrls.benchmark.grid import Benchmark, RunKey, SpecError, make_spec
 from rrls.benchmark.runner import Display, plan
@@ -555,6 +557,30 @@ def test_progress_shows_counts_running_runs_and_failures(tmp_path, stream_type):
         assert "0/3 done, 2 running, 0 failed, 1 pending" in text
     else:
         assert "pending 1 running 2 done 0 failed 0" in text
+
+
+def test_the_eta_is_the_estimate_of_what_is_left_at_the_speed_the_runs_show(tmp_path):
+    from rrls.benchmark.pipeline import run_dir
+
+    spec = make_spec("hopper")
+    td3, dr, rarl, nrmdp = spec.runs()[:4]
+    steps = {td3: 300_000, dr: 100_000, rarl: 20_000}  # RARL still in its random warm-up
+    speed = {td3: 0.5, dr: 0.25}  # of the estimate's rate: a busy machine
+    for key, step in steps.items():
+        run = run_dir(tmp_path, spec, key)
+        run.mkdir(parents=True)
+        rate = speed[key] * train_rate(spec, key.algo) if key in speed else 2_000.0
+        progress = {"phase": "train", "step": step, "total": spec.steps, "sps": rate, "pid": 1}
+        (run / "progress.json").write_text(json.dumps(progress))
+    display = Display(tmp_path, spec, [td3, dr, rarl, nrmdp], 0, slots=2, stream=io.StringIO())
+    assert display.eta() == "?"  # nothing running, nothing finished: no speed to go by
+    for key in (td3, dr, rarl):
+        display.event(key, "running", "")
+    # each run from its step, its training at the median speed of the learning runs (0.375: a
+    # warm-up's steps/s is no learning speed), the running runs first, on 2 slots
+    left = [run_seconds(spec, key, steps.get(key, 0)) for key in (td3, dr, rarl, nrmdp)]
+    assert display.eta() == format_duration(schedule([t / 0.375 + e for t, e in left], 2))
+    assert display.eta() != format_duration(schedule([t / 0.5 + e for t, e in left], 2))
 
 
 @pytest.mark.e2e

@@ -19,8 +19,10 @@ __all__ = [
     "default_jobs",
     "estimate",
     "format_duration",
+    "run_seconds",
     "schedule",
     "size_factor",
+    "train_rate",
 ]
 
 # Training: learning steps per CPU-second of one single-threaded Hopper run: each algorithm's
@@ -59,28 +61,10 @@ def estimate(
     from measured speeds (±30 %; evaluation episodes counted at full length: an upper bound).
     ``runs``: those to count (default: the whole grid); ``trained``: the steps some have
     trained already (a resumed benchmark's part-trained runs), which they do not train again."""
-    from rrls.envs import get_uncertainty_set
-
     train = evals = 0.0
     seconds = []  # each run's, in the order the scheduler starts them
     for key in spec.runs() if runs is None else runs:
-        info = algorithm_info(key.algo)
-        rate = (info.cpu_steps_per_s if info else TD3_CPU) / size_factor(spec.hidden)
-        random_steps = spec.warmup(key.algo)
-        done = min(max((trained or {}).get(key, 0), 0), spec.steps)
-        spent = STARTUP_S + max(random_steps - done, 0) / RANDOM_STEPS_PER_S
-        spent += (spec.steps - max(random_steps, done)) / rate
-        dims = len(get_uncertainty_set(key.task, spec.uncertainty).names)
-        env_sps = ENV_STEPS_PER_S.get(key.task, 5_000.0)
-        n_periodic = (
-            spec.steps // spec.eval_every - done // spec.eval_every if spec.eval_every else 0
-        )
-        periodic = n_periodic * (spec.eval_episodes + spec.eval_mesh**dims)
-        final = spec.mesh**dims * spec.episodes
-        dynamic = spec.dynamic_episodes if plays_adversary(key.algo) else 0
-        evaluated = (
-            (periodic + final + dynamic) * max_episode_steps * (1 / env_sps + POLICY_S_PER_STEP)
-        )
+        spent, evaluated = run_seconds(spec, key, (trained or {}).get(key, 0), max_episode_steps)
         train, evals = train + spent, evals + evaluated
         seconds.append(spent + evaluated)
     total = train + evals
@@ -91,6 +75,32 @@ def estimate(
         "cpu_s": total,
         "wall_s": schedule(seconds, jobs) + REPORT_S,
     }
+
+
+def train_rate(spec: Benchmark, algo: str) -> float:
+    """Learning steps per second of one single-threaded run of ``algo`` at ``spec``'s sizes."""
+    info = algorithm_info(algo)
+    return (info.cpu_steps_per_s if info else TD3_CPU) / size_factor(spec.hidden)
+
+
+def run_seconds(
+    spec: Benchmark, key: RunKey, trained: int = 0, max_episode_steps: int = 1000
+) -> tuple[float, float]:
+    """One run's estimated seconds, ``(training, evaluation)``, from ``trained`` steps on."""
+    from rrls.envs import get_uncertainty_set
+
+    random_steps = spec.warmup(key.algo)
+    done = min(max(trained, 0), spec.steps)
+    spent = STARTUP_S + max(random_steps - done, 0) / RANDOM_STEPS_PER_S
+    spent += (spec.steps - max(random_steps, done)) / train_rate(spec, key.algo)
+    dims = len(get_uncertainty_set(key.task, spec.uncertainty).names)
+    env_sps = ENV_STEPS_PER_S.get(key.task, 5_000.0)
+    n_periodic = spec.steps // spec.eval_every - done // spec.eval_every if spec.eval_every else 0
+    periodic = n_periodic * (spec.eval_episodes + spec.eval_mesh**dims)
+    final = spec.mesh**dims * spec.episodes
+    dynamic = spec.dynamic_episodes if plays_adversary(key.algo) else 0
+    evaluated = (periodic + final + dynamic) * max_episode_steps * (1 / env_sps + POLICY_S_PER_STEP)
+    return spent, evaluated
 
 
 def schedule(seconds: list[float], jobs: int) -> float:

@@ -3,6 +3,7 @@ then rebuild the result store and the report from the run directories."""
 
 from __future__ import annotations
 
+import statistics
 import sys
 import time
 from collections.abc import Callable
@@ -12,7 +13,13 @@ from typing import Any, TextIO
 from rrls import rundir
 from rrls.benchmark.backends import run_local, run_ray
 from rrls.benchmark.benchfile import reconcile
-from rrls.benchmark.cpu_estimate import estimate, format_duration
+from rrls.benchmark.cpu_estimate import (
+    estimate,
+    format_duration,
+    run_seconds,
+    schedule,
+    train_rate,
+)
 from rrls.benchmark.grid import Benchmark, RunKey
 from rrls.benchmark.pipeline import default_pack, groups, read_progress, run_dir
 
@@ -44,6 +51,7 @@ class Display:
         self.interval, self._last_line = interval, time.monotonic()
         self.t0 = time.monotonic()
         self.slots = max(1, min(slots, len(keys) or 1))
+        self._trained_before = trained_steps(root, spec, keys)  # resumed runs' steps
         self._bar: Any = None
         self._rows: list[Any] = []
         if self.tty:
@@ -105,11 +113,30 @@ class Display:
         return f"{name:<40} {phase}"
 
     def eta(self) -> str:
-        c = self.counts()
+        """The time left: the estimate of the runs not finished (each from the step it has
+        reached), their training at the speed the running runs show against their estimated
+        rates (this machine, its load), queued on this benchmark's slots; before any run
+        shows a speed, the mean of the runs finished here, else "?"."""
+        running = [k for k, s in self.state.items() if s == "running"]
+        pending = [k for k, s in self.state.items() if s == "pending"]
+        speeds, trained = [], dict(self._trained_before)
+        for key in running:
+            info = read_progress(run_dir(self.root, self.spec, key))
+            if info is None:
+                continue
+            trained[key] = info["step"] if info["phase"] == "train" else self.spec.steps
+            if info["phase"] == "train" and info["step"] > self.spec.warmup(key.algo):
+                if info["sps"] > 0:  # learning, not its random warm-up
+                    speeds.append(info["sps"] / train_rate(self.spec, key.algo))
+        if speeds:
+            speed = statistics.median(speeds)
+            left = [run_seconds(self.spec, k, trained.get(k, 0)) for k in running + pending]
+            return format_duration(schedule([t / speed + e for t, e in left], self.slots))
         if not self.durations:
             return "?"
-        left = (c["pending"] + c["running"] / 2) * sum(self.durations) / len(self.durations)
-        return format_duration(left / self.slots)
+        c = self.counts()
+        left_s = (c["pending"] + c["running"] / 2) * sum(self.durations) / len(self.durations)
+        return format_duration(left_s / self.slots)
 
     def tick(self) -> None:
         c = self.counts()
