@@ -1,9 +1,10 @@
 """Process utilities, once, below every layer that uses them: cores, die-with-parent, a
-directory lock, one-thread BLAS/OpenMP settings."""
+directory lock, one-thread BLAS/OpenMP settings, children started with Ctrl-C held."""
 
 from __future__ import annotations
 
 import os
+import signal
 import sys
 import time
 from collections.abc import Iterator
@@ -72,3 +73,31 @@ def single_thread_env() -> Iterator[None]:
                 os.environ.pop(k, None)
             else:
                 os.environ[k] = v
+
+
+#: the signals that stop a command: Ctrl-C, and a scheduler's SIGTERM (``rrls.interrupts``)
+STOP_SIGNALS = frozenset({signal.SIGINT, signal.SIGTERM})
+
+
+@contextmanager
+def stops_held() -> Iterator[None]:
+    """Hold Ctrl-C and SIGTERM while child processes are started. One landing in the instant a
+    child is forked (its at-fork handlers) or spawned (its interpreter still importing) raises
+    there, before the child's own handlers are set, and prints a traceback. Held, it reaches
+    this process once the children are started, and each child once it calls
+    :func:`release_stops` (a child inherits the held mask, across ``exec`` too)."""
+    if not hasattr(signal, "pthread_sigmask"):  # pragma: no cover - not POSIX
+        yield
+        return
+    before = signal.pthread_sigmask(signal.SIG_BLOCK, STOP_SIGNALS)
+    try:
+        yield
+    finally:
+        signal.pthread_sigmask(signal.SIG_SETMASK, before)
+
+
+def release_stops() -> None:
+    """In a child started under :func:`stops_held`, once its own handlers are set: the stop
+    signals held since it started arrive now."""
+    if hasattr(signal, "pthread_sigmask"):
+        signal.pthread_sigmask(signal.SIG_UNBLOCK, STOP_SIGNALS)

@@ -157,6 +157,26 @@ def test_ctrl_c_landing_while_the_workers_fork_prints_no_traceback(capfd):
     assert "Traceback" not in err and "Exception ignored" not in err, err
 
 
+def test_a_child_started_with_stops_held_meets_ctrl_c_once_its_own_handlers_are_set():
+    # a benchmark's run processes are spawned: a Ctrl-C while one's interpreter is still
+    # starting raised there (a traceback) before it could ignore it, as its driver expects
+    import sys
+
+    from rrls._proc import stops_held
+
+    code = "import signal, time; time.sleep(1.5); signal.signal(signal.SIGINT, signal.SIG_IGN); "
+    code += "from rrls._proc import release_stops; release_stops(); print('on')"
+    env = {**os.environ, "PYTHONPATH": str(ROOT)}
+    with stops_held():
+        proc = subprocess.Popen(
+            [sys.executable, "-c", code], env=env, text=True,
+            stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+        )  # fmt: skip
+    proc.send_signal(signal.SIGINT)  # while it starts
+    out, err = proc.communicate(timeout=60)
+    assert (proc.returncode, out.strip()) == (0, "on") and "Traceback" not in err, err
+
+
 @pytest.fixture
 def two_player_run(tmp_path):
     """A parameter-game run directory: random protagonist and adversary on InvertedPendulum."""

@@ -14,7 +14,7 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-from rrls._proc import die_with_parent, single_thread_env
+from rrls._proc import die_with_parent, release_stops, single_thread_env, stops_held
 from rrls.benchmark.grid import Benchmark, RunKey
 from rrls.benchmark.pipeline import (
     Status,
@@ -50,6 +50,7 @@ def _group_main(
     term_as_ctrl_c()
     die_with_parent()
     try:
+        release_stops()  # held since the driver started it (``stops_held``): its handlers are set
         execute_recorded(root, spec_json, keys, eval_workers)
     except BaseException:  # noqa: BLE001 - recorded in error.txt; the worker's exit says it
         sys.exit(1)
@@ -92,8 +93,9 @@ def run_local(
                         ),
                         name=f"rrls-run-{name}",
                     )
-                    proc.start()
-                    running[group] = proc
+                    with stops_held():  # a Ctrl-C while it starts: no traceback from it
+                        proc.start()
+                        running[group] = proc
                     for key in group:
                         on_event(key, "running", "")
                 for group, proc in list(running.items()):

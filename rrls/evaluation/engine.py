@@ -16,20 +16,19 @@ Why this shape:
 
 from __future__ import annotations
 
-import contextlib
 import multiprocessing as mp
 import os
 import signal
 import sys
 import warnings
-from collections.abc import Callable, Iterator
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 from threadpoolctl import threadpool_limits
 
-from rrls._proc import cores, die_with_parent
+from rrls._proc import cores, die_with_parent, release_stops, stops_held
 from rrls._progress import progress_bar
 from rrls.evaluation.chunks import CHUNK, chunk_path, load_chunk, remove_leftovers, save_chunk
 from rrls.evaluation.lanes import LANES, Finished, Rollouts, make_rollout_envs, run_rows
@@ -148,7 +147,7 @@ def _run_processes(
     ]
     running = plan.workers
     try:
-        with warnings.catch_warnings(), _stops_held():
+        with warnings.catch_warnings(), stops_held():
             warnings.simplefilter("ignore", DeprecationWarning)  # fork with threads (3.12+)
             for proc in procs:
                 proc.start()
@@ -179,26 +178,6 @@ def _run_processes(
         results.close()
 
 
-#: the signals that stop a command (Ctrl-C; a scheduler's SIGTERM, ``rrls.interrupts``)
-_STOPS = {signal.SIGINT, signal.SIGTERM}
-
-
-@contextlib.contextmanager
-def _stops_held() -> Iterator[None]:
-    """Hold Ctrl-C and SIGTERM while the workers are forked: one landing mid-fork would raise
-    inside the child's at-fork handlers (logging's lock), which print a traceback. Held, it
-    reaches this process once the workers are started, and each worker once its own code
-    runs (``_worker_main`` lets them through)."""
-    if not hasattr(signal, "pthread_sigmask"):  # pragma: no cover - not POSIX
-        yield
-        return
-    before = signal.pthread_sigmask(signal.SIG_BLOCK, _STOPS)
-    try:
-        yield
-    finally:
-        signal.pthread_sigmask(signal.SIG_SETMASK, before)
-
-
 def _worker_main(
     spec: Rollouts,
     policy: Callable,
@@ -217,8 +196,7 @@ def _worker_main(
     signal.signal(signal.SIGTERM, signal.SIG_DFL)
     die_with_parent(parent)
     try:
-        if hasattr(signal, "pthread_sigmask"):  # held while it was forked (``_stops_held``);
-            signal.pthread_sigmask(signal.SIG_UNBLOCK, _STOPS)  # a Ctrl-C then goes to the parent
+        release_stops()  # held while it was forked: a Ctrl-C now goes to the parent as an error
         try:  # one BLAS thread per process: the processes already use every core
             from threadpoolctl import threadpool_limits
 
