@@ -31,7 +31,10 @@ def cpu(algo: str, steps: int) -> float:
 
 
 if __name__ == "__main__":
+    td3 = None
     for algo in sys.argv[1:] or ["td3", "dr", "rarl", "nrmdp", "m2td3", "sac"]:
         full, random = cpu(algo, 3000), cpu(algo, 1000)
         rate = 2000 / (full - random)
-        print(f"{algo}: {rate:.0f} learning steps per CPU-second", flush=True)
+        td3 = rate if algo == "td3" else td3
+        ratio = f" ({rate / td3:.2f}x TD3's)" if td3 and algo != "td3" else ""
+        print(f"{algo}: {rate:.0f} learning steps per CPU-second{ratio}", flush=True)
