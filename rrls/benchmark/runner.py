@@ -124,7 +124,7 @@ class Display:
             info = read_progress(run_dir(self.root, self.spec, key))
             if info is None:
                 continue
-            trained[key] = info["step"] if info["phase"] == "train" else self.spec.steps
+            trained[key] = steps_reached(info, self.spec)
             if info["phase"] == "train" and info["step"] > self.spec.warmup(key.algo):
                 if info["sps"] > 0:  # learning, not its random warm-up
                     speeds.append(info["sps"] / train_rate(self.spec, key.algo))
@@ -216,8 +216,14 @@ def trained_steps(root: Path, spec: Benchmark, keys: list[RunKey]) -> dict[RunKe
     for key in keys:
         progress = read_progress(run_dir(root, spec, key))
         if progress is not None and progress["step"] > 0:
-            out[key] = spec.steps if progress["phase"] != "train" else progress["step"]
+            out[key] = steps_reached(progress, spec)
     return out
+
+
+def steps_reached(progress: dict[str, Any], spec: Benchmark) -> int:
+    """A run's trained steps by its ``progress.json``: its step while training, else the
+    budget (it is evaluating)."""
+    return progress["step"] if progress["phase"] == "train" else spec.steps
 
 
 def plan(
