@@ -11,8 +11,11 @@ seeds), and its worst and average case written beside the shipped (v5) ones to
 first (a re-run skips the runs already there; several processes share the work). A run's
 evaluation keeps its finished chunks in ``.paper_physics/<run>/`` until its row is written, so a
 process stopped part-way (Ctrl-C, a machine gone) goes on from them when run again; a run is
-claimed with a lock that ends with its process, so no claim outlives it. The results page's
-``physics`` block (``benchmarks/results_page.py``) reads it.
+claimed with a lock that ends with its process, so no claim outlives it. ``seconds`` is the
+evaluation's wall time over all its pieces (each piece adds its own to ``.paper_physics/<run>/
+seconds`` as it stops); it is left empty where a piece's time was lost (a machine gone), so no
+row states less time than its run took. The results page's ``physics`` block
+(``benchmarks/results_page.py``) reads it.
 """
 
 from __future__ import annotations
@@ -65,15 +68,21 @@ def main() -> None:
             hold.close()
             continue
         shipped = json.loads((run / "result.json").read_text())
-        start = time.time()
         chunks = args.folder / ".paper_physics" / run.name  # resumable until its row is written
-        result = evaluate(
-            run / "policy.npz",
-            shipped["task"],
-            protocol=protocol,
-            workers=args.workers,
-            out_dir=chunks,
-        )
+        spent = spent_before(chunks)
+        start = time.time()
+        try:
+            result = evaluate(
+                run / "policy.npz",
+                shipped["task"],
+                protocol=protocol,
+                workers=args.workers,
+                out_dir=chunks,
+            )
+        except BaseException:  # Ctrl-C and errors: this piece's time goes with the chunks
+            if spent is not None and chunks.is_dir():
+                (chunks / "seconds").write_text(f"{spent + time.time() - start:.1f}")
+            raise
         row = [
             run.name,
             shipped["algorithm"],
@@ -82,7 +91,7 @@ def main() -> None:
             shipped["average_case"],
             result.worst_case,
             result.average_case,
-            round(time.time() - start, 1),
+            "" if spent is None else round(spent + time.time() - start, 1),
         ]
         with open(out, "a", newline="") as f:
             csv.writer(f).writerow(row)
@@ -90,6 +99,18 @@ def main() -> None:
         claim.unlink()
         hold.close()
         print(*row, flush=True)
+
+
+def spent_before(chunks: Path) -> float | None:
+    """The seconds earlier pieces of a run's evaluation took: 0 for a fresh start, None where
+    chunks exist without their time (a piece stopped without saying, or run before pieces were
+    timed)."""
+    if not chunks.is_dir() or not any(chunks.iterdir()):
+        return 0.0
+    try:
+        return float((chunks / "seconds").read_text())
+    except (OSError, ValueError):
+        return None
 
 
 def written(out: Path) -> set[str]:

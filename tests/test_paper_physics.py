@@ -220,3 +220,52 @@ def test_the_paper_physics_script_claims_a_run_while_its_process_lives(tmp_path)
     second = take(claim)
     assert second is not None
     second.close()
+
+
+def test_the_paper_physics_script_times_a_run_over_all_its_pieces(tmp_path, monkeypatch):
+    # a run's evaluation stopped part-way and resumed: its row states the time of both pieces;
+    # where a piece's time is unknown (chunks without it), the row states none rather than less
+    import csv
+    import shutil
+    import sys
+    from pathlib import Path
+    from types import SimpleNamespace
+
+    root = Path(__file__).resolve().parents[1]
+    sys.path.insert(0, str(root / "benchmarks"))
+    import paper_physics
+
+    shipped = root / "docs" / "results" / "hopper"
+    shutil.copy(shipped / "benchmark.json", tmp_path)
+    shutil.copy(shipped / "benchmark.json.sha256", tmp_path)
+    run = "td3-hopper-3d-seed0"
+    shutil.copytree(shipped / "runs" / run, tmp_path / "runs" / run)
+    clock = iter(range(0, 10_000, 100))
+    monkeypatch.setattr(paper_physics.time, "time", lambda: float(next(clock)))
+    calls = []
+
+    def evaluate(policy, task, protocol, workers, out_dir):
+        assert protocol.physics == "paper"
+        calls.append(out_dir)
+        (out_dir / "chunks").mkdir(parents=True, exist_ok=True)
+        if len(calls) == 1:
+            raise KeyboardInterrupt  # the first piece stops part-way
+        return SimpleNamespace(worst_case=1.0, average_case=2.0)
+
+    monkeypatch.setattr(paper_physics, "evaluate", evaluate)
+    monkeypatch.setattr(sys, "argv", ["paper_physics.py", str(tmp_path)])
+    with pytest.raises(KeyboardInterrupt):
+        paper_physics.main()
+    assert (calls[0] / "seconds").read_text() == "100.0"  # kept beside the chunks
+    paper_physics.main()
+    with open(tmp_path / "paper_physics.csv", newline="") as f:
+        (row,) = csv.DictReader(f)
+    assert (row["run"], row["worst_case_paper"], row["seconds"]) == (run, "1.0", "200.0")
+    assert not calls[0].exists()  # removed once the row is written
+
+    chunks = tmp_path / ".paper_physics" / "other"
+    assert paper_physics.spent_before(chunks) == 0.0  # a fresh start
+    (chunks / "chunks").mkdir(parents=True)
+    assert paper_physics.spent_before(chunks) is None  # chunks whose time is unknown
+    (chunks / "seconds").write_text("12.5")
+    assert paper_physics.spent_before(chunks) == 12.5

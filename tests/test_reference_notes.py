@@ -42,8 +42,9 @@ def test_the_physics_sections_count_is_the_files(task: str) -> None:
 
     folder = ROOT / "docs" / "results" / task
     with open(folder / "paper_physics.csv", newline="") as f:
-        seconds = [float(row["seconds"]) for row in csv.DictReader(f)]
-    measured = len(seconds)
+        rows = list(csv.DictReader(f))
+    seconds = [float(row["seconds"]) for row in rows if row["seconds"]]  # empty: not timed whole
+    measured = len(rows)
     runs = len(list(folder.glob("runs/*/result.json")))
     page = (folder / "README.md").read_text()
     heading = re.search(r"paper's physics \((in progress: )?(\d+) of (\d+) runs\)", page)
@@ -51,6 +52,8 @@ def test_the_physics_sections_count_is_the_files(task: str) -> None:
     assert bool(heading[1]) == (measured < runs)  # "in progress" until every run is measured
     assert f"{measured} of the {runs} runs" in page
     cost = f"{min(seconds) / 60:.1f} to {max(seconds) / 60:.0f} minutes each, wall clock"
+    if len(seconds) < measured:
+        cost += f" at `nice 19`, for the {len(seconds)} runs timed whole"
     assert cost in " ".join(page.split()), cost
 
 
