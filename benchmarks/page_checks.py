@@ -6,7 +6,8 @@ generated from shipped data (``benchmarks/results_page.py`` calls them):
   ``result.json``: ``rrls.evaluation.recheck``), and the orderings each statistic gives;
 - ``physics``: per algorithm, the worst and average case on rrls's v5 physics beside the same
   policies evaluated on the paper's physics (``paper_physics.csv``, written by
-  ``benchmarks/paper_physics.py``), and whether the orderings change.
+  ``benchmarks/paper_physics.py``) with the per-run change and its paired interval, and
+  whether the orderings change.
 """
 
 from __future__ import annotations
@@ -33,17 +34,52 @@ def seed_cell(values: list[float]) -> str:
     return f"{mean:.1f}" if ci is None else f"{mean:.1f} [{ci[0]:.1f}, {ci[1]:.1f}]"
 
 
-def _order(values: dict[str, list[float]]) -> str:
-    """The algorithms by mean, highest first, and the pairs Welch + Holm resolves."""
-    ranked = sorted(values, key=lambda a: -float(np.mean(values[a])))
-    text = " > ".join(display_name(a) for a in ranked)
-    resolved = [
+def ranked(values: dict[str, list[float]]) -> list[str]:
+    """The algorithms by mean, highest first."""
+    return sorted(values, key=lambda a: -float(np.mean(values[a])))
+
+
+def resolved(values: dict[str, list[float]]) -> list[tuple[str, str]]:
+    """The pairs ``(higher, lower)`` Welch + Holm resolves at 5 %."""
+    return [
         (r["a"], r["b"]) if r["diff"] > 0 else (r["b"], r["a"])
         for r in pairwise(values)
         if r["p_holm"] is not None and r["p_holm"] < 0.05
     ]
-    pairs = ", ".join(f"{display_name(a)} > {display_name(b)}" for a, b in resolved) or "none"
-    return f"by mean {text}; resolved (Welch, Holm-corrected): {pairs}"
+
+
+def pairs_text(pairs: list[tuple[str, str]]) -> str:
+    return ", ".join(f"{display_name(a)} > {display_name(b)}" for a, b in pairs) or "none"
+
+
+def _order(values: dict[str, list[float]]) -> str:
+    """The algorithms by mean, highest first, and the pairs Welch + Holm resolves."""
+    text = " > ".join(display_name(a) for a in ranked(values))
+    return f"by mean {text}; resolved (Welch, Holm-corrected): {pairs_text(resolved(values))}"
+
+
+def moved(v5: dict[str, list[float]], paper: dict[str, list[float]]) -> str:
+    """Whether the paper's physics changes an ordering: the order by mean, and the resolved
+    pairs one physics has and the other lacks."""
+    before, after = ranked(v5), ranked(paper)
+    swapped = [
+        f"{display_name(x)} and {display_name(y)}"
+        for i, x in enumerate(before)
+        for y in before[i + 1 :]
+        if after.index(x) > after.index(y)
+    ]
+    text = f"by mean, {', '.join(swapped)} swap" if swapped else "the same order by mean"
+    a, b = resolved(v5), resolved(paper)
+    only_paper, only_v5 = [p for p in b if p not in a], [p for p in a if p not in b]
+    flipped = [p for p in a if p[::-1] in b]
+    if flipped:
+        text += "; resolved the other way: " + pairs_text(flipped)
+    if not only_paper and not only_v5:
+        return text + "; the same resolved pairs" + ("" if a else " (none)")
+    return (
+        f"{text}; resolved on the paper's physics only: {pairs_text(only_paper)}; "
+        f"on v5 only: {pairs_text(only_v5)}"
+    )
 
 
 def rechecked(folder: Path) -> str | None:
@@ -99,8 +135,8 @@ def physics(folder: Path) -> str | None:
                 by.setdefault(key, []).append(float(row[key]))
     algos = sort_algos(data)
     lines = [
-        "| algorithm | runs | worst case, v5 | worst case, paper's physics | change | average "
-        "case, v5 | average case, paper's physics | change |",
+        "| algorithm | runs | worst case, v5 | worst case, paper's physics | change (paired) | "
+        "average case, v5 | average case, paper's physics | change (paired) |",
         "|---|---|---|---|---|---|---|---|",
     ]
     for a in algos:
@@ -108,8 +144,7 @@ def physics(folder: Path) -> str | None:
         cells = []
         for metric in ("worst_case", "average_case"):
             v5, paper = by[f"{metric}_v5"], by[f"{metric}_paper"]
-            change = float(np.mean(paper) - np.mean(v5))
-            cells += [seed_cell(v5), seed_cell(paper), f"{change:+.1f}"]
+            cells += [seed_cell(v5), seed_cell(paper), change_cell(v5, paper)]
         lines.append(
             f"| {display_name(a)} | {len(by['worst_case_v5'])} | " + " | ".join(cells) + " |"
         )
@@ -118,7 +153,20 @@ def physics(folder: Path) -> str | None:
         for physics_name, key in (("v5", "v5"), ("the paper's physics", "paper")):
             order = _order({a: data[a][f"{metric}_{key}"] for a in algos})
             lines.append(f"- **{name}, {physics_name}**: {order}.")
+    for metric, name in (("worst_case", "worst case"), ("average_case", "average case")):
+        v5 = {a: data[a][f"{metric}_v5"] for a in algos}
+        paper = {a: data[a][f"{metric}_paper"] for a in algos}
+        lines.append(f"- **{name}, v5 → the paper's physics**: {moved(v5, paper)}.")
     return "\n".join(lines) + "\n"
+
+
+def change_cell(before: list[float], after: list[float]) -> str:
+    """The mean per-run change ``after − before`` with its paired 95 % Student-t interval (the
+    same policies on two physics: each run is its own control)."""
+    diffs = [b - a for a, b in zip(before, after)]
+    mean = sum(diffs) / len(diffs)
+    ci = t_interval(diffs)
+    return f"{mean:+.1f}" if ci is None else f"{mean:+.1f} [{ci[0]:+.1f}, {ci[1]:+.1f}]"
 
 
 #: what the RRLS authors' code ran on at the paper's time (SuReLI/RRLS 428665c, 2024-06-06:

@@ -77,6 +77,31 @@ def test_the_physics_sections_summary_is_the_files(task: str) -> None:
     assert f"(by {min(means):.0f} to {max(means):.0f})" in page
 
 
+@pytest.mark.parametrize("task", ["halfcheetah", "hopper-200k"])
+def test_a_page_that_says_no_physics_change_is_resolved_has_none(task: str) -> None:
+    """The words "every paired interval holds 0" are read from paper_physics.csv: per algorithm and
+    statistic, the paired 95 % interval of paper minus v5 (SciPy's ``ttest_rel``)."""
+    import csv
+
+    from scipy.stats import ttest_rel
+
+    folder = ROOT / "docs" / "results" / task
+    page = " ".join((folder / "README.md").read_text().split())
+    rows: dict[str, list[dict[str, str]]] = {}
+    with open(folder / "paper_physics.csv", newline="") as f:
+        for row in csv.DictReader(f):
+            rows.setdefault(row["algorithm"], []).append(row)
+    holds = []
+    for runs in rows.values():
+        for metric in ("worst_case", "average_case"):
+            paper = [float(r[f"{metric}_paper"]) for r in runs]
+            v5 = [float(r[f"{metric}_v5"]) for r in runs]
+            if len(runs) > 1:
+                ci = ttest_rel(paper, v5).confidence_interval()
+                holds.append(ci.low <= 0 <= ci.high)
+    assert ("every paired interval holds 0" in page) == all(holds), holds
+
+
 def test_the_hopper_budget_is_the_probes_rule_and_its_file() -> None:
     """The Hopper page's budget, its reading and its costs are read from the probe's file, the
     shipped TD3 runs and the preset: 700 k is the first 50 k mark (>= 300 k) where TD3 is at

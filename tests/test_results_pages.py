@@ -385,3 +385,23 @@ def test_the_halfcheetah_ablation_reading_is_its_data():
         spread = runs[runs.algorithm == "nrmdp"][metric].std(ddof=1)
         a, b = -(nrmdp[(metric, "authors")] - nrmdp[(metric, "rrls")]) / spread
         assert f"{name} by {a:.1f} and {b:.1f}" in text, metric
+
+
+def test_the_physics_blocks_change_is_a_paired_interval_and_says_what_moved():
+    # the same policies on two physics: each run is its own control (SciPy's paired t-test
+    # interval); a swap of means and a pair resolved on one physics only are named
+    import page_checks
+    from scipy.stats import ttest_rel
+
+    before, after = [10.0, 20.0, 35.0], [14.0, 21.0, 41.0]
+    ci = ttest_rel(after, before).confidence_interval()
+    assert page_checks.change_cell(before, after) == f"+3.7 [{ci.low:+.1f}, {ci.high:+.1f}]"
+    assert page_checks.change_cell([1.0], [0.5]) == "-0.5"  # one run: no interval
+    v5 = {"td3": [0.0, 1.0, 2.0], "dr": [1.0, 2.0, 3.0], "rarl": [50.0, 51.0, 52.0]}
+    paper = {**v5, "td3": [5.0, 6.0, 7.0]}
+    assert page_checks.moved(v5, paper) == (
+        "by mean, DR and TD3 swap; resolved on the paper's physics only: TD3 > DR; on v5 only: none"
+    )
+    assert page_checks.moved(v5, v5) == "the same order by mean; the same resolved pairs"
+    flat = {"td3": [0.0, 9.0], "dr": [1.0, 8.0]}
+    assert page_checks.moved(flat, flat).endswith("the same resolved pairs (none)")
