@@ -559,6 +559,29 @@ def test_progress_shows_counts_running_runs_and_failures(tmp_path, stream_type):
         assert "pending 1 running 2 done 0 failed 0" in text
 
 
+def test_a_runs_steps_per_second_is_averaged_over_time_not_writes(tmp_path, monkeypatch):
+    # a run writes its progress at each episode's end; a few seconds' slowdown on a shared
+    # machine must not swing the display's ETA, while a lasting change of speed shows
+    from rrls.benchmark import pipeline
+
+    clock = [0.0]
+    monkeypatch.setattr(pipeline.time, "monotonic", lambda: clock[0])
+    progress = pipeline.ProgressFile(tmp_path / "progress.json", 1_000_000)
+
+    def advance(seconds: float, sps: float, writes: int) -> float:
+        for _ in range(writes):
+            clock[0] += seconds / writes
+            advance.step += round(sps * seconds / writes)
+            progress.write("train", advance.step)
+        return json.loads((tmp_path / "progress.json").read_text())["sps"]
+
+    advance.step = 0
+    assert advance(600, 100.0, 60) == pytest.approx(100.0)  # steady: the rate itself
+    blip = advance(2, 10.0, 2)  # two short episodes at a tenth of the speed
+    assert 98.0 < blip < 100.0
+    assert advance(600, 50.0, 20) == pytest.approx(50.0, rel=0.01)  # ten minutes later: 50
+
+
 def test_the_eta_is_the_estimate_of_what_is_left_at_the_speed_the_runs_show(tmp_path):
     from rrls.benchmark.pipeline import run_dir
 

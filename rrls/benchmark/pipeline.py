@@ -18,6 +18,7 @@ two threads each on 2 cores took 118 s for what takes 38 s with one thread each.
 
 from __future__ import annotations
 
+import math
 import os
 import time
 import traceback
@@ -248,8 +249,16 @@ def _dynamic(spec: Benchmark, run: RunKey, out: Path) -> dict[str, Any]:
     return run_dynamic(spec, run.task, policy, adversary, game, alpha, out)
 
 
+#: the time constant of ``progress.json``'s steps/s (seconds)
+SPS_SECONDS = 120.0
+
+
 class ProgressFile:
-    """``progress.json`` in the run directory: phase, step, steps/s (read by the driver)."""
+    """``progress.json`` in the run directory: phase, step, steps/s (read by the driver).
+
+    Steps/s is an exponential average over time (``SPS_SECONDS``), not over writes: a run
+    writes at each episode's end, seconds apart on one task and a minute on another, and a
+    shared machine's speed swings from minute to minute; the display's ETAs should not."""
 
     def __init__(self, path: Path, total: int) -> None:
         self.path, self.total = path, total
@@ -265,8 +274,10 @@ class ProgressFile:
         if phase == "train" and step > 0:
             # smoothed rate between writes (start-up and imports do not count)
             if self._prev is not None and step > self._prev[1] and now > self._prev[0]:
-                rate = (step - self._prev[1]) / (now - self._prev[0])
-                self._sps = rate if self._sps == 0 else 0.7 * self._sps + 0.3 * rate
+                dt = now - self._prev[0]
+                rate = (step - self._prev[1]) / dt
+                weight = 1.0 - math.exp(-dt / SPS_SECONDS)  # this span's share of the average
+                self._sps = rate if self._sps == 0 else self._sps + weight * (rate - self._sps)
             self._prev = (now, step)
         data = {
             "phase": phase,
