@@ -20,6 +20,7 @@ import numpy as np
 
 from rrls import rundir
 from rrls.algorithms import display_name, sort_algos
+from rrls.benchmark import benchfile
 from rrls.report.pairwise import pairwise
 from rrls.report.stats import t_interval
 
@@ -189,6 +190,8 @@ def differences(folder: Path) -> str:
             versions.setdefault(k, set()).add(run["versions"][k])
         if run["algorithm"] == "m2td3":
             m2td3_warmup.add(int(run["config"]["hyper"]["learning_starts"]))
+    if not m2td3_warmup and "m2td3" in spec["algos"]:  # a grid before its first M2TD3 run
+        m2td3_warmup.add(benchfile.read_spec(folder).warmup("m2td3"))
     steps, seeds = int(spec["steps"]), len(spec["seeds"])
     rows = [
         (

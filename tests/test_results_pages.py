@@ -39,7 +39,8 @@ def test_a_grid_in_progress_shows_its_status_and_td3_from_its_files():
     # the longer Hopper grid, produced in pieces: its page's blocks are what runs/ holds today
     folder = RESULTS / "hopper"
     text = (folder / "README.md").read_text()
-    for block in ("status", "td3_budget", "rechecked", "runs"):  # each run's scores as it lands
+    blocks = ("status", "differences", "td3_budget", "rechecked", "runs")
+    for block in blocks:  # what it holds against the paper's protocol; each run's scores
         assert f"<!-- generated:{block} -->" in text, block
     _, changed = results_page.update(folder / "README.md", results_page.page_blocks(folder, None))
     assert not changed, f"{folder}: out of date ({changed}); run benchmarks/results_page.py --write"
