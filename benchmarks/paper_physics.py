@@ -70,6 +70,7 @@ def main() -> None:
         shipped = json.loads((run / "result.json").read_text())
         chunks = args.folder / ".paper_physics" / run.name  # resumable until its row is written
         spent = spent_before(chunks)
+        (chunks / "seconds").unlink(missing_ok=True)  # a piece that dies unseen leaves no time
         start = time.time()
         try:
             result = evaluate(

@@ -257,6 +257,14 @@ def test_the_paper_physics_script_times_a_run_over_all_its_pieces(tmp_path, monk
     with pytest.raises(KeyboardInterrupt):
         paper_physics.main()
     assert (calls[0] / "seconds").read_text() == "100.0"  # kept beside the chunks
+
+    def second(policy, task, protocol, workers, out_dir):
+        # while a piece runs, no time is on file: were its machine to vanish, the next piece
+        # would find chunks without a time and state none, never the first piece's alone
+        assert not (out_dir / "seconds").exists()
+        return evaluate(policy, task, protocol, workers, out_dir)
+
+    monkeypatch.setattr(paper_physics, "evaluate", second)
     paper_physics.main()
     with open(tmp_path / "paper_physics.csv", newline="") as f:
         (row,) = csv.DictReader(f)
