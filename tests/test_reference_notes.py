@@ -50,7 +50,7 @@ def test_the_physics_sections_count_is_the_files(task: str) -> None:
     heading = re.search(r"paper's physics \((in progress: )?(\d+) of (\d+) runs\)", page)
     assert heading and (int(heading[2]), int(heading[3])) == (measured, runs)
     assert bool(heading[1]) == (measured < runs)  # "in progress" until every run is measured
-    assert f"{measured} of the {runs} runs" in page
+    assert f"{measured} of the {runs} runs" in " ".join(page.split())
     cost = f"{min(seconds) / 60:.1f} to {max(seconds) / 60:.0f} minutes each, wall clock"
     if len(seconds) < measured:
         cost += f" at `nice 19`, for the {len(seconds)} runs timed whole"
@@ -100,6 +100,72 @@ def test_a_page_that_says_no_physics_change_is_resolved_has_none(task: str) -> N
                 ci = ttest_rel(paper, v5).confidence_interval()
                 holds.append(ci.low <= 0 <= ci.high)
     assert ("every paired interval holds 0" in page) == all(holds), holds
+
+
+def test_what_the_paper_physics_moves_on_halfcheetah_is_the_files() -> None:
+    """The HalfCheetah page's reading of its physics block, read from paper_physics.csv: the
+    worst-case orderings the corrected test resolves on the paper's physics and not on v5 (each
+    the paper's way), the largest mean rise and the runs moving both ways, and which paired
+    intervals exclude 0."""
+    import csv
+    import sys
+
+    from scipy.stats import ttest_rel
+
+    from rrls.algorithms import display_name, sort_algos
+    from rrls.report.writer import paper_results
+
+    sys.path.insert(0, str(ROOT / "benchmarks"))
+    import page_checks
+
+    folder = ROOT / "docs" / "results" / "halfcheetah"
+    page = " ".join((folder / "README.md").read_text().split())
+    data: dict[str, dict[str, list[float]]] = {}
+    with open(folder / "paper_physics.csv", newline="") as f:
+        for row in csv.DictReader(f):
+            by = data.setdefault(row["algorithm"], {})
+            for key in (
+                "worst_case_v5",
+                "worst_case_paper",
+                "average_case_v5",
+                "average_case_paper",
+            ):
+                by.setdefault(key, []).append(float(row[key]))
+    assert all(len(by["worst_case_v5"]) == 5 for by in data.values())
+    algos = sort_algos(data)  # the block's order
+    worst = {k: {a: data[a][f"worst_case_{k}"] for a in algos} for k in ("v5", "paper")}
+    # the same order by mean; none resolved on v5, five on the paper's physics, the paper's way
+    assert page_checks.ranked(worst["v5"]) == page_checks.ranked(worst["paper"])
+    assert page_checks.resolved(worst["v5"]) == []
+    gained = page_checks.resolved(worst["paper"])
+    paper = paper_results()["raw_worst_case"]
+    assert all(paper[a]["halfcheetah"][0] > paper[b]["halfcheetah"][0] for a, b in gained)
+    names = [f"{display_name(a)} > {display_name(b)}" for a, b in gained]
+    assert f"it resolves {len(gained)}, each the paper's way: " in page.replace("five", "5")
+    assert ", ".join(names[:-1]) + " and " + names[-1] in page
+    # DR rises most; its runs and M2TD3's move both ways; every worst-case interval holds 0
+    change = {
+        a: {
+            m: [p - v for v, p in zip(by[f"{m}_v5"], by[f"{m}_paper"])]
+            for m in ("worst_case", "average_case")
+        }
+        for a, by in data.items()
+    }
+    mean = {a: {m: sum(d) / len(d) for m, d in c.items()} for a, c in change.items()}
+    assert max(mean, key=lambda a: mean[a]["worst_case"]) == "dr"
+    assert f"DR's worst case rises most (+{mean['dr']['worst_case']:.1f} on average)" in page
+    for a in ("dr", "m2td3"):
+        assert min(change[a]["worst_case"]) < 0 < max(change[a]["worst_case"])
+
+    def excludes_zero(a: str, m: str) -> bool:
+        ci = ttest_rel(data[a][f"{m}_paper"], data[a][f"{m}_v5"]).confidence_interval()
+        return not ci.low <= 0 <= ci.high
+
+    assert not any(excludes_zero(a, "worst_case") for a in data)
+    assert "every worst-case paired interval holds 0" in page
+    assert all(abs(mean[a]["average_case"]) < 30 for a in data)
+    assert [a for a in data if excludes_zero(a, "average_case")] == ["td3"]
+    assert f"TD3's rise (+{mean['td3']['average_case']:.1f}) is the one paired interval" in page
 
 
 def test_the_hopper_budget_is_the_probes_rule_and_its_file() -> None:
