@@ -118,22 +118,26 @@ def rechecked(folder: Path) -> str | None:
     return "\n".join(lines) + "\n"
 
 
+def read_physics(path: Path) -> dict[str, dict[str, list[float]]]:
+    """``paper_physics.csv`` per algorithm: ``worst_case_v5``, ``worst_case_paper``,
+    ``average_case_v5``, ``average_case_paper``, each a list over its runs in file order."""
+    data: dict[str, dict[str, list[float]]] = {}
+    with open(path, newline="") as f:
+        for row in csv.DictReader(f):
+            by = data.setdefault(row["algorithm"], {})
+            for metric in ("worst_case", "average_case"):
+                for physics in ("v5", "paper"):
+                    key = f"{metric}_{physics}"
+                    by.setdefault(key, []).append(float(row[key]))
+    return data
+
+
 def physics(folder: Path) -> str | None:
     """The ``physics`` block, or None without ``paper_physics.csv``."""
     path = folder / "paper_physics.csv"
     if not path.is_file():
         return None
-    data: dict[str, dict[str, list[float]]] = {}
-    with open(path, newline="") as f:
-        for row in csv.DictReader(f):
-            by = data.setdefault(row["algorithm"], {})
-            for key in (
-                "worst_case_v5",
-                "average_case_v5",
-                "worst_case_paper",
-                "average_case_paper",
-            ):
-                by.setdefault(key, []).append(float(row[key]))
+    data = read_physics(path)
     algos = sort_algos(data)
     lines = [
         "| algorithm | runs | worst case, v5 | worst case, paper's physics | change (paired) | "

@@ -112,7 +112,6 @@ def test_what_the_paper_physics_moves_on_halfcheetah_is_the_files() -> None:
     worst-case orderings the corrected test resolves on the paper's physics and not on v5 (each
     the paper's way), the largest mean rise and the runs moving both ways, and which paired
     intervals exclude 0."""
-    import csv
     import sys
 
     from scipy.stats import ttest_rel
@@ -125,17 +124,7 @@ def test_what_the_paper_physics_moves_on_halfcheetah_is_the_files() -> None:
 
     folder = ROOT / "docs" / "results" / "halfcheetah"
     page = " ".join((folder / "README.md").read_text().split())
-    data: dict[str, dict[str, list[float]]] = {}
-    with open(folder / "paper_physics.csv", newline="") as f:
-        for row in csv.DictReader(f):
-            by = data.setdefault(row["algorithm"], {})
-            for key in (
-                "worst_case_v5",
-                "worst_case_paper",
-                "average_case_v5",
-                "average_case_paper",
-            ):
-                by.setdefault(key, []).append(float(row[key]))
+    data = page_checks.read_physics(folder / "paper_physics.csv")
     assert all(len(by["worst_case_v5"]) == 5 for by in data.values())
     algos = sort_algos(data)  # the block's order
     worst = {k: {a: data[a][f"worst_case_{k}"] for a in algos} for k in ("v5", "paper")}
