@@ -89,22 +89,20 @@ def test_the_physics_sections_summary_is_the_files(task: str) -> None:
 def test_a_page_that_says_no_physics_change_is_resolved_has_none(task: str) -> None:
     """The words "every paired interval holds 0" are read from paper_physics.csv: per algorithm and
     statistic, the paired 95 % interval of paper minus v5 (SciPy's ``ttest_rel``)."""
-    import csv
+    import sys
 
     from scipy.stats import ttest_rel
 
+    sys.path.insert(0, str(ROOT / "benchmarks"))
+    import page_checks
+
     folder = ROOT / "docs" / "results" / task
     page = " ".join((folder / "README.md").read_text().split())
-    rows: dict[str, list[dict[str, str]]] = {}
-    with open(folder / "paper_physics.csv", newline="") as f:
-        for row in csv.DictReader(f):
-            rows.setdefault(row["algorithm"], []).append(row)
     holds = []
-    for runs in rows.values():
+    for by in page_checks.read_physics(folder / "paper_physics.csv").values():
         for metric in ("worst_case", "average_case"):
-            paper = [float(r[f"{metric}_paper"]) for r in runs]
-            v5 = [float(r[f"{metric}_v5"]) for r in runs]
-            if len(runs) > 1:
+            paper, v5 = by[f"{metric}_paper"], by[f"{metric}_v5"]
+            if len(v5) > 1:
                 ci = ttest_rel(paper, v5).confidence_interval()
                 holds.append(ci.low <= 0 <= ci.high)
     assert ("every paired interval holds 0" in page) == all(holds), holds
