@@ -218,3 +218,20 @@ def test_the_hopper_budget_is_the_probes_rule_and_its_file() -> None:
     cost = estimate(spec, 2)
     assert f"estimates {cost['cpu_s'] / 3600:.1f} CPU-hours" in page
     assert f"({cost['train_s'] / 3600:.1f} of them training)" in page
+
+
+@pytest.mark.parametrize("task", ["halfcheetah", "hopper"])
+def test_the_mujoco_versions_a_page_names_in_prose_are_its_runs_and_the_originals(task: str):
+    """The prose's "MuJoCo 2.3.3 (the original's pin) and 4.0.0" is the original code's pin
+    and the version every shipped run recorded."""
+    import sys
+
+    sys.path.insert(0, str(ROOT / "benchmarks"))
+    import page_checks
+
+    folder = ROOT / "docs" / "results" / task
+    page = " ".join((folder / "README.md").read_text().split())
+    used = {read_run_json(p.parent)["versions"]["mujoco"] for p in folder.glob("runs/*/run.json")}
+    assert len(used) == 1
+    original = page_checks.ORIGINAL["mujoco"]
+    assert f"MuJoCo {original} (the original's pin) and {used.pop()}" in page
