@@ -30,6 +30,7 @@ import csv
 import json
 import re
 import sys
+from collections.abc import Iterable
 from pathlib import Path
 
 from collect_runs import run_seconds  # benchmarks/, beside this script
@@ -39,6 +40,7 @@ from rrls.algorithms import display_name, sort_algos
 from rrls.report.pairwise import judge_paper, pairwise
 from rrls.report.reference import load_reference
 from rrls.report.stats import t_interval
+from rrls.rundir import trained_on
 
 METRICS = {"worst_case": "worst case", "average_case": "average case"}
 #: per task: the nominal return TD3 must reach on every probed seed at the preset's budget
@@ -151,6 +153,24 @@ def orderings(data: dict[str, dict[str, list[float]]]) -> str:
     return "\n".join(lines) + "\n"
 
 
+def changes(values: Iterable[str]) -> list[str]:
+    """``values`` with each repeat of the one before dropped: a run's CPU kinds in the order
+    its executions ran on them."""
+    out: list[str] = []
+    for value in values:
+        if not out or out[-1] != value:
+            out.append(value)
+    return out
+
+
+def machine_kind(machine: dict | None) -> str:
+    """A machine as the pages name it: ``2-core AMD EPYC (X86_V3)``; unknown: ``unknown CPU``."""
+    if not machine:
+        return "unknown CPU"
+    cores, cpu, simd = (machine.get(k, "?") for k in ("cores", "cpu", "simd"))
+    return f"{cores}-core {cpu} ({simd})"
+
+
 def runs(folder: Path) -> str:
     """One line per run: the rrls commit that trained it, its CPU kind, its cost (every execution
     where known: ``compute``) and its scores."""
@@ -163,7 +183,7 @@ def runs(folder: Path) -> str:
         info = json.loads(result.read_text())
         run = json.loads((result.parent / "run.json").read_text())
         provenance = run.get("provenance", {})
-        simd = (provenance.get("machine") or {}).get("simd", "")
+        simd = " → ".join(changes((m or {}).get("simd") or "?" for m in trained_on(run)))
         sha = provenance.get("commit") or "?"  # "+dirty": built from uncommitted changes
         commit = f"`{sha[:7]}{'+dirty' if sha.endswith('+dirty') else ''}`"
         rows.append((info, commit, simd, *run_seconds(result.parent)))
@@ -347,10 +367,8 @@ def compute(folder: Path) -> str:
         seconds, runs = seconds + spent, runs + 1
         known += executions > 0
         resumed += executions > 1
-        machine = json.loads((path.parent / "run.json").read_text()).get("provenance", {})
-        machine = machine.get("machine") or {}
-        cores, cpu, simd = (machine.get(k, "?") for k in ("cores", "cpu", "simd"))
-        kind = f"{cores}-core {cpu} ({simd})"
+        run = json.loads((path.parent / "run.json").read_text())
+        kind = " then ".join(changes(machine_kind(m) for m in trained_on(run)))
         kinds[kind] = kinds.get(kind, 0) + 1
     where = ", ".join(f"{k}: {n} runs" for k, n in sorted(kinds.items()))
     if known == runs:

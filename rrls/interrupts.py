@@ -65,7 +65,7 @@ def term_as_ctrl_c() -> None:
     """From now on SIGTERM is Ctrl-C in this process (``KeyboardInterrupt``). For a process
     that a driver stops with SIGTERM (a benchmark's run process, which ignores Ctrl-C itself):
     its training loop then finishes the step it is in and writes a checkpoint of it before
-    stopping, as ``rrls train`` does on Ctrl-C (``rrls.agents.run.StepBoundary``)."""
+    stopping, as ``rrls train`` does on Ctrl-C (``rrls.agents.boundary.StepBoundary``)."""
     signal.signal(signal.SIGTERM, _ctrl_c)
 
 

@@ -98,6 +98,17 @@ def migrate_run_json(data: dict[str, Any]) -> dict[str, Any]:
     return out
 
 
+def trained_on(run: dict[str, Any]) -> list[dict[str, Any] | None]:
+    """The machines that trained a run, one per execution in order (``run.json``'s
+    ``provenance.executions``; ``None`` where unknown); a ``run.json`` from before executions
+    were recorded gives its one machine (the last execution's)."""
+    provenance = run.get("provenance") or {}
+    executions = provenance.get("executions")
+    if isinstance(executions, list) and executions:
+        return [e.get("machine") if isinstance(e, dict) else None for e in executions]
+    return [provenance.get("machine")]
+
+
 def finished_steps(run_dir: Path) -> int | None:
     """The steps of the finished run in ``run_dir`` (policy and a valid run.json), else None:
     a run whose ``run.json`` is damaged is not finished (it trains again)."""
@@ -154,5 +165,6 @@ __all__ = [
     "read_run_json",
     "remove_run_files",
     "remove_temporary_files",
+    "trained_on",
     "truncate_scalars",
 ]

@@ -406,3 +406,32 @@ def test_the_physics_blocks_change_is_a_paired_interval_and_says_what_moved():
     assert page_checks.moved(v5, v5) == "the same order by mean; the same resolved pairs"
     flat = {"td3": [0.0, 9.0], "dr": [1.0, 8.0]}
     assert page_checks.moved(flat, flat).endswith("the same resolved pairs (none)")
+
+
+def test_a_run_trained_on_two_cpu_kinds_names_both_in_order(tmp_path):
+    # run.json's provenance.executions: the pages name every CPU kind a run trained on
+    import json
+
+    first = {"cores": 2, "cpu": "AMD EPYC", "simd": "X86_V4"}
+    second = {"cores": 2, "cpu": "AMD EPYC", "simd": "X86_V3"}
+    executions = [
+        {"first_step": 0, "machine": None, "commit": None},
+        {"first_step": 50_000, "machine": first, "commit": "a" * 40},
+        {"first_step": 90_000, "machine": first, "commit": "b" * 40},
+        {"first_step": 300_000, "machine": second, "commit": "b" * 40},
+    ]
+    for seed, listed in ((0, executions), (1, None)):
+        run = tmp_path / "runs" / f"td3-hopper-3d-seed{seed}"
+        run.mkdir(parents=True)
+        result = {"algorithm": "td3", "seed": seed, "worst_case": 1.0, "average_case": 2.0}
+        (run / "result.json").write_text(json.dumps({**result, "seconds": 60.0}))
+        provenance = {"commit": "b" * 40, "machine": second}
+        if listed:
+            provenance["executions"] = listed
+        (run / "run.json").write_text(json.dumps({"provenance": provenance}))
+    rows = results_page.runs(tmp_path).splitlines()[2:]
+    assert [row.split(" | ")[2] for row in rows] == ["? → X86_V4 → X86_V3", "X86_V3"]
+    assert results_page.compute(tmp_path).endswith(
+        "; 2-core AMD EPYC (X86_V3): 1 runs, unknown CPU then 2-core AMD EPYC (X86_V4) then "
+        "2-core AMD EPYC (X86_V3): 1 runs.\n"
+    )

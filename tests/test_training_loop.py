@@ -451,3 +451,56 @@ def test_the_stop_hook_is_an_environment_variable_not_an_option():
     assert STOP_AT_ENV == used_by_the_tests
     assert "stop_at" not in TrainConfig.__dataclass_fields__
     assert main(["train", "--stop-at", "5"]) == 2  # no such option any more
+
+
+def test_run_json_lists_every_execution_with_its_machine(tmp_path, monkeypatch, capsys):
+    """A run resumed on another machine says so: ``provenance.executions`` lists each process
+    with the step it started from and its machine; a checkpoint written before executions were
+    recorded resumes with its first execution's machine unknown."""
+    import io
+
+    from rrls import files
+    from rrls.agents import run as run_module
+
+    def on(cpu):
+        monkeypatch.setattr(run_module, "machine", lambda: {"cpu": cpu, "simd": "X86_V3"})
+
+    out = tmp_path / "cut"
+    on("first")
+    with stopping_at(120):
+        assert _cli(out, "td3", 300) == 3
+    on("second")
+    assert _cli(out, "td3", 300, "--resume") == 0
+    provenance = json.loads((out / "run.json").read_text())["provenance"]
+    executions = provenance["executions"]
+    assert [e["first_step"] for e in executions] == [0, 150]  # its checkpoint: every 50 steps
+    assert [e["machine"]["cpu"] for e in executions] == ["first", "second"]
+    assert provenance["machine"] == executions[-1]["machine"]  # the last one's, as before
+
+    whole = tmp_path / "whole"
+    assert _cli(whole, "td3", 200) == 0
+    executions = json.loads((whole / "run.json").read_text())["provenance"]["executions"]
+    assert [(e["first_step"], e["machine"]["cpu"]) for e in executions] == [(0, "second")]
+
+    old = tmp_path / "old"
+    with stopping_at(120):
+        assert _cli(old, "td3", 300) == 3
+    state = torch.load(old / "checkpoint.pt", weights_only=True)
+
+    def rewrite(**changed):
+        buffer = io.BytesIO()
+        torch.save({**state, **changed}, buffer)
+        files.write_sealed(old / "checkpoint.pt", buffer.getvalue())
+
+    rewrite(**{run_module.EXECUTIONS_KEY: '{"first_step": 0}'})  # not a list: refused
+    capsys.readouterr()
+    assert _cli(old, "td3", 300, "--resume") == 2
+    lines = capsys.readouterr().err.strip().splitlines()
+    err = "\n".join(line for line in lines if not PLAIN_LINE.match(line))  # progress aside
+    assert "its executions are not a list" in err and "\n" not in err
+    del state[run_module.EXECUTIONS_KEY]  # as an earlier rrls wrote it
+    rewrite()
+    assert _cli(old, "td3", 300, "--resume") == 0
+    executions = json.loads((old / "run.json").read_text())["provenance"]["executions"]
+    assert [(e["first_step"], e["machine"]) for e in executions][0] == (0, None)
+    assert [e["first_step"] for e in executions] == [0, 150]

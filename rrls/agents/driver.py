@@ -32,8 +32,9 @@ from typing import Any, Protocol
 
 import torch
 
+from rrls.agents.boundary import StepBoundary
 from rrls.agents.learner import check_runs_first, run_slice
-from rrls.agents.run import Run, StepBoundary, export_policies
+from rrls.agents.run import Run, export_policies
 
 #: the learner's losses are logged every this many env steps (TensorBoard and W&B)
 LOSS_EVERY = 1000

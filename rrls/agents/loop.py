@@ -26,12 +26,13 @@ from typing import Any
 import torch
 
 from rrls.agents import resident
+from rrls.agents.boundary import ctrl_c_signals
 from rrls.agents.config import TrainConfig
 from rrls.agents.driver import Collector, Driver
 from rrls.agents.envs import env_factory, make_envs
 from rrls.agents.group import build_learner, check_group, check_group_memory, run_groups
 from rrls.agents.lookup import Algorithm, ResolvedRun, resolve_run, warm_up
-from rrls.agents.run import Run, ctrl_c_signals
+from rrls.agents.run import Run
 from rrls.agents.stepwise import StepCollector, uniform
 
 

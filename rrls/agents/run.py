@@ -3,9 +3,10 @@ metrics sinks (``Metrics``: TensorBoard, ``scalars.csv``, Weights & Biases with 
 progress bar) and the periodic evaluation (``PeriodicEvaluation``).
 
 Checkpoints are taken every ``checkpoint_every`` steps, mid-episode, and at Ctrl-C (at the end
-of the step it came in: ``StepBoundary``): they hold each run's slice of the learner's state,
-the loop's generator and the episode in progress (replayed on resume), so a resumed run
-continues exactly as the uninterrupted one (tested bit for bit). They are
+of the step it came in: ``rrls.agents.boundary``): they hold each run's slice of the learner's
+state, the loop's generator and the episode in progress (replayed on resume), so a resumed run
+continues exactly as the uninterrupted one (tested bit for bit), and the executions so far (the
+machine and commit of each process that trained the run, listed in ``run.json``). They are
 written atomically, sealed by a SHA-256 (a damaged file is refused with a one-line error naming
 it) and loaded with ``torch.load(weights_only=True)``. File names: ``rrls.rundir``.
 """
@@ -15,8 +16,6 @@ from __future__ import annotations
 import io
 import json
 import os
-import signal
-import threading
 import time
 from dataclasses import asdict
 from pathlib import Path
@@ -29,7 +28,6 @@ from rrls import files, rundir
 from rrls.agents.config import Diverged, Interrupted, TrainConfig, benchmark_set
 from rrls.agents.hparams import jsonable
 from rrls.files import loads_json
-from rrls.interrupts import terms_as_ctrl_c
 from rrls.physics import physics_label
 from rrls.provenance import machine, source_commit
 
@@ -37,64 +35,29 @@ from rrls.provenance import machine, source_commit
 STOP_AT_ENV = "RRLS_STOP_AT"
 #: a checkpoint's flag: written at Ctrl-C (True) or on the periodic schedule
 INTERRUPTED_KEY = "interrupted"
+#: a checkpoint's record of the processes that trained the run so far (``execution``)
+EXECUTIONS_KEY = "executions"
 
 
-class StepBoundary:
-    """Ctrl-C held until the training step it came in ends (``requested``), so that the loop
-    writes a checkpoint of a consistent state (no update, episode or buffer left half-way) and
-    then stops; a second Ctrl-C stops at once. Only where Ctrl-C is Python's default (the main
-    thread); in a benchmark's run process, which ignores Ctrl-C, the driver's SIGTERM is held
-    the same way (``rrls.interrupts.term_as_ctrl_c``)."""
-
-    def __init__(self) -> None:
-        self.requested = False
-        self._previous: dict[int, Any] = {}
-
-    def hold(self) -> None:
-        """From now on Ctrl-C (and SIGTERM where it is Ctrl-C) only sets ``requested`` (until
-        ``release``)."""
-        held = ctrl_c_signals()
-        for sig in held:
-            self._previous[sig] = signal.signal(sig, self._request)
-        if held:
-            self.requested = False
-
-    def _request(self, signum: int, frame: Any) -> None:
-        # a second Ctrl-C stops at once; a second SIGTERM does not (a scheduler signals every
-        # process of a job, and a benchmark's driver then stops its runs with one more)
-        if self.requested and signum == signal.SIGINT:
-            raise KeyboardInterrupt
-        self.requested = True
-
-    def release(self) -> None:
-        """Ctrl-C (and SIGTERM) as before ``hold``."""
-        for sig, previous in self._previous.items():
-            signal.signal(sig, previous)
-        self._previous = {}
-
-    def __enter__(self) -> StepBoundary:
-        self.hold()
-        return self
-
-    def __exit__(self, *exc: object) -> None:
-        self.release()
+def execution(first_step: int) -> dict[str, Any]:
+    """One process's share of a run: the step it started from, the machine and the rrls commit.
+    A run resumed on another CPU kind trains on in other kernels (its last bits, then its
+    trajectory, drift), so ``run.json`` lists every execution, not only the last one's machine."""
+    return {"first_step": first_step, "machine": machine(), "commit": source_commit()}
 
 
-def active_ctrl_c() -> bool:
-    """Whether Ctrl-C raises ``KeyboardInterrupt`` here (Python's default handler, main thread)."""
-    return (
-        threading.current_thread() is threading.main_thread()
-        and signal.getsignal(signal.SIGINT) is signal.default_int_handler
-    )
-
-
-def ctrl_c_signals() -> list[int]:
-    """The signals that are Ctrl-C here: SIGINT where :func:`active_ctrl_c`, and SIGTERM in
-    the main thread where it was made Ctrl-C (``rrls.interrupts.term_as_ctrl_c``)."""
-    held = [signal.SIGINT] if active_ctrl_c() else []
-    if threading.current_thread() is threading.main_thread() and terms_as_ctrl_c():
-        held.append(signal.SIGTERM)
-    return held
+def earlier_executions(state: dict[str, Any], where: Path) -> list[dict[str, Any]]:
+    """The executions the checkpoint ``where`` records; one of unknown machine and commit for a
+    checkpoint written before they were recorded (its run trained from step 0 somewhere)."""
+    if EXECUTIONS_KEY not in state:
+        return [{"first_step": 0, "machine": None, "commit": None}]
+    found = loads_json(state[EXECUTIONS_KEY], f"{where}: its executions")
+    if not isinstance(found, list) or not all(isinstance(e, dict) for e in found):
+        raise ValueError(
+            f"cannot resume from {where}: its executions are not a list of objects; pass "
+            "--overwrite to start again"
+        )
+    return found
 
 
 def versions() -> dict[str, str]:
@@ -292,6 +255,8 @@ class Run:
         self._last_checkpoint = self._last_eval = 0
         self.saved_step: int | None = None  # the step of the checkpoint this process wrote last
         self._t0, self._t0_step = time.perf_counter(), 0
+        #: this process's share of the run and the earlier ones (``load``: a resumed run's)
+        self.executions = [execution(0)]
 
     # -- checkpoints ------------------------------------------------------------------------
     def _check_identity(self, state: dict[str, Any]) -> None:
@@ -332,6 +297,7 @@ class Run:
         # a checkpoint written at Ctrl-C keeps the periodic ones where they were due
         self._last_checkpoint = int(state.get("last_checkpoint", self.step))
         self._last_eval = int(state["last_eval"])
+        self.executions = [*earlier_executions(state, self.checkpoint_path), execution(self.step)]
         rundir.truncate_scalars(self.dir / rundir.SCALARS, self.step)
         return state
 
@@ -359,6 +325,7 @@ class Run:
             "last_eval": self._last_eval,
             "last_checkpoint": self._last_checkpoint,
             INTERRUPTED_KEY: interrupted,
+            EXECUTIONS_KEY: json.dumps(self.executions),
             "config": json.dumps(self.config.identity(self.hyper)),
         }
         buf = io.BytesIO()
@@ -455,13 +422,17 @@ class Run:
     # -- the end ----------------------------------------------------------------------------
     def finish(self, policies: dict[str, Any], summary: dict[str, Any]) -> Path:
         """Save the final policies (``policy.npz``; ``adversary.npz`` for two-player runs, for
-        the dynamic evaluation, Table 6) and ``run.json`` (last: it marks the run finished)."""
+        the dynamic evaluation, Table 6) and ``run.json`` (last: it marks the run finished),
+        whose ``provenance`` lists every execution that trained the run."""
         for name, policy in policies.items():
             policy.save(self.dir / (rundir.POLICY if name == "policy" else f"{name}.npz"))
+        metadata = policies["policy"].metadata
+        provenance = {**metadata.get("provenance", {}), EXECUTIONS_KEY: self.executions}
         files.write_checked_json(
             self.dir / rundir.RUN_JSON,
             {
-                **policies["policy"].metadata,
+                **metadata,
+                "provenance": provenance,
                 # the run described once: its settings with the algorithm's resolved Config
                 # (every hyper-parameter, not only the overrides), as resume compares them
                 "config": jsonable({**asdict(self.config), "hyper": asdict(self.hyper)}),
