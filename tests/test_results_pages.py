@@ -15,6 +15,7 @@ ROOT = Path(__file__).resolve().parent.parent
 RESULTS = ROOT / "docs" / "results"
 sys.path.insert(0, str(ROOT / "benchmarks"))
 
+import page_runs  # noqa: E402
 import results_page  # noqa: E402
 import td3_sanity  # noqa: E402
 
@@ -429,9 +430,9 @@ def test_a_run_trained_on_two_cpu_kinds_names_both_in_order(tmp_path):
         if listed:
             provenance["executions"] = listed
         (run / "run.json").write_text(json.dumps({"provenance": provenance}))
-    rows = results_page.runs(tmp_path).splitlines()[2:]
+    rows = page_runs.runs(tmp_path).splitlines()[2:]
     assert [row.split(" | ")[2] for row in rows] == ["? → X86_V4 → X86_V3", "X86_V3"]
-    assert results_page.compute(tmp_path).endswith(
+    assert page_runs.compute(tmp_path).endswith(
         "; 2-core AMD EPYC (X86_V3): 1 runs, unknown CPU then 2-core AMD EPYC (X86_V4) then "
         "2-core AMD EPYC (X86_V3): 1 runs.\n"
     )
