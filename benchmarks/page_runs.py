@@ -10,8 +10,8 @@ from pathlib import Path
 
 from collect_runs import run_seconds  # benchmarks/, beside this script
 
+from rrls import rundir
 from rrls.algorithms import display_name, sort_algos
-from rrls.rundir import trained_on
 
 
 def changes(values: Iterable[str]) -> list[str]:
@@ -44,7 +44,9 @@ def runs(folder: Path) -> str:
         info = json.loads(result.read_text())
         run = json.loads((result.parent / "run.json").read_text())
         provenance = run.get("provenance", {})
-        simd = " → ".join(changes((m or {}).get("simd") or "?" for m in trained_on(run)))
+        simd = " → ".join(
+            changes((e.get("machine") or {}).get("simd") or "?" for e in rundir.executions(run))
+        )
         sha = provenance.get("commit") or "?"  # "+dirty": built from uncommitted changes
         commit = f"`{sha[:7]}{'+dirty' if sha.endswith('+dirty') else ''}`"
         rows.append((info, commit, simd, *run_seconds(result.parent)))
@@ -72,7 +74,9 @@ def compute(folder: Path) -> str:
         known += executions > 0
         resumed += executions > 1
         run = json.loads((path.parent / "run.json").read_text())
-        kind = " then ".join(changes(machine_kind(m) for m in trained_on(run)))
+        kind = " then ".join(
+            changes(machine_kind(e.get("machine")) for e in rundir.executions(run))
+        )
         kinds[kind] = kinds.get(kind, 0) + 1
     where = ", ".join(f"{k}: {n} runs" for k, n in sorted(kinds.items()))
     if known == runs:

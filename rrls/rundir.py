@@ -98,15 +98,15 @@ def migrate_run_json(data: dict[str, Any]) -> dict[str, Any]:
     return out
 
 
-def trained_on(run: dict[str, Any]) -> list[dict[str, Any] | None]:
-    """The machines that trained a run, one per execution in order (``run.json``'s
-    ``provenance.executions``; ``None`` where unknown); a ``run.json`` from before executions
-    were recorded gives its one machine (the last execution's)."""
+def executions(run: dict[str, Any]) -> list[dict[str, Any]]:
+    """The processes that trained a run, in order, each with its ``machine`` and ``commit``
+    (``None`` where unknown): ``run.json``'s ``provenance.executions``; a ``run.json`` from
+    before executions were recorded gives one, its last execution's."""
     provenance = run.get("provenance") or {}
-    executions = provenance.get("executions")
-    if isinstance(executions, list) and executions:
-        return [e.get("machine") if isinstance(e, dict) else None for e in executions]
-    return [provenance.get("machine")]
+    listed = provenance.get("executions")
+    if isinstance(listed, list) and listed:
+        return [e if isinstance(e, dict) else {} for e in listed]
+    return [{"machine": provenance.get("machine"), "commit": provenance.get("commit")}]
 
 
 def finished_steps(run_dir: Path) -> int | None:
@@ -160,11 +160,11 @@ __all__ = [
     "RUN_SCHEMA",
     "SCALARS",
     "TENSORBOARD",
+    "executions",
     "finished_steps",
     "migrate_run_json",
     "read_run_json",
     "remove_run_files",
     "remove_temporary_files",
-    "trained_on",
     "truncate_scalars",
 ]

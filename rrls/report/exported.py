@@ -153,10 +153,8 @@ def provenance(root: Path, spec: dict[str, Any], algos: list[str]) -> dict[str, 
         "runs": len(runs),
         "exported_with_rrls": __version__,
         "versions": {k: sorted(map(str, v)) for k, v in sorted(versions.items())},
-        "commits": distinct(  # every execution's commit where run.json lists them
-            c for p in prov for c in [*execution_commits(p), p.get("commit")]
-        ),
-        "machines": distinct(m for run in runs.values() for m in rundir.trained_on(run)),
+        "commits": distinct(e.get("commit") for r in runs.values() for e in rundir.executions(r)),
+        "machines": distinct(e.get("machine") for r in runs.values() for e in rundir.executions(r)),
         "devices": distinct(p.get("device") for p in prov),
     }
     if hyper:  # one dict per algorithm; a list where its runs trained with more than one
@@ -164,14 +162,6 @@ def provenance(root: Path, spec: dict[str, Any], algos: list[str]) -> dict[str, 
     if otherwise:
         out["trained_otherwise"] = dict(sorted(otherwise.items()))
     return out
-
-
-def execution_commits(provenance: dict[str, Any]) -> list[Any]:
-    """The rrls commits of a run's executions (``run.json``'s ``provenance.executions``)."""
-    executions = provenance.get("executions")
-    if not isinstance(executions, list):
-        return []
-    return [e.get("commit") for e in executions if isinstance(e, dict)]
 
 
 def _row(
