@@ -12,7 +12,10 @@ A run resumed after its process was stopped was trained in several executions, a
 ``result.json`` times only the last (``seconds``: training since resuming, and evaluation). Each
 execution wrote its own TensorBoard file, so ``executions.csv`` records them all: per file its
 first and last event's wall time and steps, and ``in_result`` (1: the execution that
-``result.json`` times). The earlier executions' spans plus ``seconds`` are the run's cost.
+``result.json`` times). The earlier executions' spans plus ``seconds`` are the run's cost. A
+file's first step is the first it logged, past its header (at step 0 whatever the step resumed
+from; files written before this rule carry that 0); ``run.json``'s ``provenance.executions``
+has the exact step each execution started from.
 """
 
 from __future__ import annotations
@@ -78,7 +81,9 @@ def executions(run: Path, dest: Path) -> bool:
     began = result.stat().st_mtime - float(json.loads(result.read_text())["seconds"])
     rows = []
     for path in files:
-        events = [(e.wall_time, e.step) for e in EventFileLoader(str(path)).Load()]
+        # the file's header event is at step 0 whatever step the execution resumed from
+        loaded = EventFileLoader(str(path)).Load()
+        events = [(e.wall_time, e.step) for e in loaded if not e.HasField("file_version")]
         if not events:
             continue
         times, steps = [t for t, _ in events], [s for _, s in events]

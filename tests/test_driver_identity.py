@@ -7,12 +7,13 @@ change no number: the last checkpoint (learner state, the loop's generator, the 
 progress, the config), the exported policies, the curves of ``scalars.csv`` (without the wall
 clock's ``steps_per_second``) and the losses logged to TensorBoard.
 
-Float32 training is not the same bits on every CPU kernel (``ATEN_CPU_CAPABILITY``, another
-torch or warp): unlike the ``exactness`` tests, whose results must not depend on the kernels,
-these digests are recorded per (torch version, ATen capability), and the test is skipped
-(saying so) where none were recorded. Record a set for another machine from a commit known to
-be right with ``RRLS_RECORD_IDENTITY=1 python3 -m pytest tests/test_driver_identity.py -s`` (it
-prints the table instead of comparing).
+Float32 training is not the same bits on every CPU kernel (ATen's scalar kernels, another torch
+or warp; another CPU maker, whose MKL paths may differ: not measured): unlike the ``exactness``
+tests, whose results must not depend on the kernels, these digests are recorded per (torch
+version, CPU maker) with the ATen capabilities they were measured under, and the test is
+skipped (saying so) elsewhere. Record a set for another machine from a commit known to be right
+with ``RRLS_RECORD_IDENTITY=1 python3 -m pytest tests/test_driver_identity.py -s`` (it prints
+the table instead of comparing).
 """
 
 from __future__ import annotations
@@ -32,6 +33,7 @@ torch = pytest.importorskip("torch")
 from rrls import files, rundir  # noqa: E402
 from rrls.agents import TrainConfig, train  # noqa: E402
 from rrls.agents.loop import train_group  # noqa: E402
+from rrls.agents.run import EXECUTIONS_KEY  # noqa: E402
 
 pytestmark = pytest.mark.e2e  # training runs: minutes on a small CPU
 
@@ -40,10 +42,10 @@ STEPS = 1000  # the losses are logged every 1 000 steps: one log, at the end
 TWIN_STEPS = 200  # the twin on warp's CPU device is slow: no loss log (the same driver logs)
 RECORD = os.environ.get("RRLS_RECORD_IDENTITY") == "1"
 
-#: (torch version, ATen capability) -> case -> digest of what the run wrote; recorded on AMD
-#: EPYC (AVX2), torch 2.13.0 (CPU) and warp 1.19.0, from commit 4adf611 (before the driver)
+#: (torch version, CPU maker) -> case -> digest of what the run wrote; recorded on AMD EPYC
+#: (AVX2), torch 2.13.0 (CPU) and warp 1.19.0, from commit 4adf611 (before the driver)
 RECORDED: dict[tuple[str, str], dict[str, str]] = {
-    ("2.13.0+cpu", "AVX2"): {
+    ("2.13.0+cpu", "AuthenticAMD"): {
         "td3": "66a3302afc64ce85",
         "dr": "ee85101ce6e32b26",
         "rarl": "cfd0af6c2fcdcc3b",
@@ -54,7 +56,7 @@ RECORDED: dict[tuple[str, str], dict[str, str]] = {
         "td3 group": "21beb8d2e48a70c1/69296b44ea04fec6",
         "m2td3 group": "4d2f04dc6ccb9e4d/404b566cd5ef7737",
     },
-    ("2.13.0+cpu warp 1.19.0", "AVX2"): {
+    ("2.13.0+cpu warp 1.19.0", "AuthenticAMD"): {
         "td3 twin": "266f79651e1c651c/e47df796e989d578",
         # recorded anew when M2TD3 moved into the resident blocks (its points on the device)
         "m2td3 twin": "5dff2cecfbf2a92e/e28ce9c096e3b49d",
@@ -63,8 +65,23 @@ RECORDED: dict[tuple[str, str], dict[str, str]] = {
 }
 
 
+#: the ATen capabilities the digests were measured under: the same bits with AVX2 and with
+#: AVX-512 kernels (an AMD EPYC with AVX-512 gave every digest above), other bits with ATen's
+#: scalar ones (``ATEN_CPU_CAPABILITY=default``)
+CAPABILITIES = ("AVX2", "AVX512")
+
+
+def _maker() -> str:
+    """The CPU's maker (``vendor_id``: AuthenticAMD, GenuineIntel), "" where not said."""
+    try:
+        lines = Path("/proc/cpuinfo").read_text().splitlines()
+    except OSError:
+        return ""
+    return next((ln.split(":", 1)[1].strip() for ln in lines if ln.startswith("vendor_id")), "")
+
+
 def _kernels() -> tuple[str, str]:
-    return torch.__version__, torch.backends.cpu.get_cpu_capability()
+    return torch.__version__, _maker()
 
 
 def _config(
@@ -126,6 +143,8 @@ def _digest(run: Path, steps: int = STEPS) -> str:
         io.BytesIO(files.read_sealed(run / rundir.CHECKPOINT)), weights_only=True
     )
     assert checkpoint["step"] == steps // 3 * 3
+    # the executions record where and from which commit it ran (provenance, not training)
+    assert checkpoint.pop(EXECUTIONS_KEY)
     _feed(h, checkpoint)
     for name, array in sorted(policy_arrays(run).items()):
         h.update(name.encode() + np.ascontiguousarray(array).tobytes())
@@ -147,8 +166,10 @@ def _check(case: str, digests: list[str], kernels: tuple[str, str] | None = None
         print(f'RECORDED {kernels} "{case}": "{got}",')
         return
     recorded = RECORDED.get(kernels)
-    if recorded is None:
-        pytest.skip(f"no training digests recorded for torch {kernels[0]} on {kernels[1]}")
+    capability = torch.backends.cpu.get_cpu_capability()
+    if recorded is None or capability not in CAPABILITIES:
+        where = f"torch {kernels[0]} on {kernels[1] or 'this CPU'} ({capability} kernels)"
+        pytest.skip(f"no training digests recorded for {where}")
     assert got == recorded[case]
 
 
@@ -168,7 +189,7 @@ def test_a_group_writes_what_it_wrote_before(tmp_path: Path, algo: str) -> None:
 def _twin_kernels() -> tuple[str, str]:
     import warp as wp
 
-    return f"{torch.__version__} warp {wp.config.version}", torch.backends.cpu.get_cpu_capability()
+    return f"{torch.__version__} warp {wp.config.version}", _maker()
 
 
 @pytest.mark.warp
