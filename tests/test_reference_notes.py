@@ -215,9 +215,9 @@ def test_the_hopper_budget_is_the_probes_rule_and_its_file() -> None:
         assert f"at each of the {len(every_50k)} evaluations, every 50 000 steps" in page
         run0 = json.loads((folder / "runs" / "td3-hopper-3d-seed0" / "run.json").read_text())
         assert run0["provenance"]["machine"]["simd"] == "X86_V3"
-        executions = json.loads(seed1.read_text())["provenance"]["executions"]
-        assert executions[0]["first_step"] == 0
-        assert {e["machine"]["simd"] for e in executions} == {"X86_V4"}
+        trained = json.loads(seed1.read_text())["provenance"]["executions"]
+        assert trained[0]["first_step"] == 0
+        assert {e["machine"]["simd"] for e in trained} == {"X86_V4"}
     executions = folder / "runs" / "td3-hopper-3d-seed0" / "executions.csv"
     if executions.exists():  # the probe trained past the budget before the checkpoint was taken
         with open(executions, newline="") as f:

@@ -156,10 +156,8 @@ def test_a_resumed_runs_cost_counts_every_execution(tmp_path, monkeypatch):
     rows = pd.read_csv(dest / collect_runs.EXECUTIONS)
     assert list(rows["in_result"]) == [0, 1] and list(rows["started"]) == [1000.0, 2000.0]
     assert list(rows["ended"]) == [1500.0, 2600.0] and list(rows["last_step"]) == [1500, 2600]
-    assert list(rows["first_step"]) == [
-        1000,
-        2000,
-    ]  # each file's first logged step, not its header's 0
+    # each file's first logged step, not its header's 0
+    assert list(rows["first_step"]) == [1000, 2000]
     (dest / "result.json").write_text((run / "result.json").read_text())
     assert collect_runs.run_seconds(dest) == (750.0 + 500.0, 2)
     (dest / collect_runs.EXECUTIONS).unlink()
