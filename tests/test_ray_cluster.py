@@ -4,9 +4,11 @@ and the same command finishes every run once, with a local run's numbers."""
 
 from __future__ import annotations
 
+import contextlib
 import json
 import os
 import shutil
+import signal
 import subprocess
 import sys
 import tempfile
@@ -193,7 +195,12 @@ def test_a_benchmark_survives_losing_the_node_running_it(tmp_path, monkeypatch):
         _wait((first / "checkpoint.pt").exists, 300, f"checkpoint in {first.name}", driver)
         lost = json.loads((first / "progress.json").read_text())["pid"]
         t0 = time.monotonic()
-        cluster.remove_node(doomed, allow_graceful=False)  # raylet, workers: the whole node
+        # the whole node at once: its worker is frozen first, or it may finish the short smoke
+        # run and hand its result straight to the driver in the moment it outlives its raylet
+        os.kill(lost, signal.SIGSTOP)
+        cluster.remove_node(doomed, allow_graceful=False)
+        with contextlib.suppress(ProcessLookupError):
+            os.kill(lost, signal.SIGKILL)
         assert not (first / "result.json").exists(), "the run finished before its node died"
         # the lost run's hold on its directory outlives its process here, as a dead NFS client's
         # lock does until its lease runs out: the run submitted again waits for it
