@@ -68,6 +68,19 @@ def per_seed(folder: Path) -> dict[str, dict[str, list[float]]]:
     }
 
 
+def per_seed_so_far(folder: Path) -> dict[str, dict[str, list[float]]]:
+    """``{algo: {worst_case, average_case: values by seed}}`` of a grid in progress, read from
+    its finished runs' ``result.json`` (its report comes when the grid is complete)."""
+    out: dict[str, dict[int, dict[str, float]]] = {}
+    for path in folder.glob("runs/*/result.json"):
+        result = json.loads(path.read_text())
+        out.setdefault(result["algorithm"], {})[int(result["seed"])] = result
+    return {
+        algo: {k: [seeds[s][k] for s in sorted(seeds)] for k in METRICS}
+        for algo, seeds in out.items()
+    }
+
+
 def dynamic(folder: Path, reference: str | None) -> dict[str, str]:
     """``{algo: cell}`` of the runs against their own adversaries: the reference's per-seed
     values where it has them (checked against the folder's per-run table), else the report's
@@ -204,8 +217,9 @@ def evaluation(folder: Path) -> str:
 
 
 def paper_comparison(folder: Path) -> str:
-    """This folder's runs beside the paper's Table 7 / 8 row of the same task (raw worst and
-    average case, mean ± std over the paper's 10 seeds), and for every pair of algorithms the
+    """This folder's runs (those finished so far, while its grid is in progress) beside the
+    paper's Table 7 / 8 row of the same task (raw worst and average case, mean ± std over the
+    paper's 10 seeds), and for every pair of algorithms the
     paper orders: reproduced (this benchmark's 95 % intervals disjoint, the same way),
     contradicted (disjoint, the other way) or unresolved (they overlap)."""
     from rrls.report.writer import paper_results
@@ -213,7 +227,8 @@ def paper_comparison(folder: Path) -> str:
     paper = paper_results()
     spec = json.loads((folder / "benchmark.json").read_text())
     (task,) = spec["tasks"]
-    data = per_seed(folder)
+    complete = (folder / "tables" / "per_run.csv").is_file()
+    data = per_seed(folder) if complete else per_seed_so_far(folder)
     lines = [
         "| algorithm | worst case, here | worst case, paper | average case, here | average "
         "case, paper |",

@@ -40,7 +40,7 @@ def test_a_grid_in_progress_shows_its_status_and_td3_from_its_files():
     # the longer Hopper grid, produced in pieces: its page's blocks are what runs/ holds today
     folder = RESULTS / "hopper"
     text = (folder / "README.md").read_text()
-    blocks = ("status", "differences", "td3_budget", "rechecked", "runs")
+    blocks = ("status", "paper", "differences", "td3_budget", "rechecked", "runs")
     for block in blocks:  # what it holds against the paper's protocol; each run's scores
         assert f"<!-- generated:{block} -->" in text, block
     _, changed = results_page.update(folder / "README.md", results_page.page_blocks(folder, None))
@@ -49,7 +49,33 @@ def test_a_grid_in_progress_shows_its_status_and_td3_from_its_files():
         assert "first ≥ 2,500 |" in text  # Hopper's rule, not HalfCheetah's 4 000
 
 
-@pytest.mark.parametrize("name", ["hopper-200k", "halfcheetah"])
+def test_a_grid_in_progress_is_beside_the_paper_with_what_its_report_will_hold(tmp_path):
+    """The Hopper page's table beside the paper, read from its finished runs' result.json, is
+    what ``rrls report`` over those runs puts in ``tables/per_run.csv``."""
+    import shutil
+
+    from rrls.benchmark.store import build_store
+    from rrls.report.writer import make_report
+
+    folder = RESULTS / "hopper"
+    if (folder / "tables" / "per_run.csv").is_file():
+        pytest.skip("the Hopper grid is complete: its page reads its report")
+    bench = tmp_path / "bench"
+    shutil.copytree(folder / "runs", bench / "runs")
+    for name in ("benchmark.json", "benchmark.json.sha256"):
+        shutil.copy(folder / name, bench / name)
+    build_store(bench)
+    make_report(bench, plots=False)
+    complete = results_page.per_seed(bench / "report")
+    so_far = results_page.per_seed_so_far(folder)
+    assert so_far.keys() == complete.keys() and len(so_far) >= 2
+    for algo, values in so_far.items():
+        for metric in results_page.METRICS:
+            # (per_run.csv holds pandas's shortest decimals, not always the float's last bit)
+            assert values[metric] == pytest.approx(complete[algo][metric], rel=1e-12)
+
+
+@pytest.mark.parametrize("name", ["hopper-200k", "halfcheetah", "hopper"])
 def test_a_locomotion_page_opens_with_its_table_beside_the_papers_row(name):
     # a reader looks for the table and its verdict first; how it was made follows
     text = (RESULTS / name / "README.md").read_text()
