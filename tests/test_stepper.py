@@ -76,6 +76,7 @@ def test_wrapped_envs_step_on_one_thread():
     assert GenericStepper(envs, threads=3).shares.threads == 1
 
 
+@pytest.mark.filterwarnings("ignore:MuJoCo. Nan, Inf or huge value")  # the point of it
 def test_divergence_in_a_pool_thread_is_flagged():
     """MuJoCo's instability warning, raised while a pool thread steps, reaches the lane's row."""
     envs = [FORCE_ENVS["hopper"]() for _ in range(4)]
