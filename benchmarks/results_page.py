@@ -219,9 +219,9 @@ def evaluation(folder: Path) -> str:
 def paper_comparison(folder: Path) -> str:
     """This folder's runs (those finished so far, while its grid is in progress) beside the
     paper's Table 7 / 8 row of the same task (raw worst and average case, mean ± std over the
-    paper's 10 seeds), and for every pair of algorithms the
-    paper orders: reproduced (this benchmark's 95 % intervals disjoint, the same way),
-    contradicted (disjoint, the other way) or unresolved (they overlap)."""
+    paper's 10 seeds), and for every pair of algorithms the paper orders: reproduced (this
+    benchmark's 95 % intervals disjoint, the same way), contradicted (disjoint, the other way)
+    or unresolved (they overlap)."""
     from rrls.report.writer import paper_results
 
     paper = paper_results()
