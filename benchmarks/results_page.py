@@ -31,6 +31,7 @@ import json
 import re
 import sys
 from pathlib import Path
+from typing import Any
 
 from page_checks import seed_cell  # beside this script too
 from page_runs import compute, runs
@@ -59,25 +60,24 @@ def per_seed(folder: Path) -> dict[str, dict[str, list[float]]]:
                 "average_case": float(row["average_case"]),
                 "nominal": float(row["final_nominal_return"]),
             }
-    return {
-        algo: {
-            k: [seeds[s][k] for s in sorted(seeds)]
-            for k in ("worst_case", "average_case", "nominal")
-        }
-        for algo, seeds in out.items()
-    }
+    return _by_seed(out, ("worst_case", "average_case", "nominal"))
 
 
 def per_seed_so_far(folder: Path) -> dict[str, dict[str, list[float]]]:
     """``{algo: {worst_case, average_case: values by seed}}`` of a grid in progress, read from
     its finished runs' ``result.json`` (its report comes when the grid is complete)."""
-    out: dict[str, dict[int, dict[str, float]]] = {}
+    out: dict[str, dict[int, dict[str, Any]]] = {}
     for path in folder.glob("runs/*/result.json"):
         result = json.loads(path.read_text())
         out.setdefault(result["algorithm"], {})[int(result["seed"])] = result
+    return _by_seed(out, tuple(METRICS))
+
+
+def _by_seed(rows: dict[str, dict[int, dict[str, Any]]], keys: tuple[str, ...]) -> dict:
+    """``{algo: {seed: row}}`` as ``{algo: {key: values in seed order}}``."""
     return {
-        algo: {k: [seeds[s][k] for s in sorted(seeds)] for k in METRICS}
-        for algo, seeds in out.items()
+        algo: {k: [float(seeds[s][k]) for s in sorted(seeds)] for k in keys}
+        for algo, seeds in rows.items()
     }
 
 

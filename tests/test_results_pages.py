@@ -75,6 +75,31 @@ def test_a_grid_in_progress_is_beside_the_paper_with_what_its_report_will_hold(t
             assert values[metric] == pytest.approx(complete[algo][metric], rel=1e-12)
 
 
+@pytest.mark.parametrize("name", ["halfcheetah", "hopper"])
+def test_a_page_beside_the_paper_states_its_budget_seeds_and_physics(name):
+    """What the page compares with the paper's row is stated in its opening, read from its
+    benchmark.json and the paper's protocol: steps, seeds and rrls's physics against the
+    paper's; the Hopper grid in progress states them again beside its table."""
+    import json
+
+    from rrls.benchmark.grid import make_spec
+
+    folder = RESULTS / name
+    spec = json.loads((folder / "benchmark.json").read_text())
+    paper = make_spec("paper")
+    assert spec.get("physics") in (None, "v5")  # rrls's physics, as the pages say
+    text = (folder / "README.md").read_text()
+    opening = " ".join(text.split("\n## ", 1)[0].split())
+    steps, seeds = spec["steps"] // 1000, len(spec["seeds"])
+    stated = f"{steps} k of the paper's {paper.steps // 1_000_000} M steps, {seeds} of its"
+    assert f"{stated} {len(paper.seeds)} seeds" in opening
+    assert "at a reduced budget on rrls's physics" in opening
+    if name == "hopper":
+        section = " ".join(text.split("## Beside the paper's", 1)[1].split("<!--", 1)[0].split())
+        assert f"({steps} k steps, {seeds} seeds when complete, rrls's v5 physics)" in section
+        assert f"over its {len(paper.seeds)} seeds at {paper.steps // 1_000_000} M steps" in section
+
+
 @pytest.mark.parametrize("name", ["hopper-200k", "halfcheetah", "hopper"])
 def test_a_locomotion_page_opens_with_its_table_beside_the_papers_row(name):
     # a reader looks for the table and its verdict first; how it was made follows
