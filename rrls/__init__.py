@@ -43,7 +43,8 @@ _LAZY = {
     "Parameter": "rrls.params",
     "ParamSpec": "rrls.params",  # deprecated: Parameter's former name (warns)
 }
-#: lazy names kept for old code, left out of ``__all__`` (``import *`` would warn)
+#: lazy names kept for old code, left out of ``__all__`` (``import *`` would warn) and of
+#: ``dir(rrls)`` (tools that read every listed name, pytest's fixture scan among them, would warn)
 _DEPRECATED = ("ParamSpec",)
 
 
@@ -63,7 +64,7 @@ def __getattr__(name: str) -> Any:
 
 
 def __dir__() -> list[str]:
-    return sorted([*globals(), *_LAZY])
+    return sorted(n for n in [*globals(), *_LAZY] if n not in _DEPRECATED)
 
 
 from rrls._registration import register_envs  # noqa: E402

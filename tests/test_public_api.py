@@ -115,15 +115,19 @@ def test_renamed_classes_keep_their_old_names_with_a_warning(module: str, old: s
         mod.NoSuchName  # noqa: B018 - the module's own AttributeError stays
 
 
-def test_rrls_exports_parameter_and_keeps_paramspec_out_of_all():
+def test_rrls_exports_parameter_and_keeps_paramspec_out_of_all_and_dir():
     import warnings
 
     import rrls
     from rrls.params import Parameter
 
     assert rrls.Parameter is Parameter and "Parameter" in rrls.__all__
-    assert "ParamSpec" not in rrls.__all__
+    assert "Parameter" in dir(rrls) and "ParamSpec" not in rrls.__all__
     with warnings.catch_warnings():
+        # reading every name dir() lists (as pytest's fixture scan does) warns of nothing
+        warnings.simplefilter("error", DeprecationWarning)
+        for name in dir(rrls):
+            getattr(rrls, name)
         warnings.simplefilter("ignore", DeprecationWarning)
         assert rrls.ParamSpec is Parameter  # old code still runs
 
