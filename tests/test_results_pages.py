@@ -75,6 +75,18 @@ def test_a_grid_in_progress_is_beside_the_paper_with_what_its_report_will_hold(t
             assert values[metric] == pytest.approx(complete[algo][metric], rel=1e-12)
 
 
+def test_the_hopper_page_names_the_nominal_values_its_set_leaves_out():
+    """The Hopper page says which of the model's own values lie outside the paper's set (so the
+    nominal model is outside it), read from the same table its set block generates."""
+    folder = RESULTS / "hopper"
+    rows = [line.split(" | ") for line in results_page.uncertainty_set(folder).splitlines()[2:]]
+    out = [row[1] for row in rows if row[-1].rstrip(" |") == "no"]
+    words = {"torsomass": "torso", "thighmass": "thigh", "worldfriction": "floor friction"}
+    named = " and ".join(words[p] for p in out)
+    page = " ".join((folder / "README.md").read_text().split())
+    assert out and f"The set leaves out the model's own {named} masses" in page
+
+
 @pytest.mark.parametrize("name", ["halfcheetah", "hopper"])
 def test_a_page_beside_the_paper_states_its_budget_seeds_and_physics(name):
     """What the page compares with the paper's row is stated in its opening, read from its
