@@ -174,3 +174,15 @@ def assert_worlds_follow_cpu(twin, resolved, points, steps: int = 10) -> list:
             assert np.abs(tq[w] - env.unwrapped.data.qpos).max() < (1e-5 if t == 0 else 1e-4)
             assert abs(float(reward[w]) - r) < 1e-3
     return cpus
+
+
+def random_policy(task: str, seed: int = 3):
+    """A small random MLP policy (32-32) for ``task``'s registered environment."""
+    import gymnasium as gym
+
+    from rrls.evaluation import MLPPolicy
+
+    env = gym.make(f"rrls/robust-{task}-v0")
+    return MLPPolicy.random(
+        env.observation_space.shape[0], env.action_space.shape[0], hidden=(32, 32), seed=seed
+    )

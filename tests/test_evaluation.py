@@ -1,4 +1,5 @@
-"""The evaluation engine: every row equals the plain one-episode loop, whatever workers/batch."""
+"""The evaluation engine: every row equals the plain one-episode loop, whatever workers/batch
+(the command line and the plots: ``test_evaluate_cli.py``)."""
 
 from __future__ import annotations
 
@@ -8,7 +9,7 @@ import gymnasium as gym
 import numpy as np
 import pandas as pd
 import pytest
-from conftest import TASK_KEYS
+from conftest import TASK_KEYS, random_policy
 
 import rrls  # noqa: F401
 from rrls.evaluation import (
@@ -25,13 +26,6 @@ from rrls.evaluation import (
 )
 from rrls.evaluation.lanes import episode_seeds
 from rrls.uncertainty import UncertaintySet
-
-
-def _policy(task: str, seed: int = 3) -> MLPPolicy:
-    env = gym.make(f"rrls/robust-{task}-v0")
-    return MLPPolicy.random(
-        env.observation_space.shape[0], env.action_space.shape[0], hidden=(32, 32), seed=seed
-    )
 
 
 def plain_loop(env_id: str, policy, params: dict, seed: int, max_steps: int) -> tuple[float, int]:
@@ -55,7 +49,7 @@ STEPS = {"ant": 150, "halfcheetah": 300, "humanoidstandup": 100}
 @pytest.mark.exactness
 @pytest.mark.parametrize("task", TASK_KEYS)
 def test_rows_equal_the_plain_loop(task):
-    policy = _policy(task)
+    policy = random_policy(task)
     steps = STEPS.get(task, 1000)
     result = evaluate(
         policy, task, "2d", mesh=2, episodes=2, seed=7, workers=1, max_episode_steps=steps
@@ -69,7 +63,7 @@ def test_rows_equal_the_plain_loop(task):
 
 @pytest.mark.parametrize("uncertainty", ["rarl", "nominal"])
 def test_force_set_and_nominal_equal_the_plain_loop(uncertainty):
-    policy = _policy("hopper")
+    policy = random_policy("hopper")
     result = evaluate(policy, "hopper", uncertainty, mesh=2, episodes=1, workers=1)
     family = "force" if uncertainty == "rarl" else "robust"
     for row in result.episodes.itertuples(index=False):
@@ -83,7 +77,7 @@ def test_force_set_and_nominal_equal_the_plain_loop(uncertainty):
 
 @pytest.mark.exactness
 def test_results_do_not_depend_on_workers_or_batch_size():
-    policy = _policy("walker")
+    policy = random_policy("walker")
     runs = [
         evaluate(
             policy, "walker", "3d", mesh=2, episodes=3, seed=1, workers=w, batch_size=b
@@ -167,7 +161,7 @@ def test_work_stealing_keeps_every_worker_busy_and_balanced():
 @pytest.mark.exactness
 def test_results_do_not_depend_on_the_work_split_or_chunk_size(tmp_path):
     """Rows depend only on their seed: any workers, lanes or saving chunk give the same columns."""
-    policy = _policy("hopper")
+    policy = random_policy("hopper")
     box = resolve_uncertainty("hopper", "2d")
     points = box.mesh(3)
     spec = lanes.Rollouts(
@@ -183,7 +177,7 @@ def test_results_do_not_depend_on_the_work_split_or_chunk_size(tmp_path):
 
 
 def test_table_columns_seeds_and_scores():
-    policy = _policy("invertedpendulum")
+    policy = random_policy("invertedpendulum")
     result = evaluate(policy, "invertedpendulum", "2d", mesh=3, episodes=4, seed=5, workers=1)
     frame = result.episodes
     assert list(frame.columns) == [
@@ -212,7 +206,7 @@ def test_table_columns_seeds_and_scores():
 
 
 def test_same_seed_same_numbers_other_seed_other_numbers():
-    policy = _policy("hopper")
+    policy = random_policy("hopper")
     a = evaluate(policy, "hopper", "1d", mesh=2, episodes=2, seed=0, workers=1)
     b = evaluate(policy, "hopper", "1d", mesh=2, episodes=2, seed=0, workers=2)
     c = evaluate(policy, "hopper", "1d", mesh=2, episodes=2, seed=1, workers=1)
@@ -235,7 +229,7 @@ class FlakyPolicy:
 
 
 def test_interrupted_evaluation_resumes_to_the_same_result(tmp_path):
-    inner = _policy("invertedpendulum")
+    inner = random_policy("invertedpendulum")
     kwargs = dict(
         task="invertedpendulum",
         uncertainty="2d",
@@ -268,13 +262,13 @@ def test_interrupted_evaluation_resumes_to_the_same_result(tmp_path):
 
 
 def test_resume_refuses_other_arguments(tmp_path):
-    policy = _policy("invertedpendulum")
+    policy = random_policy("invertedpendulum")
     evaluate(policy, "invertedpendulum", "1d", mesh=2, episodes=1, out_dir=tmp_path, workers=1)
     with pytest.raises(ValueError, match="different arguments.*episodes"):
         evaluate(policy, "invertedpendulum", "1d", mesh=2, episodes=2, out_dir=tmp_path, workers=1)
     with pytest.raises(ValueError, match="policy_fingerprint"):
         evaluate(
-            _policy("invertedpendulum", seed=9),
+            random_policy("invertedpendulum", seed=9),
             "invertedpendulum",
             "1d",
             mesh=2,
@@ -286,7 +280,7 @@ def test_resume_refuses_other_arguments(tmp_path):
 
 @pytest.mark.parametrize("workers", [1, 2])
 def test_nan_actions_name_the_point_and_step(workers):
-    inner = _policy("hopper")
+    inner = random_policy("hopper")
 
     def nan_late(obs):
         actions = inner(obs)
@@ -362,7 +356,7 @@ def test_mlp_policy_is_batch_invariant_at_large_batches():
 
 
 def test_bad_arguments():
-    policy = _policy("hopper")
+    policy = random_policy("hopper")
     with pytest.raises(ValueError, match="valid tasks"):
         evaluate(policy, "cartpole", "1d")
     with pytest.raises(ValueError, match="valid: 1d, 2d, rarl"):
@@ -376,7 +370,7 @@ def test_bad_arguments():
 def test_search_worst_case_trace_budget_and_consistency():
     from rrls.evaluation import search_worst_case
 
-    policy = _policy("hopper")
+    policy = random_policy("hopper")
     found = search_worst_case(policy, "hopper", "2d", budget=30, episodes=2, seed=0, workers=1)
     trace = found.trace
     assert found.evaluations == len(trace) <= 30 and found.episode_evaluations == 2 * len(trace)
@@ -421,7 +415,7 @@ def test_search_beats_the_grid_with_fewer_episodes():
 def test_dynamic_evaluation_equals_the_plain_two_player_loop(game, uncertainty):
     from rrls.evaluation import evaluate_dynamic, make_dynamic_env
 
-    protagonist = _policy("hopper")
+    protagonist = random_policy("hopper")
     env = make_dynamic_env("hopper", game, uncertainty, alpha=0.3)
     adversary = MLPPolicy.random(11, env.action_space[1].shape[0], hidden=(16,), seed=2)
     result = evaluate_dynamic(
@@ -460,7 +454,7 @@ def test_an_adversary_lowers_the_return():
 def test_sb3_like_models_are_adapted():
     from rrls.evaluation import SB3Policy, as_policy
 
-    inner = _policy("hopper")
+    inner = random_policy("hopper")
 
     class FakeSB3:
         policy = object()
@@ -499,103 +493,3 @@ def test_torch_modules_are_adapted():
         1000,
     )
     assert (result.episodes["length"][0], result.episodes["return"][0]) == (length, ret)
-
-
-def test_cli_evaluate_resume_and_plot(tmp_path, capsys):
-    from rrls.cli import main
-
-    policy = _policy("invertedpendulum")
-    policy.metadata = {"task": "invertedpendulum"}
-    path = policy.save(tmp_path / "policy.npz")
-    out = tmp_path / "eval"
-    args = [
-        "evaluate",
-        str(path),
-        "--uncertainty",
-        "2d",
-        "--mesh",
-        "3",
-        "--episodes",
-        "2",
-        "--workers",
-        "1",
-        "--out",
-        str(out),
-    ]
-    assert main(args) == 0
-    printed = capsys.readouterr().out
-    summary = json.loads((out / "summary.json").read_text())
-    assert f"{summary['worst_case']:,.2f}" in printed and "average case" in printed
-    assert (
-        summary["mesh"] == 3 and summary["episodes"] == 2 and summary["task"] == "invertedpendulum"
-    )
-    episodes = pd.read_parquet(out / "episodes.parquet")
-    assert len(episodes) == 18
-    # same command again: everything is loaded from the saved chunks, same numbers
-    assert main(args) == 0
-    assert json.loads((out / "summary.json").read_text())["worst_case"] == summary["worst_case"]
-    assert main(["plot", str(out)]) == 0
-    png = (out / "returns.png").read_bytes()
-    assert png[:8] == b"\x89PNG\r\n\x1a\n" and len(png) > 10_000
-
-
-@pytest.mark.parametrize("uncertainty", ["1d", "3d"])
-def test_plots_for_1d_and_3d(tmp_path, uncertainty):
-    from rrls.evaluation import plot_result
-
-    result = evaluate(
-        _policy("hopper"),
-        "hopper",
-        uncertainty,
-        mesh=3,
-        episodes=1,
-        workers=1,
-        out_dir=tmp_path,
-    )
-    path = plot_result(tmp_path)
-    assert path.exists() and path.stat().st_size > 10_000
-    with pytest.raises(ValueError, match="give a path"):
-        plot_result(result)
-
-
-def test_cli_evaluate_needs_a_task(tmp_path, capsys):
-    from rrls.cli import main
-
-    path = _policy("hopper").save(tmp_path / "p.npz")
-    assert main(["evaluate", str(path)]) == 2
-    assert capsys.readouterr().err.strip() == (
-        "rrls evaluate: error: --task is required (the policy does not record its task)"
-    )
-
-
-def test_3d_plot_shares_one_colour_scale_and_names_the_policy(tmp_path):
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    from rrls.evaluation import plot_result
-
-    policy = _policy("hopper")
-    policy.metadata.update(algorithm="m2td3", seed=7)
-    out = tmp_path / "ev"
-    evaluate(policy, "hopper", "3d", mesh=2, episodes=1, out_dir=out, max_episode_steps=15)
-    seen = {}
-    real_savefig = plt.Figure.savefig
-
-    def capture(fig, *args, **kwargs):
-        seen["fig"] = fig
-        return real_savefig(fig, *args, **kwargs)
-
-    plt.Figure.savefig = capture
-    try:
-        plot_result(out)
-    finally:
-        plt.Figure.savefig = real_savefig
-    fig = seen["fig"]
-    assert fig._suptitle.get_text().startswith("m2td3 seed 7 on hopper / 3d")
-    meshes = [a.collections[0] for a in fig.axes if a.get_label() != "<colorbar>"][:3]
-    assert len(meshes) == 3
-    assert len({m.get_clim() for m in meshes}) == 1  # one scale for the three slices
-    table = EvaluationResult.load(out).per_point["mean_return"]
-    assert meshes[0].get_clim() == (table.min(), table.max())
