@@ -325,7 +325,9 @@ def status(folder: Path) -> str:
 
 def td3_budget(folder: Path, threshold: float = 4_000.0) -> str:
     """TD3's nominal return per seed at every 50 000 steps and where it first reaches
-    ``threshold``: how the preset's budget was chosen (the TD3 runs measured first)."""
+    ``threshold``: how the preset's budget was chosen (the TD3 runs measured first); then which
+    seeds are at or above it at the budget itself, the rule's own test (a seed can reach the
+    threshold and fall back below it)."""
     rows = {}
     for path in sorted(folder.glob("runs/td3-*/scalars.csv")):
         seed = int(path.parent.name.rpartition("seed")[2])
@@ -349,6 +351,17 @@ def td3_budget(folder: Path, threshold: float = 4_000.0) -> str:
         cells = [f"{by_step[s]:.0f}" if s in by_step else "" for s in steps]
         reach = f"{first // 1000} k" if first is not None else "not reached"
         lines.append(f"| {seed} | " + " | ".join(cells) + f" | {reach} |")
+    budget = int(json.loads((folder / "benchmark.json").read_text())["steps"])
+    final = {seed: by_step[budget] for seed, by_step in rows.items() if budget in by_step}
+    below = [f"seed {s} ({v:,.0f})" for s, v in sorted(final.items()) if v < threshold]
+    held = len(final) - len(below)
+    lines += [
+        "",
+        f"At the budget ({budget // 1000} k steps), {held} of {len(final)} seed"
+        + ("s" if len(final) != 1 else "")
+        + f" at or above {threshold:,.0f}"
+        + (f"; below it: {', '.join(below)}." if below else "."),
+    ]
     return "\n".join(lines) + "\n"
 
 

@@ -408,3 +408,29 @@ def test_the_physics_blocks_change_is_a_paired_interval_and_says_what_moved():
     assert page_checks.moved(v5, v5) == "the same order by mean; the same resolved pairs"
     flat = {"td3": [0.0, 9.0], "dr": [1.0, 8.0]}
     assert page_checks.moved(flat, flat).endswith("the same resolved pairs (none)")
+
+
+def test_the_td3_budget_line_says_which_seeds_hold_at_the_budget(tmp_path):
+    # a seed that reached the threshold and fell back below it at the budget is named
+    import json
+
+    (tmp_path / "benchmark.json").write_text(json.dumps({"steps": 100_000}))
+    for seed, values in ((0, (2_600.0, 2_700.0)), (1, (2_600.0, 2_100.0))):
+        run = tmp_path / "runs" / f"td3-hopper-3d-seed{seed}"
+        run.mkdir(parents=True)
+        rows = [f"{step},eval/nominal_return,{v}" for step, v in zip((50_000, 100_000), values)]
+        (run / "scalars.csv").write_text("step,metric,value\n" + "\n".join(rows) + "\n")
+    block = results_page.td3_budget(tmp_path, 2_500.0)
+    assert block.endswith(
+        "At the budget (100 k steps), 1 of 2 seeds at or above 2,500; below it: seed 1 (2,100).\n"
+    )
+    # the Hopper page: "A seed below 2 500 there still learned to hop (each reached 2 500
+    # earlier)": every TD3 seed below the rule at the budget reached it before
+    folder = RESULTS / "hopper"
+    text = " ".join((folder / "README.md").read_text().split())
+    assert "A seed below 2 500 there still learned to hop (each reached 2 500 earlier" in text
+    block = results_page.td3_budget(folder, 2_500.0)
+    for line in block.splitlines()[2:]:
+        if line.startswith("| "):
+            cells = [c.strip() for c in line.strip("|").split("|")]
+            assert cells[-1] != "not reached", line
