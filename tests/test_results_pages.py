@@ -118,7 +118,9 @@ def test_a_page_beside_the_paper_states_its_budget_seeds_and_physics(name):
     assert "at a reduced budget on rrls's physics" in opening
     if name == "hopper":
         section = " ".join(text.split("## Beside the paper's", 1)[1].split("<!--", 1)[0].split())
-        assert f"({steps} k steps, {seeds} seeds when complete, rrls's v5 physics)" in section
+        complete = (folder / "tables" / "per_run.csv").is_file()  # its report: all runs in
+        said = f"{seeds} seeds{'' if complete else ' when complete'}"
+        assert f"({steps} k steps, {said}, rrls's v5 physics)" in section
         assert f"over its {len(paper.seeds)} seeds at {paper.steps // 1_000_000} M steps" in section
 
 
