@@ -359,6 +359,7 @@ def td3_budget(folder: Path, threshold: float = 4_000.0) -> str:
         "",
         f"At the budget ({budget // 1000} k steps), {held} of {len(final)} seed"
         + ("s" if len(final) != 1 else "")
+        + (" is" if held == 1 else " are")
         + f" at or above {threshold:,.0f}"
         + (f"; below it: {', '.join(below)}." if below else "."),
     ]
