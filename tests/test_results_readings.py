@@ -345,3 +345,28 @@ def test_the_halfcheetah_reading_of_the_rechecked_worst_case():
     }
     assert resolved == {("td3", "dr"), ("dr", "rarl"), ("dr", "nrmdp")}
     assert "DR's lead over TD3, RARL and NR-MDP survives Holm's correction" in text
+
+
+def test_the_hopper_runs_commits_train_alike():
+    # "every execution of every run shipped, at N commits: for each algorithm, the commits that
+    # trained its runs give the same weights and curves bit for bit (same_training.csv)"
+    import json
+
+    folder = RESULTS / "hopper"
+    same = pd.read_csv(folder / "same_training.csv")
+    used: dict[str, set[str]] = {}
+    for run in (folder / "runs").iterdir():
+        provenance = json.loads((run / "run.json").read_text())["provenance"]
+        executions = provenance.get("executions") or [provenance]
+        commits = {e["commit"][:7] for e in executions if e.get("commit")}
+        used.setdefault(run.name.split("-")[0], set()).update(commits)
+    every = set().union(*used.values())
+    assert len(used) == 5 and every <= set(same.commit)
+    for algo, commits in used.items():
+        rows = same[(same.algorithm == algo) & same.commit.isin(commits)]
+        assert set(rows.commit) == commits, algo
+        assert rows.weights_sha256.nunique() == 1 and rows.curves_sha256.nunique() == 1, algo
+    text = _flat(folder / "README.md")
+    assert f"every commit in the runs' `provenance.executions` ({len(every)} commits:" in text
+    listed = text.split(f"({len(every)} commits: ", 1)[1].split(")", 1)[0]
+    assert sorted(c.strip("` ") for c in listed.replace(" and ", ", ").split(", ")) == sorted(every)
