@@ -424,7 +424,8 @@ def test_the_td3_budget_line_says_which_seeds_hold_at_the_budget(tmp_path):
         (run / "scalars.csv").write_text("step,metric,value\n" + "\n".join(rows) + "\n")
     block = results_page.td3_budget(tmp_path, 2_500.0)
     assert block.endswith(
-        "At the budget (100 k steps), 1 of 2 seeds is at or above 2,500; below it: seed 1 (2,100).\n"
+        "At the budget (100 k steps), 1 of 2 seeds is at or above 2,500; "
+        "below it: seed 1 (2,100).\n"
     )
     # the Hopper page: "A seed below 2 500 there still learned to hop (each reached 2 500
     # earlier)": every TD3 seed below the rule at the budget reached it before
