@@ -350,15 +350,13 @@ def test_the_halfcheetah_reading_of_the_rechecked_worst_case():
 def test_the_hopper_runs_commits_train_alike():
     # "every execution of every run shipped, at N commits: for each algorithm, the commits that
     # trained its runs give the same weights and curves bit for bit (same_training.csv)"
-    import json
+    from rrls.rundir import executions, read_run_json
 
     folder = RESULTS / "hopper"
     same = pd.read_csv(folder / "same_training.csv")
     used: dict[str, set[str]] = {}
     for run in (folder / "runs").iterdir():
-        provenance = json.loads((run / "run.json").read_text())["provenance"]
-        executions = provenance.get("executions") or [provenance]
-        commits = {e["commit"][:7] for e in executions if e.get("commit")}
+        commits = {e["commit"][:7] for e in executions(read_run_json(run)) if e.get("commit")}
         used.setdefault(run.name.split("-")[0], set()).update(commits)
     every = set().union(*used.values())
     assert len(used) == 5 and every <= set(same.commit)
