@@ -368,3 +368,88 @@ def test_the_hopper_runs_commits_train_alike():
     assert f"every commit in the runs' `provenance.executions` ({len(every)} commits:" in text
     listed = text.split(f"({len(every)} commits: ", 1)[1].split(")", 1)[0]
     assert sorted(c.strip("` ") for c in listed.replace(" and ", ", ").split(", ")) == sorted(every)
+
+
+def _hopper_runs() -> pd.DataFrame:
+    """Per Hopper run: its scores, its final nominal return, its worst mesh point (where, whether
+    every episode there fell, the longest of them) and how many points it survives everywhere."""
+    import json
+
+    from rrls.benchmark import benchfile
+
+    folder = RESULTS / "hopper"
+    points = benchfile.read_spec(folder).protocol.plan("hopper").points
+    rows = []
+    for run in sorted((folder / "runs").iterdir()):
+        episodes = pd.read_parquet(run / "eval" / "episodes.parquet")
+        at = episodes.groupby("point").agg(
+            mean=("return", "mean"),
+            fell=("terminated", "all"),
+            longest=("length", "max"),
+            shortest=("length", "min"),
+        )
+        worst = at["mean"].idxmin()
+        result = json.loads((run / "result.json").read_text())
+        scalars = pd.read_csv(run / "scalars.csv")
+        nominal = scalars[scalars.metric == "eval/nominal_return"].value.iloc[-1]
+        rows.append(
+            {
+                "algorithm": result["algorithm"],
+                "seed": result["seed"],
+                "move": result["worst_case_rechecked"] - result["worst_case"],
+                "average": result["average_case"],
+                "nominal": nominal,
+                "fell": bool(at.loc[worst, "fell"]),
+                "longest": int(at.loc[worst, "longest"]),
+                "friction": points[worst][0],
+                "torso": points[worst][1],
+                "thigh": points[worst][2],
+                "survived": int((at.shortest >= 1000).sum()),
+            }
+        )
+    return pd.DataFrame(rows)
+
+
+def test_the_hopper_reading_of_its_worst_points_and_nominal_returns():
+    runs = _hopper_runs()
+    text = _flat(RESULTS / "hopper" / "README.md")
+    n = len(runs)
+    assert f"What the {n} runs shipped so far say" in text or f"What the {n} runs say" in text
+    # every worst point is a fall, early; the recheck moves it little
+    assert runs.fell.all()
+    assert f"within {runs.longest.max()} of the 1 000 steps" in text
+    assert f"within {int(runs.move.abs().max() + 1)} of the paper's statistic on every run" in text
+    assert f"and within 10 on {int((runs.move.abs() <= 10).sum())} of the {n}" in text
+    # DR and M2TD3: lowest friction, heavy torso and thigh; the others spread
+    robust = runs[runs.algorithm.isin(["dr", "m2td3"])]
+    assert (robust.friction == runs.friction.min()).all() and runs.friction.min() == 0.1
+    assert f"torso mass of {robust.torso.min():.2f} or more" in text
+    assert f"thigh mass of {robust.thigh.min():.2f} or more" in text
+    from rrls.benchmark import benchfile
+
+    mesh = benchfile.read_spec(RESULTS / "hopper").protocol.plan("hopper").points.max(axis=0)
+    assert f"(the mesh's largest: {mesh[1]:.2f} and {mesh[2]:.2f})" in text
+    others = runs[~runs.algorithm.isin(["dr", "m2td3"])]
+    assert others.friction.nunique() > 1 and others.torso.nunique() > 1
+    seed0 = runs[(runs.algorithm == "nrmdp") & (runs.seed == 0)].iloc[0]
+    assert seed0.torso == seed0.thigh == 0.1  # "NR-MDP seed 0's at torso and thigh masses of 0.1"
+    # the points survived everywhere
+    best = runs.loc[runs.survived.idxmax()]
+    rest = runs.drop(index=runs.survived.idxmax())
+    assert f"at most {rest.survived.max()} of the 1 000 on every run but one" in text
+    assert f"(M2TD3 seed {best.seed}: {best.survived})" in text and best.algorithm == "m2td3"
+    zero = runs[runs.survived == 0]
+    assert len(zero) == 1 and (zero.algorithm.iloc[0], zero.seed.iloc[0]) == ("rarl", 1)
+    # the nominal return against the average case
+    raw = (RESULTS / "hopper" / "README.md").read_text()
+    for name, part in (("torso", "torsomass"), ("thigh", "thighmass")):
+        value = raw.split(f"| hopper | {part} | ", 1)[1].split(" | ")[1]
+        assert f"{name} ({value})" in text  # the set's table: the model's own mass, outside
+    on_nominal = runs[runs.algorithm.isin(["td3", "nrmdp"])].nominal
+    on_set = runs[runs.algorithm.isin(["dr", "m2td3", "rarl"])].nominal
+    assert on_nominal.min() > 1700 and on_set.max() < on_nominal.min()
+    assert f"end between {on_set.min():.0f} and {on_set.max():.0f} on the nominal model" in text
+    mean = runs.groupby("algorithm").average.mean()
+    assert mean["dr"] > mean["td3"]
+    dr, td3 = (f"{mean[a]:,.0f}".replace(",", " ") for a in ("dr", "td3"))
+    assert f"mean average case over the set ({dr}) is above TD3's ({td3})" in text
