@@ -453,3 +453,28 @@ def test_the_hopper_reading_of_its_worst_points_and_nominal_returns():
     assert mean["dr"] > mean["td3"]
     dr, td3 = (f"{mean[a]:,.0f}".replace(",", " ") for a in ("dr", "td3"))
     assert f"mean average case over the set ({dr}) is above TD3's ({td3})" in text
+
+
+def test_the_hopper_reading_of_what_the_paper_physics_moves():
+    text = _flat(RESULTS / "hopper" / "README.md")
+    runs = pd.read_csv(RESULTS / "hopper" / "paper_physics.csv")
+    runs["worst"] = runs.worst_case_paper - runs.worst_case_v5
+    runs["average"] = runs.average_case_paper - runs.average_case_v5
+    cheetah = pd.read_csv(RESULTS / "halfcheetah" / "paper_physics.csv")
+    moved = (cheetah.average_case_paper - cheetah.average_case_v5).groupby(cheetah.algorithm)
+    assert moved.mean().abs().max() < 30  # "no algorithm's average case moved by 30 on average"
+    rising = runs[runs.algorithm.isin(["td3", "dr", "m2td3", "rarl"])]
+    assert (rising.average > 0).all()
+    top = rising.loc[rising.average.idxmax()]
+    assert f"(by up to {top.average:.0f}, DR seed {top.seed})" in text and top.algorithm == "dr"
+    nrmdp = runs[runs.algorithm == "nrmdp"]
+    falls = nrmdp[nrmdp.average < 0]
+    assert (
+        f"falls on {len(falls)} of NR-MDP's {len(nrmdp)} runs (by up to {-falls.average.min():.0f})"
+        in text
+    )
+    assert (runs[runs.algorithm.isin(["td3", "dr", "m2td3"])].worst > 0).all()
+    assert nrmdp.worst.abs().max() < 14  # "moves by less than 14 on every NR-MDP run"
+    block = text.split("<!-- generated:physics -->", 1)[1].split("<!-- /generated -->", 1)[0]
+    assert "v5 → the paper's physics**: the same order by mean" in block  # "the order stays"
+    assert block.count("the same order by mean") == 2
