@@ -478,3 +478,22 @@ def test_the_hopper_reading_of_what_the_paper_physics_moves():
     block = text.split("<!-- generated:physics -->", 1)[1].split("<!-- /generated -->", 1)[0]
     assert "v5 → the paper's physics**: the same order by mean" in block  # "the order stays"
     assert block.count("the same order by mean") == 2
+
+
+def test_the_hopper_reading_of_the_own_adversary_scores():
+    import json
+
+    text = _flat(RESULTS / "hopper" / "README.md")
+    paper = json.loads((ROOT / "rrls/report/paper_results.json").read_text())["dynamic"]
+    scores: dict[str, list[float]] = {}
+    average: dict[str, list[float]] = {}
+    for algo in ("rarl", "nrmdp"):
+        for run in sorted((RESULTS / "hopper" / "runs").glob(f"{algo}-*")):
+            scores.setdefault(algo, []).append(pd.read_csv(run / "dynamic.csv")["return"].mean())
+            result = json.loads((run / "result.json").read_text())
+            average.setdefault(algo, []).append(result["average_case"])
+    for algo, name in (("nrmdp", "NR-MDP scores"), ("rarl", "RARL")):
+        low, high = (f"{v:,.0f}".replace(",", " ") for v in (min(scores[algo]), max(scores[algo])))
+        mean, std = (f"{v:,.0f}".replace(",", " ") for v in paper[algo]["hopper"])
+        assert f"{name} {low} to {high}" in text and f"(the paper: {mean} ± {std}" in text
+    assert all(s < a for s, a in zip(scores["rarl"], average["rarl"]))  # "on every seed"
