@@ -424,11 +424,10 @@ def test_the_hopper_reading_of_its_worst_points_and_nominal_returns():
     robust = runs[runs.algorithm.isin(["dr", "m2td3"])]
     assert (robust.friction == runs.friction.min()).all() and runs.friction.min() == 0.1
     assert f"torso mass of {robust.torso.min():.2f} or more" in text
-    assert f"thigh mass of {robust.thigh.min():.2f} or more" in text
     from rrls.benchmark import benchfile
 
     mesh = benchfile.read_spec(RESULTS / "hopper").protocol.plan("hopper").points.max(axis=0)
-    assert f"(the mesh's largest: {mesh[1]:.2f} and {mesh[2]:.2f})" in text
+    assert f"(the mesh's largest: {mesh[1]:.2f})" in text
     others = runs[~runs.algorithm.isin(["dr", "m2td3"])]
     assert others.friction.nunique() > 1 and others.torso.nunique() > 1
     seed0 = runs[(runs.algorithm == "nrmdp") & (runs.seed == 0)].iloc[0]
