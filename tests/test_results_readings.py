@@ -370,15 +370,20 @@ def test_the_hopper_runs_commits_train_alike():
     assert sorted(c.strip("` ") for c in listed.replace(" and ", ", ").split(", ")) == sorted(every)
 
 
+def _hopper_mesh():
+    """The Hopper grid's mesh points, (1 000, 3): friction, torso mass, thigh mass."""
+    from rrls.benchmark import benchfile
+
+    return benchfile.read_spec(RESULTS / "hopper").protocol.plan("hopper").points
+
+
 def _hopper_runs() -> pd.DataFrame:
     """Per Hopper run: its scores, its final nominal return, its worst mesh point (where, whether
     every episode there fell, the longest of them) and how many points it survives everywhere."""
     import json
 
-    from rrls.benchmark import benchfile
-
     folder = RESULTS / "hopper"
-    points = benchfile.read_spec(folder).protocol.plan("hopper").points
+    points = _hopper_mesh()
     rows = []
     for run in sorted((folder / "runs").iterdir()):
         episodes = pd.read_parquet(run / "eval" / "episodes.parquet")
@@ -420,14 +425,11 @@ def test_the_hopper_reading_of_its_worst_points_and_nominal_returns():
     assert f"within {runs.longest.max()} of the 1 000 steps" in text
     assert f"within {int(runs.move.abs().max() + 1)} of the paper's statistic on every run" in text
     assert f"and within 10 on {int((runs.move.abs() <= 10).sum())} of the {n}" in text
-    # DR and M2TD3: lowest friction, heavy torso and thigh; the others spread
+    # DR and M2TD3: the lowest friction under a heavy torso; the others spread over the set
     robust = runs[runs.algorithm.isin(["dr", "m2td3"])]
     assert (robust.friction == runs.friction.min()).all() and runs.friction.min() == 0.1
     assert f"torso mass of {robust.torso.min():.2f} or more" in text
-    from rrls.benchmark import benchfile
-
-    mesh = benchfile.read_spec(RESULTS / "hopper").protocol.plan("hopper").points.max(axis=0)
-    assert f"(the mesh's largest: {mesh[1]:.2f})" in text
+    assert f"(the mesh's largest: {_hopper_mesh().max(axis=0)[1]:.2f})" in text
     others = runs[~runs.algorithm.isin(["dr", "m2td3"])]
     assert others.friction.nunique() > 1 and others.torso.nunique() > 1
     seed0 = runs[(runs.algorithm == "nrmdp") & (runs.seed == 0)].iloc[0]
