@@ -505,3 +505,30 @@ def test_the_hopper_reading_of_the_own_adversary_scores():
         mean, std = (f"{v:,.0f}".replace(",", " ") for v in paper[algo]["hopper"])
         assert f"{name} {low} to {high}" in text and f"(the paper: {mean} ± {std}" in text
     assert all(s < a for s, a in zip(scores["rarl"], average["rarl"]))  # "on every seed"
+
+
+def test_the_hopper_reading_of_what_survives_the_correction():
+    """From the shipped runs' values through the report's own pairwise test."""
+    from rrls.report.pairwise import pairwise
+
+    folder = RESULTS / "hopper"
+    text = _flat(folder / "README.md")
+    data = results_page.per_seed_so_far(folder)
+    algos = ("td3", "dr", "m2td3", "rarl", "nrmdp")
+    closest = {}
+    for metric in ("worst_case", "average_case"):
+        rows = pairwise({a: data[a][metric] for a in algos})
+        assert all(r["p_holm"] >= 0.05 for r in rows)  # "nothing yet"
+        closest[metric] = min(rows, key=lambda r: r["p_holm"])
+    worst, average = closest["worst_case"], closest["average_case"]
+    assert (worst["a"], worst["b"], worst["diff"] < 0) == ("td3", "m2td3", True)
+    assert (average["a"], average["b"], average["diff"] > 0) == ("dr", "nrmdp", True)
+    assert f"(Welch p = {worst['p']:.3f} on its own, {worst['p_holm']:.3f} after Holm's" in text
+    assert (
+        f"DR above NR-MDP ({average['p']:.3f} on its own, {average['p_holm']:.3f} corrected)"
+        in text
+    )
+    low, high = (f"{-x:,.0f}".replace(",", " ") for x in reversed(worst["ci95"]))
+    assert (
+        f"M2TD3 ahead of TD3 by {-worst['diff']:,.0f} (95 % Welch interval [{low}, {high}])" in text
+    )
