@@ -19,12 +19,21 @@ def _flat(path: Path) -> str:
     return " ".join(path.read_text().split())
 
 
+def _spaced(value: float, fmt: str = ",.0f") -> str:
+    """A number as the pages write it: thousands separated by a space (1 290)."""
+    return format(value, fmt).replace(",", " ")
+
+
 def _points(run: Path) -> pd.DataFrame:
-    """One row per mesh point of a run's final evaluation: its mean return, its shortest
-    episode and whether every episode there terminated early."""
+    """One row per mesh point of a run's final evaluation: its mean return, its episode count,
+    its shortest and longest episode and whether every episode there terminated early."""
     episodes = pd.read_parquet(run / "eval" / "episodes.parquet")
     return episodes.groupby("point").agg(
-        mean=("return", "mean"), shortest=("length", "min"), fell=("terminated", "all")
+        mean=("return", "mean"),
+        episodes=("return", "size"),
+        shortest=("length", "min"),
+        longest=("length", "max"),
+        fell=("terminated", "all"),
     )
 
 
@@ -115,12 +124,12 @@ def test_the_halfcheetah_reading_of_who_has_learned_to_run():
         result = json.loads((run / "result.json").read_text())
         assert result["dynamic_mean"] > _nominal_curve(run).iloc[-1], run.name
     dyn, avg = paper["dynamic"]["nrmdp"]["halfcheetah"], paper["raw_average_case"]["nrmdp"]
-    mean = f"{avg['halfcheetah'][0]:,.1f}".replace(",", " ")
+    mean = _spaced(avg["halfcheetah"][0], ",.1f")
     assert f"10 990 ± 474, its average case {mean} ± " in text
     assert dyn == [10990.0, 474.0]
     # "NR-MDP seed 3 scored 6 379, 4 037 and 3 420 in its last three"
     last = _nominal_curve(folder / "runs" / "nrmdp-halfcheetah-3d-seed3").iloc[-3:]
-    a, b, c = (f"{v:,.0f}".replace(",", " ") for v in last)
+    a, b, c = (_spaced(v) for v in last)
     assert f"NR-MDP seed 3 scored {a}, {b} and {c} in its last three" in text
 
 
@@ -313,8 +322,8 @@ def test_the_halfcheetah_reading_of_what_survives_the_correction():
         ("dr", "rarl"),
         ("dr", "nrmdp"),
     }
-    low, high = (f"{-x:,.0f}".replace(",", " ") for x in reversed(dr["ci95"]))
-    diff = f"{-dr['diff']:,.0f}".replace(",", " ")
+    low, high = (_spaced(-x) for x in reversed(dr["ci95"]))
+    diff = _spaced(-dr["diff"])
     assert f"DR ahead of TD3 by {diff} (95 % Welch interval [{low}, {high}])" in text
 
 
@@ -386,24 +395,18 @@ def _hopper_runs() -> pd.DataFrame:
     points = _hopper_mesh()
     rows = []
     for run in sorted((folder / "runs").iterdir()):
-        episodes = pd.read_parquet(run / "eval" / "episodes.parquet")
-        at = episodes.groupby("point").agg(
-            mean=("return", "mean"),
-            fell=("terminated", "all"),
-            longest=("length", "max"),
-            shortest=("length", "min"),
-        )
+        at = _points(run)
         worst = at["mean"].idxmin()
         result = json.loads((run / "result.json").read_text())
-        scalars = pd.read_csv(run / "scalars.csv")
-        nominal = scalars[scalars.metric == "eval/nominal_return"].value.iloc[-1]
         rows.append(
             {
                 "algorithm": result["algorithm"],
                 "seed": result["seed"],
                 "move": result["worst_case_rechecked"] - result["worst_case"],
+                "recheck": (result["recheck"]["worst"], result["recheck"]["episodes"]),
+                "episodes": int(at.episodes.min()),
                 "average": result["average_case"],
-                "nominal": nominal,
+                "nominal": _nominal_curve(run).iloc[-1],
                 "fell": bool(at.loc[worst, "fell"]),
                 "longest": int(at.loc[worst, "longest"]),
                 "friction": points[worst][0],
@@ -420,8 +423,10 @@ def test_the_hopper_reading_of_its_worst_points_and_nominal_returns():
     text = _flat(RESULTS / "hopper" / "README.md")
     n = len(runs)
     assert f"What the {n} runs shipped so far say" in text or f"What the {n} runs say" in text
-    # every worst point is a fall, early; the recheck moves it little
-    assert runs.fell.all()
+    # every worst point is a fall, early ("all 5 episodes"); the recheck ("20 fresh episodes at
+    # each run's 10 lowest points") moves it little
+    assert runs.fell.all() and (runs.episodes == 5).all()
+    assert set(runs.recheck) == {(10, 20)}
     assert f"within {runs.longest.max()} of the 1 000 steps" in text
     assert f"within {int(runs.move.abs().max() + 1)} of the paper's statistic on every run" in text
     assert f"and within 10 on {int((runs.move.abs() <= 10).sum())} of the {n}" in text
@@ -452,7 +457,7 @@ def test_the_hopper_reading_of_its_worst_points_and_nominal_returns():
     assert f"end between {on_set.min():.0f} and {on_set.max():.0f} on the nominal model" in text
     mean = runs.groupby("algorithm").average.mean()
     assert mean["dr"] > mean["td3"]
-    dr, td3 = (f"{mean[a]:,.0f}".replace(",", " ") for a in ("dr", "td3"))
+    dr, td3 = (_spaced(mean[a]) for a in ("dr", "td3"))
     assert f"mean average case over the set ({dr}) is above TD3's ({td3})" in text
 
 
@@ -492,19 +497,30 @@ def test_the_hopper_reading_of_the_own_adversary_scores():
     import json
 
     text = _flat(RESULTS / "hopper" / "README.md")
-    paper = json.loads((ROOT / "rrls/report/paper_results.json").read_text())["dynamic"]
+    published = json.loads((ROOT / "rrls/report/paper_results.json").read_text())
+    paper = published["dynamic"]
     scores: dict[str, list[float]] = {}
     average: dict[str, list[float]] = {}
     for algo in ("rarl", "nrmdp"):
         for run in sorted((RESULTS / "hopper" / "runs").glob(f"{algo}-*")):
-            scores.setdefault(algo, []).append(pd.read_csv(run / "dynamic.csv")["return"].mean())
+            dynamic = pd.read_csv(run / "dynamic.csv")["return"]
+            assert len(dynamic) == 10  # "10 episodes each"
+            scores.setdefault(algo, []).append(dynamic.mean())
             result = json.loads((run / "result.json").read_text())
             average.setdefault(algo, []).append(result["average_case"])
     for algo, name in (("nrmdp", "NR-MDP scores"), ("rarl", "RARL")):
-        low, high = (f"{v:,.0f}".replace(",", " ") for v in (min(scores[algo]), max(scores[algo])))
-        mean, std = (f"{v:,.0f}".replace(",", " ") for v in paper[algo]["hopper"])
+        low, high = (_spaced(v) for v in (min(scores[algo]), max(scores[algo])))
+        mean, std = (_spaced(v) for v in paper[algo]["hopper"])
         assert f"{name} {low} to {high}" in text and f"(the paper: {mean} ± {std}" in text
     assert all(s < a for s, a in zip(scores["rarl"], average["rarl"]))  # "on every seed"
+    # beside the paper's numbers: this grid's budget, physics and seeds, and the paper's
+    steps = json.loads((RESULTS / "hopper" / "benchmark.json").read_text())["steps"]
+    seeds = {len(v) for v in scores.values()}
+    assert len(seeds) == 1 and (published["steps"], published["seeds"]) == (5_000_000, 10)
+    assert (
+        f"here {steps // 1000} k steps on rrls's v5 physics, {seeds.pop()} seeds each" in text
+        and "at 5 M steps over 10 seeds on the original's physics" in text
+    )
 
 
 def test_the_hopper_reading_of_what_survives_the_correction():
@@ -528,7 +544,6 @@ def test_the_hopper_reading_of_what_survives_the_correction():
         f"DR above NR-MDP ({average['p']:.3f} on its own, {average['p_holm']:.3f} corrected)"
         in text
     )
-    low, high = (f"{-x:,.0f}".replace(",", " ") for x in reversed(worst["ci95"]))
-    assert (
-        f"M2TD3 ahead of TD3 by {-worst['diff']:,.0f} (95 % Welch interval [{low}, {high}])" in text
-    )
+    low, high = (_spaced(-x) for x in reversed(worst["ci95"]))
+    ahead = _spaced(-worst["diff"])
+    assert f"M2TD3 ahead of TD3 by {ahead} (95 % Welch interval [{low}, {high}])" in text
