@@ -495,6 +495,39 @@ def test_the_hopper_reading_of_what_the_paper_physics_moves():
     assert "The average case's order by mean stays; in the worst case DR" in text
 
 
+def test_the_hopper_sentence_under_the_paper_block_is_the_physics_files():
+    """What the paper's physics changes in the verdicts beside the paper's row, read from
+    paper_physics.csv through the same Welch + Holm test as the blocks."""
+    import page_checks
+
+    from rrls.report.writer import paper_results
+
+    folder = RESULTS / "hopper"
+    text = _flat(folder / "README.md")
+    data = page_checks.read_physics(folder / "paper_physics.csv")
+    paper = paper_results()
+
+    def phrase(metric: str, physics: str) -> str:
+        gained = page_checks.resolved({a: by[f"{metric}_{physics}"] for a, by in data.items()})
+        published = {a: v["hopper"][0] for a, v in paper[f"raw_{metric}"].items()}
+        assert all(published[a] > published[b] for a, b in gained)  # each the paper's way
+        label = metric.replace("_case", "-case")
+        if not gained:
+            return f"none of the paper's {label} orderings"
+        names = [f"{display_name(a)} > {display_name(b)}" for a, b in gained]
+        listed = names[0] if len(names) == 1 else ", ".join(names[:-1]) + " and " + names[-1]
+        return f"{len(gained)} of the paper's {label} orderings ({listed})"
+
+    runs = pd.read_csv(folder / "paper_physics.csv")
+    for metric in ("worst_case", "average_case"):  # "score higher on most runs"
+        assert (runs[f"{metric}_paper"] > runs[f"{metric}_v5"]).mean() > 0.5
+    assert (
+        "score higher on most runs, and there the corrected test reproduces "
+        f"{phrase('average_case', 'paper')} and {phrase('worst_case', 'paper')}; on rrls's "
+        f"physics it reproduces {phrase('average_case', 'v5')} and {phrase('worst_case', 'v5')}"
+    ) in text
+
+
 def test_the_hopper_reading_of_the_own_adversary_scores():
     import json
 
