@@ -21,7 +21,7 @@ pytestmark = pytest.mark.e2e  # rrls report over two shipped references: a long 
 RESULTS = Path(__file__).resolve().parent.parent / "docs" / "results"
 TASKS = ("halfcheetah", "hopper")
 #: each task's shipped reference folder
-FOLDERS = {"halfcheetah": "halfcheetah", "hopper": "hopper-200k"}
+FOLDERS = {"halfcheetah": "halfcheetah", "hopper": "hopper"}
 
 
 def _copy(name: str, dest: Path) -> Path:
@@ -142,3 +142,14 @@ def test_the_shipped_cross_task_report_is_the_commands(joined_report: dict) -> N
             pd.read_csv(RESULTS / "cross-task" / "tables" / f"{name}.csv"),
             pd.read_csv(joined_report["report"] / "tables" / f"{name}.csv"),
         )
+
+
+def test_the_cross_task_page_says_which_scores_normalise() -> None:
+    """The page's "§ on both tasks" and "the worst case normalises on both" are the report's."""
+    shipped = json.loads((RESULTS / "cross-task" / "summary.json").read_text())
+    page = " ".join((RESULTS / "cross-task" / "README.md").read_text().split())
+    unstable = {(u["task"], u["metric"]) for u in shipped["unstable"]}
+    tasks = set(shipped["tasks"])
+    assert unstable == {(task, "average_case") for task in tasks} and len(tasks) == 2
+    assert "The average case carries § on both tasks" in page
+    assert "The worst case normalises on both." in page

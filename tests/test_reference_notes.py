@@ -14,7 +14,7 @@ from rrls.rundir import read_run_json
 ROOT = Path(__file__).resolve().parent.parent
 
 
-@pytest.mark.parametrize("task", ["halfcheetah", "hopper-200k"])
+@pytest.mark.parametrize("task", ["halfcheetah", "hopper-200k", "hopper"])
 def test_reference_notes_state_physics_versions_and_m2td3_share(task: str) -> None:
     ref = load_reference(ROOT / "rrls" / "report" / f"{task.replace('-', '_')}_reference.json")
     assert "reduced budget" in ref.label

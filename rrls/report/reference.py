@@ -59,6 +59,7 @@ SHIPPED = {
     "quick": "quick_reference.json",
     "hopper-200k": "hopper_200k_reference.json",
     "halfcheetah": "halfcheetah_reference.json",
+    "hopper": "hopper_reference.json",
 }
 _META = ("label", "physics", "mesh", "episodes", "endpoint", "steps", "eval_seed")
 VERSION_KEYS = ("rrls", "gymnasium", "mujoco")
