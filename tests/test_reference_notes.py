@@ -18,6 +18,7 @@ ROOT = Path(__file__).resolve().parent.parent
 def test_reference_notes_state_physics_versions_and_m2td3_share(task: str) -> None:
     ref = load_reference(ROOT / "rrls" / "report" / f"{task.replace('-', '_')}_reference.json")
     assert "reduced budget" in ref.label
+    assert "\\" not in ref.notes  # plain text: no escape a shell or a format left behind
     runs = [read_run_json(p) for p in (ROOT / "docs/results" / task).glob("runs/*")]
     mujoco = {r["versions"]["mujoco"] for r in runs}
     gymnasium = {r["versions"]["gymnasium"] for r in runs}
@@ -65,7 +66,7 @@ def test_the_physics_sections_count_is_the_files(task: str) -> None:
     assert cost in " ".join(page.split()), cost
 
 
-@pytest.mark.parametrize("task", ["halfcheetah", "hopper-200k"])
+@pytest.mark.parametrize("task", ["halfcheetah", "hopper-200k", "hopper"])
 def test_the_physics_sections_summary_is_the_files(task: str) -> None:
     """Where a page says every mean worst case rises on the paper's physics, by how much is
     read from paper_physics.csv (per algorithm: the mean over its runs of paper minus v5)."""
@@ -85,7 +86,7 @@ def test_the_physics_sections_summary_is_the_files(task: str) -> None:
     assert f"(by {min(means):.0f} to {max(means):.0f})" in page
 
 
-@pytest.mark.parametrize("task", ["halfcheetah", "hopper-200k"])
+@pytest.mark.parametrize("task", ["halfcheetah", "hopper-200k", "hopper"])
 def test_a_page_that_says_no_physics_change_is_resolved_has_none(task: str) -> None:
     """The words "every paired interval holds 0" are read from paper_physics.csv: per algorithm and
     statistic, the paired 95 % interval of paper minus v5 (SciPy's ``ttest_rel``)."""
