@@ -597,6 +597,11 @@ def test_the_hopper_reading_of_what_survives_the_correction():
         f"{display_name(above)} above {display_name(below)} ({average['p']:.3f} on its own, "
         f"{average['p_holm']:.3f} corrected)" in text
     )
+    # the disjoint-interval line (generated from the same values) reproduces that pair
+    disjoint = "**average case**, by disjoint 95 % intervals: reproduced (1): "
+    said = f"{display_name(above)} above {display_name(below)}"
+    reproduced = f"{disjoint}{display_name(above)} > {display_name(below)};" in text
+    assert reproduced == ("corrected), whose 95 % intervals are disjoint" in text), said
     low, high = (_spaced(-x) for x in reversed(worst["ci95"]))
     ahead = _spaced(-worst["diff"])
     assert f"M2TD3 ahead of TD3 by {ahead} (95 % Welch interval [{low}, {high}])" in text
