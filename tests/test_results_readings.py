@@ -542,6 +542,30 @@ def test_the_hopper_sentence_under_the_paper_block_is_the_physics_files():
     ) in text
 
 
+def test_the_hopper_reading_of_the_heavy_end_of_the_set():
+    """Per run, the return averaged over the other two parameters at the set's heaviest and
+    lightest torso (and thigh) mass of the mesh, as the page's figure draws it."""
+    text = _flat(RESULTS / "hopper" / "README.md")
+    mesh = _hopper_mesh()
+    more: dict[str, dict[str, int]] = {}
+    for run in sorted((RESULTS / "hopper" / "runs").iterdir()):
+        means = _points(run)["mean"].to_numpy()
+        algo = run.name.split("-")[0]
+        for dim, name in ((1, "torso"), (2, "thigh")):
+            curve = pd.Series(means).groupby(mesh[:, dim]).mean()
+            more.setdefault(name, {}).setdefault(algo, 0)
+            more[name][algo] += int(curve.iloc[-1] > curve.iloc[0])
+    heaviest = {name: f"{mesh[:, dim].max():.2f}" for dim, name in ((1, "torso"), (2, "thigh"))}
+    assert f"heaviest torso mass ({heaviest['torso']}) than at its lightest (0.1)" in text
+    assert f"at the heaviest thigh mass ({heaviest['thigh']}) against the lightest" in text
+    for name in ("torso", "thigh"):
+        assert more[name]["td3"] == 5 and more[name]["nrmdp"] == 4  # "every TD3 seed and 4 of 5"
+        assert more[name]["dr"] == more[name]["m2td3"] == 0  # "every DR and M2TD3 seed less"
+        assert more[name]["rarl"] == 1  # "RARL's seeds split (1 of 5 more on each)"
+    assert "every TD3 seed and 4 of NR-MDP's 5 score more" in text
+    assert "(TD3 5 of 5, NR-MDP 4 of 5; DR and M2TD3 none). RARL's seeds split (1 of 5" in text
+
+
 def test_the_hopper_reading_of_the_own_adversary_scores():
     import json
 
