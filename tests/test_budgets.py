@@ -7,6 +7,7 @@ from __future__ import annotations
 import argparse
 import json
 import re
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -65,6 +66,7 @@ def test_submit_records_the_declared_budget_and_the_report_marks_a_different_one
     build_store(bench)
     text = make_report(bench, plots=False).read_text()
     assert "## Budgets" in text and "this benchmark's protocol: 300." in text
+    assert "300 training steps per run trained here (other sources: Budgets below)" in text
     assert "| same (submitted) | 300 | – | declared by submitter |" in text
     assert "| short (submitted)‡ | 200 | gpu hours 2 | declared by submitter; **differs** |" in text
     assert "| silent (submitted)‡ | not stated | – | declared by nobody; **differs** |" in text
@@ -72,3 +74,14 @@ def test_submit_records_the_declared_budget_and_the_report_marks_a_different_one
     tex = (bench / "report" / "tables" / "raw_worst_case.tex").read_text()
     assert "short (submitted)$^{\\ddagger}$ &" in tex
     assert "$^{\\ddagger}$ another training budget" in tex  # the caption says what it means
+
+
+def test_a_report_points_to_budgets_only_where_it_has_them():
+    """A report without other sources (submitted runs, a reference) has no Budgets section, and
+    its opening line does not point to one: each shipped report, as its writer made it."""
+    root = Path(__file__).resolve().parent.parent / "docs" / "results"
+    reports = sorted(root.rglob("report.md"))
+    assert len(reports) >= 5
+    for report in reports:
+        text = report.read_text()
+        assert ("Budgets below" in text) == ("## Budgets" in text), report

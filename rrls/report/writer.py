@@ -256,9 +256,10 @@ def _markdown(
             "seeds and episodes under Sources below"
         )
     elif spec:
+        elsewhere = " (other sources: Budgets below)" if budget_lines(summary) else ""
         lines += [
             f"- preset `{spec.get('preset')}`: {_counts(summary)}, {spec['steps']:,} "
-            f"training steps per run trained here (other sources: Budgets below), set "
+            f"training steps per run trained here{elsewhere}, set "
             f"`{spec['uncertainty']}`, mesh {spec['mesh']} per "
             f"dimension × {spec['episodes']} episodes, dynamic evaluation "
             f"{spec['dynamic_episodes']} episodes",
