@@ -626,3 +626,29 @@ def test_the_hopper_reading_of_what_survives_the_correction():
     low, high = (_spaced(-x) for x in reversed(worst["ci95"]))
     ahead = _spaced(-worst["diff"])
     assert f"M2TD3 ahead of TD3 by {ahead} (95 % Welch interval [{low}, {high}])" in text
+
+
+def test_the_evaluation_docs_examples_of_the_recheck_are_the_shipped_runs():
+    """docs/evaluation.md's "when they disagree" and "when the two agree", from the references'
+    result.json files."""
+    import json
+
+    text = _flat(ROOT / "docs" / "evaluation.md")
+    dr = [
+        json.loads((run / "result.json").read_text())
+        for run in sorted((RESULTS / "halfcheetah" / "runs").glob("dr-*"))
+    ]
+    assert len(dr) == 5
+    rechecked = sum(r["worst_case_rechecked"] for r in dr) / 5
+    minimum = sum(r["worst_case"] for r in dr) / 5
+    said = f"is {_spaced(rechecked)} against a mean minimum of {_spaced(minimum)}"
+    assert rechecked - minimum > 300 and said in text
+    moves = [
+        abs(r["worst_case_rechecked"] - r["worst_case"])
+        for r in (
+            json.loads((run / "result.json").read_text())
+            for run in (RESULTS / "hopper" / "runs").iterdir()
+        )
+    ]
+    assert len(moves) == 25 and max(moves) < 43 <= max(moves) + 1
+    assert "no run's recheck moves by 43 or more" in text
