@@ -3,6 +3,7 @@ and each run's mesh points and nominal curve read from its files."""
 
 from __future__ import annotations
 
+import json
 from pathlib import Path
 
 import pandas as pd
@@ -19,6 +20,11 @@ def flat(path: Path) -> str:
 def spaced(value: float, fmt: str = ",.0f") -> str:
     """A number as the pages write it: thousands separated by a space (1 290)."""
     return format(value, fmt).replace(",", " ")
+
+
+def results(folder: Path) -> list[dict]:
+    """Each shipped run's ``result.json`` in a results folder, in run-name order."""
+    return [json.loads(p.read_text()) for p in sorted(folder.glob("runs/*/result.json"))]
 
 
 def mesh_points(run: Path) -> pd.DataFrame:

@@ -47,7 +47,8 @@ def _hopper_mesh():
 
 def _hopper_runs() -> pd.DataFrame:
     """Per Hopper run: its scores, its final nominal return, its worst mesh point (where, whether
-    every episode there fell, the longest of them) and how many points it survives everywhere."""
+    every episode there fell, the longest of them), how many points it survives everywhere, and
+    whether it scores more at the set's heaviest torso (thigh) mass than at its lightest."""
     import json
 
     folder = RESULTS / "hopper"
@@ -56,6 +57,10 @@ def _hopper_runs() -> pd.DataFrame:
     for run in sorted((folder / "runs").iterdir()):
         at = mesh_points(run)
         worst = at["mean"].idxmin()
+        heavier = {}  # the return at the set's heaviest against its lightest torso (thigh) mass,
+        for dim, name in ((1, "torso"), (2, "thigh")):  # the other two averaged: the figure
+            curve = pd.Series(at["mean"].to_numpy()).groupby(points[:, dim]).mean()
+            heavier[f"heavier_{name}"] = bool(curve.iloc[-1] > curve.iloc[0])
         result = json.loads((run / "result.json").read_text())
         rows.append(
             {
@@ -72,6 +77,7 @@ def _hopper_runs() -> pd.DataFrame:
                 "torso": points[worst][1],
                 "thigh": points[worst][2],
                 "survived": int((at.shortest >= 1000).sum()),
+                **heavier,
             }
         )
     return pd.DataFrame(rows)
@@ -204,14 +210,8 @@ def test_the_hopper_reading_of_the_heavy_end_of_the_set():
     lightest torso (and thigh) mass of the mesh, as the page's figure draws it."""
     text = flat(RESULTS / "hopper" / "README.md")
     mesh = _hopper_mesh()
-    more: dict[str, dict[str, int]] = {}
-    for run in sorted((RESULTS / "hopper" / "runs").iterdir()):
-        means = mesh_points(run)["mean"].to_numpy()
-        algo = run.name.split("-")[0]
-        for dim, name in ((1, "torso"), (2, "thigh")):
-            curve = pd.Series(means).groupby(mesh[:, dim]).mean()
-            more.setdefault(name, {}).setdefault(algo, 0)
-            more[name][algo] += int(curve.iloc[-1] > curve.iloc[0])
+    heavier = _hopper_runs().groupby("algorithm")[["heavier_torso", "heavier_thigh"]].sum()
+    more = {name: heavier[f"heavier_{name}"] for name in ("torso", "thigh")}
     heaviest = {name: f"{mesh[:, dim].max():.2f}" for dim, name in ((1, "torso"), (2, "thigh"))}
     assert f"heaviest torso mass ({heaviest['torso']}) than at its lightest (0.1)" in text
     assert f"at the heaviest thigh mass ({heaviest['thigh']}) against the lightest" in text
@@ -230,14 +230,14 @@ def test_the_hopper_reading_of_the_own_adversary_scores():
     published = json.loads((ROOT / "rrls/report/paper_results.json").read_text())
     paper = published["dynamic"]
     scores: dict[str, list[float]] = {}
-    average: dict[str, list[float]] = {}
     for algo in ("rarl", "nrmdp"):
         for run in sorted((RESULTS / "hopper" / "runs").glob(f"{algo}-*")):
             dynamic = pd.read_csv(run / "dynamic.csv")["return"]
             assert len(dynamic) == 10  # "10 episodes each"
             scores.setdefault(algo, []).append(dynamic.mean())
-            result = json.loads((run / "result.json").read_text())
-            average.setdefault(algo, []).append(result["average_case"])
+    average = {
+        a: v["average_case"] for a, v in results_page.per_seed_so_far(RESULTS / "hopper").items()
+    }
     for algo, name in (("nrmdp", "NR-MDP scores"), ("rarl", "RARL")):
         low, high = (spaced(v) for v in (min(scores[algo]), max(scores[algo])))
         mean, std = (spaced(v) for v in paper[algo]["hopper"])

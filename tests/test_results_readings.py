@@ -7,7 +7,7 @@ import sys
 from pathlib import Path
 
 import pandas as pd
-from reading_helpers import RESULTS, ROOT, flat, mesh_points, nominal_curve, spaced
+from reading_helpers import RESULTS, ROOT, flat, mesh_points, nominal_curve, results, spaced
 
 sys.path.insert(0, str(ROOT / "benchmarks"))
 
@@ -330,24 +330,13 @@ def test_the_halfcheetah_reading_of_the_rechecked_worst_case():
 def test_the_evaluation_docs_examples_of_the_recheck_are_the_shipped_runs():
     """docs/evaluation.md's "when they disagree" and "when the two agree", from the references'
     result.json files."""
-    import json
-
     text = flat(ROOT / "docs" / "evaluation.md")
-    dr = [
-        json.loads((run / "result.json").read_text())
-        for run in sorted((RESULTS / "halfcheetah" / "runs").glob("dr-*"))
-    ]
+    dr = [r for r in results(RESULTS / "halfcheetah") if r["algorithm"] == "dr"]
     assert len(dr) == 5
     rechecked = sum(r["worst_case_rechecked"] for r in dr) / 5
     minimum = sum(r["worst_case"] for r in dr) / 5
     said = f"is {spaced(rechecked)} against a mean minimum of {spaced(minimum)}"
     assert rechecked - minimum > 300 and said in text
-    moves = [
-        abs(r["worst_case_rechecked"] - r["worst_case"])
-        for r in (
-            json.loads((run / "result.json").read_text())
-            for run in (RESULTS / "hopper" / "runs").iterdir()
-        )
-    ]
+    moves = [abs(r["worst_case_rechecked"] - r["worst_case"]) for r in results(RESULTS / "hopper")]
     assert len(moves) == 25 and max(moves) < 43 <= max(moves) + 1
     assert "no run's recheck moves by 43 or more" in text

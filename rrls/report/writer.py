@@ -249,6 +249,7 @@ def _markdown(
     spec = summary.get("benchmark") or {}
     lines = ["# rrls benchmark report", ""]
     by_task = spec.get("by_task") or {}
+    budgets = budget_lines(summary)  # a section only where other sources have budgets
     if by_task:  # several benchmarks joined (rrls.report.crosstask): per task below
         lines.append(
             f"- {len(by_task)} benchmarks joined, one per task: {_counts(summary)}, set "
@@ -256,7 +257,7 @@ def _markdown(
             "seeds and episodes under Sources below"
         )
     elif spec:
-        elsewhere = " (other sources: Budgets below)" if budget_lines(summary) else ""
+        elsewhere = " (other sources: Budgets below)" if budgets else ""
         lines += [
             f"- preset `{spec.get('preset')}`: {_counts(summary)}, {spec['steps']:,} "
             f"training steps per run trained here{elsewhere}, set "
@@ -298,7 +299,7 @@ def _markdown(
     )
     lines.append("")
     lines += sources_lines(spec)
-    lines += budget_lines(summary)
+    lines += budgets
     if summary["missing"]:
         lines += ["## Missing cells", ""] + [f"- {m}" for m in summary["missing"]] + [""]
     lines += _normalisation_lines(summary)
