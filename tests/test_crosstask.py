@@ -15,6 +15,7 @@ from rrls.benchmark.benchfile import read_spec, stored_fingerprints
 from rrls.benchmark.store import build_store
 from rrls.cli.app import main
 from rrls.report.crosstask import joined
+from rrls.report.writer import paper_results
 
 pytestmark = pytest.mark.e2e  # rrls report over two shipped references: a long run
 
@@ -153,3 +154,7 @@ def test_the_cross_task_page_says_which_scores_normalise() -> None:
     assert unstable == {(task, "average_case") for task in tasks} and len(tasks) == 2
     assert "The average case carries § on both tasks" in page
     assert "The worst case normalises on both." in page
+    names = paper_results()["task_names"]
+    for task, folder in FOLDERS.items():  # "(300 k steps, ...)": each reference's own budget
+        steps = read_spec(RESULTS / folder).steps // 1000
+        assert f"[{names[task]} reference](../{folder}/README.md) ({steps} k steps" in page

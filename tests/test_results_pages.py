@@ -82,7 +82,7 @@ def test_a_hopper_page_states_the_papers_nominal_values_and_what_its_set_leaves_
 def test_a_page_beside_the_paper_states_its_budget_seeds_and_physics(name):
     """What the page compares with the paper's row is stated in its opening, read from its
     benchmark.json and the paper's protocol: steps, seeds and rrls's physics against the
-    paper's; the Hopper grid in progress states them again beside its table."""
+    paper's, and the grid's runs; the Hopper page states them again beside its table."""
     import json
 
     from rrls.benchmark.grid import make_spec
@@ -97,11 +97,16 @@ def test_a_page_beside_the_paper_states_its_budget_seeds_and_physics(name):
     stated = f"{steps} k of the paper's {paper.steps // 1_000_000} M steps, {seeds} of its"
     assert f"{stated} {len(paper.seeds)} seeds" in opening
     assert "at a reduced budget on rrls's physics" in opening
+    runs = len(list(folder.glob("runs/*/result.json")))
+    flat = " ".join(text.split())
+    assert runs == seeds * len(spec["algos"]) and len(spec["algos"]) == 5
+    assert f"The grid is complete: {seeds} seeds of each of the five baselines" in flat
+    assert f"hold all {runs} runs" in flat
     if name == "hopper":
         section = " ".join(text.split("## Beside the paper's", 1)[1].split("<!--", 1)[0].split())
-        complete = (folder / "tables" / "per_run.csv").is_file()  # its report: all runs in
-        said = f"{seeds} seeds{'' if complete else ' when complete'}"
-        assert f"({steps} k steps, {said}, rrls's v5 physics)" in section
+        assert f"({steps} k steps, {seeds} seeds, rrls's v5 physics)" in section
+        assert f"interval over the {seeds} seeds" in section
+        assert f"At {seeds} seeds an interval is still wide" in section
         assert f"over its {len(paper.seeds)} seeds at {paper.steps // 1_000_000} M steps" in section
 
 
